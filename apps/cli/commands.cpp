@@ -1,0 +1,74 @@
+#include "commands.hpp"
+
+#include <cstdio>
+#include <sstream>
+
+namespace csrbf::cli {
+
+namespace {
+nlohmann::json profile_json(const Profile& p) { return {{"bandwidth", p.bandwidth}, {"envelope_entries", p.envelope}}; }
+double us(double s) { return s * 1e6; }
+}  // namespace
+
+nlohmann::json stats_json(const SpaceMap& map) {
+  const FitStats& s = map.stats();
+  nlohmann::json j;
+  j["controls"] = s.controls;
+  j["radius"] = map.radius();
+  j["kernel"] = std::string(kernel_name(map.kernel()));
+  j["polynomial"] = std::string(polynomial_name(map.polynomial()));
+  j["neighbor_pairs"] = s.neighbor_pairs;
+  j["mean_neighbors"] = s.mean_neighbors;
+  j["ordering"] = std::string(ordering_name(s.ordering));
+  j["orderings"] = {{"identity", profile_json(s.identity)},
+                    {"breadth_first", profile_json(s.breadth_first)},
+                    {"reverse_breadth_first", profile_json(s.reverse_breadth_first)},
+                    {"reverse_cuthill_mckee", profile_json(s.reverse_cuthill_mckee)}};
+  j["bandwidth"] = s.bandwidth;
+  j["envelope_entries"] = s.envelope_entries;
+  j["envelope_bytes"] = s.envelope_bytes;
+  j["dense_bytes"] = s.dense_bytes;
+  j["residual_max"] = s.residual_max;
+  j["residual_relative"] = s.residual_relative;
+  j["time_us"] = {{"index", us(s.seconds_index)},           {"graph", us(s.seconds_graph)},
+                  {"ordering", us(s.seconds_ordering)},     {"assembly", us(s.seconds_assembly)},
+                  {"factorization", us(s.seconds_factorization)}, {"solve", us(s.seconds_solve)},
+                  {"residual", us(s.seconds_residual)},     {"total", us(s.seconds_total())}};
+  return j;
+}
+
+std::string stats_text(const SpaceMap& map) {
+  const FitStats& s = map.stats();
+  std::ostringstream o;
+  char buf[256];
+  auto line = [&](const char* name, const std::string& value) {
+    std::snprintf(buf, sizeof buf, "%-18s %s\n", name, value.c_str());
+    o << buf;
+  };
+  auto fmt = [&](const char* f, auto... v) {
+    std::snprintf(buf, sizeof buf, f, v...);
+    return std::string(buf);
+  };
+  line("controls", std::to_string(s.controls));
+  line("radius", fmt("%g", map.radius()));
+  line("kernel", std::string(kernel_name(map.kernel())));
+  line("polynomial", std::string(polynomial_name(map.polynomial())));
+  line("neighbours", fmt("%zu pairs, %.2f per control", s.neighbor_pairs, s.mean_neighbors));
+  line("ordering", std::string(ordering_name(s.ordering)));
+  line("bandwidth", fmt("%zu  (identity %zu, breadth-first %zu, reverse breadth-first %zu, rcm %zu)", s.bandwidth,
+                        s.identity.bandwidth, s.breadth_first.bandwidth, s.reverse_breadth_first.bandwidth,
+                        s.reverse_cuthill_mckee.bandwidth));
+  line("envelope entries", fmt("%zu  (identity %zu, breadth-first %zu, reverse breadth-first %zu, rcm %zu)",
+                               s.envelope_entries, s.identity.envelope, s.breadth_first.envelope,
+                               s.reverse_breadth_first.envelope, s.reverse_cuthill_mckee.envelope));
+  line("envelope bytes", fmt("%zu  (dense %zu, %.1f%%; 4-byte floats as in the paper)", s.envelope_bytes, s.dense_bytes,
+                             100.0 * double(s.envelope_bytes) / double(s.dense_bytes)));
+  line("residual", fmt("%.3g max, %.3g relative", s.residual_max, s.residual_relative));
+  line("time (us)", fmt("index %.1f, graph %.1f, ordering %.1f, assembly %.1f, factorization %.1f, solve %.1f, "
+                        "residual %.1f, total %.1f",
+                        us(s.seconds_index), us(s.seconds_graph), us(s.seconds_ordering), us(s.seconds_assembly),
+                        us(s.seconds_factorization), us(s.seconds_solve), us(s.seconds_residual), us(s.seconds_total())));
+  return o.str();
+}
+
+}  // namespace csrbf::cli

@@ -1,0 +1,16 @@
+#pragma once
+
+#include "csrbf/space_map.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+namespace csrbf::cli {
+
+/// The stats of a fit as JSON (keys named as in FitStats; times in microseconds).
+nlohmann::json stats_json(const SpaceMap& map);
+/// The stats as aligned "name  value" lines.
+std::string stats_text(const SpaceMap& map);
+
+}  // namespace csrbf::cli

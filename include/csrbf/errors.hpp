@@ -1,0 +1,37 @@
+// Exceptions for bad input to the core. Each message names the offending value and where it came
+// from (the index of the control point, the option); callers add file names and line numbers.
+#pragma once
+
+#include <cstddef>
+#include <stdexcept>
+#include <string>
+
+namespace csrbf {
+
+/// Bad input: sizes, non-finite numbers, a radius <= 0, an unknown name.
+class InvalidInput : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+/// Two control sources at the same position (the interpolation matrix would be singular).
+/// first() < second() are their indices in the input.
+class DuplicateSource : public InvalidInput {
+ public:
+  DuplicateSource(std::size_t first, std::size_t second, const std::string& message)
+      : InvalidInput(message), first_(first), second_(second) {}
+  std::size_t first() const noexcept { return first_; }
+  std::size_t second() const noexcept { return second_; }
+
+ private:
+  std::size_t first_, second_;
+};
+
+/// The polynomial part cannot be determined by the sources: too few of them, or all coplanar or
+/// collinear for a linear polynomial.
+class DegeneratePolynomial : public InvalidInput {
+ public:
+  using InvalidInput::InvalidInput;
+};
+
+}  // namespace csrbf

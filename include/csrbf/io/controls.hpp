@@ -1,0 +1,34 @@
+// Controls text: one control vector a line, "sx sy sz dx dy dz" (source, then destination);
+// "#" starts a comment; blank lines are allowed.
+#pragma once
+
+#include "csrbf/io/error.hpp"
+#include "csrbf/neighbor_index.hpp"
+
+#include <filesystem>
+#include <istream>
+#include <string>
+#include <vector>
+
+namespace csrbf::io {
+
+struct Controls {
+  std::vector<Vec3> sources, destinations;
+  std::vector<int> lines;             ///< 1-based line of each control in its file
+  std::vector<std::string> warnings;  ///< e.g. exact duplicates that were merged
+  std::string name;                   ///< the file name, for messages
+};
+
+/// Parses controls; `name` is used in messages ("name:line: ..."). Exact duplicates (same source and
+/// destination) are merged with a warning; the same source with another destination, a malformed
+/// line, a non-finite number or no controls at all throw FileError.
+Controls parse_controls(std::istream& in, const std::string& name);
+Controls read_controls(const std::filesystem::path& path);
+/// Writes controls atomically (temporary file, then rename).
+void write_controls(const std::filesystem::path& path, const std::vector<Vec3>& sources,
+                    const std::vector<Vec3>& destinations);
+
+/// Shortest text that reads back as exactly the same double.
+std::string format_number(double v);
+
+}  // namespace csrbf::io

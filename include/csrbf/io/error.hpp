@@ -1,0 +1,15 @@
+#pragma once
+
+#include <stdexcept>
+#include <string>
+
+namespace csrbf::io {
+
+/// A file could not be read or written, or its contents are malformed. The message names the
+/// file (and the line or field where there is one) and the offending text or value.
+class FileError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+}  // namespace csrbf::io

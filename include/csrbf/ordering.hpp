@@ -1,0 +1,72 @@
+// Orderings of the control points that make the CSRBF matrix A band-diagonal, and the profile
+// (bandwidth, envelope) they give.
+//
+// The paper's Figure 3 is a breadth-first sort of the neighbour graph: the first unsorted point
+// starts a level, each sorted point in turn appends its unsorted neighbours. It is the Cuthill-McKee
+// scheme without the degree sort (George & Liu 1981, ch. 4); reversing it (RCM) never enlarges the
+// envelope of a Cuthill-McKee order and usually shrinks it.
+#pragma once
+
+#include "csrbf/neighbor_index.hpp"
+
+#include <cstdint>
+#include <span>
+#include <string_view>
+#include <optional>
+#include <vector>
+
+namespace csrbf {
+
+/// Symmetric neighbour graph of a point set in compressed-row form: the neighbours of i (every j != i
+/// with ||x_i - x_j|| < R) are neighbors[offsets[i] .. offsets[i+1]), ascending, with the squared
+/// distances alongside in dist2.
+struct AdjacencyGraph {
+  std::vector<std::size_t> offsets{0};
+  std::vector<std::uint32_t> neighbors;
+  std::vector<double> dist2;
+
+  std::size_t size() const noexcept { return offsets.size() - 1; }
+  std::size_t degree(std::size_t i) const noexcept { return offsets[i + 1] - offsets[i]; }
+  std::span<const std::uint32_t> neighbors_of(std::size_t i) const noexcept {
+    return {neighbors.data() + offsets[i], degree(i)};
+  }
+  std::span<const double> dist2_of(std::size_t i) const noexcept { return {dist2.data() + offsets[i], degree(i)}; }
+
+  /// Builds the graph of points through the index (which must have been built over the same points).
+  static AdjacencyGraph from_index(const NeighborIndex& index, std::span<const Vec3> points);
+};
+
+enum class Ordering {
+  Identity,             ///< input order
+  BreadthFirst,         ///< paper Figure 3
+  ReverseBreadthFirst,  ///< Figure 3 reversed
+  ReverseCuthillMcKee,  ///< George & Liu's RCM: pseudo-peripheral start, neighbours by degree, reversed
+  Auto,                 ///< the smallest envelope of the four (ties: RCM, reverse, forward, identity)
+};
+std::string_view ordering_name(Ordering o) noexcept;
+std::optional<Ordering> parse_ordering(std::string_view name) noexcept;
+
+/// order[k] = index of the point placed at position k.
+std::vector<std::uint32_t> breadth_first_order(const AdjacencyGraph& g);
+/// Reverse Cuthill-McKee (George & Liu 1981, sections 4.3-4.4): each component starts at a
+/// pseudo-peripheral node, neighbours are appended by ascending degree, and the result is reversed.
+std::vector<std::uint32_t> reverse_cuthill_mckee_order(const AdjacencyGraph& g);
+std::vector<std::uint32_t> identity_order(std::size_t n);
+std::vector<std::uint32_t> reversed_order(std::span<const std::uint32_t> order);
+
+/// Profile of the symmetric matrix with the graph's pattern (plus the diagonal) in the given order.
+struct Profile {
+  std::size_t bandwidth = 0;  ///< max over rows of (row - first column in the row)
+  std::size_t envelope = 0;   ///< off-diagonal entries in the row envelopes (Jennings storage)
+};
+Profile profile(const AdjacencyGraph& g, std::span<const std::uint32_t> order);
+
+struct OrderingChoice {
+  Ordering chosen = Ordering::Identity;
+  std::vector<std::uint32_t> order;
+  Profile identity, breadth_first, reverse_breadth_first, reverse_cuthill_mckee;
+};
+/// Computes the requested ordering; the three profiles are always reported.
+OrderingChoice choose_ordering(const AdjacencyGraph& g, Ordering requested);
+
+}  // namespace csrbf

@@ -1,0 +1,116 @@
+// The CSRBF space mapping T: R^3 -> R^3 of the paper (Kojekine et al., sections 3-4):
+//   T(x) = x + t * d(x),   d(x) = sum_i alpha_i phi(||x - s_i|| / R) + p(x),
+// each coordinate of the displacement d an interpolant of g_i = destination_i - source_i at the
+// sources s_i (eq. 1-3), phi a Wendland function (kernels.hpp) and p a polynomial: none (the plain
+// CSRBF sum, strictly local: points farther than R from every source do not move), a constant, or a
+// linear polynomial (the paper's choice: T reproduces any affine map the controls admit).
+//
+// Fit (paper section 4): neighbour index, breadth-first ordering, Jennings envelope Cholesky of A,
+// then George & Liu's block elimination for the polynomial part:
+//   A Y = P, A z = g, (P^T Y) beta = P^T z, alpha = z - Y beta.
+#pragma once
+
+#include "csrbf/envelope_cholesky.hpp"
+#include "csrbf/errors.hpp"
+#include "csrbf/kernels.hpp"
+#include "csrbf/neighbor_index.hpp"
+#include "csrbf/ordering.hpp"
+
+#include <Eigen/Core>
+
+#include <memory>
+#include <optional>
+#include <span>
+#include <string_view>
+
+namespace csrbf {
+
+enum class Polynomial { None, Constant, Linear };
+std::string_view polynomial_name(Polynomial p) noexcept;
+std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept;
+
+struct FitOptions {
+  double radius = 0.0;  ///< support radius R in the points' units (not squared), > 0
+  Kernel kernel = Kernel::C2;
+  Polynomial polynomial = Polynomial::None;
+  Ordering ordering = Ordering::Auto;
+};
+
+/// What a fit did and what it cost. Times are wall-clock seconds of each phase.
+struct FitStats {
+  std::size_t controls = 0;
+  std::size_t neighbor_pairs = 0;        ///< unordered pairs of sources closer than R
+  double mean_neighbors = 0.0;           ///< mean number of other sources within R of a source
+  Ordering ordering = Ordering::Auto;    ///< the ordering used
+  Profile identity, breadth_first, reverse_breadth_first, reverse_cuthill_mckee;
+  std::size_t bandwidth = 0;             ///< of the ordered matrix
+  std::size_t envelope_entries = 0;      ///< off-diagonal entries stored
+  std::size_t envelope_bytes = 0;        ///< paper's accounting: 4-byte floats + 4-byte indices
+  std::size_t dense_bytes = 0;           ///< N^2 * 4, the paper's dense float storage
+  double residual_max = 0.0;             ///< max_i ||s(x_i) - g_i|| at the controls
+  double residual_relative = 0.0;        ///< residual_max / max_i ||g_i|| (or residual_max if g = 0)
+  double seconds_index = 0, seconds_graph = 0, seconds_ordering = 0, seconds_assembly = 0,
+         seconds_factorization = 0, seconds_solve = 0, seconds_residual = 0;
+  double seconds_total() const noexcept {
+    return seconds_index + seconds_graph + seconds_ordering + seconds_assembly + seconds_factorization +
+           seconds_solve + seconds_residual;
+  }
+};
+
+/// An immutable fitted mapping. Copies share the fitted state (cheap); every const member is
+/// thread-safe. Buffers passed to apply() are borrowed for the call only.
+class SpaceMap {
+ public:
+  /// sources and destinations: N points each, N >= 1, finite, sources pairwise distinct.
+  /// Throws InvalidInput, DuplicateSource, DegeneratePolynomial or NotPositiveDefinite.
+  static SpaceMap fit(std::span<const Vec3> sources, std::span<const Vec3> destinations,
+                      const FitOptions& options);
+
+  /// The same sources, radius, kernel and polynomial with new destinations: reuses the neighbour
+  /// index, ordering and factorisation, so only the substitutions are redone.
+  SpaceMap with_destinations(std::span<const Vec3> destinations) const;
+
+  /// d(x), the full displacement (phase 1).
+  Vec3 displacement(const Vec3& x) const;
+  /// T(x) = x + phase * d(x).
+  Vec3 map(const Vec3& x, double phase = 1.0) const { return x + phase * displacement(x); }
+  /// dT/dx at x: I + phase * dd/dx (row a, column b = d T_a / d x_b).
+  Eigen::Matrix3d jacobian(const Vec3& x, double phase = 1.0) const;
+
+  /// out = in + phase * d(in) for n points stored as interleaved xyz (n x 3, row-major). in and out
+  /// may be the same buffer. Runs in parallel over points. phase is normally in [0, 1].
+  void apply(const double* in, double* out, std::size_t n, double phase = 1.0) const;
+  void apply(const float* in, float* out, std::size_t n, double phase = 1.0) const;
+  void apply(std::span<const Vec3> in, std::span<Vec3> out, double phase = 1.0) const;
+  /// d(in) for n interleaved points into out (n x 3).
+  void displacements(const double* in, double* out, std::size_t n) const;
+  void displacements(const float* in, float* out, std::size_t n) const;
+
+  std::size_t size() const noexcept;
+  double radius() const noexcept;
+  Kernel kernel() const noexcept;
+  Polynomial polynomial() const noexcept;
+  std::span<const Vec3> sources() const noexcept;
+  std::span<const Vec3> destinations() const noexcept;
+  /// alpha, N x 3, in the input order of the sources.
+  const Eigen::Matrix<double, Eigen::Dynamic, 3>& coefficients() const noexcept;
+  /// The polynomial as p(x) = b0 + B x: row 0 is b0, rows 1..3 are B^T (zero where absent).
+  Eigen::Matrix<double, 4, 3> polynomial_coefficients() const noexcept;
+  /// order[k] = input index of the source at position k of the factorised matrix.
+  std::span<const std::uint32_t> order() const noexcept;
+  const FitStats& stats() const noexcept;
+  const NeighborIndex& index() const noexcept;
+
+ private:
+  struct Structure;
+  struct State;
+  explicit SpaceMap(std::shared_ptr<const State> s) : s_(std::move(s)) {}
+  template <class T> void apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
+  std::shared_ptr<const State> s_;
+};
+
+/// One-off use: fit and apply in one call (points interleaved n x 3, in place).
+void deform(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options,
+            double* points, std::size_t n, double phase = 1.0);
+
+}  // namespace csrbf

@@ -1,0 +1,37 @@
+#!/usr/bin/env bash
+# The single list of Debian 12 packages csrbf needs to build, test and run.
+# Non-interactive and idempotent: safe to run twice. Run as root (or with sudo available).
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build pkg-config
+  libeigen3-dev          # core: dense/sparse linear algebra (core's only required dependency)
+  libtbb-dev             # core: parallel loops over vertices
+  libassimp-dev          # io: STL and glTF meshes
+  nlohmann-json3-dev     # io/cli: JSON output
+  libcli11-dev           # cli: argument parsing
+  libgtest-dev libgmock-dev   # tests
+  libbenchmark-dev       # bench/
+)
+
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  SUDO="sudo"
+fi
+
+missing=()
+for p in "${packages[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+
+# apt-get update first, always, as the package lists of a fresh machine may be empty or stale.
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+if [ "${#missing[@]}" -gt 0 ]; then
+  echo "install-deps: installing ${missing[*]}"
+  $SUDO apt-get install -y -qq --no-install-recommends "${packages[@]}"
+else
+  echo "install-deps: all ${#packages[@]} packages already installed"
+fi

@@ -1,0 +1,86 @@
+#include "csrbf/neighbor_index.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <numeric>
+#include <sstream>
+#include <stdexcept>
+
+namespace csrbf {
+
+NeighborIndex::NeighborIndex(std::span<const Vec3> points, double radius) : radius_(radius) {
+  if (!(radius > 0.0) || !std::isfinite(radius)) {
+    std::ostringstream os;
+    os << "neighbour index: radius must be a positive finite number, got " << radius;
+    throw std::invalid_argument(os.str());
+  }
+  if (points.size() >= std::size_t(UINT32_MAX)) throw std::invalid_argument("neighbour index: too many points");
+  if (points.empty()) return;
+  Vec3 lo = points[0], hi = points[0];
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!points[i].allFinite()) {
+      std::ostringstream os;
+      os << "neighbour index: point " << i << " is not finite (" << points[i].transpose() << ")";
+      throw std::invalid_argument(os.str());
+    }
+    lo = lo.cwiseMin(points[i]);
+    hi = hi.cwiseMax(points[i]);
+  }
+  origin_ = lo;
+  inv_cell_ = 1.0 / radius;
+  const double cells = (hi - lo).maxCoeff() * inv_cell_;
+  if (cells > 1e9) {
+    std::ostringstream os;
+    os << "neighbour index: radius " << radius << " is too small for points spanning " << (hi - lo).maxCoeff();
+    throw std::invalid_argument(os.str());
+  }
+  const std::size_t n = points.size();
+  std::vector<Eigen::Vector3i> cell(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 c = ((points[i] - lo) * inv_cell_).array().floor();
+    cell[i] = c.cast<int>();
+    max_cell_ = max_cell_.cwiseMax(cell[i]);
+  }
+  std::vector<std::uint32_t> order(n);
+  std::iota(order.begin(), order.end(), 0u);
+  // z-major, then y, then x: cells adjacent in x are adjacent in memory.
+  std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) {
+    const auto& ca = cell[a];
+    const auto& cb = cell[b];
+    if (ca.z() != cb.z()) return ca.z() < cb.z();
+    if (ca.y() != cb.y()) return ca.y() < cb.y();
+    return ca.x() < cb.x();
+  });
+  points_.resize(n);
+  ids_.resize(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    points_[k] = points[order[k]];
+    ids_[k] = order[k];
+  }
+  std::size_t distinct = 0;
+  for (std::size_t k = 0; k < n; ++k)
+    if (k == 0 || cell[order[k]] != cell[order[k - 1]]) ++distinct;
+  const std::size_t capacity = std::bit_ceil(std::max<std::size_t>(16, 2 * distinct));
+  table_.assign(capacity, Cell{});
+  mask_ = capacity - 1;
+  cells_used_ = distinct;
+  std::size_t k = 0;
+  while (k < n) {
+    const Eigen::Vector3i c = cell[order[k]];
+    std::size_t e = k + 1;
+    while (e < n && cell[order[e]] == c) ++e;
+    std::uint64_t h = hash(c.x(), c.y(), c.z()) & mask_;
+    while (table_[h].end != 0) h = (h + 1) & mask_;
+    table_[h] = Cell{c.x(), c.y(), c.z(), std::uint32_t(k), std::uint32_t(e)};
+    k = e;
+  }
+}
+
+std::vector<std::size_t> NeighborIndex::query(const Vec3& q) const {
+  std::vector<std::size_t> out;
+  for_each_within(q, [&](std::size_t i, double) { out.push_back(i); });
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+}  // namespace csrbf

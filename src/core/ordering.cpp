@@ -1,0 +1,196 @@
+#include "csrbf/ordering.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <numeric>
+#include <string>
+
+namespace csrbf {
+
+AdjacencyGraph AdjacencyGraph::from_index(const NeighborIndex& index, std::span<const Vec3> points) {
+  AdjacencyGraph g;
+  const std::size_t n = points.size();
+  g.offsets.assign(n + 1, 0);
+  std::vector<std::pair<std::uint32_t, double>> row;
+  for (std::size_t i = 0; i < n; ++i) {
+    row.clear();
+    index.for_each_within(points[i], [&](std::size_t j, double d2) {
+      if (j != i) row.emplace_back(std::uint32_t(j), d2);
+    });
+    std::sort(row.begin(), row.end());
+    for (const auto& [j, d2] : row) {
+      g.neighbors.push_back(j);
+      g.dist2.push_back(d2);
+    }
+    g.offsets[i + 1] = g.neighbors.size();
+  }
+  return g;
+}
+
+std::string_view ordering_name(Ordering o) noexcept {
+  switch (o) {
+    case Ordering::Identity: return "identity";
+    case Ordering::BreadthFirst: return "breadth-first";
+    case Ordering::ReverseBreadthFirst: return "reverse-breadth-first";
+    case Ordering::ReverseCuthillMcKee: return "rcm";
+    case Ordering::Auto: return "auto";
+  }
+  return "?";
+}
+
+std::optional<Ordering> parse_ordering(std::string_view name) noexcept {
+  std::string s(name);
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (s == "identity" || s == "none") return Ordering::Identity;
+  if (s == "breadth-first" || s == "bfs") return Ordering::BreadthFirst;
+  if (s == "reverse-breadth-first" || s == "rbfs") return Ordering::ReverseBreadthFirst;
+  if (s == "rcm" || s == "reverse-cuthill-mckee") return Ordering::ReverseCuthillMcKee;
+  if (s == "auto") return Ordering::Auto;
+  return std::nullopt;
+}
+
+std::vector<std::uint32_t> breadth_first_order(const AdjacencyGraph& g) {
+  const std::size_t n = g.size();
+  std::vector<std::uint32_t> out;
+  out.reserve(n);
+  std::vector<char> taken(n, 0);
+  std::size_t next_start = 0;  // the first element of the paper's input_list
+  while (out.size() < n) {
+    while (taken[next_start]) ++next_start;
+    taken[next_start] = 1;
+    out.push_back(std::uint32_t(next_start));
+    for (std::size_t i = out.size() - 1; i < out.size(); ++i)
+      for (std::uint32_t j : g.neighbors_of(out[i]))
+        if (!taken[j]) {
+          taken[j] = 1;
+          out.push_back(j);
+        }
+  }
+  return out;
+}
+
+namespace {
+
+// Breadth-first levels from root over the nodes not yet taken; returns the nodes in visiting order and
+// the start of the last level. mark[] is set to stamp for visited nodes.
+std::size_t levels_from(const AdjacencyGraph& g, std::uint32_t root, const std::vector<char>& taken,
+                        std::vector<std::uint32_t>& mark, std::uint32_t stamp, std::vector<std::uint32_t>& visit,
+                        std::size_t& depth) {
+  visit.clear();
+  visit.push_back(root);
+  mark[root] = stamp;
+  std::size_t level_begin = 0;
+  depth = 0;
+  while (true) {
+    const std::size_t level_end = visit.size();
+    for (std::size_t i = level_begin; i < level_end; ++i)
+      for (std::uint32_t j : g.neighbors_of(visit[i]))
+        if (!taken[j] && mark[j] != stamp) {
+          mark[j] = stamp;
+          visit.push_back(j);
+        }
+    if (visit.size() == level_end) return level_begin;
+    level_begin = level_end;
+    ++depth;
+  }
+}
+
+}  // namespace
+
+std::vector<std::uint32_t> reverse_cuthill_mckee_order(const AdjacencyGraph& g) {
+  const std::size_t n = g.size();
+  std::vector<std::uint32_t> out, visit, mark(n, 0);
+  out.reserve(n);
+  std::vector<char> taken(n, 0);
+  std::uint32_t stamp = 0;
+  std::vector<std::uint32_t> nb;
+  for (std::size_t start = 0; start < n; ++start) {
+    if (taken[start]) continue;
+    // Pseudo-peripheral node (George & Liu's algorithm): move to a minimum-degree node of the last
+    // level while the eccentricity grows.
+    auto root = std::uint32_t(start);
+    std::size_t depth = 0;
+    std::size_t last = levels_from(g, root, taken, mark, ++stamp, visit, depth);
+    for (int iter = 0; iter < 16; ++iter) {
+      std::uint32_t best = visit[last];
+      for (std::size_t i = last; i < visit.size(); ++i)
+        if (g.degree(visit[i]) < g.degree(best)) best = visit[i];
+      std::size_t d2 = 0;
+      std::vector<std::uint32_t> v2;
+      const std::size_t last2 = levels_from(g, best, taken, mark, ++stamp, v2, d2);
+      if (d2 <= depth) break;
+      root = best;
+      depth = d2;
+      last = last2;
+      visit.swap(v2);
+    }
+    const std::size_t begin = out.size();
+    taken[root] = 1;
+    out.push_back(root);
+    for (std::size_t i = begin; i < out.size(); ++i) {
+      nb.clear();
+      for (std::uint32_t j : g.neighbors_of(out[i]))
+        if (!taken[j]) nb.push_back(j);
+      std::stable_sort(nb.begin(), nb.end(), [&](std::uint32_t a, std::uint32_t b) { return g.degree(a) < g.degree(b); });
+      for (std::uint32_t j : nb) {
+        taken[j] = 1;
+        out.push_back(j);
+      }
+    }
+  }
+  std::reverse(out.begin(), out.end());
+  return out;
+}
+
+std::vector<std::uint32_t> identity_order(std::size_t n) {
+  std::vector<std::uint32_t> o(n);
+  std::iota(o.begin(), o.end(), 0u);
+  return o;
+}
+
+std::vector<std::uint32_t> reversed_order(std::span<const std::uint32_t> order) {
+  return {order.rbegin(), order.rend()};
+}
+
+Profile profile(const AdjacencyGraph& g, std::span<const std::uint32_t> order) {
+  const std::size_t n = g.size();
+  std::vector<std::uint32_t> pos(n);
+  for (std::size_t k = 0; k < n; ++k) pos[order[k]] = std::uint32_t(k);
+  Profile p;
+  for (std::size_t k = 0; k < n; ++k) {
+    std::size_t first = k;
+    for (std::uint32_t j : g.neighbors_of(order[k])) first = std::min<std::size_t>(first, pos[j]);
+    p.envelope += k - first;
+    p.bandwidth = std::max(p.bandwidth, k - first);
+  }
+  return p;
+}
+
+OrderingChoice choose_ordering(const AdjacencyGraph& g, Ordering requested) {
+  OrderingChoice c;
+  auto id = identity_order(g.size());
+  auto bf = breadth_first_order(g);
+  auto rbf = reversed_order(bf);
+  auto rcm = reverse_cuthill_mckee_order(g);
+  c.identity = profile(g, id);
+  c.reverse_cuthill_mckee = profile(g, rcm);
+  c.breadth_first = profile(g, bf);
+  c.reverse_breadth_first = profile(g, rbf);
+  if (requested == Ordering::Auto) {
+    requested = Ordering::ReverseCuthillMcKee;
+    std::size_t best = c.reverse_cuthill_mckee.envelope;
+    if (c.reverse_breadth_first.envelope < best) { requested = Ordering::ReverseBreadthFirst; best = c.reverse_breadth_first.envelope; }
+    if (c.breadth_first.envelope < best) { requested = Ordering::BreadthFirst; best = c.breadth_first.envelope; }
+    if (c.identity.envelope < best) requested = Ordering::Identity;
+  }
+  c.chosen = requested;
+  switch (requested) {
+    case Ordering::Identity: c.order = std::move(id); break;
+    case Ordering::BreadthFirst: c.order = std::move(bf); break;
+    case Ordering::ReverseCuthillMcKee: c.order = std::move(rcm); break;
+    default: c.order = std::move(rbf); break;
+  }
+  return c;
+}
+
+}  // namespace csrbf

@@ -1,0 +1,383 @@
+#include "csrbf/space_map.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/SVD>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cctype>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <string>
+
+namespace csrbf {
+
+std::string_view polynomial_name(Polynomial p) noexcept {
+  switch (p) {
+    case Polynomial::None: return "none";
+    case Polynomial::Constant: return "constant";
+    case Polynomial::Linear: return "linear";
+  }
+  return "?";
+}
+
+std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept {
+  std::string s(name);
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (s == "none") return Polynomial::None;
+  if (s == "constant") return Polynomial::Constant;
+  if (s == "linear") return Polynomial::Linear;
+  return std::nullopt;
+}
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+int polynomial_terms(Polynomial p) {
+  return p == Polynomial::None ? 0 : p == Polynomial::Constant ? 1 : 4;
+}
+
+void check_points(std::span<const Vec3> pts, const char* what) {
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    if (!pts[i].allFinite()) {
+      std::ostringstream os;
+      os << what << " " << i << " is not finite: (" << pts[i].x() << ", " << pts[i].y() << ", " << pts[i].z() << ")";
+      throw InvalidInput(os.str());
+    }
+}
+
+}  // namespace
+
+// Everything that depends on the sources only: shared by every map made with with_destinations().
+struct SpaceMap::Structure {
+  FitOptions options;
+  std::vector<Vec3> sources;       // input order
+  NeighborIndex index;             // over the sources
+  AdjacencyGraph graph;            // input order
+  std::vector<std::uint32_t> order, position;  // order[k] = input index at k; position = inverse
+  EnvelopeMatrix factor;           // L, in `order`
+  int terms = 0;                   // columns of P
+  Vec3 center = Vec3::Zero();      // polynomial coordinates u = (x - center) / scale
+  double scale = 1.0;
+  RowMatrix p;                     // N x terms, in `order`
+  RowMatrix y;                     // A^{-1} P, in `order`
+  Eigen::LLT<Eigen::MatrixXd> schur;  // P^T A^{-1} P
+  FitStats stats;                  // the structural part and its times
+};
+
+struct SpaceMap::State {
+  std::shared_ptr<const Structure> st;
+  std::vector<Vec3> destinations;
+  Eigen::Matrix<double, Eigen::Dynamic, 3> alpha;  // input order
+  std::vector<Vec3> alpha_by_slot;                 // in the index's slot order, for evaluation
+  Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();  // in u coordinates
+  FitStats stats;
+};
+
+SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> destinations,
+                       const FitOptions& options) {
+  if (sources.size() != destinations.size()) {
+    std::ostringstream os;
+    os << "control points: " << sources.size() << " sources but " << destinations.size() << " destinations";
+    throw InvalidInput(os.str());
+  }
+  if (sources.empty()) throw InvalidInput("control points: none given (need at least 1)");
+  if (!(options.radius > 0.0) || !std::isfinite(options.radius)) {
+    std::ostringstream os;
+    os << "radius must be a positive finite number, got " << options.radius;
+    throw InvalidInput(os.str());
+  }
+  check_points(sources, "source");
+  check_points(destinations, "destination");
+  const std::size_t n = sources.size();
+  const int terms = polynomial_terms(options.polynomial);
+
+  auto st = std::make_shared<Structure>();
+  st->options = options;
+  st->sources.assign(sources.begin(), sources.end());
+  st->terms = terms;
+  FitStats& stats = st->stats;
+  stats.controls = n;
+
+  // Polynomial coordinates and their degeneracy, checked before any heavy work.
+  st->center = Vec3::Zero();
+  for (const auto& s : sources) st->center += s;
+  st->center /= double(n);
+  double spread = 0.0;
+  for (const auto& s : sources) spread = std::max(spread, (s - st->center).cwiseAbs().maxCoeff());
+  st->scale = spread > 0.0 ? spread : 1.0;
+  if (options.polynomial == Polynomial::Linear) {
+    if (n < 4) {
+      std::ostringstream os;
+      os << "polynomial 'linear' needs at least 4 control points that are not coplanar, got " << n
+         << "; use polynomial 'constant' or 'none'";
+      throw DegeneratePolynomial(os.str());
+    }
+    Eigen::MatrixXd u(n, 3);
+    for (std::size_t i = 0; i < n; ++i) u.row(Eigen::Index(i)) = (sources[i] - st->center) / st->scale;
+    const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::MatrixXd>(u).singularValues();
+    const double tol = 1e-9 * std::max(sv(0), 1e-300);
+    if (sv(2) <= tol) {
+      std::ostringstream os;
+      os << "polynomial 'linear' needs control sources that span 3-D space, but the " << n << " sources are "
+         << (sv(1) <= tol ? "collinear" : "coplanar") << " (singular values " << sv(0) << ", " << sv(1) << ", "
+         << sv(2) << "); use polynomial 'constant' or 'none'";
+      throw DegeneratePolynomial(os.str());
+    }
+  }
+
+  auto t0 = Clock::now();
+  st->index = NeighborIndex(sources, options.radius);
+  stats.seconds_index = seconds_since(t0);
+
+  t0 = Clock::now();
+  st->graph = AdjacencyGraph::from_index(st->index, sources);
+  stats.seconds_graph = seconds_since(t0);
+  stats.neighbor_pairs = st->graph.neighbors.size() / 2;
+  stats.mean_neighbors = double(st->graph.neighbors.size()) / double(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto nb = st->graph.neighbors_of(i);
+    const auto d2 = st->graph.dist2_of(i);
+    for (std::size_t k = 0; k < nb.size(); ++k)
+      if (d2[k] == 0.0) {
+        const std::size_t a = std::min<std::size_t>(i, nb[k]), b = std::max<std::size_t>(i, nb[k]);
+        std::ostringstream os;
+        os << "control sources " << a << " and " << b << " are at the same position (" << sources[a].x() << ", "
+           << sources[a].y() << ", " << sources[a].z() << ")";
+        throw DuplicateSource(a, b, os.str());
+      }
+  }
+
+  t0 = Clock::now();
+  OrderingChoice oc = choose_ordering(st->graph, options.ordering);
+  st->order = std::move(oc.order);
+  st->position.resize(n);
+  for (std::size_t k = 0; k < n; ++k) st->position[st->order[k]] = std::uint32_t(k);
+  stats.ordering = oc.chosen;
+  stats.identity = oc.identity;
+  stats.breadth_first = oc.breadth_first;
+  stats.reverse_breadth_first = oc.reverse_breadth_first;
+  stats.reverse_cuthill_mckee = oc.reverse_cuthill_mckee;
+  stats.seconds_ordering = seconds_since(t0);
+
+  t0 = Clock::now();
+  std::vector<std::size_t> first(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    std::size_t f = k;
+    for (std::uint32_t j : st->graph.neighbors_of(st->order[k])) f = std::min<std::size_t>(f, st->position[j]);
+    first[k] = f;
+  }
+  EnvelopeMatrix a(std::move(first));
+  const double inv_r = 1.0 / options.radius;
+  const double phi0 = wendland(options.kernel, 0.0);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = st->order[k];
+    a.at(k, k) = phi0;
+    const auto nb = st->graph.neighbors_of(i);
+    const auto d2 = st->graph.dist2_of(i);
+    for (std::size_t e = 0; e < nb.size(); ++e) {
+      const std::size_t col = st->position[nb[e]];
+      if (col < k) a.at(k, col) = wendland(options.kernel, std::sqrt(d2[e]) * inv_r);
+    }
+  }
+  stats.bandwidth = a.bandwidth();
+  stats.envelope_entries = a.envelope_entries();
+  stats.envelope_bytes = a.paper_bytes();
+  stats.dense_bytes = a.dense_bytes();
+  stats.seconds_assembly = seconds_since(t0);
+
+  t0 = Clock::now();
+  try {
+    a.cholesky_in_place();
+  } catch (const NotPositiveDefinite& e) {
+    // Report the control's input index, not its row in the ordered matrix.
+    throw NotPositiveDefinite(st->order[e.row()], e.pivot());
+  }
+  st->factor = std::move(a);
+  stats.seconds_factorization = seconds_since(t0);
+
+  if (terms > 0) {
+    t0 = Clock::now();
+    st->p.resize(Eigen::Index(n), terms);
+    for (std::size_t k = 0; k < n; ++k) {
+      st->p(Eigen::Index(k), 0) = 1.0;
+      if (terms == 4) {
+        const Vec3 u = (sources[st->order[k]] - st->center) / st->scale;
+        st->p.block<1, 3>(Eigen::Index(k), 1) = u.transpose();
+      }
+    }
+    st->y = st->p;
+    st->factor.solve_in_place(st->y);
+    st->schur.compute(st->p.transpose() * st->y);
+    if (st->schur.info() != Eigen::Success)
+      throw DegeneratePolynomial(std::string("polynomial '") + std::string(polynomial_name(options.polynomial)) +
+                                 "': the sources do not determine it; use polynomial 'none'");
+    stats.seconds_solve += seconds_since(t0);
+  }
+  auto structure_only = std::make_shared<State>();
+  structure_only->st = std::move(st);
+  return SpaceMap(std::move(structure_only)).with_destinations(destinations);
+}
+
+SpaceMap SpaceMap::with_destinations(std::span<const Vec3> destinations) const {
+  const Structure& st = *s_->st;
+  const std::size_t n = st.sources.size();
+  if (destinations.size() != n) {
+    std::ostringstream os;
+    os << "control points: " << n << " sources but " << destinations.size() << " destinations";
+    throw InvalidInput(os.str());
+  }
+  check_points(destinations, "destination");
+  auto s = std::make_shared<State>();
+  s->st = s_->st;
+  s->destinations.assign(destinations.begin(), destinations.end());
+  s->stats = st.stats;
+  FitStats& stats = s->stats;
+
+  auto t0 = Clock::now();
+  RowMatrix z(Eigen::Index(n), 3);
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t i = st.order[k];
+    z.row(Eigen::Index(k)) = (destinations[i] - st.sources[i]).transpose();
+  }
+  st.factor.solve_in_place(z);
+  if (st.terms > 0) {
+    const Eigen::MatrixXd b = st.schur.solve(st.p.transpose() * z);  // terms x 3
+    z -= st.y * b;
+    s->beta.topRows(st.terms) = b;
+  }
+  s->alpha.resize(Eigen::Index(n), 3);
+  for (std::size_t k = 0; k < n; ++k) s->alpha.row(st.order[k]) = z.row(Eigen::Index(k));
+  s->alpha_by_slot.resize(n);
+  for (std::size_t slot = 0; slot < n; ++slot)
+    s->alpha_by_slot[slot] = s->alpha.row(Eigen::Index(st.index.original_index(slot))).transpose();
+  stats.seconds_solve += seconds_since(t0);
+
+  // Residual at the controls, through the neighbour graph (the sparse rows of A, unpermuted).
+  t0 = Clock::now();
+  const double inv_r = 1.0 / st.options.radius;
+  const double phi0 = wendland(st.options.kernel, 0.0);
+  double res = 0.0, gmax = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    Vec3 v = phi0 * s->alpha.row(Eigen::Index(i)).transpose();
+    const auto nb = st.graph.neighbors_of(i);
+    const auto d2 = st.graph.dist2_of(i);
+    for (std::size_t e = 0; e < nb.size(); ++e)
+      v += wendland(st.options.kernel, std::sqrt(d2[e]) * inv_r) * s->alpha.row(nb[e]).transpose();
+    const Vec3 u = (st.sources[i] - st.center) / st.scale;
+    v += (s->beta.row(0) + u.transpose() * s->beta.bottomRows<3>()).transpose();
+    const Vec3 g = destinations[i] - st.sources[i];
+    res = std::max(res, (v - g).norm());
+    gmax = std::max(gmax, g.norm());
+  }
+  stats.residual_max = res;
+  stats.residual_relative = gmax > 0.0 ? res / gmax : res;
+  stats.seconds_residual = seconds_since(t0);
+  return SpaceMap(std::move(s));
+}
+
+Vec3 SpaceMap::displacement(const Vec3& x) const {
+  const Structure& st = *s_->st;
+  const double inv_r = 1.0 / st.options.radius;
+  const Kernel k = st.options.kernel;
+  Vec3 d = Vec3::Zero();
+  st.index.for_each_slot_within(x, [&](std::size_t slot, double d2) {
+    d += wendland(k, std::sqrt(d2) * inv_r) * s_->alpha_by_slot[slot];
+  });
+  if (st.terms > 0) {
+    const Vec3 u = (x - st.center) / st.scale;
+    d += (s_->beta.row(0) + u.transpose() * s_->beta.bottomRows<3>()).transpose();
+  }
+  return d;
+}
+
+Eigen::Matrix3d SpaceMap::jacobian(const Vec3& x, double phase) const {
+  const Structure& st = *s_->st;
+  const double inv_r = 1.0 / st.options.radius;
+  const Kernel k = st.options.kernel;
+  Eigen::Matrix3d j = Eigen::Matrix3d::Zero();
+  st.index.for_each_slot_within(x, [&](std::size_t slot, double d2) {
+    const double dist = std::sqrt(d2);
+    if (dist == 0.0) return;  // grad phi(0) = 0 for C2+; the one-sided C0 cone has no gradient there
+    const Vec3 grad = (wendland_derivative(k, dist * inv_r) * inv_r / dist) * (x - st.index.point(slot));
+    j += s_->alpha_by_slot[slot] * grad.transpose();
+  });
+  if (st.terms == 4) j += s_->beta.bottomRows<3>().transpose() / st.scale;
+  return Eigen::Matrix3d::Identity() + phase * j;
+}
+
+template <class T>
+void SpaceMap::apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const {
+  if (!std::isfinite(phase)) {
+    std::ostringstream os;
+    os << "phase must be a finite number, got " << phase;
+    throw InvalidInput(os.str());
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 2048), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+      const Vec3 x{double(in[3 * i]), double(in[3 * i + 1]), double(in[3 * i + 2])};
+      const Vec3 d = displacement(x);
+      if (add_point) {
+        out[3 * i] = T(x.x() + phase * d.x());
+        out[3 * i + 1] = T(x.y() + phase * d.y());
+        out[3 * i + 2] = T(x.z() + phase * d.z());
+      } else {
+        out[3 * i] = T(d.x());
+        out[3 * i + 1] = T(d.y());
+        out[3 * i + 2] = T(d.z());
+      }
+    }
+  });
+}
+
+void SpaceMap::apply(const double* in, double* out, std::size_t n, double phase) const {
+  apply_impl(in, out, n, phase, true);
+}
+void SpaceMap::apply(const float* in, float* out, std::size_t n, double phase) const {
+  apply_impl(in, out, n, phase, true);
+}
+void SpaceMap::apply(std::span<const Vec3> in, std::span<Vec3> out, double phase) const {
+  if (in.size() != out.size()) throw InvalidInput("apply: input and output sizes differ");
+  static_assert(sizeof(Vec3) == 3 * sizeof(double), "Vec3 must be three packed doubles");
+  apply_impl(in.data()->data(), out.data()->data(), in.size(), phase, true);
+}
+void SpaceMap::displacements(const double* in, double* out, std::size_t n) const {
+  apply_impl(in, out, n, 1.0, false);
+}
+void SpaceMap::displacements(const float* in, float* out, std::size_t n) const {
+  apply_impl(in, out, n, 1.0, false);
+}
+
+std::size_t SpaceMap::size() const noexcept { return s_->st->sources.size(); }
+double SpaceMap::radius() const noexcept { return s_->st->options.radius; }
+Kernel SpaceMap::kernel() const noexcept { return s_->st->options.kernel; }
+Polynomial SpaceMap::polynomial() const noexcept { return s_->st->options.polynomial; }
+std::span<const Vec3> SpaceMap::sources() const noexcept { return s_->st->sources; }
+std::span<const Vec3> SpaceMap::destinations() const noexcept { return s_->destinations; }
+const Eigen::Matrix<double, Eigen::Dynamic, 3>& SpaceMap::coefficients() const noexcept { return s_->alpha; }
+std::span<const std::uint32_t> SpaceMap::order() const noexcept { return s_->st->order; }
+const FitStats& SpaceMap::stats() const noexcept { return s_->stats; }
+const NeighborIndex& SpaceMap::index() const noexcept { return s_->st->index; }
+
+Eigen::Matrix<double, 4, 3> SpaceMap::polynomial_coefficients() const noexcept {
+  // p(x) = b0 + (x - c)^T B / s  =>  constant b0 - c^T B / s, linear part B / s.
+  const Structure& st = *s_->st;
+  Eigen::Matrix<double, 4, 3> out;
+  const Eigen::Matrix3d lin = s_->beta.bottomRows<3>() / st.scale;
+  out.row(0) = s_->beta.row(0) - st.center.transpose() * lin;
+  out.bottomRows<3>() = lin;
+  return out;
+}
+
+void deform(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options,
+            double* points, std::size_t n, double phase) {
+  SpaceMap::fit(sources, destinations, options).apply(points, points, n, phase);
+}
+
+}  // namespace csrbf

@@ -1,0 +1,240 @@
+#include "csrbf/io/mesh.hpp"
+
+#include "io/test_helpers.hpp"
+
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cstring>
+
+using namespace csrbf;
+using io::FileError;
+using io::MeshDocument;
+
+namespace {
+
+// A unit square in z = 0 (two triangles) with normals +z, colours and texture coordinates.
+const char* kObj =
+    "# square\nmtllib x.mtl\no square\n"
+    "v 0 0 0 1 0 0\nv 1 0 0 0 1 0\nv 1 1 0 0 0 1\nv 0 1 0 1 1 1\n"
+    "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\n"
+    "usemtl red\ns 1\nf 1/1/1 2/2/1 3/3/1\nf -4/1/-1 -2/3/-1 -1/4/-1\n";
+
+std::string error_of(const std::filesystem::path& p) {
+  try {
+    MeshDocument::load(p);
+  } catch (const FileError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+// Rotates every position by 90 degrees about x: (x, y, z) -> (x, -z, y); normals +z -> -y.
+void rotate(std::vector<Vec3>& p) {
+  for (auto& v : p) v = Vec3(v.x(), 0.0 - v.z(), v.y());  // 0 - z: +0, not -0, for z = 0
+}
+
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> out;
+  std::istringstream in(text);
+  for (std::string l; std::getline(in, l);) out.push_back(l);
+  return out;
+}
+
+}  // namespace
+
+TEST(Mesh, ObjKeepsEverythingButPositionsAndNormals) {
+  test::TempDir dir;
+  test::write_text(dir / "a.obj", kObj);
+  auto m = MeshDocument::load(dir / "a.obj");
+  ASSERT_EQ(m.positions().size(), 4u);
+  ASSERT_EQ(m.faces().size(), 2u);
+  EXPECT_EQ(m.faces()[1], (std::vector<std::uint32_t>{0, 2, 3}));  // negative (relative) references
+  EXPECT_TRUE(m.has_normals());
+  rotate(m.positions());
+  m.save(dir / "b.obj");
+  const auto a = lines_of(kObj), b = lines_of(test::read_text(dir / "b.obj"));
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t i = 0; i < a.size(); ++i)
+    if (a[i].rfind("v ", 0) != 0 && a[i].rfind("vn ", 0) != 0) {
+      EXPECT_EQ(a[i], b[i]);
+    }
+  EXPECT_EQ(b[3], "v 0 0 0 1 0 0");
+  EXPECT_EQ(b[5], "v 1 0 1 0 0 1");  // (1,1,0) -> (1,0,1); colour kept
+  EXPECT_EQ(b[11], "vn 0 -1 0");
+  const auto back = MeshDocument::load(dir / "b.obj");
+  EXPECT_EQ(back.positions()[2], Vec3(1, 0, 1));
+}
+
+TEST(Mesh, ObjErrorsNameTheLine) {
+  test::TempDir dir;
+  test::write_text(dir / "bad.obj", "v 0 0 0\nv 1 0 zero\n");
+  std::string e = error_of(dir / "bad.obj");
+  EXPECT_NE(e.find("bad.obj:2:"), std::string::npos) << e;
+  EXPECT_NE(e.find("'zero'"), std::string::npos) << e;
+  test::write_text(dir / "bad2.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n");
+  e = error_of(dir / "bad2.obj");
+  EXPECT_NE(e.find("bad2.obj:4:"), std::string::npos) << e;
+  EXPECT_NE(e.find("out of range"), std::string::npos) << e;
+  test::write_text(dir / "empty.obj", "# nothing\n");
+  EXPECT_NE(error_of(dir / "empty.obj").find("no vertices"), std::string::npos);
+  EXPECT_NE(error_of(dir / "missing.obj").find("no such file"), std::string::npos);
+}
+
+TEST(Mesh, OffKeepsOrderFacesAndColours) {
+  test::TempDir dir;
+  test::write_text(dir / "a.off", "OFF\n# comment\n4 2 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n3 0 1 2 255 0 0\n3 0 2 3\n");
+  auto m = MeshDocument::load(dir / "a.off");
+  EXPECT_EQ(m.positions().size(), 4u);
+  EXPECT_EQ(m.faces()[1], (std::vector<std::uint32_t>{0, 2, 3}));
+  for (auto& p : m.positions()) p += Vec3(0.5, 0, 0);
+  m.save(dir / "b.off");
+  EXPECT_EQ(test::read_text(dir / "b.off"), "OFF\n# comment\n4 2 0\n0.5 0 0\n1.5 0 0\n1.5 1 0\n0.5 1 0\n3 0 1 2 255 0 0\n3 0 2 3\n");
+  test::write_text(dir / "n.off", "NOFF 3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n");
+  auto n = MeshDocument::load(dir / "n.off");
+  rotate(n.positions());
+  n.save(dir / "n2.off");
+  EXPECT_EQ(test::read_text(dir / "n2.off"), "NOFF 3 1 0\n0 0 0 0 -1 0\n1 0 0 0 -1 0\n0 0 1 0 -1 0\n3 0 1 2\n");
+  test::write_text(dir / "short.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n");
+  EXPECT_NE(error_of(dir / "short.off").find("ends after 2 of 3 vertices"), std::string::npos);
+  test::write_text(dir / "idx.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  EXPECT_NE(error_of(dir / "idx.off").find("refers to vertex 7"), std::string::npos);
+}
+
+TEST(Mesh, XyzKeepsExtraColumnsAndComments) {
+  test::TempDir dir;
+  test::write_text(dir / "a.xyz", "# points\n1 2 3 9 9\n\n4 5 6\n");
+  auto m = MeshDocument::load(dir / "a.xyz");
+  ASSERT_EQ(m.positions().size(), 2u);
+  m.positions()[0].z() = 3.25;
+  m.save(dir / "b.xyz");
+  EXPECT_EQ(test::read_text(dir / "b.xyz"), "# points\n1 2 3.25 9 9\n\n4 5 6\n");
+  test::write_text(dir / "bad.xyz", "1 2 3\n4 5\n");
+  EXPECT_NE(error_of(dir / "bad.xyz").find("bad.xyz:2:"), std::string::npos);
+}
+
+TEST(Mesh, PlyAsciiKeepsOtherProperties) {
+  test::TempDir dir;
+  test::write_text(dir / "a.ply",
+                   "ply\nformat ascii 1.0\ncomment hi\nelement vertex 3\nproperty float x\nproperty float y\n"
+                   "property float z\nproperty float nx\nproperty float ny\nproperty float nz\nproperty uchar red\n"
+                   "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                   "0 0 0 0 0 1 10\n1 0 0 0 0 1 20\n0 1 0 0 0 1 30\n3 0 1 2\n");
+  auto m = MeshDocument::load(dir / "a.ply");
+  EXPECT_TRUE(m.has_normals());
+  rotate(m.positions());
+  m.save(dir / "b.ply");
+  const std::string b = test::read_text(dir / "b.ply");
+  EXPECT_NE(b.find("end_header\n0 0 0 0 -1 0 10\n1 0 0 0 -1 0 20\n0 0 1 0 -1 0 30\n3 0 1 2\n"), std::string::npos) << b;
+  EXPECT_EQ(b.find("comment hi"), 21u);
+}
+
+namespace {
+template <class T>
+void put(std::string& s, T v, bool big) {
+  char b[sizeof(T)];
+  std::memcpy(b, &v, sizeof(T));
+  if (big != (std::endian::native == std::endian::big)) std::reverse(b, b + sizeof(T));
+  s.append(b, sizeof(T));
+}
+template <class T>
+T get(const std::string& s, std::size_t off, bool big) {
+  char b[sizeof(T)];
+  std::memcpy(b, s.data() + off, sizeof(T));
+  if (big != (std::endian::native == std::endian::big)) std::reverse(b, b + sizeof(T));
+  T v;
+  std::memcpy(&v, b, sizeof(T));
+  return v;
+}
+}  // namespace
+
+TEST(Mesh, PlyBinaryBothEndiansKeepOtherBytes) {
+  for (bool big : {false, true}) {
+    test::TempDir dir;
+    std::string header = std::string("ply\nformat ") + (big ? "binary_big_endian" : "binary_little_endian") +
+                         " 1.0\nelement vertex 3\nproperty double x\nproperty double y\nproperty double z\n"
+                         "property ushort flags\nelement face 1\nproperty list uchar uint vertex_indices\nend_header\n";
+    std::string body;
+    const double v[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    for (int i = 0; i < 3; ++i) {
+      for (int k = 0; k < 3; ++k) put<double>(body, v[i][k], big);
+      put<std::uint16_t>(body, std::uint16_t(1000 + i), big);
+    }
+    put<std::uint8_t>(body, 3, big);
+    for (std::uint32_t i = 0; i < 3; ++i) put<std::uint32_t>(body, i, big);
+    test::write_text(dir / "a.ply", header + body);
+    auto m = MeshDocument::load(dir / "a.ply");
+    ASSERT_EQ(m.positions().size(), 3u);
+    EXPECT_EQ(m.positions()[2], Vec3(0, 1, 0));
+    EXPECT_EQ(m.faces()[0], (std::vector<std::uint32_t>{0, 1, 2}));
+    m.positions()[1] = Vec3(0.25, -7, 1e-3);
+    m.save(dir / "b.ply");
+    const std::string out = test::read_text(dir / "b.ply");
+    ASSERT_EQ(out.size(), header.size() + body.size());
+    EXPECT_EQ(out.substr(0, header.size()), header);
+    const std::size_t v1 = header.size() + 26;
+    EXPECT_EQ(get<double>(out, v1, big), 0.25);
+    EXPECT_EQ(get<double>(out, v1 + 8, big), -7.0);
+    EXPECT_EQ(get<std::uint16_t>(out, v1 + 24, big), 1001);
+    EXPECT_EQ(out.substr(header.size() + 78), body.substr(78));  // faces untouched
+    test::write_text(dir / "trunc.ply", header + body.substr(0, 40));
+    EXPECT_NE(error_of(dir / "trunc.ply").find("ends early"), std::string::npos);
+  }
+}
+
+TEST(Mesh, PlyHeaderErrors) {
+  test::TempDir dir;
+  test::write_text(dir / "a.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n0\n");
+  EXPECT_NE(error_of(dir / "a.ply").find("no property 'y'"), std::string::npos);
+  test::write_text(dir / "b.ply", "plx\n");
+  EXPECT_NE(error_of(dir / "b.ply").find("not a PLY"), std::string::npos);
+}
+
+TEST(Mesh, StlAndGltfThroughAssimp) {
+  test::TempDir dir;
+  test::write_text(dir / "a.obj", kObj);
+  const auto m = MeshDocument::load(dir / "a.obj");
+  for (const char* name : {"a.stl", "a.glb", "a.gltf"}) {
+    m.save(dir / name);
+    auto back = MeshDocument::load(dir / name);
+    std::vector<Vec3> p = back.positions();
+    ASSERT_GE(p.size(), 4u) << name;
+    for (const auto& v : p) {
+      double best = 1e9;
+      for (const auto& w : m.positions()) best = std::min(best, (v - w).norm());
+      EXPECT_LT(best, 1e-6) << name;
+    }
+    // Deform and write again in the same format.
+    for (auto& v : back.positions()) v.z() += 1;
+    back.save(dir / (std::string("b") + name + std::filesystem::path(name).extension().string()));
+  }
+  EXPECT_TRUE(std::filesystem::exists(dir / "a.bin"));  // glTF's side buffer
+  test::write_text(dir / "bad.stl", "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0\n");
+  const std::string e = error_of(dir / "bad.stl");
+  EXPECT_NE(e.find("bad.stl"), std::string::npos) << e;
+}
+
+TEST(Mesh, ConvertsBetweenTextFormats) {
+  test::TempDir dir;
+  test::write_text(dir / "a.obj", kObj);
+  const auto m = MeshDocument::load(dir / "a.obj");
+  for (const char* name : {"c.ply", "c.off", "c.xyz"}) {
+    m.save(dir / name);
+    const auto back = MeshDocument::load(dir / name);
+    EXPECT_EQ(back.positions(), m.positions()) << name;
+    if (std::string(name) != "c.xyz") {
+      EXPECT_EQ(back.faces(), m.faces()) << name;
+    }
+  }
+}
+
+TEST(Mesh, FailedSaveLeavesExistingOutput) {
+  test::TempDir dir;
+  test::write_text(dir / "a.obj", kObj);
+  const auto m = MeshDocument::load(dir / "a.obj");
+  test::write_text(dir / "out.xyzw", "keep");
+  EXPECT_THROW(m.save(dir / "out.xyzw"), FileError);
+  EXPECT_EQ(test::read_text(dir / "out.xyzw"), "keep");
+  EXPECT_THROW(m.save(dir / "nope/out.obj"), FileError);
+  EXPECT_EQ(test::files_in(dir.path), 2u);
+}
