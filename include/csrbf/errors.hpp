@@ -34,4 +34,8 @@ class DegeneratePolynomial : public InvalidInput {
   using InvalidInput::InvalidInput;
 };
 
+/// Throws InvalidInput unless phase is finite (any finite phase is accepted: outside [0, 1] it
+/// extrapolates).
+void check_phase(double phase);
+
 }  // namespace csrbf

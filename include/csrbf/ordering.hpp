@@ -54,6 +54,10 @@ std::vector<std::uint32_t> reverse_cuthill_mckee_order(const AdjacencyGraph& g);
 std::vector<std::uint32_t> identity_order(std::size_t n);
 std::vector<std::uint32_t> reversed_order(std::span<const std::uint32_t> order);
 
+/// First column of each row's envelope, row k being the point order[k]: min(k, positions of its
+/// neighbours). The Jennings profile of the graph's matrix in that order.
+std::vector<std::size_t> envelope_first_columns(const AdjacencyGraph& g, std::span<const std::uint32_t> order);
+
 /// Profile of the symmetric matrix with the graph's pattern (plus the diagonal) in the given order.
 struct Profile {
   std::size_t bandwidth = 0;  ///< max over rows of (row - first column in the row)

@@ -105,9 +105,15 @@ class SpaceMap {
   struct Structure;
   struct State;
   explicit SpaceMap(std::shared_ptr<const State> s) : s_(std::move(s)) {}
+  SpaceMap solve_destinations(std::span<const Vec3> destinations) const;  // sizes and values already checked
   template <class T> void apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
   std::shared_ptr<const State> s_;
 };
+
+/// The CSRBF matrix A = [phi(||s_i - s_j|| / R)] of a neighbour graph in Jennings envelope form,
+/// row k being the source order[k] (unfactorised).
+EnvelopeMatrix kernel_matrix(const AdjacencyGraph& g, std::span<const std::uint32_t> order, Kernel kernel,
+                             double radius);
 
 /// One-off use: fit and apply in one call (points interleaved n x 3, in place).
 void deform(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options,

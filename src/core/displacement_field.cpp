@@ -3,8 +3,6 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
-#include <cmath>
-#include <sstream>
 
 namespace csrbf {
 
@@ -21,11 +19,7 @@ void DisplacementField<T>::update(const SpaceMap& map) {
 
 template <class T>
 void DisplacementField<T>::apply(double phase, T* out) const {
-  if (!std::isfinite(phase)) {
-    std::ostringstream os;
-    os << "phase must be a finite number, got " << phase;
-    throw InvalidInput(os.str());
-  }
+  check_phase(phase);
   const T t = T(phase);
   const T* r = rest_.data();
   const T* d = d_.data();

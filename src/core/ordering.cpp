@@ -152,16 +152,25 @@ std::vector<std::uint32_t> reversed_order(std::span<const std::uint32_t> order) 
   return {order.rbegin(), order.rend()};
 }
 
-Profile profile(const AdjacencyGraph& g, std::span<const std::uint32_t> order) {
+std::vector<std::size_t> envelope_first_columns(const AdjacencyGraph& g, std::span<const std::uint32_t> order) {
   const std::size_t n = g.size();
   std::vector<std::uint32_t> pos(n);
   for (std::size_t k = 0; k < n; ++k) pos[order[k]] = std::uint32_t(k);
-  Profile p;
+  std::vector<std::size_t> first(n);
   for (std::size_t k = 0; k < n; ++k) {
-    std::size_t first = k;
-    for (std::uint32_t j : g.neighbors_of(order[k])) first = std::min<std::size_t>(first, pos[j]);
-    p.envelope += k - first;
-    p.bandwidth = std::max(p.bandwidth, k - first);
+    std::size_t f = k;
+    for (std::uint32_t j : g.neighbors_of(order[k])) f = std::min<std::size_t>(f, pos[j]);
+    first[k] = f;
+  }
+  return first;
+}
+
+Profile profile(const AdjacencyGraph& g, std::span<const std::uint32_t> order) {
+  Profile p;
+  const auto first = envelope_first_columns(g, order);
+  for (std::size_t k = 0; k < first.size(); ++k) {
+    p.envelope += k - first[k];
+    p.bandwidth = std::max(p.bandwidth, k - first[k]);
   }
   return p;
 }

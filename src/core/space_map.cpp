@@ -32,6 +32,14 @@ std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept {
   return std::nullopt;
 }
 
+void check_phase(double phase) {
+  if (!std::isfinite(phase)) {
+    std::ostringstream os;
+    os << "phase must be a finite number, got " << phase;
+    throw InvalidInput(os.str());
+  }
+}
+
 namespace {
 
 using Clock = std::chrono::steady_clock;
@@ -60,7 +68,7 @@ struct SpaceMap::Structure {
   std::vector<Vec3> sources;       // input order
   NeighborIndex index;             // over the sources
   AdjacencyGraph graph;            // input order
-  std::vector<std::uint32_t> order, position;  // order[k] = input index at k; position = inverse
+  std::vector<std::uint32_t> order;  // order[k] = input index of the source at row k
   EnvelopeMatrix factor;           // L, in `order`
   int terms = 0;                   // columns of P
   Vec3 center = Vec3::Zero();      // polynomial coordinates u = (x - center) / scale
@@ -78,6 +86,12 @@ struct SpaceMap::State {
   std::vector<Vec3> alpha_by_slot;                 // in the index's slot order, for evaluation
   Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();  // in u coordinates
   FitStats stats;
+
+  /// p(x); beta's absent rows are zero, so this serves constant and linear alike.
+  Vec3 polynomial_at(const Vec3& x) const {
+    const Vec3 u = (x - st->center) / st->scale;
+    return (beta.row(0) + u.transpose() * beta.bottomRows<3>()).transpose();
+  }
 };
 
 SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> destinations,
@@ -157,8 +171,6 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   t0 = Clock::now();
   OrderingChoice oc = choose_ordering(st->graph, options.ordering);
   st->order = std::move(oc.order);
-  st->position.resize(n);
-  for (std::size_t k = 0; k < n; ++k) st->position[st->order[k]] = std::uint32_t(k);
   stats.ordering = oc.chosen;
   stats.identity = oc.identity;
   stats.breadth_first = oc.breadth_first;
@@ -167,25 +179,7 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   stats.seconds_ordering = seconds_since(t0);
 
   t0 = Clock::now();
-  std::vector<std::size_t> first(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    std::size_t f = k;
-    for (std::uint32_t j : st->graph.neighbors_of(st->order[k])) f = std::min<std::size_t>(f, st->position[j]);
-    first[k] = f;
-  }
-  EnvelopeMatrix a(std::move(first));
-  const double inv_r = 1.0 / options.radius;
-  const double phi0 = wendland(options.kernel, 0.0);
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t i = st->order[k];
-    a.at(k, k) = phi0;
-    const auto nb = st->graph.neighbors_of(i);
-    const auto d2 = st->graph.dist2_of(i);
-    for (std::size_t e = 0; e < nb.size(); ++e) {
-      const std::size_t col = st->position[nb[e]];
-      if (col < k) a.at(k, col) = wendland(options.kernel, std::sqrt(d2[e]) * inv_r);
-    }
-  }
+  EnvelopeMatrix a = kernel_matrix(st->graph, st->order, options.kernel, options.radius);
   stats.bandwidth = a.bandwidth();
   stats.envelope_entries = a.envelope_entries();
   stats.envelope_bytes = a.paper_bytes();
@@ -222,18 +216,22 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   }
   auto structure_only = std::make_shared<State>();
   structure_only->st = std::move(st);
-  return SpaceMap(std::move(structure_only)).with_destinations(destinations);
+  return SpaceMap(std::move(structure_only)).solve_destinations(destinations);
 }
 
 SpaceMap SpaceMap::with_destinations(std::span<const Vec3> destinations) const {
-  const Structure& st = *s_->st;
-  const std::size_t n = st.sources.size();
-  if (destinations.size() != n) {
+  if (destinations.size() != size()) {
     std::ostringstream os;
-    os << "control points: " << n << " sources but " << destinations.size() << " destinations";
+    os << "control points: " << size() << " sources but " << destinations.size() << " destinations";
     throw InvalidInput(os.str());
   }
   check_points(destinations, "destination");
+  return solve_destinations(destinations);
+}
+
+SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const {
+  const Structure& st = *s_->st;
+  const std::size_t n = st.sources.size();
   auto s = std::make_shared<State>();
   s->st = s_->st;
   s->destinations.assign(destinations.begin(), destinations.end());
@@ -270,8 +268,7 @@ SpaceMap SpaceMap::with_destinations(std::span<const Vec3> destinations) const {
     const auto d2 = st.graph.dist2_of(i);
     for (std::size_t e = 0; e < nb.size(); ++e)
       v += wendland(st.options.kernel, std::sqrt(d2[e]) * inv_r) * s->alpha.row(nb[e]).transpose();
-    const Vec3 u = (st.sources[i] - st.center) / st.scale;
-    v += (s->beta.row(0) + u.transpose() * s->beta.bottomRows<3>()).transpose();
+    v += s->polynomial_at(st.sources[i]);
     const Vec3 g = destinations[i] - st.sources[i];
     res = std::max(res, (v - g).norm());
     gmax = std::max(gmax, g.norm());
@@ -290,10 +287,7 @@ Vec3 SpaceMap::displacement(const Vec3& x) const {
   st.index.for_each_slot_within(x, [&](std::size_t slot, double d2) {
     d += wendland(k, std::sqrt(d2) * inv_r) * s_->alpha_by_slot[slot];
   });
-  if (st.terms > 0) {
-    const Vec3 u = (x - st.center) / st.scale;
-    d += (s_->beta.row(0) + u.transpose() * s_->beta.bottomRows<3>()).transpose();
-  }
+  if (st.terms > 0) d += s_->polynomial_at(x);
   return d;
 }
 
@@ -314,11 +308,7 @@ Eigen::Matrix3d SpaceMap::jacobian(const Vec3& x, double phase) const {
 
 template <class T>
 void SpaceMap::apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const {
-  if (!std::isfinite(phase)) {
-    std::ostringstream os;
-    os << "phase must be a finite number, got " << phase;
-    throw InvalidInput(os.str());
-  }
+  check_phase(phase);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 2048), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t i = r.begin(); i < r.end(); ++i) {
       const Vec3 x{double(in[3 * i]), double(in[3 * i + 1]), double(in[3 * i + 2])};
@@ -373,6 +363,24 @@ Eigen::Matrix<double, 4, 3> SpaceMap::polynomial_coefficients() const noexcept {
   out.row(0) = s_->beta.row(0) - st.center.transpose() * lin;
   out.bottomRows<3>() = lin;
   return out;
+}
+
+EnvelopeMatrix kernel_matrix(const AdjacencyGraph& g, std::span<const std::uint32_t> order, Kernel kernel,
+                             double radius) {
+  const std::size_t n = g.size();
+  std::vector<std::uint32_t> pos(n);
+  for (std::size_t k = 0; k < n; ++k) pos[order[k]] = std::uint32_t(k);
+  EnvelopeMatrix a(envelope_first_columns(g, order));
+  const double inv_r = 1.0 / radius;
+  const double phi0 = wendland(kernel, 0.0);
+  for (std::size_t k = 0; k < n; ++k) {
+    a.at(k, k) = phi0;
+    const auto nb = g.neighbors_of(order[k]);
+    const auto d2 = g.dist2_of(order[k]);
+    for (std::size_t e = 0; e < nb.size(); ++e)
+      if (pos[nb[e]] < k) a.at(k, pos[nb[e]]) = wendland(kernel, std::sqrt(d2[e]) * inv_r);
+  }
+  return a;
 }
 
 void deform(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options,
