@@ -69,6 +69,7 @@ Fitted fit(const FitArgs& a) {
     throw csrbf::io::FileError(controls.name + ":" + std::to_string(controls.lines[e.second()]) + ": source is the same as on line " +
                                std::to_string(controls.lines[e.first()]));
   } catch (const csrbf::NotPositiveDefinite& e) {
+    if (e.row() >= controls.lines.size()) throw csrbf::io::FileError(controls.name + ": " + e.what());
     throw csrbf::io::FileError(controls.name + ":" + std::to_string(controls.lines[e.row()]) +
                                ": the interpolation matrix is not numerically positive definite at this control (pivot " +
                                std::to_string(e.pivot()) + "); sources too close together for R = " + std::to_string(a.radius));

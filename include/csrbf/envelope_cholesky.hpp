@@ -24,6 +24,8 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 class NotPositiveDefinite : public std::runtime_error {
  public:
   NotPositiveDefinite(std::size_t row, double pivot);
+  /// When the failing row is not known (sparse solvers): row() is SIZE_MAX, pivot() NaN.
+  explicit NotPositiveDefinite(const std::string& message);
   std::size_t row() const noexcept { return row_; }
   double pivot() const noexcept { return pivot_; }
 

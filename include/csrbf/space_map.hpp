@@ -29,11 +29,27 @@ enum class Polynomial { None, Constant, Linear };
 std::string_view polynomial_name(Polynomial p) noexcept;
 std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept;
 
+/// The factorisation of the N x N CSRBF matrix A.
+enum class Solver {
+  Envelope,  ///< the paper's: ordering + Jennings envelope Cholesky (envelope_cholesky.hpp)
+  Eigen,     ///< Eigen's SimplicialLLT with AMD ordering
+  Cholmod,   ///< SuiteSparse CHOLMOD, supernodal (only when csrbf was built with it)
+  Auto,      ///< Envelope while its estimated work is small, then CHOLMOD (or Eigen without it)
+};
+std::string_view solver_name(Solver s) noexcept;
+std::optional<Solver> parse_solver(std::string_view name) noexcept;
+/// Whether this build of csrbf can use CHOLMOD.
+bool cholmod_available() noexcept;
+/// Auto's rule: the envelope solver is used while the multiply-adds of its factorisation,
+/// sum over rows of (row length)^2 / 2, stay at or below this (measured: docs/PERFORMANCE.md).
+inline constexpr double kEnvelopeWorkLimit = 4.0e6;
+
 struct FitOptions {
   double radius = 0.0;  ///< support radius R in the points' units (not squared), > 0
   Kernel kernel = Kernel::C2;
   Polynomial polynomial = Polynomial::None;
-  Ordering ordering = Ordering::Auto;
+  Ordering ordering = Ordering::Auto;  ///< of the envelope solver (the sparse solvers order themselves)
+  Solver solver = Solver::Auto;
 };
 
 /// What a fit did and what it cost. Times are wall-clock seconds of each phase.
@@ -47,6 +63,9 @@ struct FitStats {
   std::size_t envelope_entries = 0;      ///< off-diagonal entries stored
   std::size_t envelope_bytes = 0;        ///< paper's accounting: 4-byte floats + 4-byte indices
   std::size_t dense_bytes = 0;           ///< N^2 * 4, the paper's dense float storage
+  double envelope_work = 0.0;            ///< multiply-adds of the envelope factorisation (estimate)
+  Solver solver = Solver::Envelope;      ///< the solver used
+  std::size_t factor_nonzeros = 0;       ///< entries of the factor L actually stored
   double residual_max = 0.0;             ///< max_i ||s(x_i) - g_i|| at the controls
   double residual_relative = 0.0;        ///< residual_max / max_i ||g_i|| (or residual_max if g = 0)
   double seconds_index = 0, seconds_graph = 0, seconds_ordering = 0, seconds_assembly = 0,

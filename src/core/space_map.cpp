@@ -1,5 +1,8 @@
 #include "csrbf/space_map.hpp"
 
+#include "evaluator.hpp"
+#include "sparse_solver.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/SVD>
 #include <tbb/blocked_range.h>
@@ -23,6 +26,34 @@ std::string_view polynomial_name(Polynomial p) noexcept {
   return "?";
 }
 
+std::string_view solver_name(Solver s) noexcept {
+  switch (s) {
+    case Solver::Envelope: return "envelope";
+    case Solver::Eigen: return "eigen";
+    case Solver::Cholmod: return "cholmod";
+    case Solver::Auto: return "auto";
+  }
+  return "?";
+}
+
+std::optional<Solver> parse_solver(std::string_view name) noexcept {
+  std::string s(name);
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  if (s == "envelope") return Solver::Envelope;
+  if (s == "eigen") return Solver::Eigen;
+  if (s == "cholmod") return Solver::Cholmod;
+  if (s == "auto") return Solver::Auto;
+  return std::nullopt;
+}
+
+bool cholmod_available() noexcept {
+#ifdef CSRBF_HAVE_CHOLMOD
+  return true;
+#else
+  return false;
+#endif
+}
+
 std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept {
   std::string s(name);
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
@@ -43,6 +74,9 @@ void check_phase(double phase) {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+// The most memory the evaluation lists of one fit may take (evaluator.hpp); past it, evaluation goes
+// through NeighborIndex.
+constexpr std::size_t kEvalListBytes = std::size_t(1) << 30;
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
@@ -67,9 +101,11 @@ struct SpaceMap::Structure {
   FitOptions options;
   std::vector<Vec3> sources;       // input order
   NeighborIndex index;             // over the sources
+  detail::EvalGrid grid;           // the evaluation grid (evaluator.hpp)
   AdjacencyGraph graph;            // input order
   std::vector<std::uint32_t> order;  // order[k] = input index of the source at row k
-  EnvelopeMatrix factor;           // L, in `order`
+  EnvelopeMatrix factor;           // L, in `order` (Solver::Envelope)
+  std::unique_ptr<detail::SparseFactor> sparse;  // the other solvers (then `order` is the identity)
   int terms = 0;                   // columns of P
   Vec3 center = Vec3::Zero();      // polynomial coordinates u = (x - center) / scale
   double scale = 1.0;
@@ -77,6 +113,11 @@ struct SpaceMap::Structure {
   RowMatrix y;                     // A^{-1} P, in `order`
   Eigen::LLT<Eigen::MatrixXd> schur;  // P^T A^{-1} P
   FitStats stats;                  // the structural part and its times
+
+  void solve_in_place(RowMatrix& b) const {
+    if (sparse) sparse->solve_in_place(b);
+    else factor.solve_in_place(b);
+  }
 };
 
 struct SpaceMap::State {
@@ -84,6 +125,8 @@ struct SpaceMap::State {
   std::vector<Vec3> destinations;
   Eigen::Matrix<double, Eigen::Dynamic, 3> alpha;  // input order
   std::vector<Vec3> alpha_by_slot;                 // in the index's slot order, for evaluation
+  detail::EvalCoefficients coef;                   // alpha in the evaluation grid's slot order
+  detail::PolynomialPart poly;                     // beta for the evaluator
   Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();  // in u coordinates
   FitStats stats;
 
@@ -148,10 +191,14 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
 
   auto t0 = Clock::now();
   st->index = NeighborIndex(sources, options.radius);
+  st->grid = detail::EvalGrid::build(sources, options.radius, kEvalListBytes);
   stats.seconds_index = seconds_since(t0);
 
   t0 = Clock::now();
-  st->graph = AdjacencyGraph::from_index(st->index, sources);
+  if (st->grid.usable)
+    st->grid.neighbor_graph(sources, st->graph.offsets, st->graph.neighbors, st->graph.dist2);
+  else
+    st->graph = AdjacencyGraph::from_index(st->index, sources);
   stats.seconds_graph = seconds_since(t0);
   stats.neighbor_pairs = st->graph.neighbors.size() / 2;
   stats.mean_neighbors = double(st->graph.neighbors.size()) / double(n);
@@ -176,25 +223,59 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   stats.breadth_first = oc.breadth_first;
   stats.reverse_breadth_first = oc.reverse_breadth_first;
   stats.reverse_cuthill_mckee = oc.reverse_cuthill_mckee;
+
+  // Work of the envelope factorisation in this order: row k costs about (row length)^2 / 2.
+  {
+    const auto first = envelope_first_columns(st->graph, st->order);
+    double work = 0.0;
+    for (std::size_t k = 0; k < n; ++k) work += 0.5 * double(k - first[k] + 1) * double(k - first[k] + 1);
+    stats.envelope_work = work;
+  }
+  Solver solver = options.solver;
+  if (solver == Solver::Auto)
+    solver = stats.envelope_work <= kEnvelopeWorkLimit ? Solver::Envelope
+             : cholmod_available()                     ? Solver::Cholmod
+                                                       : Solver::Eigen;
+  if (solver == Solver::Cholmod && !cholmod_available())
+    throw InvalidInput("solver 'cholmod': this build of csrbf has no CHOLMOD (SuiteSparse); use 'envelope' or 'eigen'");
+  stats.solver = solver;
   stats.seconds_ordering = seconds_since(t0);
 
-  t0 = Clock::now();
-  EnvelopeMatrix a = kernel_matrix(st->graph, st->order, options.kernel, options.radius);
-  stats.bandwidth = a.bandwidth();
-  stats.envelope_entries = a.envelope_entries();
-  stats.envelope_bytes = a.paper_bytes();
-  stats.dense_bytes = a.dense_bytes();
-  stats.seconds_assembly = seconds_since(t0);
+  if (solver == Solver::Envelope) {
+    t0 = Clock::now();
+    EnvelopeMatrix a = kernel_matrix(st->graph, st->order, options.kernel, options.radius);
+    stats.bandwidth = a.bandwidth();
+    stats.envelope_entries = a.envelope_entries();
+    stats.envelope_bytes = a.paper_bytes();
+    stats.dense_bytes = a.dense_bytes();
+    stats.seconds_assembly = seconds_since(t0);
 
-  t0 = Clock::now();
-  try {
-    a.cholesky_in_place();
-  } catch (const NotPositiveDefinite& e) {
-    // Report the control's input index, not its row in the ordered matrix.
-    throw NotPositiveDefinite(st->order[e.row()], e.pivot());
+    t0 = Clock::now();
+    try {
+      a.cholesky_in_place();
+    } catch (const NotPositiveDefinite& e) {
+      // Report the control's input index, not its row in the ordered matrix.
+      throw NotPositiveDefinite(st->order[e.row()], e.pivot());
+    }
+    st->factor = std::move(a);
+    stats.factor_nonzeros = stats.envelope_entries + n;
+    stats.seconds_factorization = seconds_since(t0);
+  } else {
+    // The profile the envelope solver would have had, for comparison.
+    const Profile chosen = stats.ordering == Ordering::Identity              ? stats.identity
+                           : stats.ordering == Ordering::BreadthFirst        ? stats.breadth_first
+                           : stats.ordering == Ordering::ReverseBreadthFirst ? stats.reverse_breadth_first
+                                                                            : stats.reverse_cuthill_mckee;
+    stats.bandwidth = chosen.bandwidth;
+    stats.envelope_entries = chosen.envelope;
+    stats.envelope_bytes = 4 * (n + chosen.envelope) + 4 * n;
+    stats.dense_bytes = 4 * n * n;
+    st->order = identity_order(n);
+    t0 = Clock::now();
+    st->sparse = detail::factor_sparse(st->graph, options.kernel, options.radius, solver);
+    stats.factor_nonzeros = st->sparse->nonzeros();
+    stats.seconds_factorization = seconds_since(t0);
   }
-  st->factor = std::move(a);
-  stats.seconds_factorization = seconds_since(t0);
 
   if (terms > 0) {
     t0 = Clock::now();
@@ -207,7 +288,7 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
       }
     }
     st->y = st->p;
-    st->factor.solve_in_place(st->y);
+    st->solve_in_place(st->y);
     st->schur.compute(st->p.transpose() * st->y);
     if (st->schur.info() != Eigen::Success)
       throw DegeneratePolynomial(std::string("polynomial '") + std::string(polynomial_name(options.polynomial)) +
@@ -244,7 +325,7 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
     const std::size_t i = st.order[k];
     z.row(Eigen::Index(k)) = (destinations[i] - st.sources[i]).transpose();
   }
-  st.factor.solve_in_place(z);
+  st.solve_in_place(z);
   if (st.terms > 0) {
     const Eigen::MatrixXd b = st.schur.solve(st.p.transpose() * z);  // terms x 3
     z -= st.y * b;
@@ -255,6 +336,14 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
   s->alpha_by_slot.resize(n);
   for (std::size_t slot = 0; slot < n; ++slot)
     s->alpha_by_slot[slot] = s->alpha.row(Eigen::Index(st.index.original_index(slot))).transpose();
+  if (st.grid.usable) {
+    const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> rows = s->alpha;
+    s->coef.assign(st.grid, rows.data());
+  }
+  s->poly.center = st.center;
+  s->poly.inv_scale = 1.0 / st.scale;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 3; ++c) s->poly.b[r][c] = s->beta(r, c);
   stats.seconds_solve += seconds_since(t0);
 
   // Residual at the controls, through the neighbour graph (the sparse rows of A, unpermuted).
@@ -309,6 +398,21 @@ Eigen::Matrix3d SpaceMap::jacobian(const Vec3& x, double phase) const {
 template <class T>
 void SpaceMap::apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const {
   check_phase(phase);
+  const Structure& st = *s_->st;
+  if (st.grid.usable) {
+    const detail::PolynomialPart* poly = st.terms > 0 ? &s_->poly : nullptr;
+    const Kernel k = st.options.kernel;
+    // Small batches in the calling thread: a task switch costs more than a game mesh's evaluation.
+    constexpr std::size_t grain = 4096;
+    if (n <= grain) {
+      detail::evaluate(st.grid, s_->coef, k, poly, in, out, 0, n, phase, add_point);
+      return;
+    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
+      detail::evaluate(st.grid, s_->coef, k, poly, in, out, r.begin(), r.end(), phase, add_point);
+    });
+    return;
+  }
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 2048), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t i = r.begin(); i < r.end(); ++i) {
       const Vec3 x{double(in[3 * i]), double(in[3 * i + 1]), double(in[3 * i + 2])};

@@ -1,0 +1,268 @@
+#include "evaluator.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <type_traits>
+
+// Multi-versioning: an AVX2 clone and a baseline clone of each hot loop, picked at load time, so a
+// portable binary still runs the wide loop on machines that have it.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__has_attribute)
+#if __has_attribute(target_clones)
+#define CSRBF_CLONES __attribute__((target_clones("avx2", "default")))
+#endif
+#endif
+#ifndef CSRBF_CLONES
+#define CSRBF_CLONES
+#endif
+
+namespace csrbf::detail {
+
+EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size_t max_bytes) {
+  EvalGrid g;
+  const std::size_t n = sources.size();
+  if (n == 0) return g;
+  Vec3 lo = sources[0], hi = sources[0];
+  for (const auto& s : sources) {
+    lo = lo.cwiseMin(s);
+    hi = hi.cwiseMax(s);
+  }
+  const double R2 = radius * radius;
+  for (int k = 2; k >= 1; --k) {
+    g.subdivision = k;
+    g.radius = radius;
+    g.h = radius / k;
+    g.inv_h = 1.0 / g.h;
+    g.origin = lo - Vec3::Constant(radius);
+    const Vec3 span = (hi - lo + Vec3::Constant(2 * radius)) * g.inv_h;
+    const double cells = (std::floor(span.x()) + 1) * (std::floor(span.y()) + 1) * (std::floor(span.z()) + 1);
+    // Each source is listed in about 84 cells for K = 2 and 21 for K = 1 (Steiner's formula for the
+    // cube grown by R); each entry and each cell cost 4 bytes, each source 72.
+    const double entries = double(n) * (k == 2 ? 90.0 : 24.0);
+    if (!(cells * 4.0 + entries * 4.0 + double(n) * 72.0 <= double(max_bytes)) || !(cells < 4.0e9)) continue;
+    g.nx = std::int64_t(span.x()) + 1;
+    g.ny = std::int64_t(span.y()) + 1;
+    g.nz = std::int64_t(span.z()) + 1;
+    const std::size_t ncell = std::size_t(g.nx * g.ny * g.nz);
+    // (cell, source) pairs: every cell whose box is closer than R to the source.
+    std::vector<std::uint32_t> count(ncell + 1, 0);
+    std::vector<std::pair<std::uint32_t, std::uint32_t>> pairs;  // (cell, source), sources ascending
+    pairs.reserve(std::size_t(entries));
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 q = (sources[i] - g.origin) * g.inv_h;  // in cell units
+      // Per axis: the cells within K of the source's, and the squared distance to each cell's slab.
+      std::int64_t c0[3], c1[3];
+      double d2[3][5];
+      const std::int64_t dims[3] = {g.nx, g.ny, g.nz};
+      for (int a = 0; a < 3; ++a) {
+        const auto c = std::int64_t(q[a]);
+        c0[a] = std::max<std::int64_t>(c - k, 0);
+        c1[a] = std::min<std::int64_t>(c + k, dims[a] - 1);
+        for (std::int64_t cc = c0[a]; cc <= c1[a]; ++cc) {
+          const double below = double(cc) - q[a], above = q[a] - double(cc + 1);
+          const double d = (below > 0 ? below : above > 0 ? above : 0.0) * g.h;
+          d2[a][cc - c0[a]] = d * d;
+        }
+      }
+      for (std::int64_t zc = c0[2]; zc <= c1[2]; ++zc) {
+        const double dz = d2[2][zc - c0[2]];
+        for (std::int64_t yc = c0[1]; yc <= c1[1]; ++yc) {
+          const double ryz = dz + d2[1][yc - c0[1]];
+          if (ryz >= R2) continue;
+          const std::int64_t row = (zc * g.ny + yc) * g.nx;
+          for (std::int64_t xc = c0[0]; xc <= c1[0]; ++xc) {
+            if (ryz + d2[0][xc - c0[0]] >= R2) continue;
+            const auto cell = std::uint32_t(row + xc);
+            pairs.emplace_back(cell, std::uint32_t(i));
+            ++count[cell + 1];
+          }
+        }
+      }
+    }
+    // Offsets with each non-empty run padded to a multiple of kLanes.
+    g.begin.assign(ncell + 1, 0);
+    for (std::size_t c = 0; c < ncell; ++c)
+      g.begin[c + 1] = g.begin[c] + std::uint32_t((count[c + 1] + kLanes - 1) / kLanes * kLanes);
+    const std::size_t total = g.begin[ncell];
+    if (double(total) * 4.0 + double(ncell) * 4.0 + double(n) * 72.0 > double(max_bytes) || total >= 0xffffffffu)
+      continue;
+    g.source.assign(total, std::uint32_t(n));  // n: the inert source
+    std::vector<std::uint32_t> fill(g.begin.begin(), g.begin.end() - 1);
+    for (const auto& [cell, src] : pairs) g.source[fill[cell]++] = src;
+    constexpr double far = 1e18;  // inert: r clips to 1 and phi(1) = 0
+    g.x.assign(n + 1, far), g.y.assign(n + 1, far), g.z.assign(n + 1, far);
+    g.xf.assign(n + 1, float(far)), g.yf.assign(n + 1, float(far)), g.zf.assign(n + 1, float(far));
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 r = sources[i] - g.origin;
+      g.x[i] = sources[i].x(), g.y[i] = sources[i].y(), g.z[i] = sources[i].z();
+      g.xf[i] = float(r.x()), g.yf[i] = float(r.y()), g.zf[i] = float(r.z());
+    }
+    g.usable = true;
+    return g;
+  }
+  return EvalGrid{};
+}
+
+void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::size_t>& offsets,
+                              std::vector<std::uint32_t>& neighbors, std::vector<double>& dist2) const {
+  const std::size_t n = sources.size();
+  const double R2 = radius * radius;
+  offsets.assign(n + 1, 0);
+  neighbors.clear();
+  dist2.clear();
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3& p = sources[i];
+    const Vec3 q = (p - origin) * inv_h;
+    const std::size_t cell = std::size_t((std::int64_t(q.z()) * ny + std::int64_t(q.y())) * nx + std::int64_t(q.x()));
+    for (std::uint32_t e = begin[cell]; e < begin[cell + 1]; ++e) {
+      const std::uint32_t j = source[e];
+      if (j == n || j == i) continue;
+      const double dx = x[j] - p.x(), dy = y[j] - p.y(), dz = z[j] - p.z();
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      if (d2 < R2) {
+        neighbors.push_back(j);
+        dist2.push_back(d2);
+      }
+    }
+    offsets[i + 1] = neighbors.size();
+  }
+}
+
+void EvalCoefficients::assign(const EvalGrid& g, const double* alpha) {
+  const std::size_t n = g.x.size() - 1;
+  x.assign(n + 1, 0.0), y.assign(n + 1, 0.0), z.assign(n + 1, 0.0);
+  xf.assign(n + 1, 0.0f), yf.assign(n + 1, 0.0f), zf.assign(n + 1, 0.0f);
+  for (std::size_t i = 0; i < n; ++i) {
+    x[i] = alpha[3 * i], y[i] = alpha[3 * i + 1], z[i] = alpha[3 * i + 2];
+    xf[i] = float(x[i]), yf[i] = float(y[i]), zf[i] = float(z[i]);
+  }
+}
+
+namespace {
+
+// phi(r) for r in [0, 1], branch-free; every member is exactly 0 at r = 1.
+template <Kernel K, class T>
+inline __attribute__((always_inline)) T phi(T r) {
+  const T s = T(1) - r;
+  const T s2 = s * s;
+  if constexpr (K == Kernel::C0) return s2;
+  else if constexpr (K == Kernel::C2) return (s2 * s2) * (T(4) * r + T(1));
+  else if constexpr (K == Kernel::C4) return (s2 * s2 * s2) * ((T(35) * r + T(18)) * r + T(3));
+  else return (s2 * s2) * (s2 * s2) * (((T(32) * r + T(25)) * r + T(8)) * r + T(1));
+}
+
+template <class T> struct Arrays;
+template <> struct Arrays<double> {
+  static const double* x(const EvalGrid& g) { return g.x.data(); }
+  static const double* y(const EvalGrid& g) { return g.y.data(); }
+  static const double* z(const EvalGrid& g) { return g.z.data(); }
+  static const double* ax(const EvalCoefficients& a) { return a.x.data(); }
+  static const double* ay(const EvalCoefficients& a) { return a.y.data(); }
+  static const double* az(const EvalCoefficients& a) { return a.z.data(); }
+};
+template <> struct Arrays<float> {
+  static const float* x(const EvalGrid& g) { return g.xf.data(); }
+  static const float* y(const EvalGrid& g) { return g.yf.data(); }
+  static const float* z(const EvalGrid& g) { return g.zf.data(); }
+  static const float* ax(const EvalCoefficients& a) { return a.xf.data(); }
+  static const float* ay(const EvalCoefficients& a) { return a.yf.data(); }
+  static const float* az(const EvalCoefficients& a) { return a.zf.data(); }
+};
+
+template <Kernel K, class T>
+inline __attribute__((always_inline)) void block(const EvalGrid& g, const EvalCoefficients& a,
+                                                 const PolynomialPart* poly, const T* in, T* out,
+                                                 std::size_t begin, std::size_t end, double phase,
+                                                 bool add_point) {
+  const T* __restrict sx = Arrays<T>::x(g);
+  const T* __restrict sy = Arrays<T>::y(g);
+  const T* __restrict sz = Arrays<T>::z(g);
+  const T* __restrict ax = Arrays<T>::ax(a);
+  const T* __restrict ay = Arrays<T>::ay(a);
+  const T* __restrict az = Arrays<T>::az(a);
+  const std::uint32_t* cb = g.begin.data();
+  const std::uint32_t* __restrict src = g.source.data();
+  const double inv_h = g.inv_h;
+  const T inv_r = T(1.0 / g.radius);
+  const std::int64_t nx = g.nx, ny = g.ny, nz = g.nz;
+  for (std::size_t i = begin; i < end; ++i) {
+    const double px = double(in[3 * i]), py = double(in[3 * i + 1]), pz = double(in[3 * i + 2]);
+    const double qx = px - g.origin.x(), qy = py - g.origin.y(), qz = pz - g.origin.z();
+    T dx_sum = 0, dy_sum = 0, dz_sum = 0;
+    const double fx = std::floor(qx * inv_h), fy = std::floor(qy * inv_h), fz = std::floor(qz * inv_h);
+    // Outside the grid (the sources' box grown by R), or NaN: no source within R.
+    if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(nx) && fy < double(ny) && fz < double(nz)) {
+      const std::size_t cell = std::size_t((std::int64_t(fz) * ny + std::int64_t(fy)) * nx + std::int64_t(fx));
+      const std::uint32_t b = cb[cell], e = cb[cell + 1];
+      // double: absolute coordinates, as the simple path; float: relative to the grid, to keep digits.
+      constexpr bool dbl = std::is_same_v<T, double>;
+      const T tx = T(dbl ? px : qx), ty = T(dbl ? py : qy), tz = T(dbl ? pz : qz);
+#pragma omp simd reduction(+ : dx_sum, dy_sum, dz_sum)
+      for (std::uint32_t j = b; j < e; ++j) {
+        const std::uint32_t k = src[j];
+        const T ddx = sx[k] - tx, ddy = sy[k] - ty, ddz = sz[k] - tz;
+        const T r = std::min(std::sqrt(ddx * ddx + ddy * ddy + ddz * ddz) * inv_r, T(1));
+        const T f = phi<K, T>(r);
+        dx_sum += f * ax[k];
+        dy_sum += f * ay[k];
+        dz_sum += f * az[k];
+      }
+    }
+    double d0 = double(dx_sum), d1 = double(dy_sum), d2 = double(dz_sum);
+    if (poly) {
+      const double u0 = (px - poly->center.x()) * poly->inv_scale, u1 = (py - poly->center.y()) * poly->inv_scale,
+                   u2 = (pz - poly->center.z()) * poly->inv_scale;
+      d0 += poly->b[0][0] + u0 * poly->b[1][0] + u1 * poly->b[2][0] + u2 * poly->b[3][0];
+      d1 += poly->b[0][1] + u0 * poly->b[1][1] + u1 * poly->b[2][1] + u2 * poly->b[3][1];
+      d2 += poly->b[0][2] + u0 * poly->b[1][2] + u1 * poly->b[2][2] + u2 * poly->b[3][2];
+    }
+    if (add_point) {
+      out[3 * i] = T(px + phase * d0);
+      out[3 * i + 1] = T(py + phase * d1);
+      out[3 * i + 2] = T(pz + phase * d2);
+    } else {
+      out[3 * i] = T(d0);
+      out[3 * i + 1] = T(d1);
+      out[3 * i + 2] = T(d2);
+    }
+  }
+}
+
+#define CSRBF_EVAL_CLONE(K, T)                                                                                 \
+  CSRBF_CLONES void eval_##K##_##T(const EvalGrid& g, const EvalCoefficients& a, const PolynomialPart* poly, \
+                                   const T* in, T* out, std::size_t b, std::size_t e, double phase,           \
+                                   bool add_point) {                                                          \
+    block<Kernel::K, T>(g, a, poly, in, out, b, e, phase, add_point);                                         \
+  }
+CSRBF_EVAL_CLONE(C0, double)
+CSRBF_EVAL_CLONE(C2, double)
+CSRBF_EVAL_CLONE(C4, double)
+CSRBF_EVAL_CLONE(C6, double)
+CSRBF_EVAL_CLONE(C0, float)
+CSRBF_EVAL_CLONE(C2, float)
+CSRBF_EVAL_CLONE(C4, float)
+CSRBF_EVAL_CLONE(C6, float)
+#undef CSRBF_EVAL_CLONE
+
+}  // namespace
+
+void evaluate(const EvalGrid& g, const EvalCoefficients& a, Kernel kernel, const PolynomialPart* poly,
+              const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
+  switch (kernel) {
+    case Kernel::C0: return eval_C0_double(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C2: return eval_C2_double(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C4: return eval_C4_double(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C6: return eval_C6_double(g, a, poly, in, out, begin, end, phase, add_point);
+  }
+}
+
+void evaluate(const EvalGrid& g, const EvalCoefficients& a, Kernel kernel, const PolynomialPart* poly,
+              const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
+  switch (kernel) {
+    case Kernel::C0: return eval_C0_float(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C2: return eval_C2_float(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C4: return eval_C4_float(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C6: return eval_C6_float(g, a, poly, in, out, begin, end, phase, add_point);
+  }
+}
+
+}  // namespace csrbf::detail

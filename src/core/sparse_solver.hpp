@@ -1,0 +1,29 @@
+// The general sparse Cholesky factorisations of the CSRBF matrix (private to csrbf::core): Eigen's
+// SimplicialLLT with AMD ordering, and SuiteSparse CHOLMOD's supernodal factorisation (nested
+// dissection or AMD, BLAS-3 on dense supernodes) when csrbf is built with it. They work in the input
+// order of the sources (they permute internally).
+#pragma once
+
+#include "csrbf/envelope_cholesky.hpp"
+#include "csrbf/kernels.hpp"
+#include "csrbf/ordering.hpp"
+#include "csrbf/space_map.hpp"
+
+#include <memory>
+
+namespace csrbf::detail {
+
+class SparseFactor {
+ public:
+  virtual ~SparseFactor() = default;
+  /// Solves A X = B in place; B is N x m in the input order of the sources. Thread-safe.
+  virtual void solve_in_place(RowMatrix& b) const = 0;
+  /// Entries of the factor L.
+  virtual std::size_t nonzeros() const = 0;
+};
+
+/// Assembles A from the neighbour graph and factorises it with Solver::Eigen or Solver::Cholmod.
+/// Throws NotPositiveDefinite on failure, InvalidInput when CHOLMOD is asked for but not built in.
+std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, Kernel kernel, double radius, Solver which);
+
+}  // namespace csrbf::detail
