@@ -28,6 +28,9 @@ nlohmann::json stats_json(const SpaceMap& map) {
   j["envelope_entries"] = s.envelope_entries;
   j["envelope_bytes"] = s.envelope_bytes;
   j["dense_bytes"] = s.dense_bytes;
+  j["solver"] = std::string(solver_name(s.solver));
+  j["envelope_work"] = s.envelope_work;
+  j["factor_nonzeros"] = s.factor_nonzeros;
   j["residual_max"] = s.residual_max;
   j["residual_relative"] = s.residual_relative;
   j["time_us"] = {{"index", us(s.seconds_index)},           {"graph", us(s.seconds_graph)},
@@ -63,6 +66,8 @@ std::string stats_text(const SpaceMap& map) {
                                s.reverse_breadth_first.envelope, s.reverse_cuthill_mckee.envelope));
   line("envelope bytes", fmt("%zu  (dense %zu, %.1f%%; 4-byte floats as in the paper)", s.envelope_bytes, s.dense_bytes,
                              100.0 * double(s.envelope_bytes) / double(s.dense_bytes)));
+  line("solver", fmt("%s  (factor %zu entries; envelope work %.3g multiply-adds)",
+                     std::string(solver_name(s.solver)).c_str(), s.factor_nonzeros, s.envelope_work));
   line("residual", fmt("%.3g max, %.3g relative", s.residual_max, s.residual_relative));
   line("time (us)", fmt("index %.1f, graph %.1f, ordering %.1f, assembly %.1f, factorization %.1f, solve %.1f, "
                         "residual %.1f, total %.1f",

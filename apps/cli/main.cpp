@@ -1,4 +1,5 @@
 // csrbf: the command-line program. Exit 0 on success, 2 on a usage error, 1 on bad data or failure.
+#include "bench.hpp"
 #include "commands.hpp"
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/controls.hpp"
@@ -17,7 +18,7 @@ namespace {
 struct FitArgs {
   std::string controls;
   double radius = 0;
-  std::string kernel = "c2", polynomial = "none", ordering = "auto";
+  std::string kernel = "c2", polynomial = "none", ordering = "auto", solver = "auto";
 };
 
 CLI::Validator positive_finite(const char* what) {
@@ -48,6 +49,10 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
                   "Matrix ordering: auto (smallest envelope), breadth-first (paper Fig. 3), reverse-breadth-first, rcm, identity")
       ->check(CLI::IsMember({"auto", "breadth-first", "reverse-breadth-first", "rcm", "identity"}))
       ->capture_default_str();
+  cmd->add_option("--solver", a.solver,
+                  "Factorisation: auto (envelope while small, then CHOLMOD), envelope (paper), eigen, cholmod")
+      ->check(CLI::IsMember({"auto", "envelope", "eigen", "cholmod"}))
+      ->capture_default_str();
 }
 
 struct Fitted {
@@ -63,6 +68,7 @@ Fitted fit(const FitArgs& a) {
   o.kernel = *csrbf::parse_kernel(a.kernel);
   o.polynomial = *csrbf::parse_polynomial(a.polynomial);
   o.ordering = *csrbf::parse_ordering(a.ordering);
+  o.solver = *csrbf::parse_solver(a.solver);
   try {
     return {controls, csrbf::SpaceMap::fit(controls.sources, controls.destinations, o)};
   } catch (const csrbf::DuplicateSource& e) {
@@ -96,6 +102,22 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   deform->add_option("-o,--output", mesh_out, "Output mesh; its extension sets the format")->required();
 
+  csrbf::cli::BenchOptions bench_opts;
+  auto* bench = app.add_subcommand("bench", "Run a benchmark scenario and print medians (docs/PERFORMANCE.md)");
+  std::vector<std::string> scenario_names = csrbf::cli::bench_scenarios();
+  scenario_names.push_back("all");
+  bench->add_option("--scenario,-s", bench_opts.scenario, "fish, face, ball, scale, solvers, peers or all")
+      ->required()
+      ->check(CLI::IsMember(scenario_names));
+  bench->add_flag("--json", bench_opts.json, "One JSON object a line");
+  bench->add_flag("--quick", bench_opts.quick, "Smaller sweeps (scale, solvers, peers)");
+  bench->add_option("--threads", bench_opts.threads, "Threads (default: 1 for fish/face/ball/solvers, all for scale/peers)")
+      ->check(CLI::Range(1, 1024));
+  bench->add_option("--seconds", bench_opts.seconds, "Time spent on each measured quantity")
+      ->check(CLI::Range(0.0, 60.0))
+      ->capture_default_str();
+  bench->add_option("--data", bench_opts.data_dir, "Folder with fish.obj, face.obj and their .controls (default: bundled)");
+
   FitArgs info_args;
   bool json = false;
   auto* info = app.add_subcommand("info", "Fit the controls and print the solver's statistics");
@@ -126,6 +148,8 @@ int main(int argc, char** argv) {
                 << f.map.size() << " controls, R = " << f.map.radius() << ", kernel " << csrbf::kernel_name(f.map.kernel())
                 << ", polynomial " << csrbf::polynomial_name(f.map.polynomial()) << ", phase " << phase << " -> "
                 << mesh_out << " (" << std::chrono::duration<double, std::milli>(t1 - t0).count() << " ms)\n";
+    } else if (*bench) {
+      csrbf::cli::run_bench(bench_opts);
     } else if (*info) {
       Fitted f = fit(info_args);
       if (json)

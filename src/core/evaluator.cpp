@@ -36,9 +36,9 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
     const Vec3 span = (hi - lo + Vec3::Constant(2 * radius)) * g.inv_h;
     const double cells = (std::floor(span.x()) + 1) * (std::floor(span.y()) + 1) * (std::floor(span.z()) + 1);
     // Each source is listed in about 84 cells for K = 2 and 21 for K = 1 (Steiner's formula for the
-    // cube grown by R); each entry and each cell cost 4 bytes, each source 72.
+    // cube grown by R); each entry costs 4 bytes here and 72 in the EvalData of both precisions.
     const double entries = double(n) * (k == 2 ? 90.0 : 24.0);
-    if (!(cells * 4.0 + entries * 4.0 + double(n) * 72.0 <= double(max_bytes)) || !(cells < 4.0e9)) continue;
+    if (!(cells * 4.0 + entries * 76.0 <= double(max_bytes)) || !(cells < 4.0e9)) continue;
     g.nx = std::int64_t(span.x()) + 1;
     g.ny = std::int64_t(span.y()) + 1;
     g.nz = std::int64_t(span.z()) + 1;
@@ -83,19 +83,11 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
     for (std::size_t c = 0; c < ncell; ++c)
       g.begin[c + 1] = g.begin[c] + std::uint32_t((count[c + 1] + kLanes - 1) / kLanes * kLanes);
     const std::size_t total = g.begin[ncell];
-    if (double(total) * 4.0 + double(ncell) * 4.0 + double(n) * 72.0 > double(max_bytes) || total >= 0xffffffffu)
+    if (double(total) * 76.0 + double(ncell) * 4.0 > double(max_bytes) || total >= 0xffffffffu)
       continue;
     g.source.assign(total, std::uint32_t(n));  // n: the inert source
     std::vector<std::uint32_t> fill(g.begin.begin(), g.begin.end() - 1);
     for (const auto& [cell, src] : pairs) g.source[fill[cell]++] = src;
-    constexpr double far = 1e18;  // inert: r clips to 1 and phi(1) = 0
-    g.x.assign(n + 1, far), g.y.assign(n + 1, far), g.z.assign(n + 1, far);
-    g.xf.assign(n + 1, float(far)), g.yf.assign(n + 1, float(far)), g.zf.assign(n + 1, float(far));
-    for (std::size_t i = 0; i < n; ++i) {
-      const Vec3 r = sources[i] - g.origin;
-      g.x[i] = sources[i].x(), g.y[i] = sources[i].y(), g.z[i] = sources[i].z();
-      g.xf[i] = float(r.x()), g.yf[i] = float(r.y()), g.zf[i] = float(r.z());
-    }
     g.usable = true;
     return g;
   }
@@ -116,8 +108,7 @@ void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::si
     for (std::uint32_t e = begin[cell]; e < begin[cell + 1]; ++e) {
       const std::uint32_t j = source[e];
       if (j == n || j == i) continue;
-      const double dx = x[j] - p.x(), dy = y[j] - p.y(), dz = z[j] - p.z();
-      const double d2 = dx * dx + dy * dy + dz * dz;
+      const double d2 = (sources[j] - p).squaredNorm();
       if (d2 < R2) {
         neighbors.push_back(j);
         dist2.push_back(d2);
@@ -127,15 +118,22 @@ void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::si
   }
 }
 
-void EvalCoefficients::assign(const EvalGrid& g, const double* alpha) {
-  const std::size_t n = g.x.size() - 1;
-  x.assign(n + 1, 0.0), y.assign(n + 1, 0.0), z.assign(n + 1, 0.0);
-  xf.assign(n + 1, 0.0f), yf.assign(n + 1, 0.0f), zf.assign(n + 1, 0.0f);
-  for (std::size_t i = 0; i < n; ++i) {
-    x[i] = alpha[3 * i], y[i] = alpha[3 * i + 1], z[i] = alpha[3 * i + 2];
-    xf[i] = float(x[i]), yf[i] = float(y[i]), zf[i] = float(z[i]);
+template <class T>
+void EvalData<T>::assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha) {
+  const std::size_t total = g.source.size(), n = sources.size();
+  constexpr T far = T(1e18);  // inert padding: r clips to 1 and phi(1) = 0
+  x.assign(total, far), y.assign(total, far), z.assign(total, far);
+  ax.assign(total, T(0)), ay.assign(total, T(0)), az.assign(total, T(0));
+  for (std::size_t e = 0; e < total; ++e) {
+    const std::uint32_t s = g.source[e];
+    if (s == n) continue;
+    const Vec3 p = std::is_same_v<T, double> ? sources[s] : Vec3(sources[s] - g.origin);
+    x[e] = T(p.x()), y[e] = T(p.y()), z[e] = T(p.z());
+    ax[e] = T(alpha[3 * s]), ay[e] = T(alpha[3 * s + 1]), az[e] = T(alpha[3 * s + 2]);
   }
 }
+template struct EvalData<float>;
+template struct EvalData<double>;
 
 namespace {
 
@@ -150,37 +148,18 @@ inline __attribute__((always_inline)) T phi(T r) {
   else return (s2 * s2) * (s2 * s2) * (((T(32) * r + T(25)) * r + T(8)) * r + T(1));
 }
 
-template <class T> struct Arrays;
-template <> struct Arrays<double> {
-  static const double* x(const EvalGrid& g) { return g.x.data(); }
-  static const double* y(const EvalGrid& g) { return g.y.data(); }
-  static const double* z(const EvalGrid& g) { return g.z.data(); }
-  static const double* ax(const EvalCoefficients& a) { return a.x.data(); }
-  static const double* ay(const EvalCoefficients& a) { return a.y.data(); }
-  static const double* az(const EvalCoefficients& a) { return a.z.data(); }
-};
-template <> struct Arrays<float> {
-  static const float* x(const EvalGrid& g) { return g.xf.data(); }
-  static const float* y(const EvalGrid& g) { return g.yf.data(); }
-  static const float* z(const EvalGrid& g) { return g.zf.data(); }
-  static const float* ax(const EvalCoefficients& a) { return a.xf.data(); }
-  static const float* ay(const EvalCoefficients& a) { return a.yf.data(); }
-  static const float* az(const EvalCoefficients& a) { return a.zf.data(); }
-};
-
 template <Kernel K, class T>
-inline __attribute__((always_inline)) void block(const EvalGrid& g, const EvalCoefficients& a,
+inline __attribute__((always_inline)) void block(const EvalGrid& g, const EvalData<T>& a,
                                                  const PolynomialPart* poly, const T* in, T* out,
                                                  std::size_t begin, std::size_t end, double phase,
                                                  bool add_point) {
-  const T* __restrict sx = Arrays<T>::x(g);
-  const T* __restrict sy = Arrays<T>::y(g);
-  const T* __restrict sz = Arrays<T>::z(g);
-  const T* __restrict ax = Arrays<T>::ax(a);
-  const T* __restrict ay = Arrays<T>::ay(a);
-  const T* __restrict az = Arrays<T>::az(a);
+  const T* __restrict sx = a.x.data();
+  const T* __restrict sy = a.y.data();
+  const T* __restrict sz = a.z.data();
+  const T* __restrict ax = a.ax.data();
+  const T* __restrict ay = a.ay.data();
+  const T* __restrict az = a.az.data();
   const std::uint32_t* cb = g.begin.data();
-  const std::uint32_t* __restrict src = g.source.data();
   const double inv_h = g.inv_h;
   const T inv_r = T(1.0 / g.radius);
   const std::int64_t nx = g.nx, ny = g.ny, nz = g.nz;
@@ -193,18 +172,31 @@ inline __attribute__((always_inline)) void block(const EvalGrid& g, const EvalCo
     if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(nx) && fy < double(ny) && fz < double(nz)) {
       const std::size_t cell = std::size_t((std::int64_t(fz) * ny + std::int64_t(fy)) * nx + std::int64_t(fx));
       const std::uint32_t b = cb[cell], e = cb[cell + 1];
+      if (b != e) {  // else no source within R of this cell: skip the lane sums too
       // double: absolute coordinates, as the simple path; float: relative to the grid, to keep digits.
       constexpr bool dbl = std::is_same_v<T, double>;
       const T tx = T(dbl ? px : qx), ty = T(dbl ? py : qy), tz = T(dbl ? pz : qz);
-#pragma omp simd reduction(+ : dx_sum, dy_sum, dz_sum)
-      for (std::uint32_t j = b; j < e; ++j) {
-        const std::uint32_t k = src[j];
-        const T ddx = sx[k] - tx, ddy = sy[k] - ty, ddz = sz[k] - tz;
-        const T r = std::min(std::sqrt(ddx * ddx + ddy * ddy + ddz * ddz) * inv_r, T(1));
-        const T f = phi<K, T>(r);
-        dx_sum += f * ax[k];
-        dy_sum += f * ay[k];
-        dz_sum += f * az[k];
+      // Runs are padded to multiples of kLanes: fixed-width blocks with one accumulator per lane,
+      // which the compiler turns into vector code (no reduction across the loop, no remainder).
+      constexpr std::size_t L = EvalGrid::kLanes;
+      T accx[L] = {}, accy[L] = {}, accz[L] = {};
+      for (std::uint32_t j = b; j < e; j += L) {
+#pragma omp simd
+        for (std::size_t l = 0; l < L; ++l) {
+          const T ddx = sx[j + l] - tx, ddy = sy[j + l] - ty, ddz = sz[j + l] - tz;
+          const T rr = std::sqrt(ddx * ddx + ddy * ddy + ddz * ddz) * inv_r;
+          const T r = rr < T(1) ? rr : T(1);  // by value: std::min's references defeat if-conversion
+          const T f = phi<K, T>(r);
+          accx[l] += f * ax[j + l];
+          accy[l] += f * ay[j + l];
+          accz[l] += f * az[j + l];
+        }
+      }
+      for (std::size_t l = 0; l < L; ++l) {
+        dx_sum += accx[l];
+        dy_sum += accy[l];
+        dz_sum += accz[l];
+      }
       }
     }
     double d0 = double(dx_sum), d1 = double(dy_sum), d2 = double(dz_sum);
@@ -228,7 +220,7 @@ inline __attribute__((always_inline)) void block(const EvalGrid& g, const EvalCo
 }
 
 #define CSRBF_EVAL_CLONE(K, T)                                                                                 \
-  CSRBF_CLONES void eval_##K##_##T(const EvalGrid& g, const EvalCoefficients& a, const PolynomialPart* poly, \
+  CSRBF_CLONES void eval_##K##_##T(const EvalGrid& g, const EvalData<T>& a, const PolynomialPart* poly, \
                                    const T* in, T* out, std::size_t b, std::size_t e, double phase,           \
                                    bool add_point) {                                                          \
     block<Kernel::K, T>(g, a, poly, in, out, b, e, phase, add_point);                                         \
@@ -245,7 +237,7 @@ CSRBF_EVAL_CLONE(C6, float)
 
 }  // namespace
 
-void evaluate(const EvalGrid& g, const EvalCoefficients& a, Kernel kernel, const PolynomialPart* poly,
+void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
               const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
   switch (kernel) {
     case Kernel::C0: return eval_C0_double(g, a, poly, in, out, begin, end, phase, add_point);
@@ -255,7 +247,7 @@ void evaluate(const EvalGrid& g, const EvalCoefficients& a, Kernel kernel, const
   }
 }
 
-void evaluate(const EvalGrid& g, const EvalCoefficients& a, Kernel kernel, const PolynomialPart* poly,
+void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
               const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
   switch (kernel) {
     case Kernel::C0: return eval_C0_float(g, a, poly, in, out, begin, end, phase, add_point);

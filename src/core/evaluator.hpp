@@ -2,9 +2,10 @@
 //
 // Space around the sources is cut into a dense grid of cubic cells of side h = R / K (K = 2, or 1
 // when the lists below would take too much memory). For every cell the sources closer than R to the
-// cell's box are listed once, at fit time, as one run of source indices padded to a multiple of 4
-// with an inert source (far away, zero coefficient). Evaluating a vertex then costs one cell lookup
-// and one branch-free loop over its cell's run (indexed loads from structure-of-arrays coordinates), which the compiler vectorises (OpenMP
+// cell's box are listed once, at fit time, as one run of source indices padded to a multiple of 8
+// with an inert source (far away, zero coefficient). On the first evaluation in float or in double,
+// the runs are copied out as contiguous structure-of-arrays coordinates and coefficients (EvalData),
+// so that evaluating a vertex costs one cell lookup and one branch-free loop over its cell's run, which the compiler vectorises (OpenMP
 // SIMD reduction; an AVX2 clone picked at load time on x86-64). With K = 2 about 40% of the
 // candidates lie within R (the ball's share of the cell grown by R), against 16% for the 27 cells of
 // side R that NeighborIndex visits.
@@ -31,25 +32,29 @@ struct EvalGrid {
   std::int64_t nx = 0, ny = 0, nz = 0;
   std::vector<std::uint32_t> begin;   // begin[cell] .. begin[cell+1]: the cell's entries
   std::vector<std::uint32_t> source;  // source[entry] = input index; N (the inert source) pads
-  std::vector<double> x, y, z;        // source coordinates (N + 1: the last one inert, far away)
-  std::vector<float> xf, yf, zf;      // the same in float, relative to origin
-  static constexpr std::size_t kLanes = 4;
+  static constexpr std::size_t kLanes = 8;
 
-  /// max_bytes: the most memory the lists (and their coefficients) may take.
+  /// max_bytes: the most memory the lists and the EvalData copies of both precisions may take.
   static EvalGrid build(std::span<const Vec3> sources, double radius, std::size_t max_bytes);
   /// The neighbour graph of the sources (every pair closer than R), from the cell lists: the
   /// candidates of a source are its own cell's run. Requires usable.
   void neighbor_graph(std::span<const Vec3> sources, std::vector<std::size_t>& offsets,
                       std::vector<std::uint32_t>& neighbors, std::vector<double>& dist2) const;
-  std::size_t bytes() const noexcept { return source.size() * 4 + begin.size() * 4 + x.size() * 36; }
+  std::size_t bytes() const noexcept { return source.size() * 4 + begin.size() * 4; }
 };
 
-/// Coefficients alpha by source (N + 1: zero for the inert one), double and float.
-struct EvalCoefficients {
-  std::vector<double> x, y, z;
-  std::vector<float> xf, yf, zf;
-  void assign(const EvalGrid& g, const double* alpha_rows);  ///< alpha: N x 3 row-major
+/// The runs of EvalGrid copied out: coordinates (double: absolute, as the simple path; float:
+/// relative to the grid's origin, to keep digits) and coefficients alpha, by entry. Padding entries
+/// lie far away (r clips to 1, phi(1) = 0) with zero coefficients.
+template <class T>
+struct EvalData {
+  std::vector<T> x, y, z, ax, ay, az;
+  /// alpha: N x 3 row-major, the input order of the sources.
+  void assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha);
+  std::size_t bytes() const noexcept { return x.size() * 6 * sizeof(T); }
 };
+extern template struct EvalData<float>;
+extern template struct EvalData<double>;
 
 /// out[3i..3i+2] = (add_point ? in + phase * d : d) for the points [begin, end) of in/out (n x 3,
 /// interleaved). The polynomial part is added by the caller through poly (may be null).
@@ -59,9 +64,9 @@ struct PolynomialPart {
   double b[4][3] = {};  // row 0 constant, rows 1..3 linear in u = (x - center) * inv_scale
 };
 
-void evaluate(const EvalGrid& g, const EvalCoefficients& a, Kernel kernel, const PolynomialPart* poly,
+void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
               const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point);
-void evaluate(const EvalGrid& g, const EvalCoefficients& a, Kernel kernel, const PolynomialPart* poly,
+void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
               const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point);
 
 }  // namespace csrbf::detail

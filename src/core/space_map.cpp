@@ -14,6 +14,8 @@
 #include <cmath>
 #include <sstream>
 #include <string>
+#include <mutex>
+#include <type_traits>
 
 namespace csrbf {
 
@@ -76,7 +78,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 // The most memory the evaluation lists of one fit may take (evaluator.hpp); past it, evaluation goes
 // through NeighborIndex.
-constexpr std::size_t kEvalListBytes = std::size_t(1) << 30;
+constexpr std::size_t kEvalListBytes = std::size_t(512) << 20;
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
@@ -125,7 +127,23 @@ struct SpaceMap::State {
   std::vector<Vec3> destinations;
   Eigen::Matrix<double, Eigen::Dynamic, 3> alpha;  // input order
   std::vector<Vec3> alpha_by_slot;                 // in the index's slot order, for evaluation
-  detail::EvalCoefficients coef;                   // alpha in the evaluation grid's slot order
+  // The evaluation grid's runs with coordinates and alpha, made on first use of each precision.
+  mutable std::once_flag once_double, once_float;
+  mutable detail::EvalData<double> data_double;
+  mutable detail::EvalData<float> data_float;
+  template <class T>
+  const detail::EvalData<T>& eval_data() const {
+    auto& flag = std::is_same_v<T, double> ? once_double : once_float;
+    auto& data = [this]() -> detail::EvalData<T>& {
+      if constexpr (std::is_same_v<T, double>) return data_double;
+      else return data_float;
+    }();
+    std::call_once(flag, [&] {
+      const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> rows = alpha;
+      data.assign(st->grid, st->sources, rows.data());
+    });
+    return data;
+  }
   detail::PolynomialPart poly;                     // beta for the evaluator
   Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();  // in u coordinates
   FitStats stats;
@@ -336,10 +354,6 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
   s->alpha_by_slot.resize(n);
   for (std::size_t slot = 0; slot < n; ++slot)
     s->alpha_by_slot[slot] = s->alpha.row(Eigen::Index(st.index.original_index(slot))).transpose();
-  if (st.grid.usable) {
-    const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> rows = s->alpha;
-    s->coef.assign(st.grid, rows.data());
-  }
   s->poly.center = st.center;
   s->poly.inv_scale = 1.0 / st.scale;
   for (int r = 0; r < 4; ++r)
@@ -402,14 +416,15 @@ void SpaceMap::apply_impl(const T* in, T* out, std::size_t n, double phase, bool
   if (st.grid.usable) {
     const detail::PolynomialPart* poly = st.terms > 0 ? &s_->poly : nullptr;
     const Kernel k = st.options.kernel;
+    const detail::EvalData<T>& data = s_->template eval_data<T>();
     // Small batches in the calling thread: a task switch costs more than a game mesh's evaluation.
     constexpr std::size_t grain = 4096;
     if (n <= grain) {
-      detail::evaluate(st.grid, s_->coef, k, poly, in, out, 0, n, phase, add_point);
+      detail::evaluate(st.grid, data, k, poly, in, out, 0, n, phase, add_point);
       return;
     }
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
-      detail::evaluate(st.grid, s_->coef, k, poly, in, out, r.begin(), r.end(), phase, add_point);
+      detail::evaluate(st.grid, data, k, poly, in, out, r.begin(), r.end(), phase, add_point);
     });
     return;
   }

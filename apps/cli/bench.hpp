@@ -1,0 +1,24 @@
+// `csrbf bench`: the benchmark scenarios of docs/PERFORMANCE.md, timed in this process.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace csrbf::cli {
+
+struct BenchOptions {
+  std::string scenario;        ///< fish, face, ball, scale, solvers, peers, all
+  bool json = false;           ///< one JSON object a line instead of a table
+  bool quick = false;          ///< smaller sweeps (for tests and slow machines)
+  int threads = 0;             ///< 0: each scenario's own choice (1 for fish/face/ball, 1 and all for scale)
+  double seconds = 0.3;        ///< time spent on each measured quantity
+  std::string data_dir;        ///< where fish.obj, face.obj and their controls are (default: bundled)
+};
+
+/// Runs the scenario(s), printing rows to stdout. Throws on bad options or missing data.
+void run_bench(const BenchOptions& options);
+
+/// The scenario names, "all" excluded.
+const std::vector<std::string>& bench_scenarios();
+
+}  // namespace csrbf::cli
