@@ -12,6 +12,9 @@ packages=(
   libcli11-dev           # cli: argument parsing
   libgtest-dev libgmock-dev   # tests
   libbenchmark-dev       # bench/
+  libsuitesparse-dev     # core (optional): CHOLMOD for large fits; solvers benchmark
+  libvtk9-dev            # cli: the `peers` benchmark (vtkThinPlateSplineTransform)
+  gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png
 )
 
 SUDO=""

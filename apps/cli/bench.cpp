@@ -115,6 +115,27 @@ std::vector<Vec3> sphere_points(std::size_t n, double offset = 0.0) {
   return p;
 }
 
+/// About m vertices over the unit sphere in the order a mesh stores them: ring by ring (latitude),
+/// around each ring (longitude), so that consecutive vertices are neighbours in space.
+std::vector<Vec3> sphere_mesh_points(std::size_t m) {
+  const auto rings = std::size_t(std::max(2.0, std::round(std::sqrt(double(m) * M_PI / 4.0))));
+  std::vector<Vec3> p;
+  p.reserve(m);
+  double total = 0;
+  for (std::size_t r = 0; r < rings; ++r) total += std::sin(M_PI * (double(r) + 0.5) / double(rings));
+  std::size_t placed = 0;
+  for (std::size_t r = 0; r < rings; ++r) {
+    const double theta = M_PI * (double(r) + 0.5) / double(rings);
+    const std::size_t want = r + 1 == rings ? m - placed
+                                            : std::size_t(std::round(double(m) * std::sin(theta) / total));
+    for (std::size_t k = 0; k < want && placed < m; ++k, ++placed) {
+      const double phi = 2 * M_PI * (double(k) + 0.5 * double(r % 2)) / double(want);
+      p.emplace_back(std::sin(theta) * std::cos(phi), std::cos(theta), std::sin(theta) * std::sin(phi));
+    }
+  }
+  return p;
+}
+
 /// Destinations for controls on the unit sphere: a smooth field of bumps along the normal.
 std::vector<Vec3> sphere_destinations(std::span<const Vec3> s, double amplitude) {
   std::vector<Vec3> d(s.size());
@@ -358,7 +379,7 @@ void scale_row(const BenchOptions& o, const Printer& out, const SweepPoint& p) {
         },
         seconds, reps);
   }
-  const std::vector<double> xyz = interleave(sphere_points(p.m, 0.5));
+  const std::vector<double> xyz = interleave(sphere_mesh_points(p.m));
   const std::vector<float> xyzf(xyz.begin(), xyz.end());
   std::vector<double> outd(xyz.size());
   std::vector<float> outf(xyz.size());
@@ -504,7 +525,7 @@ void peers_scenario(const BenchOptions& o, const Printer& out) {
   const std::vector<Vec3> s = sphere_points(n);
   const std::vector<Vec3> d = sphere_destinations(s, 0.02);
   const double radius = sphere_radius(n);
-  const std::vector<double> xyz = interleave(sphere_points(m, 0.5));
+  const std::vector<double> xyz = interleave(sphere_mesh_points(m));
   std::vector<double> ours(xyz.size()), theirs(xyz.size());
   const int threads = o.threads > 0 ? o.threads : all_threads();
   // Ours, with the linear polynomial like the thin-plate spline's affine part.

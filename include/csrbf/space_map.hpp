@@ -42,7 +42,9 @@ std::optional<Solver> parse_solver(std::string_view name) noexcept;
 bool cholmod_available() noexcept;
 /// Auto's rule: the envelope solver is used while the multiply-adds of its factorisation,
 /// sum over rows of (row length)^2 / 2, stay at or below this (measured: docs/PERFORMANCE.md).
-inline constexpr double kEnvelopeWorkLimit = 4.0e6;
+inline constexpr double kEnvelopeWorkLimit = 1.5e9;
+/// The solver a fit uses: `requested`, or for Solver::Auto the rule above.
+Solver resolve_solver(Solver requested, double envelope_work) noexcept;
 
 struct FitOptions {
   double radius = 0.0;  ///< support radius R in the points' units (not squared), > 0

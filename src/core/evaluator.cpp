@@ -38,7 +38,8 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
     // Each source is listed in about 84 cells for K = 2 and 21 for K = 1 (Steiner's formula for the
     // cube grown by R); each entry costs 4 bytes here and 72 in the EvalData of both precisions.
     const double entries = double(n) * (k == 2 ? 90.0 : 24.0);
-    if (!(cells * 4.0 + entries * 76.0 <= double(max_bytes)) || !(cells < 4.0e9)) continue;
+    // A dense grid only where the sources fill their box reasonably (else the hashed NeighborIndex).
+    if (!(cells * 4.0 + entries * 76.0 <= double(max_bytes)) || !(cells <= 32.0 * double(n) + 65536.0)) continue;
     g.nx = std::int64_t(span.x()) + 1;
     g.ny = std::int64_t(span.y()) + 1;
     g.nz = std::int64_t(span.z()) + 1;

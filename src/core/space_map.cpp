@@ -56,6 +56,12 @@ bool cholmod_available() noexcept {
 #endif
 }
 
+Solver resolve_solver(Solver requested, double envelope_work) noexcept {
+  if (requested != Solver::Auto) return requested;
+  if (envelope_work <= kEnvelopeWorkLimit) return Solver::Envelope;
+  return cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+}
+
 std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept {
   std::string s(name);
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
@@ -249,11 +255,7 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
     for (std::size_t k = 0; k < n; ++k) work += 0.5 * double(k - first[k] + 1) * double(k - first[k] + 1);
     stats.envelope_work = work;
   }
-  Solver solver = options.solver;
-  if (solver == Solver::Auto)
-    solver = stats.envelope_work <= kEnvelopeWorkLimit ? Solver::Envelope
-             : cholmod_available()                     ? Solver::Cholmod
-                                                       : Solver::Eigen;
+  const Solver solver = resolve_solver(options.solver, stats.envelope_work);
   if (solver == Solver::Cholmod && !cholmod_available())
     throw InvalidInput("solver 'cholmod': this build of csrbf has no CHOLMOD (SuiteSparse); use 'envelope' or 'eigen'");
   stats.solver = solver;

@@ -1,0 +1,198 @@
+// The fast paths of csrbf::core held against the simple ones: the vectorised per-cell evaluation
+// (SpaceMap::apply) against SpaceMap::displacement (NeighborIndex, scalar), float against double, the
+// fallback when the cell lists would be too large, the neighbour graph from the cell lists against
+// the one from NeighborIndex, and the sparse solvers against the envelope solver.
+#include "csrbf/space_map.hpp"
+
+#include "../../src/core/evaluator.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+using namespace csrbf;
+
+namespace {
+
+constexpr Kernel kKernels[] = {Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6};
+constexpr Polynomial kPolys[] = {Polynomial::None, Polynomial::Constant, Polynomial::Linear};
+
+std::vector<Vec3> random_points(std::size_t n, std::mt19937& rng, double lo = 0, double hi = 1) {
+  std::uniform_real_distribution<double> u(lo, hi);
+  std::vector<Vec3> p(n);
+  for (auto& x : p) x = Vec3(u(rng), u(rng), u(rng));
+  return p;
+}
+
+std::vector<Vec3> displaced(const std::vector<Vec3>& s, std::mt19937& rng, double amount = 0.05) {
+  std::normal_distribution<double> g(0.0, amount);
+  std::vector<Vec3> d(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i) d[i] = s[i] + Vec3(g(rng), g(rng), g(rng));
+  return d;
+}
+
+std::vector<double> flat(const std::vector<Vec3>& p) {
+  std::vector<double> v;
+  for (const auto& x : p) v.insert(v.end(), {x.x(), x.y(), x.z()});
+  return v;
+}
+
+}  // namespace
+
+TEST(FastPaths, VectorisedEvaluationEqualsTheSimplePath) {
+  std::mt19937 rng(101);
+  for (std::size_t n : {1u, 7u, 150u, 1200u}) {
+    const auto s = random_points(n, rng);
+    const auto d = displaced(s, rng);
+    const auto probes = random_points(3000, rng, -0.3, 1.3);  // inside, at the edge and outside the grid
+    const auto xyz = flat(probes);
+    for (Kernel k : kKernels)
+      for (Polynomial p : kPolys) {
+        if (p == Polynomial::Linear && n < 4) continue;
+        const SpaceMap map = SpaceMap::fit(s, d, {0.17, k, p});
+        std::vector<double> out(xyz.size());
+        map.displacements(xyz.data(), out.data(), probes.size());
+        double worst = 0, scale = 1e-300;
+        for (std::size_t i = 0; i < probes.size(); ++i) {
+          const Vec3 ref = map.displacement(probes[i]);
+          worst = std::max(worst, (Vec3(out[3 * i], out[3 * i + 1], out[3 * i + 2]) - ref).norm());
+          scale = std::max(scale, ref.norm());
+          if (p == Polynomial::None && ref == Vec3::Zero()) {  // outside every support: exactly zero
+            ASSERT_EQ(out[3 * i], 0.0);
+            ASSERT_EQ(out[3 * i + 2], 0.0);
+          }
+        }
+        EXPECT_LT(worst, 1e-13 * std::max(scale, 1.0)) << "n=" << n << " kernel " << kernel_name(k);
+      }
+  }
+}
+
+TEST(FastPaths, FloatPathAccuracy) {
+  // The float path computes distances and kernel values in float, relative to the grid's corner, and
+  // sums in float: its error against double is a few float ulps of the terms' magnitudes.
+  std::mt19937 rng(102);
+  const auto s = random_points(500, rng, 10.0, 11.0);  // off the origin: digits matter
+  const auto d = displaced(s, rng, 0.02);
+  const auto probes = random_points(5000, rng, 9.8, 11.2);
+  const auto xyz = flat(probes);
+  const std::vector<float> xyzf(xyz.begin(), xyz.end());
+  for (Kernel k : kKernels) {
+    const SpaceMap map = SpaceMap::fit(s, d, {0.2, k, Polynomial::None});
+    double amax = 0;
+    for (Eigen::Index i = 0; i < map.coefficients().rows(); ++i) amax = std::max(amax, map.coefficients().row(i).cwiseAbs().maxCoeff());
+    std::vector<float> outf(xyz.size());
+    map.displacements(xyzf.data(), outf.data(), probes.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < probes.size(); ++i) {
+      // Reference: double evaluation at the float-rounded input.
+      const Vec3 x(double(xyzf[3 * i]), double(xyzf[3 * i + 1]), double(xyzf[3 * i + 2]));
+      const Vec3 ref = map.displacement(x);
+      worst = std::max(worst, (Vec3(outf[3 * i], outf[3 * i + 1], outf[3 * i + 2]) - ref).cwiseAbs().maxCoeff());
+    }
+    // Documented bound (docs/PERFORMANCE.md): 1e-5 of the largest coefficient.
+    EXPECT_LT(worst, 1e-5 * amax) << kernel_name(k) << " max |alpha| " << amax;
+    EXPECT_GT(worst, 0.0);  // it is a float path
+  }
+}
+
+TEST(FastPaths, FallsBackWhenCellListsWouldBeTooLarge) {
+  // Two clusters 1e5 radii apart: the dense cell grid would have ~1e15 cells.
+  std::mt19937 rng(103);
+  auto s = random_points(40, rng, 0.0, 1.0);
+  for (auto& p : random_points(40, rng, 0.0, 1.0)) s.push_back(p + Vec3(3e4, 0, 0));
+  const auto d = displaced(s, rng);
+  const auto g = detail::EvalGrid::build(s, 0.3, std::size_t(512) << 20);
+  EXPECT_FALSE(g.usable);
+  const SpaceMap map = SpaceMap::fit(s, d, {0.3, Kernel::C2, Polynomial::None});
+  auto probes = random_points(500, rng, -0.2, 1.2);
+  for (auto& p : random_points(500, rng, -0.2, 1.2)) probes.push_back(p + Vec3(3e4, 0, 0));
+  const auto xyz = flat(probes);
+  std::vector<double> out(xyz.size());
+  map.apply(xyz.data(), out.data(), probes.size(), 1.0);
+  for (std::size_t i = 0; i < probes.size(); ++i)
+    ASSERT_LT((Vec3(out[3 * i], out[3 * i + 1], out[3 * i + 2]) - map.map(probes[i])).norm(), 1e-15);
+  for (std::size_t i = 0; i < s.size(); ++i) ASSERT_LT((map.map(s[i]) - d[i]).norm(), 1e-9);
+}
+
+TEST(FastPaths, CellListsHoldEverySourceWithinReach) {
+  std::mt19937 rng(104);
+  const auto s = random_points(300, rng);
+  const double r = 0.15;
+  const auto g = detail::EvalGrid::build(s, r, std::size_t(512) << 20);
+  ASSERT_TRUE(g.usable);
+  EXPECT_EQ(g.subdivision, 2);
+  // Every probe's cell lists every source within R of the probe, exactly once.
+  for (const auto& q : random_points(2000, rng, -0.1, 1.1)) {
+    const Vec3 c = (q - g.origin) * g.inv_h;
+    const std::size_t cell = std::size_t((std::int64_t(c.z()) * g.ny + std::int64_t(c.y())) * g.nx + std::int64_t(c.x()));
+    ASSERT_EQ((g.begin[cell + 1] - g.begin[cell]) % detail::EvalGrid::kLanes, 0u);
+    std::vector<int> seen(s.size(), 0);
+    for (std::uint32_t e = g.begin[cell]; e < g.begin[cell + 1]; ++e)
+      if (g.source[e] < s.size()) ++seen[g.source[e]];
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      ASSERT_LE(seen[i], 1);
+      if ((s[i] - q).norm() < r) {
+        ASSERT_EQ(seen[i], 1) << "source " << i;
+      }
+    }
+  }
+  // The neighbour graph from the lists equals the one from NeighborIndex.
+  AdjacencyGraph a;
+  g.neighbor_graph(s, a.offsets, a.neighbors, a.dist2);
+  const AdjacencyGraph b = AdjacencyGraph::from_index(NeighborIndex(s, r), s);
+  EXPECT_EQ(a.offsets, b.offsets);
+  EXPECT_EQ(a.neighbors, b.neighbors);
+  EXPECT_EQ(a.dist2, b.dist2);
+}
+
+TEST(FastPaths, SparseSolversAgreeWithTheEnvelopeSolver) {
+  std::mt19937 rng(105);
+  const auto s = random_points(800, rng);
+  const auto d = displaced(s, rng);
+  for (Polynomial p : kPolys) {
+    FitOptions o{0.2, Kernel::C2, p};
+    o.solver = Solver::Envelope;
+    const SpaceMap env = SpaceMap::fit(s, d, o);
+    EXPECT_EQ(env.stats().solver, Solver::Envelope);
+    std::vector<Solver> others{Solver::Eigen};
+    if (cholmod_available()) others.push_back(Solver::Cholmod);
+    for (Solver solver : others) {
+      o.solver = solver;
+      const SpaceMap m = SpaceMap::fit(s, d, o);
+      EXPECT_EQ(m.stats().solver, solver);
+      EXPECT_GT(m.stats().factor_nonzeros, s.size());
+      EXPECT_LT((m.coefficients() - env.coefficients()).cwiseAbs().maxCoeff(), 1e-9) << solver_name(solver);
+      EXPECT_LT((m.polynomial_coefficients() - env.polynomial_coefficients()).cwiseAbs().maxCoeff(), 1e-9);
+      EXPECT_LT(m.stats().residual_max, 1e-10);
+      // New destinations through the kept sparse factor.
+      const auto d2 = displaced(s, rng);
+      const SpaceMap m2 = m.with_destinations(d2);
+      for (std::size_t i = 0; i < s.size(); i += 37) EXPECT_LT((m2.map(s[i]) - d2[i]).norm(), 1e-9);
+    }
+  }
+}
+
+TEST(FastPaths, AutoSolverChoosesBySize) {
+  std::mt19937 rng(106);
+  const auto small = random_points(100, rng);
+  const SpaceMap a = SpaceMap::fit(small, displaced(small, rng), {0.3, Kernel::C2, Polynomial::None});
+  EXPECT_EQ(a.stats().solver, Solver::Envelope);
+  EXPECT_LE(a.stats().envelope_work, kEnvelopeWorkLimit);
+  // The work estimate does not depend on the solver that ran, and matches the envelope's rows.
+  FitOptions o{0.3, Kernel::C2, Polynomial::None};
+  o.solver = Solver::Eigen;
+  const SpaceMap b = SpaceMap::fit(small, displaced(small, rng), o);
+  EXPECT_EQ(b.stats().envelope_work, a.stats().envelope_work);
+  EXPECT_EQ(b.stats().envelope_entries, a.stats().envelope_entries);
+  // Past the limit Auto takes the sparse solver; an explicit choice is kept.
+  const Solver sparse = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+  EXPECT_EQ(resolve_solver(Solver::Auto, kEnvelopeWorkLimit), Solver::Envelope);
+  EXPECT_EQ(resolve_solver(Solver::Auto, 2 * kEnvelopeWorkLimit), sparse);
+  EXPECT_EQ(resolve_solver(Solver::Envelope, 1e30), Solver::Envelope);
+  EXPECT_EQ(resolve_solver(Solver::Eigen, 1.0), Solver::Eigen);
+  EXPECT_EQ(parse_solver("CHOLMOD"), Solver::Cholmod);
+  EXPECT_EQ(parse_solver("envelope"), Solver::Envelope);
+  EXPECT_FALSE(parse_solver("lu").has_value());
+  EXPECT_EQ(solver_name(Solver::Eigen), "eigen");
+}
