@@ -33,7 +33,7 @@ tmp="$out.tmp.png"
 gnuplot <<GP
 set terminal pngcairo size 1200,480 font "sans,10"
 set output "$tmp"
-set multiplot layout 1,2 title "csrbf scale scenario: controls and vertices on the unit sphere, ~25 neighbours, C2 kernel"
+set multiplot layout 1,2 title "csrbf scale scenario: controls and vertices on the unit sphere, about 25 neighbours a control, C2 kernel"
 set logscale xy
 set grid
 set key top left
