@@ -190,3 +190,18 @@ TEST(Cli, ExactDuplicateControlsWarnAndSucceed) {
   EXPECT_NE(r.out.find("warning"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("c.txt:2:"), std::string::npos) << r.out;
 }
+
+TEST(Cli, BenchPrintsJsonRowsWithMedians) {
+  CliRun r = run("bench --scenario ball --json --seconds 0.01");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("\"scenario\":\"ball\""), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"vertices\":386"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("\"recompute_us\":"), std::string::npos) << r.out;
+  r = run("bench --scenario fish --json --seconds 0.01");
+  ASSERT_EQ(r.code, 0) << r.out;
+  for (const char* key : {"\"controls\":92", "\"vertices\":977", "\"fit_us\":", "\"eval_us\":", "\"playback_us\":",
+                          "\"memcpy_us\":", "\"threads\":1", "\"radius\":0.3"})
+    EXPECT_NE(r.out.find(key), std::string::npos) << key << "\n" << r.out;
+  r = run("bench --scenario nope");
+  EXPECT_EQ(r.code, 2) << r.out;
+}
