@@ -57,6 +57,9 @@ std::vector<std::uint32_t> reversed_order(std::span<const std::uint32_t> order);
 /// First column of each row's envelope, row k being the point order[k]: min(k, positions of its
 /// neighbours). The Jennings profile of the graph's matrix in that order.
 std::vector<std::size_t> envelope_first_columns(const AdjacencyGraph& g, std::span<const std::uint32_t> order);
+/// Multiply-adds of the envelope Cholesky factorisation with these first columns (estimate): row k
+/// costs about (row length)^2 / 2.
+double envelope_work(std::span<const std::size_t> first_columns) noexcept;
 
 /// Profile of the symmetric matrix with the graph's pattern (plus the diagonal) in the given order.
 struct Profile {

@@ -135,6 +135,9 @@ class SpaceMap {
 /// row k being the source order[k] (unfactorised).
 EnvelopeMatrix kernel_matrix(const AdjacencyGraph& g, std::span<const std::uint32_t> order, Kernel kernel,
                              double radius);
+/// The same with the envelope's first columns already known (envelope_first_columns(g, order)).
+EnvelopeMatrix kernel_matrix(const AdjacencyGraph& g, std::span<const std::uint32_t> order,
+                             std::vector<std::size_t> first_columns, Kernel kernel, double radius);
 
 /// One-off use: fit and apply in one call (points interleaved n x 3, in place).
 void deform(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options,

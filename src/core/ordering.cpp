@@ -165,6 +165,15 @@ std::vector<std::size_t> envelope_first_columns(const AdjacencyGraph& g, std::sp
   return first;
 }
 
+double envelope_work(std::span<const std::size_t> first_columns) noexcept {
+  double work = 0.0;
+  for (std::size_t k = 0; k < first_columns.size(); ++k) {
+    const double len = double(k - first_columns[k] + 1);
+    work += 0.5 * len * len;
+  }
+  return work;
+}
+
 Profile profile(const AdjacencyGraph& g, std::span<const std::uint32_t> order) {
   Profile p;
   const auto first = envelope_first_columns(g, order);

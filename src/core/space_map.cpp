@@ -249,12 +249,8 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   stats.reverse_cuthill_mckee = oc.reverse_cuthill_mckee;
 
   // Work of the envelope factorisation in this order: row k costs about (row length)^2 / 2.
-  {
-    const auto first = envelope_first_columns(st->graph, st->order);
-    double work = 0.0;
-    for (std::size_t k = 0; k < n; ++k) work += 0.5 * double(k - first[k] + 1) * double(k - first[k] + 1);
-    stats.envelope_work = work;
-  }
+  std::vector<std::size_t> first = envelope_first_columns(st->graph, st->order);
+  stats.envelope_work = envelope_work(first);
   const Solver solver = resolve_solver(options.solver, stats.envelope_work);
   if (solver == Solver::Cholmod && !cholmod_available())
     throw InvalidInput("solver 'cholmod': this build of csrbf has no CHOLMOD (SuiteSparse); use 'envelope' or 'eigen'");
@@ -263,7 +259,7 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
 
   if (solver == Solver::Envelope) {
     t0 = Clock::now();
-    EnvelopeMatrix a = kernel_matrix(st->graph, st->order, options.kernel, options.radius);
+    EnvelopeMatrix a = kernel_matrix(st->graph, st->order, std::move(first), options.kernel, options.radius);
     stats.bandwidth = a.bandwidth();
     stats.envelope_entries = a.envelope_entries();
     stats.envelope_bytes = a.paper_bytes();
@@ -488,10 +484,15 @@ Eigen::Matrix<double, 4, 3> SpaceMap::polynomial_coefficients() const noexcept {
 
 EnvelopeMatrix kernel_matrix(const AdjacencyGraph& g, std::span<const std::uint32_t> order, Kernel kernel,
                              double radius) {
+  return kernel_matrix(g, order, envelope_first_columns(g, order), kernel, radius);
+}
+
+EnvelopeMatrix kernel_matrix(const AdjacencyGraph& g, std::span<const std::uint32_t> order,
+                             std::vector<std::size_t> first_columns, Kernel kernel, double radius) {
   const std::size_t n = g.size();
   std::vector<std::uint32_t> pos(n);
   for (std::size_t k = 0; k < n; ++k) pos[order[k]] = std::uint32_t(k);
-  EnvelopeMatrix a(envelope_first_columns(g, order));
+  EnvelopeMatrix a(std::move(first_columns));
   const double inv_r = 1.0 / radius;
   const double phi0 = wendland(kernel, 0.0);
   for (std::size_t k = 0; k < n; ++k) {

@@ -8,6 +8,8 @@
 
 #include <gtest/gtest.h>
 
+#include "test_points.hpp"
+
 #include <cmath>
 #include <random>
 
@@ -18,12 +20,7 @@ namespace {
 constexpr Kernel kKernels[] = {Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6};
 constexpr Polynomial kPolys[] = {Polynomial::None, Polynomial::Constant, Polynomial::Linear};
 
-std::vector<Vec3> random_points(std::size_t n, std::mt19937& rng, double lo = 0, double hi = 1) {
-  std::uniform_real_distribution<double> u(lo, hi);
-  std::vector<Vec3> p(n);
-  for (auto& x : p) x = Vec3(u(rng), u(rng), u(rng));
-  return p;
-}
+using test::random_points;
 
 std::vector<Vec3> displaced(const std::vector<Vec3>& s, std::mt19937& rng, double amount = 0.05) {
   std::normal_distribution<double> g(0.0, amount);

@@ -3,6 +3,8 @@
 #include <Eigen/LU>
 #include <gtest/gtest.h>
 
+#include "test_points.hpp"
+
 #include <cmath>
 #include <cstring>
 #include <random>
@@ -14,12 +16,7 @@ namespace {
 const Kernel kKernels[] = {Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6};
 const Polynomial kPolys[] = {Polynomial::None, Polynomial::Constant, Polynomial::Linear};
 
-std::vector<Vec3> random_points(std::size_t n, std::mt19937& rng, double lo = 0, double hi = 1) {
-  std::uniform_real_distribution<double> u(lo, hi);
-  std::vector<Vec3> p(n);
-  for (auto& x : p) x = Vec3(u(rng), u(rng), u(rng));
-  return p;
-}
+using test::random_points;
 
 // Destinations: sources moved by a smooth field plus noise (a realistic, non-affine deformation).
 std::vector<Vec3> displaced(const std::vector<Vec3>& s, std::mt19937& rng) {
