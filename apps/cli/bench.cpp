@@ -151,7 +151,8 @@ double sphere_radius(std::size_t n, double neighbours = 25.0) { return std::sqrt
 class Printer {
  public:
   explicit Printer(bool json_lines) : json_(json_lines) {}
-  void row(const json& r) const {
+  void row(json r) const {
+    if (r.value("scenario", std::string()) != "solvers") r["loop"] = std::string(evaluation_loop_name());
     if (json_) {
       std::cout << r.dump() << std::endl;
       return;
@@ -624,6 +625,9 @@ const std::vector<std::string>& bench_scenarios() {
 }
 
 void run_bench(const BenchOptions& o) {
+  if (o.loop == "portable") set_evaluation_loop(EvaluationLoop::Portable);
+  else if (o.loop == "avx512") set_evaluation_loop(EvaluationLoop::Avx512);
+  else if (o.loop != "auto") throw std::invalid_argument("unknown evaluation loop '" + o.loop + "'");
   const Printer out(o.json);
   const auto run_one = [&](const std::string& name) {
     if (name == "fish") mesh_scenario(o, out, "fish", 0.3);

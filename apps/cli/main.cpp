@@ -116,6 +116,9 @@ int main(int argc, char** argv) {
   bench->add_option("--seconds", bench_opts.seconds, "Time spent on each measured quantity")
       ->check(CLI::Range(0.0, 60.0))
       ->capture_default_str();
+  bench->add_option("--loop", bench_opts.loop, "Evaluation loop: auto, portable or avx512 (each row names the one used)")
+      ->check(CLI::IsMember({"auto", "portable", "avx512"}))
+      ->capture_default_str();
   bench->add_option("--data", bench_opts.data_dir, "Folder with fish.obj, face.obj and their .controls (default: bundled)");
 
   FitArgs info_args;

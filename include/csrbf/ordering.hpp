@@ -34,6 +34,8 @@ struct AdjacencyGraph {
 
   /// Builds the graph of points through the index (which must have been built over the same points).
   static AdjacencyGraph from_index(const NeighborIndex& index, std::span<const Vec3> points);
+  /// The same graph by testing every pair: O(N^2), the fastest way for a few hundred points.
+  static AdjacencyGraph brute_force(std::span<const Vec3> points, double radius);
 };
 
 enum class Ordering {

@@ -42,9 +42,19 @@ std::optional<Solver> parse_solver(std::string_view name) noexcept;
 bool cholmod_available() noexcept;
 /// Auto's rule: the envelope solver is used while the multiply-adds of its factorisation,
 /// sum over rows of (row length)^2 / 2, stay at or below this (measured: docs/PERFORMANCE.md).
-inline constexpr double kEnvelopeWorkLimit = 1.5e9;
+inline constexpr double kEnvelopeWorkLimit = 1.0e8;
 /// The solver a fit uses: `requested`, or for Solver::Auto the rule above.
 Solver resolve_solver(Solver requested, double envelope_work) noexcept;
+
+/// The inner loop of SpaceMap::apply(): the portable one, compiled for x86-64-v3 (AVX2 + FMA) and for
+/// baseline x86-64 and picked at load time, or hand-written AVX-512 where the CPU and the build have
+/// it (the default there). Both are held to the simple path by tests.
+enum class EvaluationLoop { Auto, Portable, Avx512 };
+/// Selects the loop for the whole process (for benchmarks and comparisons). Avx512 where it is not
+/// available throws InvalidInput.
+void set_evaluation_loop(EvaluationLoop loop);
+/// The loop apply() runs now: "avx512", "avx2" (the portable loop's AVX2 + FMA clone) or "baseline".
+std::string_view evaluation_loop_name() noexcept;
 
 struct FitOptions {
   double radius = 0.0;  ///< support radius R in the points' units (not squared), > 0
@@ -120,7 +130,7 @@ class SpaceMap {
   /// order[k] = input index of the source at position k of the factorised matrix.
   std::span<const std::uint32_t> order() const noexcept;
   const FitStats& stats() const noexcept;
-  const NeighborIndex& index() const noexcept;
+  const NeighborIndex& index() const;
 
  private:
   struct Structure;

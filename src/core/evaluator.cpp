@@ -1,6 +1,11 @@
+
+
 #include "evaluator.hpp"
 
+#include "eval_kernel.hpp"
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <type_traits>
 
@@ -8,7 +13,7 @@
 // portable binary still runs the wide loop on machines that have it.
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__has_attribute)
 #if __has_attribute(target_clones)
-#define CSRBF_CLONES __attribute__((target_clones("avx2", "default")))
+#define CSRBF_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #endif
 #endif
 #ifndef CSRBF_CLONES
@@ -27,7 +32,7 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
     hi = hi.cwiseMax(s);
   }
   const double R2 = radius * radius;
-  for (int k = 2; k >= 1; --k) {
+  for (int k = kMaxSubdivision; k >= 1; --k) {
     g.subdivision = k;
     g.radius = radius;
     g.h = radius / k;
@@ -35,9 +40,11 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
     g.origin = lo - Vec3::Constant(radius);
     const Vec3 span = (hi - lo + Vec3::Constant(2 * radius)) * g.inv_h;
     const double cells = (std::floor(span.x()) + 1) * (std::floor(span.y()) + 1) * (std::floor(span.z()) + 1);
-    // Each source is listed in about 84 cells for K = 2 and 21 for K = 1 (Steiner's formula for the
-    // cube grown by R); each entry costs 4 bytes here and 72 in the EvalData of both precisions.
-    const double entries = double(n) * (k == 2 ? 90.0 : 24.0);
+    // Each source is listed in about 1 + 6K + 3 pi K^2 + 4/3 pi K^3 cells (Steiner's formula for a
+    // cell grown by R = K h: 84 for K = 2, 21 for K = 1), plus padding; each entry costs 4 bytes
+    // here and 72 in the EvalData of both precisions.
+    const double kk = k;
+    const double entries = double(n) * 1.07 * (1 + 6 * kk + 3 * M_PI * kk * kk + 4.0 / 3.0 * M_PI * kk * kk * kk);
     // A dense grid only where the sources fill their box reasonably (else the hashed NeighborIndex).
     if (!(cells * 4.0 + entries * 76.0 <= double(max_bytes)) || !(cells <= 32.0 * double(n) + 65536.0)) continue;
     g.nx = std::int64_t(span.x()) + 1;
@@ -52,7 +59,7 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
       const Vec3 q = (sources[i] - g.origin) * g.inv_h;  // in cell units
       // Per axis: the cells within K of the source's, and the squared distance to each cell's slab.
       std::int64_t c0[3], c1[3];
-      double d2[3][5];
+      double d2[3][9];
       const std::int64_t dims[3] = {g.nx, g.ny, g.nz};
       for (int a = 0; a < 3; ++a) {
         const auto c = std::int64_t(q[a]);
@@ -123,12 +130,13 @@ template <class T>
 void EvalData<T>::assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha) {
   const std::size_t total = g.source.size(), n = sources.size();
   constexpr T far = T(1e18);  // inert padding: r clips to 1 and phi(1) = 0
+  const double inv_r = 1.0 / g.radius;
   x.assign(total, far), y.assign(total, far), z.assign(total, far);
   ax.assign(total, T(0)), ay.assign(total, T(0)), az.assign(total, T(0));
   for (std::size_t e = 0; e < total; ++e) {
     const std::uint32_t s = g.source[e];
     if (s == n) continue;
-    const Vec3 p = std::is_same_v<T, double> ? sources[s] : Vec3(sources[s] - g.origin);
+    const Vec3 p = (std::is_same_v<T, double> ? sources[s] : Vec3(sources[s] - g.origin)) * inv_r;
     x[e] = T(p.x()), y[e] = T(p.y()), z[e] = T(p.z());
     ax[e] = T(alpha[3 * s]), ay[e] = T(alpha[3 * s + 1]), az[e] = T(alpha[3 * s + 2]);
   }
@@ -138,93 +146,11 @@ template struct EvalData<double>;
 
 namespace {
 
-// phi(r) for r in [0, 1], branch-free; every member is exactly 0 at r = 1.
-template <Kernel K, class T>
-inline __attribute__((always_inline)) T phi(T r) {
-  const T s = T(1) - r;
-  const T s2 = s * s;
-  if constexpr (K == Kernel::C0) return s2;
-  else if constexpr (K == Kernel::C2) return (s2 * s2) * (T(4) * r + T(1));
-  else if constexpr (K == Kernel::C4) return (s2 * s2 * s2) * ((T(35) * r + T(18)) * r + T(3));
-  else return (s2 * s2) * (s2 * s2) * (((T(32) * r + T(25)) * r + T(8)) * r + T(1));
-}
-
-template <Kernel K, class T>
-inline __attribute__((always_inline)) void block(const EvalGrid& g, const EvalData<T>& a,
-                                                 const PolynomialPart* poly, const T* in, T* out,
-                                                 std::size_t begin, std::size_t end, double phase,
-                                                 bool add_point) {
-  const T* __restrict sx = a.x.data();
-  const T* __restrict sy = a.y.data();
-  const T* __restrict sz = a.z.data();
-  const T* __restrict ax = a.ax.data();
-  const T* __restrict ay = a.ay.data();
-  const T* __restrict az = a.az.data();
-  const std::uint32_t* cb = g.begin.data();
-  const double inv_h = g.inv_h;
-  const T inv_r = T(1.0 / g.radius);
-  const std::int64_t nx = g.nx, ny = g.ny, nz = g.nz;
-  for (std::size_t i = begin; i < end; ++i) {
-    const double px = double(in[3 * i]), py = double(in[3 * i + 1]), pz = double(in[3 * i + 2]);
-    const double qx = px - g.origin.x(), qy = py - g.origin.y(), qz = pz - g.origin.z();
-    T dx_sum = 0, dy_sum = 0, dz_sum = 0;
-    const double fx = std::floor(qx * inv_h), fy = std::floor(qy * inv_h), fz = std::floor(qz * inv_h);
-    // Outside the grid (the sources' box grown by R), or NaN: no source within R.
-    if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(nx) && fy < double(ny) && fz < double(nz)) {
-      const std::size_t cell = std::size_t((std::int64_t(fz) * ny + std::int64_t(fy)) * nx + std::int64_t(fx));
-      const std::uint32_t b = cb[cell], e = cb[cell + 1];
-      if (b != e) {  // else no source within R of this cell: skip the lane sums too
-      // double: absolute coordinates, as the simple path; float: relative to the grid, to keep digits.
-      constexpr bool dbl = std::is_same_v<T, double>;
-      const T tx = T(dbl ? px : qx), ty = T(dbl ? py : qy), tz = T(dbl ? pz : qz);
-      // Runs are padded to multiples of kLanes: fixed-width blocks with one accumulator per lane,
-      // which the compiler turns into vector code (no reduction across the loop, no remainder).
-      constexpr std::size_t L = EvalGrid::kLanes;
-      T accx[L] = {}, accy[L] = {}, accz[L] = {};
-      for (std::uint32_t j = b; j < e; j += L) {
-#pragma omp simd
-        for (std::size_t l = 0; l < L; ++l) {
-          const T ddx = sx[j + l] - tx, ddy = sy[j + l] - ty, ddz = sz[j + l] - tz;
-          const T rr = std::sqrt(ddx * ddx + ddy * ddy + ddz * ddz) * inv_r;
-          const T r = rr < T(1) ? rr : T(1);  // by value: std::min's references defeat if-conversion
-          const T f = phi<K, T>(r);
-          accx[l] += f * ax[j + l];
-          accy[l] += f * ay[j + l];
-          accz[l] += f * az[j + l];
-        }
-      }
-      for (std::size_t l = 0; l < L; ++l) {
-        dx_sum += accx[l];
-        dy_sum += accy[l];
-        dz_sum += accz[l];
-      }
-      }
-    }
-    double d0 = double(dx_sum), d1 = double(dy_sum), d2 = double(dz_sum);
-    if (poly) {
-      const double u0 = (px - poly->center.x()) * poly->inv_scale, u1 = (py - poly->center.y()) * poly->inv_scale,
-                   u2 = (pz - poly->center.z()) * poly->inv_scale;
-      d0 += poly->b[0][0] + u0 * poly->b[1][0] + u1 * poly->b[2][0] + u2 * poly->b[3][0];
-      d1 += poly->b[0][1] + u0 * poly->b[1][1] + u1 * poly->b[2][1] + u2 * poly->b[3][1];
-      d2 += poly->b[0][2] + u0 * poly->b[1][2] + u1 * poly->b[2][2] + u2 * poly->b[3][2];
-    }
-    if (add_point) {
-      out[3 * i] = T(px + phase * d0);
-      out[3 * i + 1] = T(py + phase * d1);
-      out[3 * i + 2] = T(pz + phase * d2);
-    } else {
-      out[3 * i] = T(d0);
-      out[3 * i + 1] = T(d1);
-      out[3 * i + 2] = T(d2);
-    }
-  }
-}
-
 #define CSRBF_EVAL_CLONE(K, T)                                                                                 \
   CSRBF_CLONES void eval_##K##_##T(const EvalGrid& g, const EvalData<T>& a, const PolynomialPart* poly, \
                                    const T* in, T* out, std::size_t b, std::size_t e, double phase,           \
                                    bool add_point) {                                                          \
-    block<Kernel::K, T>(g, a, poly, in, out, b, e, phase, add_point);                                         \
+    evaluate_block<Kernel::K, T, PortableRun>(g, a, poly, in, out, b, e, phase, add_point);                                         \
   }
 CSRBF_EVAL_CLONE(C0, double)
 CSRBF_EVAL_CLONE(C2, double)
@@ -238,8 +164,29 @@ CSRBF_EVAL_CLONE(C6, float)
 
 }  // namespace
 
+namespace {
+std::atomic<bool> g_use_avx512{avx512_available()};
+}  // namespace
+
+bool avx512_available() noexcept {
+#ifdef CSRBF_HAVE_AVX512_EVAL
+  static const bool yes = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+                          __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
+  return yes;
+#else
+  return false;
+#endif
+}
+
+void set_eval_isa(EvalIsa isa) noexcept { g_use_avx512 = isa == EvalIsa::Avx512 && avx512_available(); }
+EvalIsa eval_isa() noexcept { return g_use_avx512 ? EvalIsa::Avx512 : EvalIsa::Portable; }
+
 void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
               const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
+#ifdef CSRBF_HAVE_AVX512_EVAL
+  if (g_use_avx512.load(std::memory_order_relaxed))
+    return evaluate_avx512(g, a, kernel, poly, in, out, begin, end, phase, add_point);
+#endif
   switch (kernel) {
     case Kernel::C0: return eval_C0_double(g, a, poly, in, out, begin, end, phase, add_point);
     case Kernel::C2: return eval_C2_double(g, a, poly, in, out, begin, end, phase, add_point);
@@ -250,6 +197,10 @@ void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const
 
 void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
               const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
+#ifdef CSRBF_HAVE_AVX512_EVAL
+  if (g_use_avx512.load(std::memory_order_relaxed))
+    return evaluate_avx512(g, a, kernel, poly, in, out, begin, end, phase, add_point);
+#endif
   switch (kernel) {
     case Kernel::C0: return eval_C0_float(g, a, poly, in, out, begin, end, phase, add_point);
     case Kernel::C2: return eval_C2_float(g, a, poly, in, out, begin, end, phase, add_point);

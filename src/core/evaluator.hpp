@@ -5,8 +5,9 @@
 // cell's box are listed once, at fit time, as one run of source indices padded to a multiple of 8
 // with an inert source (far away, zero coefficient). On the first evaluation in float or in double,
 // the runs are copied out as contiguous structure-of-arrays coordinates and coefficients (EvalData),
-// so that evaluating a vertex costs one cell lookup and one branch-free loop over its cell's run, which the compiler vectorises (OpenMP
-// SIMD reduction; an AVX2 clone picked at load time on x86-64). With K = 2 about 40% of the
+// so that evaluating a vertex costs one cell lookup and one branch-free loop over its cell's run:
+// portable code the compiler vectorises (with an x86-64-v3 clone, AVX2 + FMA, picked at load time),
+// or hand-written AVX-512 (evaluator_avx512.cpp) on CPUs that have it. With K = 2 about 40% of the
 // candidates lie within R (the ball's share of the cell grown by R), against 16% for the 27 cells of
 // side R that NeighborIndex visits.
 //
@@ -33,6 +34,9 @@ struct EvalGrid {
   std::vector<std::uint32_t> begin;   // begin[cell] .. begin[cell+1]: the cell's entries
   std::vector<std::uint32_t> source;  // source[entry] = input index; N (the inert source) pads
   static constexpr std::size_t kLanes = 8;
+  // K = 2, or 1 when memory is short. K = 3 lists 17% fewer candidates a vertex but takes 2.6x the
+  // memory, and measured no faster (M = 1e6, N = 1e4).
+  static constexpr int kMaxSubdivision = 2;
 
   /// max_bytes: the most memory the lists and the EvalData copies of both precisions may take.
   static EvalGrid build(std::span<const Vec3> sources, double radius, std::size_t max_bytes);
@@ -43,9 +47,9 @@ struct EvalGrid {
   std::size_t bytes() const noexcept { return source.size() * 4 + begin.size() * 4; }
 };
 
-/// The runs of EvalGrid copied out: coordinates (double: absolute, as the simple path; float:
-/// relative to the grid's origin, to keep digits) and coefficients alpha, by entry. Padding entries
-/// lie far away (r clips to 1, phi(1) = 0) with zero coefficients.
+/// The runs of EvalGrid copied out: coordinates in units of R (double: absolute, as the simple
+/// path; float: relative to the grid's origin, to keep digits) and coefficients alpha, by entry.
+/// Padding entries lie far away (r clips to 1, phi(1) = 0) with zero coefficients.
 template <class T>
 struct EvalData {
   std::vector<T> x, y, z, ax, ay, az;
@@ -68,5 +72,23 @@ void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const
               const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point);
 void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
               const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point);
+
+/// Which loop evaluate() runs: the portable one (with an AVX2 clone) or the AVX-512 one.
+enum class EvalIsa { Portable, Avx512 };
+/// True when this build has the AVX-512 loop and the CPU runs it.
+bool avx512_available() noexcept;
+/// Default: Avx512 where available. For tests and benchmarks; Avx512 falls back to Portable where
+/// not available.
+void set_eval_isa(EvalIsa isa) noexcept;
+EvalIsa eval_isa() noexcept;
+
+#ifdef CSRBF_HAVE_AVX512_EVAL
+void evaluate_avx512(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
+                     const double* in, double* out, std::size_t begin, std::size_t end, double phase,
+                     bool add_point);
+void evaluate_avx512(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
+                     const float* in, float* out, std::size_t begin, std::size_t end, double phase,
+                     bool add_point);
+#endif
 
 }  // namespace csrbf::detail

@@ -27,6 +27,25 @@ AdjacencyGraph AdjacencyGraph::from_index(const NeighborIndex& index, std::span<
   return g;
 }
 
+AdjacencyGraph AdjacencyGraph::brute_force(std::span<const Vec3> points, double radius) {
+  AdjacencyGraph g;
+  const std::size_t n = points.size();
+  const double r2 = radius * radius;
+  g.offsets.assign(n + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 p = points[i];
+    for (std::size_t j = 0; j < n; ++j) {
+      const double d2 = (points[j] - p).squaredNorm();
+      if (d2 < r2 && j != i) {
+        g.neighbors.push_back(std::uint32_t(j));
+        g.dist2.push_back(d2);
+      }
+    }
+    g.offsets[i + 1] = g.neighbors.size();
+  }
+  return g;
+}
+
 std::string_view ordering_name(Ordering o) noexcept {
   switch (o) {
     case Ordering::Identity: return "identity";

@@ -62,6 +62,20 @@ Solver resolve_solver(Solver requested, double envelope_work) noexcept {
   return cholmod_available() ? Solver::Cholmod : Solver::Eigen;
 }
 
+void set_evaluation_loop(EvaluationLoop loop) {
+  if (loop == EvaluationLoop::Avx512 && !detail::avx512_available())
+    throw InvalidInput("evaluation loop 'avx512': this CPU or this build of csrbf has no AVX-512; use 'portable'");
+  detail::set_eval_isa(loop == EvaluationLoop::Portable ? detail::EvalIsa::Portable : detail::EvalIsa::Avx512);
+}
+
+std::string_view evaluation_loop_name() noexcept {
+  if (detail::eval_isa() == detail::EvalIsa::Avx512) return "avx512";
+#if defined(__x86_64__) && defined(__GNUC__)
+  if (__builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma")) return "avx2";
+#endif
+  return "baseline";
+}
+
 std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept {
   std::string s(name);
   std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
@@ -85,6 +99,8 @@ using Clock = std::chrono::steady_clock;
 // The most memory the evaluation lists of one fit may take (evaluator.hpp); past it, evaluation goes
 // through NeighborIndex.
 constexpr std::size_t kEvalListBytes = std::size_t(512) << 20;
+/// Up to this many sources the fit tests every pair for the neighbour graph (cheaper than the grid).
+constexpr std::size_t kBruteForceGraph = 256;
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
@@ -108,8 +124,22 @@ void check_points(std::span<const Vec3> pts, const char* what) {
 struct SpaceMap::Structure {
   FitOptions options;
   std::vector<Vec3> sources;       // input order
-  NeighborIndex index;             // over the sources
-  detail::EvalGrid grid;           // the evaluation grid (evaluator.hpp)
+  // Over the sources: built on first use (the simple path, the Jacobian) unless the fit needs it
+  // (when the evaluation grid is unusable).
+  mutable std::once_flag index_once;
+  mutable NeighborIndex index_;
+  const NeighborIndex& index() const {
+    std::call_once(index_once, [this] { index_ = NeighborIndex(sources, options.radius); });
+    return index_;
+  }
+  // The evaluation grid (evaluator.hpp): built by the fit when its lists give the neighbour graph
+  // (N > kBruteForceGraph), else on first evaluation.
+  mutable std::once_flag grid_once;
+  mutable detail::EvalGrid grid_;
+  const detail::EvalGrid& grid() const {
+    std::call_once(grid_once, [this] { grid_ = detail::EvalGrid::build(sources, options.radius, kEvalListBytes); });
+    return grid_;
+  }
   AdjacencyGraph graph;            // input order
   std::vector<std::uint32_t> order;  // order[k] = input index of the source at row k
   EnvelopeMatrix factor;           // L, in `order` (Solver::Envelope)
@@ -132,7 +162,18 @@ struct SpaceMap::State {
   std::shared_ptr<const Structure> st;
   std::vector<Vec3> destinations;
   Eigen::Matrix<double, Eigen::Dynamic, 3> alpha;  // input order
-  std::vector<Vec3> alpha_by_slot;                 // in the index's slot order, for evaluation
+  // alpha in the index's slot order, for the simple path: made on first use.
+  mutable std::once_flag slot_once;
+  mutable std::vector<Vec3> alpha_by_slot_;
+  const std::vector<Vec3>& alpha_by_slot() const {
+    std::call_once(slot_once, [this] {
+      const NeighborIndex& index = st->index();
+      alpha_by_slot_.resize(index.size());
+      for (std::size_t slot = 0; slot < alpha_by_slot_.size(); ++slot)
+        alpha_by_slot_[slot] = alpha.row(Eigen::Index(index.original_index(slot))).transpose();
+    });
+    return alpha_by_slot_;
+  }
   // The evaluation grid's runs with coordinates and alpha, made on first use of each precision.
   mutable std::once_flag once_double, once_float;
   mutable detail::EvalData<double> data_double;
@@ -146,7 +187,7 @@ struct SpaceMap::State {
     }();
     std::call_once(flag, [&] {
       const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> rows = alpha;
-      data.assign(st->grid, st->sources, rows.data());
+      data.assign(st->grid(), st->sources, rows.data());
     });
     return data;
   }
@@ -214,15 +255,19 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   }
 
   auto t0 = Clock::now();
-  st->index = NeighborIndex(sources, options.radius);
-  st->grid = detail::EvalGrid::build(sources, options.radius, kEvalListBytes);
+  // The neighbour graph: every pair for a few hundred sources (the grid is then left to the first
+  // evaluation); from the grid's cell lists above that; from NeighborIndex where the grid is unusable.
+  const bool brute = n <= kBruteForceGraph;
+  if (!brute && !st->grid().usable) st->index();
   stats.seconds_index = seconds_since(t0);
 
   t0 = Clock::now();
-  if (st->grid.usable)
-    st->grid.neighbor_graph(sources, st->graph.offsets, st->graph.neighbors, st->graph.dist2);
+  if (brute)
+    st->graph = AdjacencyGraph::brute_force(sources, options.radius);
+  else if (st->grid().usable)
+    st->grid().neighbor_graph(sources, st->graph.offsets, st->graph.neighbors, st->graph.dist2);
   else
-    st->graph = AdjacencyGraph::from_index(st->index, sources);
+    st->graph = AdjacencyGraph::from_index(st->index(), sources);
   stats.seconds_graph = seconds_since(t0);
   stats.neighbor_pairs = st->graph.neighbors.size() / 2;
   stats.mean_neighbors = double(st->graph.neighbors.size()) / double(n);
@@ -349,9 +394,6 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
   }
   s->alpha.resize(Eigen::Index(n), 3);
   for (std::size_t k = 0; k < n; ++k) s->alpha.row(st.order[k]) = z.row(Eigen::Index(k));
-  s->alpha_by_slot.resize(n);
-  for (std::size_t slot = 0; slot < n; ++slot)
-    s->alpha_by_slot[slot] = s->alpha.row(Eigen::Index(st.index.original_index(slot))).transpose();
   s->poly.center = st.center;
   s->poly.inv_scale = 1.0 / st.scale;
   for (int r = 0; r < 4; ++r)
@@ -385,8 +427,9 @@ Vec3 SpaceMap::displacement(const Vec3& x) const {
   const double inv_r = 1.0 / st.options.radius;
   const Kernel k = st.options.kernel;
   Vec3 d = Vec3::Zero();
-  st.index.for_each_slot_within(x, [&](std::size_t slot, double d2) {
-    d += wendland(k, std::sqrt(d2) * inv_r) * s_->alpha_by_slot[slot];
+  const std::vector<Vec3>& alpha = s_->alpha_by_slot();
+  st.index().for_each_slot_within(x, [&](std::size_t slot, double d2) {
+    d += wendland(k, std::sqrt(d2) * inv_r) * alpha[slot];
   });
   if (st.terms > 0) d += s_->polynomial_at(x);
   return d;
@@ -397,11 +440,13 @@ Eigen::Matrix3d SpaceMap::jacobian(const Vec3& x, double phase) const {
   const double inv_r = 1.0 / st.options.radius;
   const Kernel k = st.options.kernel;
   Eigen::Matrix3d j = Eigen::Matrix3d::Zero();
-  st.index.for_each_slot_within(x, [&](std::size_t slot, double d2) {
+  const NeighborIndex& index = st.index();
+  const std::vector<Vec3>& alpha = s_->alpha_by_slot();
+  index.for_each_slot_within(x, [&](std::size_t slot, double d2) {
     const double dist = std::sqrt(d2);
     if (dist == 0.0) return;  // grad phi(0) = 0 for C2+; the one-sided C0 cone has no gradient there
-    const Vec3 grad = (wendland_derivative(k, dist * inv_r) * inv_r / dist) * (x - st.index.point(slot));
-    j += s_->alpha_by_slot[slot] * grad.transpose();
+    const Vec3 grad = (wendland_derivative(k, dist * inv_r) * inv_r / dist) * (x - index.point(slot));
+    j += alpha[slot] * grad.transpose();
   });
   if (st.terms == 4) j += s_->beta.bottomRows<3>().transpose() / st.scale;
   return Eigen::Matrix3d::Identity() + phase * j;
@@ -411,18 +456,19 @@ template <class T>
 void SpaceMap::apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const {
   check_phase(phase);
   const Structure& st = *s_->st;
-  if (st.grid.usable) {
+  const detail::EvalGrid& grid = st.grid();
+  if (grid.usable) {
     const detail::PolynomialPart* poly = st.terms > 0 ? &s_->poly : nullptr;
     const Kernel k = st.options.kernel;
     const detail::EvalData<T>& data = s_->template eval_data<T>();
     // Small batches in the calling thread: a task switch costs more than a game mesh's evaluation.
     constexpr std::size_t grain = 4096;
     if (n <= grain) {
-      detail::evaluate(st.grid, data, k, poly, in, out, 0, n, phase, add_point);
+      detail::evaluate(grid, data, k, poly, in, out, 0, n, phase, add_point);
       return;
     }
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
-      detail::evaluate(st.grid, data, k, poly, in, out, r.begin(), r.end(), phase, add_point);
+      detail::evaluate(grid, data, k, poly, in, out, r.begin(), r.end(), phase, add_point);
     });
     return;
   }
@@ -470,7 +516,7 @@ std::span<const Vec3> SpaceMap::destinations() const noexcept { return s_->desti
 const Eigen::Matrix<double, Eigen::Dynamic, 3>& SpaceMap::coefficients() const noexcept { return s_->alpha; }
 std::span<const std::uint32_t> SpaceMap::order() const noexcept { return s_->st->order; }
 const FitStats& SpaceMap::stats() const noexcept { return s_->stats; }
-const NeighborIndex& SpaceMap::index() const noexcept { return s_->st->index; }
+const NeighborIndex& SpaceMap::index() const { return s_->st->index(); }
 
 Eigen::Matrix<double, 4, 3> SpaceMap::polynomial_coefficients() const noexcept {
   // p(x) = b0 + (x - c)^T B / s  =>  constant b0 - c^T B / s, linear part B / s.

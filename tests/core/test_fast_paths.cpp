@@ -10,8 +10,11 @@
 
 #include "test_points.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
+#include <tuple>
 
 using namespace csrbf;
 
@@ -35,43 +38,81 @@ std::vector<double> flat(const std::vector<Vec3>& p) {
   return v;
 }
 
+/// Runs f once per evaluation loop this machine has (portable; AVX-512 where the CPU has it), with
+/// the loop selected, and restores the default.
+template <class F>
+void for_each_loop(F f) {
+  const detail::EvalIsa saved = detail::eval_isa();
+  for (detail::EvalIsa isa : {detail::EvalIsa::Portable, detail::EvalIsa::Avx512}) {
+    if (isa == detail::EvalIsa::Avx512 && !detail::avx512_available()) {
+      std::printf("[ info     ] no AVX-512 on this CPU: the portable loop only\n");
+      continue;
+    }
+    detail::set_eval_isa(isa);
+    SCOPED_TRACE(isa == detail::EvalIsa::Avx512 ? "AVX-512 loop" : "portable loop");
+    f();
+  }
+  detail::set_eval_isa(saved);
+}
+
+/// Probes in three orders: random (mostly one point a cell), sorted into cells of side 0.04 (runs of
+/// points in one cell, as a mesh stores them: the grouped path), and the sources themselves (r = 0).
+std::vector<Vec3> probe_points(const std::vector<Vec3>& sources, std::mt19937& rng) {
+  auto random = random_points(3000, rng, -0.3, 1.3);  // inside, at the edge and outside the grid
+  auto sorted = random_points(3000, rng, -0.3, 1.3);
+  const auto key = [](const Vec3& p) {
+    return std::tuple(std::floor(p.z() / 0.04), std::floor(p.y() / 0.04), std::floor(p.x() / 0.04));
+  };
+  std::sort(sorted.begin(), sorted.end(), [&](const Vec3& a, const Vec3& b) { return key(a) < key(b); });
+  random.insert(random.end(), sorted.begin(), sorted.end());
+  random.insert(random.end(), sources.begin(), sources.end());
+  return random;
+}
+
 }  // namespace
 
 TEST(FastPaths, VectorisedEvaluationEqualsTheSimplePath) {
-  std::mt19937 rng(101);
-  for (std::size_t n : {1u, 7u, 150u, 1200u}) {
-    const auto s = random_points(n, rng);
-    const auto d = displaced(s, rng);
-    const auto probes = random_points(3000, rng, -0.3, 1.3);  // inside, at the edge and outside the grid
-    const auto xyz = flat(probes);
-    for (Kernel k : kKernels)
-      for (Polynomial p : kPolys) {
-        if (p == Polynomial::Linear && n < 4) continue;
-        const SpaceMap map = SpaceMap::fit(s, d, {0.17, k, p});
-        std::vector<double> out(xyz.size());
-        map.displacements(xyz.data(), out.data(), probes.size());
-        double worst = 0, scale = 1e-300;
-        for (std::size_t i = 0; i < probes.size(); ++i) {
-          const Vec3 ref = map.displacement(probes[i]);
-          worst = std::max(worst, (Vec3(out[3 * i], out[3 * i + 1], out[3 * i + 2]) - ref).norm());
-          scale = std::max(scale, ref.norm());
-          if (p == Polynomial::None && ref == Vec3::Zero()) {  // outside every support: exactly zero
-            ASSERT_EQ(out[3 * i], 0.0);
-            ASSERT_EQ(out[3 * i + 2], 0.0);
+  for_each_loop([] {
+    std::mt19937 rng(101);
+    for (std::size_t n : {1u, 7u, 150u, 1200u}) {
+      const auto s = random_points(n, rng);
+      const auto d = displaced(s, rng);
+      const auto probes = probe_points(s, rng);
+      const auto xyz = flat(probes);
+      for (Kernel k : kKernels)
+        for (Polynomial p : kPolys) {
+          if (p == Polynomial::Linear && n < 4) continue;
+          const SpaceMap map = SpaceMap::fit(s, d, {0.17, k, p});
+          std::vector<double> out(xyz.size());
+          map.displacements(xyz.data(), out.data(), probes.size());
+          double worst = 0, scale = 1e-300;
+          for (std::size_t i = 0; i < probes.size(); ++i) {
+            const Vec3 ref = map.displacement(probes[i]);
+            worst = std::max(worst, (Vec3(out[3 * i], out[3 * i + 1], out[3 * i + 2]) - ref).norm());
+            scale = std::max(scale, ref.norm());
+            if (p == Polynomial::None && ref == Vec3::Zero()) {  // outside every support: exactly zero
+              ASSERT_EQ(out[3 * i], 0.0);
+              ASSERT_EQ(out[3 * i + 2], 0.0);
+            }
           }
+          EXPECT_LT(worst, 1e-13 * std::max(scale, 1.0)) << "n=" << n << " kernel " << kernel_name(k);
         }
-        EXPECT_LT(worst, 1e-13 * std::max(scale, 1.0)) << "n=" << n << " kernel " << kernel_name(k);
-      }
-  }
+    }
+  });
 }
 
 TEST(FastPaths, FloatPathAccuracy) {
   // The float path computes distances and kernel values in float, relative to the grid's corner, and
   // sums in float: its error against double is a few float ulps of the terms' magnitudes.
-  std::mt19937 rng(102);
-  const auto s = random_points(500, rng, 10.0, 11.0);  // off the origin: digits matter
-  const auto d = displaced(s, rng, 0.02);
-  const auto probes = random_points(5000, rng, 9.8, 11.2);
+  for_each_loop([] {
+    std::mt19937 rng(102);
+    const auto s = random_points(500, rng, 10.0, 11.0);  // off the origin: digits matter
+    const auto d = displaced(s, rng, 0.02);
+    auto probes = random_points(5000, rng, 9.8, 11.2);
+    std::sort(probes.begin() + 2500, probes.end(), [](const Vec3& a, const Vec3& b) {
+      return std::floor(a.z() / 0.05) < std::floor(b.z() / 0.05) ||
+             (std::floor(a.z() / 0.05) == std::floor(b.z() / 0.05) && a.x() < b.x());
+  });
   const auto xyz = flat(probes);
   const std::vector<float> xyzf(xyz.begin(), xyz.end());
   for (Kernel k : kKernels) {
@@ -83,7 +124,7 @@ TEST(FastPaths, FloatPathAccuracy) {
     double worst = 0;
     for (std::size_t i = 0; i < probes.size(); ++i) {
       // Reference: double evaluation at the float-rounded input.
-      const Vec3 x(double(xyzf[3 * i]), double(xyzf[3 * i + 1]), double(xyzf[3 * i + 2]));
+      const Vec3 x{double(xyzf[3 * i]), double(xyzf[3 * i + 1]), double(xyzf[3 * i + 2])};
       const Vec3 ref = map.displacement(x);
       worst = std::max(worst, (Vec3(outf[3 * i], outf[3 * i + 1], outf[3 * i + 2]) - ref).cwiseAbs().maxCoeff());
     }
@@ -91,6 +132,7 @@ TEST(FastPaths, FloatPathAccuracy) {
     EXPECT_LT(worst, 1e-5 * amax) << kernel_name(k) << " max |alpha| " << amax;
     EXPECT_GT(worst, 0.0);  // it is a float path
   }
+  });
 }
 
 TEST(FastPaths, FallsBackWhenCellListsWouldBeTooLarge) {
@@ -141,31 +183,64 @@ TEST(FastPaths, CellListsHoldEverySourceWithinReach) {
   EXPECT_EQ(a.offsets, b.offsets);
   EXPECT_EQ(a.neighbors, b.neighbors);
   EXPECT_EQ(a.dist2, b.dist2);
+  // And so does every pair tested (the fit's way for a few hundred sources).
+  const AdjacencyGraph c = AdjacencyGraph::brute_force(s, r);
+  EXPECT_EQ(c.offsets, b.offsets);
+  EXPECT_EQ(c.neighbors, b.neighbors);
+  EXPECT_EQ(c.dist2, b.dist2);
+  EXPECT_GT(c.neighbors.size(), s.size());  // a real graph, not an empty one
+}
+
+TEST(FastPaths, SmallAndLargeFitsBuildTheSameGraph) {
+  // Up to 256 sources the fit tests every pair and leaves the cell lists to the first evaluation;
+  // past it the lists give the graph. Either way the map interpolates and the fast path agrees
+  // with the simple one.
+  std::mt19937 rng(107);
+  for (std::size_t n : {200u, 300u}) {
+    const auto s = random_points(n, rng);
+    const auto d = displaced(s, rng, 0.02);
+    const SpaceMap m = SpaceMap::fit(s, d, {0.25, Kernel::C2, Polynomial::None});
+    EXPECT_EQ(m.stats().neighbor_pairs * 2, AdjacencyGraph::brute_force(s, 0.25).neighbors.size());
+    const auto xyz = flat(s);
+    std::vector<double> out(xyz.size());
+    m.apply(xyz.data(), out.data(), s.size(), 1.0);
+    for (std::size_t i = 0; i < n; ++i)
+      EXPECT_LT((Vec3(out[3 * i], out[3 * i + 1], out[3 * i + 2]) - d[i]).norm(), 1e-10) << "n=" << n;
+  }
 }
 
 TEST(FastPaths, SparseSolversAgreeWithTheEnvelopeSolver) {
   std::mt19937 rng(105);
-  const auto s = random_points(800, rng);
-  const auto d = displaced(s, rng);
-  for (Polynomial p : kPolys) {
-    FitOptions o{0.2, Kernel::C2, p};
-    o.solver = Solver::Envelope;
-    const SpaceMap env = SpaceMap::fit(s, d, o);
-    EXPECT_EQ(env.stats().solver, Solver::Envelope);
-    std::vector<Solver> others{Solver::Eigen};
-    if (cholmod_available()) others.push_back(Solver::Cholmod);
-    for (Solver solver : others) {
-      o.solver = solver;
-      const SpaceMap m = SpaceMap::fit(s, d, o);
-      EXPECT_EQ(m.stats().solver, solver);
-      EXPECT_GT(m.stats().factor_nonzeros, s.size());
-      EXPECT_LT((m.coefficients() - env.coefficients()).cwiseAbs().maxCoeff(), 1e-9) << solver_name(solver);
-      EXPECT_LT((m.polynomial_coefficients() - env.polynomial_coefficients()).cwiseAbs().maxCoeff(), 1e-9);
-      EXPECT_LT(m.stats().residual_max, 1e-10);
-      // New destinations through the kept sparse factor.
-      const auto d2 = displaced(s, rng);
-      const SpaceMap m2 = m.with_destinations(d2);
-      for (std::size_t i = 0; i < s.size(); i += 37) EXPECT_LT((m2.map(s[i]) - d2[i]).norm(), 1e-9);
+  // A volume and a surface (CHOLMOD orders them with METIS and with AMD).
+  auto cube = random_points(800, rng);
+  std::vector<Vec3> sphere;
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (int i = 0; i < 800; ++i) sphere.push_back(Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized() * 0.5);
+  for (const auto& s : {cube, sphere}) {
+    const auto d = displaced(s, rng);
+    for (Polynomial p : kPolys) {
+      FitOptions o{0.2, Kernel::C2, p};
+      o.solver = Solver::Envelope;
+      const SpaceMap env = SpaceMap::fit(s, d, o);
+      EXPECT_EQ(env.stats().solver, Solver::Envelope);
+      std::vector<Solver> others{Solver::Eigen};
+      if (cholmod_available()) others.push_back(Solver::Cholmod);
+      for (Solver solver : others) {
+        o.solver = solver;
+        const SpaceMap m = SpaceMap::fit(s, d, o);
+        EXPECT_EQ(m.stats().solver, solver);
+        EXPECT_GT(m.stats().factor_nonzeros, s.size());
+        // Relative to the coefficients' size: the surface's matrix is the worse conditioned.
+        const double amax = std::max(1.0, env.coefficients().cwiseAbs().maxCoeff());
+        EXPECT_LT((m.coefficients() - env.coefficients()).cwiseAbs().maxCoeff(), 1e-10 * amax)
+            << solver_name(solver) << " max |alpha| " << amax;
+        EXPECT_LT((m.polynomial_coefficients() - env.polynomial_coefficients()).cwiseAbs().maxCoeff(), 1e-9);
+        EXPECT_LT(m.stats().residual_max, 1e-10);
+        // New destinations through the kept sparse factor.
+        const auto d2 = displaced(s, rng);
+        const SpaceMap m2 = m.with_destinations(d2);
+        for (std::size_t i = 0; i < s.size(); i += 37) EXPECT_LT((m2.map(s[i]) - d2[i]).norm(), 1e-9);
+      }
     }
   }
 }
@@ -192,4 +267,20 @@ TEST(FastPaths, AutoSolverChoosesBySize) {
   EXPECT_EQ(parse_solver("envelope"), Solver::Envelope);
   EXPECT_FALSE(parse_solver("lu").has_value());
   EXPECT_EQ(solver_name(Solver::Eigen), "eigen");
+}
+
+TEST(FastPaths, EvaluationLoopSelection) {
+  // The public switch names the loop it selects, and refuses AVX-512 where there is none.
+  const std::string_view start = evaluation_loop_name();
+  EXPECT_TRUE(start == "avx512" || start == "avx2" || start == "baseline") << start;
+  set_evaluation_loop(EvaluationLoop::Portable);
+  EXPECT_NE(evaluation_loop_name(), "avx512");
+  if (detail::avx512_available()) {
+    set_evaluation_loop(EvaluationLoop::Avx512);
+    EXPECT_EQ(evaluation_loop_name(), "avx512");
+  } else {
+    EXPECT_THROW(set_evaluation_loop(EvaluationLoop::Avx512), InvalidInput);
+  }
+  set_evaluation_loop(EvaluationLoop::Auto);
+  EXPECT_EQ(evaluation_loop_name(), start);
 }

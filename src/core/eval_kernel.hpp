@@ -1,0 +1,142 @@
+// The per-vertex loop of the fast evaluation path, shared by evaluator.cpp (portable code, AVX2
+// clone) and evaluator_avx512.cpp (hand-written AVX-512). Everything here has internal linkage on
+// purpose: each translation unit compiles its own copy with its own instruction set, and the linker
+// must never merge an AVX-512 instantiation into the portable path.
+#pragma once
+
+#include "evaluator.hpp"
+
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <type_traits>
+
+namespace csrbf::detail {
+namespace {  // NOLINT(google-build-namespaces): see above
+
+/// phi(r) for r in [0, 1], branch-free; every member is exactly 0 at r = 1. V is a scalar or a GCC
+/// vector of S (the vector extensions broadcast the scalar constants).
+template <Kernel K, class V, class S = V>
+inline __attribute__((always_inline)) V phi(V r) {
+  const V s = S(1) - r;
+  const V s2 = s * s;
+  if constexpr (K == Kernel::C0) return s2;
+  else if constexpr (K == Kernel::C2) return (s2 * s2) * (S(4) * r + S(1));
+  else if constexpr (K == Kernel::C4) return (s2 * s2 * s2) * ((S(35) * r + S(18)) * r + S(3));
+  else return (s2 * s2) * (s2 * s2) * (((S(32) * r + S(25)) * r + S(8)) * r + S(1));
+}
+
+/// Runs sum a cell's run [b, e) (a multiple of kLanes long) for kGroup points at once: the
+/// points share each load of the run, and their independent chains keep the pipelines full. (One
+/// point at a time, the loop is bound by the latency of its chain and by the mispredicted exit of
+/// a short loop at every vertex.) Points that do not share a cell use a group of one.
+constexpr std::size_t kGroup = 4;
+
+/// The portable run: plain loops with one accumulator per lane, which the compiler vectorises.
+struct PortableRun {
+  template <Kernel K, class T, std::size_t P>
+  static inline __attribute__((always_inline)) void sum(const EvalData<T>& a, std::uint32_t b, std::uint32_t e,
+                                                        const T (&t)[P][3], T (&d)[P][3]) {
+    const T* __restrict sx = a.x.data();
+    const T* __restrict sy = a.y.data();
+    const T* __restrict sz = a.z.data();
+    const T* __restrict ax = a.ax.data();
+    const T* __restrict ay = a.ay.data();
+    const T* __restrict az = a.az.data();
+    constexpr std::size_t L = EvalGrid::kLanes;
+    T acc[P][3][L] = {};
+    for (std::uint32_t j = b; j < e; j += L) {
+      for (std::size_t p = 0; p < P; ++p) {
+        const T tx = t[p][0], ty = t[p][1], tz = t[p][2];
+#pragma omp simd
+        for (std::size_t l = 0; l < L; ++l) {
+          const T ddx = sx[j + l] - tx, ddy = sy[j + l] - ty, ddz = sz[j + l] - tz;
+          const T rr = std::sqrt(ddx * ddx + ddy * ddy + ddz * ddz);
+          const T r = rr < T(1) ? rr : T(1);  // by value: std::min's references defeat if-conversion
+          const T f = phi<K, T>(r);
+          acc[p][0][l] += f * ax[j + l];
+          acc[p][1][l] += f * ay[j + l];
+          acc[p][2][l] += f * az[j + l];
+        }
+      }
+    }
+    for (std::size_t p = 0; p < P; ++p)
+      for (std::size_t c = 0; c < 3; ++c)
+        for (std::size_t l = 0; l < L; ++l) d[p][c] += acc[p][c][l];
+  }
+};
+
+/// Points [begin, end) of in/out through the cell lists; Run sums one cell's run.
+template <Kernel K, class T, class Run>
+inline __attribute__((always_inline)) void evaluate_block(const EvalGrid& g, const EvalData<T>& a,
+                                                          const PolynomialPart* poly, const T* in, T* out,
+                                                          std::size_t begin, std::size_t end, double phase,
+                                                          bool add_point) {
+  const std::uint32_t* cb = g.begin.data();
+  const double inv_h = g.inv_h;
+  const double inv_r = 1.0 / g.radius;
+  const std::int64_t nx = g.nx, ny = g.ny, nz = g.nz;
+  constexpr std::size_t none = ~std::size_t(0);
+  // The cell of a point; none outside the grid (the sources' box grown by R: no source within R)
+  // or for NaN.
+  const auto cell_of = [&](std::size_t i) {
+    const double fx = std::floor((double(in[3 * i]) - g.origin.x()) * inv_h),
+                 fy = std::floor((double(in[3 * i + 1]) - g.origin.y()) * inv_h),
+                 fz = std::floor((double(in[3 * i + 2]) - g.origin.z()) * inv_h);
+    if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(nx) && fy < double(ny) && fz < double(nz))
+      return std::size_t((std::int64_t(fz) * ny + std::int64_t(fy)) * nx + std::int64_t(fx));
+    return none;
+  };
+  // In units of R (EvalData's coordinates): double absolute, float relative to the grid's origin.
+  constexpr bool dbl = std::is_same_v<T, double>;
+  const auto local = [&](std::size_t i, T (&t)[3]) {
+    for (int c = 0; c < 3; ++c) t[c] = T((dbl ? double(in[3 * i + c]) : double(in[3 * i + c]) - g.origin[c]) * inv_r);
+  };
+  const auto finish = [&](std::size_t i, const T (&d)[3]) {
+    const double px = double(in[3 * i]), py = double(in[3 * i + 1]), pz = double(in[3 * i + 2]);
+    double d0 = double(d[0]), d1 = double(d[1]), d2 = double(d[2]);
+    if (poly) {
+      const double u0 = (px - poly->center.x()) * poly->inv_scale, u1 = (py - poly->center.y()) * poly->inv_scale,
+                   u2 = (pz - poly->center.z()) * poly->inv_scale;
+      d0 += poly->b[0][0] + u0 * poly->b[1][0] + u1 * poly->b[2][0] + u2 * poly->b[3][0];
+      d1 += poly->b[0][1] + u0 * poly->b[1][1] + u1 * poly->b[2][1] + u2 * poly->b[3][1];
+      d2 += poly->b[0][2] + u0 * poly->b[1][2] + u1 * poly->b[2][2] + u2 * poly->b[3][2];
+    }
+    if (add_point) {
+      out[3 * i] = T(px + phase * d0);
+      out[3 * i + 1] = T(py + phase * d1);
+      out[3 * i + 2] = T(pz + phase * d2);
+    } else {
+      out[3 * i] = T(d0);
+      out[3 * i + 1] = T(d1);
+      out[3 * i + 2] = T(d2);
+    }
+  };
+  std::size_t i = begin;
+  while (i < end) {
+    const std::size_t cell = cell_of(i);
+    // A group: the next kGroup points all in this cell (meshes store neighbours near each other).
+    if (cell != none && i + kGroup <= end) {
+      bool same = true;
+      for (std::size_t p = 1; p < kGroup && same; ++p) same = cell_of(i + p) == cell;
+      if (same) {
+        T t[kGroup][3], d[kGroup][3] = {};
+        for (std::size_t p = 0; p < kGroup; ++p) local(i + p, t[p]);
+        if (cb[cell] != cb[cell + 1]) Run::template sum<K, T, kGroup>(a, cb[cell], cb[cell + 1], t, d);
+        for (std::size_t p = 0; p < kGroup; ++p) finish(i + p, d[p]);
+        i += kGroup;
+        continue;
+      }
+    }
+    T t[1][3], d[1][3] = {};
+    if (cell != none && cb[cell] != cb[cell + 1]) {
+      local(i, t[0]);
+      Run::template sum<K, T, 1>(a, cb[cell], cb[cell + 1], t, d);
+    }
+    finish(i, d[0]);
+    ++i;
+  }
+}
+
+}  // namespace
+}  // namespace csrbf::detail
