@@ -170,8 +170,13 @@ std::atomic<bool> g_use_avx512{avx512_available()};
 
 bool avx512_available() noexcept {
 #ifdef CSRBF_HAVE_AVX512_EVAL
-  static const bool yes = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-                          __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
+  // This runs from a static initialiser, possibly before libgcc's own: initialise the CPU model first.
+  // (__builtin_cpu_supports also checks that the OS saves the AVX-512 registers.)
+  static const bool yes = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+           __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw");
+  }();
   return yes;
 #else
   return false;
