@@ -1,5 +1,3 @@
-
-
 #include "evaluator.hpp"
 
 #include "eval_kernel.hpp"
@@ -59,6 +57,7 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
       const Vec3 q = (sources[i] - g.origin) * g.inv_h;  // in cell units
       // Per axis: the cells within K of the source's, and the squared distance to each cell's slab.
       std::int64_t c0[3], c1[3];
+      static_assert(2 * kMaxSubdivision + 1 <= 9, "d2 holds the cells within K of the source");
       double d2[3][9];
       const std::int64_t dims[3] = {g.nx, g.ny, g.nz};
       for (int a = 0; a < 3; ++a) {
