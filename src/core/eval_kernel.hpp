@@ -112,29 +112,34 @@ inline __attribute__((always_inline)) void evaluate_block(const EvalGrid& g, con
       out[3 * i + 2] = T(d2);
     }
   };
-  std::size_t i = begin;
-  while (i < end) {
-    const std::size_t cell = cell_of(i);
-    // A group: the next kGroup points all in this cell (meshes store neighbours near each other).
-    if (cell != none && i + kGroup <= end) {
-      bool same = true;
-      for (std::size_t p = 1; p < kGroup && same; ++p) same = cell_of(i + p) == cell;
-      if (same) {
+  // Cells are found for a chunk of points first (a loop without branches on data), then the points
+  // go through their runs: groups of kGroup when consecutive points share a cell, else one by one.
+  constexpr std::size_t kChunk = 256;
+  std::size_t cells[kChunk + kGroup];
+  for (std::size_t c0 = begin; c0 < end; c0 += kChunk) {
+    const std::size_t n = end - c0 < kChunk ? end - c0 : kChunk;
+    for (std::size_t k = 0; k < n; ++k) cells[k] = cell_of(c0 + k);
+    for (std::size_t k = n; k < n + kGroup; ++k) cells[k] = none;  // a group never runs past the chunk
+    std::size_t k = 0;
+    while (k < n) {
+      const std::size_t cell = cells[k];
+      if (cell != none && cells[k + 1] == cell && cells[k + 2] == cell && cells[k + 3] == cell) {
+        static_assert(kGroup == 4, "the test above checks 4 cells");
         T t[kGroup][3], d[kGroup][3] = {};
-        for (std::size_t p = 0; p < kGroup; ++p) local(i + p, t[p]);
+        for (std::size_t p = 0; p < kGroup; ++p) local(c0 + k + p, t[p]);
         if (cb[cell] != cb[cell + 1]) Run::template sum<K, T, kGroup>(a, cb[cell], cb[cell + 1], t, d);
-        for (std::size_t p = 0; p < kGroup; ++p) finish(i + p, d[p]);
-        i += kGroup;
+        for (std::size_t p = 0; p < kGroup; ++p) finish(c0 + k + p, d[p]);
+        k += kGroup;
         continue;
       }
+      T t[1][3], d[1][3] = {};
+      if (cell != none && cb[cell] != cb[cell + 1]) {
+        local(c0 + k, t[0]);
+        Run::template sum<K, T, 1>(a, cb[cell], cb[cell + 1], t, d);
+      }
+      finish(c0 + k, d[0]);
+      ++k;
     }
-    T t[1][3], d[1][3] = {};
-    if (cell != none && cb[cell] != cb[cell + 1]) {
-      local(i, t[0]);
-      Run::template sum<K, T, 1>(a, cb[cell], cb[cell + 1], t, d);
-    }
-    finish(i, d[0]);
-    ++i;
   }
 }
 

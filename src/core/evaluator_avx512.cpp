@@ -18,8 +18,8 @@ namespace {
 // r = sqrt(r2) from y = vrsqrt14(r2) (relative error below 2^-14) and one correction of third
 // order: with r0 = r2 y and e = 1 - r0 y, sqrt(r2) = r0 (1 - e)^-1/2 = r0 (1 + e/2 + 3e^2/8 +
 // 5e^3/16 + ...), whose first neglected term, 35e^4/128, is below 2^-54.
+// r2 is clamped to [1e-300, 1] by the caller.
 inline __attribute__((always_inline)) __m512d root(__m512d r2) {
-  r2 = _mm512_max_pd(r2, _mm512_set1_pd(1e-300));  // r2 = 0 (a point on a source): rsqrt would be inf
   const __m512d y = _mm512_rsqrt14_pd(r2);
   const __m512d r0 = _mm512_mul_pd(r2, y);
   const __m512d e = _mm512_fnmadd_pd(r0, y, _mm512_set1_pd(1.0));
@@ -29,7 +29,6 @@ inline __attribute__((always_inline)) __m512d root(__m512d r2) {
 }
 // float: the first-order correction, r0 (1 + e/2), leaves about 3e^2/8 < 2^-27.
 inline __attribute__((always_inline)) __m256 root(__m256 r2) {
-  r2 = _mm256_max_ps(r2, _mm256_set1_ps(1e-30f));
   const __m256 y = _mm256_rsqrt14_ps(r2);
   const __m256 r0 = _mm256_mul_ps(r2, y);
   const __m256 e = _mm256_fnmadd_ps(r0, y, _mm256_set1_ps(1.0f));
@@ -47,6 +46,8 @@ template <> struct V8<double> {
   static v mul(v a, v b) { return _mm512_mul_pd(a, b); }
   static v fmadd(v a, v b, v c) { return _mm512_fmadd_pd(a, b, c); }
   static v min(v a, v b) { return _mm512_min_pd(a, b); }
+  static v max(v a, v b) { return _mm512_max_pd(a, b); }
+  static constexpr double tiny = 1e-300;
   static double hsum(v a) { return _mm512_reduce_add_pd(a); }
 };
 template <> struct V8<float> {
@@ -58,6 +59,8 @@ template <> struct V8<float> {
   static v mul(v a, v b) { return _mm256_mul_ps(a, b); }
   static v fmadd(v a, v b, v c) { return _mm256_fmadd_ps(a, b, c); }
   static v min(v a, v b) { return _mm256_min_ps(a, b); }
+  static v max(v a, v b) { return _mm256_max_ps(a, b); }
+  static constexpr float tiny = 1e-30f;
   static float hsum(v a) {
     __m128 s = _mm_add_ps(_mm256_castps256_ps128(a), _mm256_extractf128_ps(a, 1));
     s = _mm_add_ps(s, _mm_movehl_ps(s, s));
@@ -73,7 +76,7 @@ struct Avx512Run {
     static_assert(EvalGrid::kLanes == 8, "one vector of 8 lanes a block");
     using O = V8<T>;
     using v = typename O::v;
-    const v one = O::set1(T(1));
+    const v one = O::set1(T(1)), tiny = O::set1(O::tiny);
     v tx[P], ty[P], tz[P], acc[P][3];
 #pragma GCC unroll 4
     for (std::size_t p = 0; p < P; ++p) {
@@ -87,7 +90,9 @@ struct Avx512Run {
       for (std::size_t p = 0; p < P; ++p) {
         const v ddx = O::sub(sx, tx[p]), ddy = O::sub(sy, ty[p]), ddz = O::sub(sz, tz[p]);
         const v r2 = O::fmadd(ddz, ddz, O::fmadd(ddy, ddy, O::mul(ddx, ddx)));
-        const v r = O::min(root(r2), one);
+        // r2 = 0 (a point on a source) would make rsqrt infinite; beyond R, r = 1 up to rounding,
+        // where phi is below 1e-30 of its peak.
+        const v r = root(O::min(O::max(r2, tiny), one));
         const v f = phi<K, v, T>(r);
         acc[p][0] = O::fmadd(f, ax, acc[p][0]);
         acc[p][1] = O::fmadd(f, ay, acc[p][1]);
