@@ -1,4 +1,5 @@
 // csrbf: the command-line program. Exit 0 on success, 2 on a usage error, 1 on bad data or failure.
+#include "animate.hpp"
 #include "bench.hpp"
 #include "commands.hpp"
 #include "csrbf/io/atomic_file.hpp"
@@ -123,6 +124,19 @@ int main(int argc, char** argv) {
 
   FitArgs info_args;
   bool json = false;
+  csrbf::cli::AnimateOptions anim_opts;
+  auto* animate = app.add_subcommand("animate", "Render a scene file to a movie, without a display (docs/scene-format.md)");
+  animate->add_option("scene", anim_opts.scene, "Scene JSON file")->required();
+  animate->add_option("-o,--output", anim_opts.out,
+                      "Movie: .mp4 (H.264), .avi (full uncompressed frames) or a folder of numbered PNG frames")
+      ->required();
+  animate->add_option("--fps", anim_opts.fps, "Frames per second (default: the scene's)")->check(CLI::Range(0.1, 1000.0));
+  animate->add_option("--size", anim_opts.size, "Frame size WIDTHxHEIGHT")->capture_default_str();
+  animate->add_option("--from", anim_opts.from, "Start time in seconds (default 0)");
+  animate->add_option("--to", anim_opts.to, "End time in seconds (default: the scene's duration)");
+  animate->add_flag("--private-display", anim_opts.private_display,
+                    "Render on a private Xvfb even when DISPLAY is set (one is started anyway when it is not)");
+
   auto* info = app.add_subcommand("info", "Fit the controls and print the solver's statistics");
   add_fit_options(info, info_args);
   info->add_flag("--json", json, "Print one JSON object");
@@ -151,6 +165,8 @@ int main(int argc, char** argv) {
                 << f.map.size() << " controls, R = " << f.map.radius() << ", kernel " << csrbf::kernel_name(f.map.kernel())
                 << ", polynomial " << csrbf::polynomial_name(f.map.polynomial()) << ", phase " << phase << " -> "
                 << mesh_out << " (" << std::chrono::duration<double, std::milli>(t1 - t0).count() << " ms)\n";
+    } else if (*animate) {
+      return csrbf::cli::run_animate(anim_opts);
     } else if (*bench) {
       csrbf::cli::run_bench(bench_opts);
     } else if (*info) {

@@ -194,6 +194,7 @@ struct MeshDocument::Impl {
   std::vector<std::array<Slot, 3>> normal_slots;  // per vertex (OFF, PLY) or per vn (OBJ)
   std::vector<Vec3> normals;                       // original values, kept where none can be computed
   std::vector<std::vector<std::int64_t>> face_normal_ids;  // OBJ: vn index of each face corner, or -1
+  std::map<std::string, std::vector<std::uint32_t>> groups, materials;  // OBJ: g/o and usemtl -> faces
 
   // PLY
   std::string ply_header;
@@ -228,6 +229,8 @@ struct MeshDocument::Impl {
 void MeshDocument::Impl::load_obj(const std::string& text) {
   lines = split_lines(text);
   std::size_t vn_count = 0;
+  std::vector<std::string> current_groups;
+  std::string current_material;
   for (std::size_t li = 0; li < lines.size(); ++li) {
     const auto body = strip_comment(lines[li]);
     if (body.empty()) continue;
@@ -275,8 +278,14 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
         }
         fn.push_back(n_id);
       }
+      for (const auto& g : current_groups) groups[g].push_back(std::uint32_t(faces.size()));
+      if (!current_material.empty()) materials[current_material].push_back(std::uint32_t(faces.size()));
       faces.push_back(std::move(f));
       face_normal_ids.push_back(std::move(fn));
+    } else if (tok[0] == "g" || tok[0] == "o") {
+      current_groups.assign(tok.begin() + 1, tok.end());  // "g a b": the faces below are in a and b
+    } else if (tok[0] == "usemtl") {
+      current_material = tok.size() > 1 ? std::string(tok[1]) : std::string();
     }
   }
   has_normals = !normals.empty();
@@ -780,6 +789,10 @@ std::vector<Vec3>& MeshDocument::positions() noexcept { return impl_->positions;
 const std::vector<Vec3>& MeshDocument::positions() const noexcept { return impl_->positions; }
 const std::vector<std::vector<std::uint32_t>>& MeshDocument::faces() const noexcept { return impl_->faces; }
 bool MeshDocument::has_normals() const noexcept { return impl_->has_normals; }
+const std::map<std::string, std::vector<std::uint32_t>>& MeshDocument::groups() const noexcept { return impl_->groups; }
+const std::map<std::string, std::vector<std::uint32_t>>& MeshDocument::materials() const noexcept {
+  return impl_->materials;
+}
 
 void MeshDocument::save(const fs::path& path) const {
   const MeshFormat out = format_for(path);

@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -36,6 +37,11 @@ class MeshDocument {
   const std::vector<Vec3>& positions() const noexcept;
   const std::vector<std::vector<std::uint32_t>>& faces() const noexcept;
   bool has_normals() const noexcept;
+  /// Named face groups (OBJ `g` and `o` lines): group name -> indices into faces(). Empty for
+  /// other formats.
+  const std::map<std::string, std::vector<std::uint32_t>>& groups() const noexcept;
+  /// Faces by material (OBJ `usemtl`): material name -> indices into faces().
+  const std::map<std::string, std::vector<std::uint32_t>>& materials() const noexcept;
 
   /// Writes the mesh with the current positions, in the format of path's extension, atomically.
   /// The same format as loaded (OBJ, PLY, OFF, .xyz) rewrites the original, changing only

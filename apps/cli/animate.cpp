@@ -1,0 +1,138 @@
+#include "animate.hpp"
+
+#include "csrbf/io/scene.hpp"
+#include "csrbf/render/movie_writer.hpp"
+#include "csrbf/render/process.hpp"
+#include "csrbf/render/scene_renderer.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+#include <unistd.h>
+
+namespace csrbf::cli {
+namespace {
+
+volatile std::sig_atomic_t g_interrupted = 0;
+extern "C" void on_signal(int) { g_interrupted = 1; }
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::string clock_text(double s) {
+  char buf[32];
+  if (s >= 60) std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
+  else std::snprintf(buf, sizeof buf, "%.1fs", s);
+  return buf;
+}
+
+/// A bar redrawn in place on a terminal; otherwise a plain line at every tenth of the frames.
+class Progress {
+ public:
+  explicit Progress(std::size_t total) : total_(total), tty_(isatty(STDOUT_FILENO) != 0), start_(Clock::now()) {}
+  void frame(std::size_t done) {
+    const double el = seconds_since(start_);
+    const double rate = el > 0 ? double(done) / el : 0.0;
+    const double left = rate > 0 ? double(total_ - done) / rate : 0.0;
+    if (tty_) {
+      constexpr int width = 30;
+      const int fill = int(double(width) * double(done) / double(total_));
+      std::printf("\r[%s%s] %zu/%zu frames  %.1f fps  %s left ", std::string(std::size_t(fill), '#').c_str(),
+                  std::string(std::size_t(width - fill), '.').c_str(), done, total_, rate, clock_text(left).c_str());
+      if (done == total_) std::printf("\n");
+      std::fflush(stdout);
+    } else {
+      const std::size_t step = std::max<std::size_t>(1, total_ / 10);
+      if (done % step == 0 || done == total_)
+        std::printf("frame %zu/%zu, %.1f fps, %s left\n", done, total_, rate, clock_text(left).c_str());
+      std::fflush(stdout);
+    }
+  }
+
+ private:
+  std::size_t total_;
+  bool tty_;
+  Clock::time_point start_;
+};
+
+std::pair<int, int> parse_size(const std::string& s) {
+  const auto x = s.find('x');
+  int w = 0, h = 0;
+  char tail = 0;
+  if (x == std::string::npos || std::sscanf(s.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 16 || h < 16 || w > 16384 ||
+      h > 16384)
+    throw std::invalid_argument("--size: expected WIDTHxHEIGHT with each in 16..16384, got '" + s + "'");
+  return {w, h};
+}
+
+}  // namespace
+
+int run_animate(const AnimateOptions& o) {
+  const auto [width, height] = parse_size(o.size);
+  // Check the target before the (slow) scene load, so a typo fails at once.
+  render::movie_format_for(o.out);
+  anim::Scene scene = io::read_scene(o.scene);
+  if (o.fps) scene.fps = *o.fps;
+  const double from = o.from.value_or(0.0), to = o.to.value_or(scene.duration);
+  if (!(to >= from)) {
+    std::ostringstream m;
+    m << "--from " << from << " is after --to " << to;
+    throw std::invalid_argument(m.str());
+  }
+  const std::size_t frames = scene.frame_count(from, to);
+
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, nullptr);
+  sigaction(SIGTERM, &sa, nullptr);
+
+  render::Display display(o.private_display);
+  anim::Player player(scene);
+  render::SceneRenderer renderer(scene);
+  renderer.open_offscreen(width, height);
+  render::MovieWriter writer(o.out, width, height, scene.fps);
+  std::cout << "csrbf animate: " << o.scene << " -> " << o.out << ": " << frames << " frames, " << width << "x"
+            << height << " at " << scene.fps << " fps, t = " << from << " .. " << to << " s"
+            << (display.is_private() ? ", private X display " + display.name() : "") << "\n";
+  std::cout.flush();
+
+  Progress progress(frames);
+  std::vector<std::uint8_t> rgb;
+  double compute = 0, draw = 0, encode = 0;
+  for (std::size_t k = 0; k < frames; ++k) {
+    if (g_interrupted) {
+      std::cerr << "\ncsrbf animate: interrupted after " << k << " of " << frames << " frames; " << o.out
+                << " was not written\n";
+      return 130;  // the writer's destructor stops ffmpeg and removes the partial movie
+    }
+    const double t = from + double(k) / scene.fps;
+    auto t0 = Clock::now();
+    player.evaluate(t);
+    compute += seconds_since(t0);
+    t0 = Clock::now();
+    renderer.update(player);
+    renderer.render_rgb(rgb);
+    draw += seconds_since(t0);
+    t0 = Clock::now();
+    writer.write(rgb.data());
+    encode += seconds_since(t0);
+    progress.frame(k + 1);
+  }
+  if (g_interrupted) {
+    std::cerr << "csrbf animate: interrupted; " << o.out << " was not written\n";
+    return 130;
+  }
+  const auto t0 = Clock::now();
+  writer.finish();
+  encode += seconds_since(t0);
+  const double n = double(frames);
+  std::printf("frames: %zu\ncomputation: %.3f ms/frame (mean)\nrendering: %.3f ms/frame (mean)\nencoding: %.3f ms/frame (mean)\nwrote %s\n",
+              frames, 1e3 * compute / n, 1e3 * draw / n, 1e3 * encode / n, o.out.c_str());
+  return 0;
+}
+
+}  // namespace csrbf::cli

@@ -1,0 +1,19 @@
+// Scene JSON (docs/scene-format.md): objects with meshes, parts, deformations on a schedule,
+// trajectories and orientation keys; camera, lights, duration and frame rate. Paths in the file are
+// relative to its folder.
+#pragma once
+
+#include "csrbf/anim/scene.hpp"
+#include "csrbf/io/error.hpp"
+
+#include <filesystem>
+
+namespace csrbf::io {
+
+/// Reads the scene, its meshes and its deformations, and fits every fixed deformation. Throws
+/// FileError naming the file and the JSON path (e.g. "objects[1].trajectory.keys[3].time") of a
+/// bad, unknown or missing value, a missing file, or keys out of time order; errors from the engine
+/// (a degenerate polynomial, duplicate sources) are reported with the path of their deformation.
+anim::Scene read_scene(const std::filesystem::path& path);
+
+}  // namespace csrbf::io

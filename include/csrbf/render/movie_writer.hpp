@@ -1,0 +1,49 @@
+// Frames to a movie through the ffmpeg program (Debian's VTK has no FFMPEG writer): MP4 (H.264),
+// AVI with full, uncompressed frames (as the paper saved its movies), or a folder of numbered PNG
+// frames. Nothing half-written: frames go to a hidden temporary file or folder beside the target,
+// which replaces the target only when finish() succeeds.
+#pragma once
+
+#include "csrbf/render/process.hpp"
+
+#include <cstdint>
+#include <filesystem>
+#include <memory>
+
+namespace csrbf::render {
+
+enum class MovieFormat { Mp4, Avi, PngFolder };
+
+/// .mp4 and .avi by extension (case-insensitive); anything else (no extension, a trailing '/', an
+/// existing folder) is a folder of PNG frames. Throws RenderError for another extension.
+MovieFormat movie_format_for(const std::filesystem::path& out);
+
+class MovieWriter {
+ public:
+  /// width x height pixels (even for MP4), fps > 0. Throws RenderError when the target's folder is
+  /// missing or ffmpeg cannot be started.
+  MovieWriter(const std::filesystem::path& out, int width, int height, double fps);
+  /// Without a successful finish(): stops ffmpeg and removes the temporary output.
+  ~MovieWriter();
+  MovieWriter(const MovieWriter&) = delete;
+  MovieWriter& operator=(const MovieWriter&) = delete;
+
+  /// One frame, RGB, 8 bits a channel, rows top to bottom (width * height * 3 bytes).
+  void write(const std::uint8_t* rgb);
+  /// Waits for ffmpeg and moves the result over the target. Throws RenderError with ffmpeg's
+  /// message on failure (the target is then untouched).
+  void finish();
+  MovieFormat format() const noexcept { return format_; }
+  std::size_t frames() const noexcept { return frames_; }
+
+ private:
+  void abandon() noexcept;
+  std::filesystem::path out_, temp_;
+  MovieFormat format_;
+  int width_, height_;
+  std::size_t frames_ = 0;
+  std::unique_ptr<Child> ffmpeg_;
+  bool done_ = false;
+};
+
+}  // namespace csrbf::render

@@ -1,0 +1,66 @@
+// Child processes of the renderer: the ffmpeg encoder and a private X server. Both run in their own
+// process group, so a Ctrl-C at the terminal reaches csrbf alone, which then stops them in order.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace csrbf::render {
+
+/// A child could not be started, failed, or the display could not be opened. The message says
+/// which program and why (with the program's own error output where it wrote any).
+class RenderError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A running program with a pipe to its standard input; standard output is discarded and standard
+/// error kept in a temporary file for messages. The destructor kills it if it is still running.
+class Child {
+ public:
+  /// argv[0] is looked up in PATH. stdin_pipe: open a pipe to its standard input.
+  Child(const std::vector<std::string>& argv, bool stdin_pipe, int extra_fd = -1);
+  ~Child();
+  Child(const Child&) = delete;
+  Child& operator=(const Child&) = delete;
+
+  /// Writes all bytes to its standard input; false if it has stopped reading (it exited).
+  bool write(const void* data, std::size_t bytes);
+  /// Closes its standard input and waits; returns its exit status (128 + signal if killed).
+  int finish();
+  /// Kills it (SIGTERM, then SIGKILL after a grace period) and waits.
+  void kill();
+  /// What it wrote to standard error so far (the last 2000 characters).
+  std::string error_output() const;
+  int pid() const noexcept { return pid_; }
+
+ private:
+  int pid_ = -1;
+  int stdin_fd_ = -1;
+  int status_ = -1;
+  std::filesystem::path err_path_;
+};
+
+/// Makes sure X is available for VTK's render windows (Debian's VTK 9.1 renders through X only).
+/// With DISPLAY set, that display is used. Without it, a private Xvfb is started for the lifetime
+/// of this object (DISPLAY is set for this process) and stopped afterwards.
+class Display {
+ public:
+  /// force_private: start Xvfb even when DISPLAY is set.
+  explicit Display(bool force_private = false);
+  ~Display();
+  Display(const Display&) = delete;
+  Display& operator=(const Display&) = delete;
+  bool is_private() const noexcept { return xvfb_ != nullptr; }
+  const std::string& name() const noexcept { return name_; }
+
+ private:
+  std::unique_ptr<Child> xvfb_;
+  std::string name_, previous_;
+  bool had_previous_ = false;
+};
+
+}  // namespace csrbf::render

@@ -1,0 +1,84 @@
+#include "csrbf/io/deformation.hpp"
+
+#include "csrbf/io/atomic_file.hpp"
+#include "csrbf/io/controls.hpp"
+#include "json_reader.hpp"
+
+namespace csrbf::io {
+namespace detail {
+
+DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::path& base) {
+  DeformationSpec spec;
+  spec.options.radius = node["radius"].positive();
+  if (node.has("kernel")) {
+    const auto k = parse_kernel(node["kernel"].string());
+    if (!k) node["kernel"].expected("one of \"c0\", \"c2\", \"c4\", \"c6\"");
+    spec.options.kernel = *k;
+  }
+  if (node.has("polynomial")) {
+    const auto p = parse_polynomial(node["polynomial"].string());
+    if (!p) node["polynomial"].expected("one of \"none\", \"constant\", \"linear\"");
+    spec.options.polynomial = *p;
+  }
+  const bool inline_points = node.has("sources") || node.has("destinations");
+  if (node.has("controls") == inline_points)
+    node.fail("give either \"controls\" (a controls file) or \"sources\" and \"destinations\"");
+  if (inline_points) {
+    const JsonNode s = node["sources"], d = node["destinations"];
+    if (s.size() == 0) s.fail("at least one control is needed");
+    if (d.size() != s.size())
+      d.fail("has " + std::to_string(d.size()) + " points but sources has " + std::to_string(s.size()));
+    for (std::size_t i = 0; i < s.size(); ++i) {
+      spec.sources.push_back(s[i].vec3());
+      spec.destinations.push_back(d[i].vec3());
+    }
+  } else {
+    const JsonNode c = node["controls"];
+    const std::filesystem::path file = base / c.string();
+    Controls controls;
+    try {
+      controls = read_controls(file);
+    } catch (const FileError& e) {
+      c.fail(e.what());
+    }
+    spec.sources = std::move(controls.sources);
+    spec.destinations = std::move(controls.destinations);
+  }
+  return spec;
+}
+
+}  // namespace detail
+
+DeformationSpec read_deformation(const std::filesystem::path& path) {
+  const nlohmann::json j = detail::read_json_file(path);
+  const std::string name = path.string();
+  const detail::JsonNode root(j, name);
+  root.only({"format", "version", "kernel", "radius", "polynomial", "sources", "destinations", "controls"});
+  if (root.has("format") && root["format"].string() != "csrbf-deformation")
+    root["format"].expected("\"csrbf-deformation\"");
+  if (root.has("version") && root["version"].number() != 1) root["version"].expected("1");
+  return detail::parse_deformation(root, path.parent_path());
+}
+
+void write_deformation(const std::filesystem::path& path, const DeformationSpec& spec) {
+  if (spec.sources.size() != spec.destinations.size())
+    throw FileError(path.string() + ": sources and destinations differ in number");
+  const auto point = [](const Vec3& p) {
+    return "[" + format_number(p.x()) + ", " + format_number(p.y()) + ", " + format_number(p.z()) + "]";
+  };
+  write_atomically(path, [&](std::ostream& out) {
+    out << "{\n  \"format\": \"csrbf-deformation\",\n  \"version\": 1,\n"
+        << "  \"kernel\": \"" << kernel_name(spec.options.kernel) << "\",\n"
+        << "  \"radius\": " << format_number(spec.options.radius) << ",\n"
+        << "  \"polynomial\": \"" << polynomial_name(spec.options.polynomial) << "\",\n";
+    for (int which = 0; which < 2; ++which) {
+      const auto& pts = which == 0 ? spec.sources : spec.destinations;
+      out << "  \"" << (which == 0 ? "sources" : "destinations") << "\": [";
+      for (std::size_t i = 0; i < pts.size(); ++i) out << (i ? ",\n    " : "\n    ") << point(pts[i]);
+      out << "\n  ]" << (which == 0 ? ",\n" : "\n");
+    }
+    out << "}\n";
+  });
+}
+
+}  // namespace csrbf::io
