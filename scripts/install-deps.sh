@@ -14,7 +14,9 @@ packages=(
   libbenchmark-dev       # bench/
   libsuitesparse-dev     # core (optional): CHOLMOD for large fits; solvers benchmark
   libopenblas0-pthread   # BLAS under CHOLMOD (replaces reference BLAS by alternatives): 3-5x faster big fits
-  libvtk9-dev            # cli: the `peers` benchmark (vtkThinPlateSplineTransform)
+  libvtk9-dev            # render (csrbf animate), the `peers` benchmark, tests against vtkKochanekSpline
+  xvfb xauth             # csrbf animate without a display starts a private Xvfb; tests use xvfb-run
+  ffmpeg                 # csrbf animate writes movies through the ffmpeg program; tests read them with ffprobe
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png
 )
 

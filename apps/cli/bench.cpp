@@ -1,5 +1,7 @@
 #include "bench.hpp"
 
+#include "csrbf/anim/scene.hpp"
+
 #include "csrbf/displacement_field.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/error.hpp"
@@ -268,40 +270,12 @@ double tri(double t) {
   return f < 0.5 ? 4 * f - 1 : 3 - 4 * f;
 }
 
-/// The controls of frame f: box corners pinned; where the sphere (radius 0.2) comes within its radius
-/// of a wall, five control vectors push a patch of that wall outwards by the penetration depth.
+/// The controls of frame f: the sphere (radius 0.2) on its path, pressing on the walls it comes within
+/// its radius of (anim::contact_controls, the `contact` deformation of examples/ball.scene.json).
 void ball_controls(int frame, std::vector<Vec3>& s, std::vector<Vec3>& d) {
-  s.clear();
-  d.clear();
-  for (int c = 0; c < 8; ++c) {
-    const Vec3 p(c & 1, (c >> 1) & 1, (c >> 2) & 1);
-    s.push_back(p);
-    d.push_back(p);
-  }
   const double t = frame / 240.0, rb = 0.2;
   const Vec3 centre = Vec3(0.5, 0.5, 0.5) + 0.36 * Vec3(tri(1.0 * t), tri(1.3 * t + 0.2), tri(0.7 * t + 0.4));
-  for (int axis = 0; axis < 3; ++axis)
-    for (int side = 0; side < 2; ++side) {
-      const double wall = side;
-      const double dist = std::abs(centre[axis] - wall);
-      const double pen = rb - dist;
-      if (pen <= 0) continue;
-      Vec3 n = Vec3::Zero();
-      n[axis] = side ? 1.0 : -1.0;
-      Vec3 contact = centre;
-      contact[axis] = wall;
-      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
-      const double spread = 0.12;
-      const Vec3 offsets[5] = {Vec3::Zero(), Vec3::Unit(u) * spread, -Vec3::Unit(u) * spread, Vec3::Unit(v) * spread,
-                               -Vec3::Unit(v) * spread};
-      for (int k = 0; k < 5; ++k) {
-        Vec3 p = contact + offsets[k];
-        p[u] = std::clamp(p[u], 0.0, 1.0);
-        p[v] = std::clamp(p[v], 0.0, 1.0);
-        s.push_back(p);
-        d.push_back(p + n * (k == 0 ? pen : 0.6 * pen));
-      }
-    }
+  anim::contact_controls(Vec3::Zero(), Vec3::Ones(), centre, rb, 0.6, s, d);
 }
 
 void ball_scenario(const BenchOptions& o, const Printer& out) {

@@ -10,6 +10,18 @@ namespace csrbf::render {
 
 namespace fs = std::filesystem;
 
+namespace {
+/// ".name.what-pid": a hidden name beside the target. (Built by appending: GCC 12 warns falsely on
+/// "." + std::string.)
+std::string hidden_name(const fs::path& target, const char* what) {
+  std::string s(".");
+  s += target.filename().string();
+  s += what;
+  s += std::to_string(::getpid());
+  return s;
+}
+}  // namespace
+
 MovieFormat movie_format_for(const fs::path& out) {
   std::string ext = out.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
@@ -38,7 +50,7 @@ MovieWriter::MovieWriter(const fs::path& out_in, int width, int height, double f
   if (!fs::is_directory(dir, ec)) throw RenderError(out_.string() + ": the folder '" + dir.string() + "' does not exist");
   if (fs::exists(out_, ec) && format_ != MovieFormat::PngFolder && fs::is_directory(out_, ec))
     throw RenderError(out_.string() + ": is a folder");
-  const std::string stem = "." + out_.filename().string() + ".partial-" + std::to_string(::getpid());
+  const std::string stem = hidden_name(out_, ".partial-");
   std::ostringstream rate;
   rate << fps;
   std::vector<std::string> argv{"ffmpeg", "-nostdin", "-hide_banner", "-loglevel", "error", "-y",
@@ -106,7 +118,7 @@ void MovieWriter::finish() {
   std::error_code ec;
   if (format_ == MovieFormat::PngFolder && fs::exists(out_, ec)) {
     // An existing folder is replaced whole, only now that the new frames are complete.
-    const fs::path old = out_.parent_path() / ("." + out_.filename().string() + ".old-" + std::to_string(::getpid()));
+    const fs::path old = out_.parent_path() / hidden_name(out_, ".old-");
     fs::rename(out_, old, ec);
     if (ec) {
       abandon();

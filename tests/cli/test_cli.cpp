@@ -14,21 +14,9 @@ using csrbf::test::write_text;
 
 namespace {
 
-struct CliRun {
-  int code = -1;
-  std::string out;  // stdout and stderr together
-};
+using CliRun = csrbf::test::ShellRun;
 
-CliRun run(const std::string& args) {
-  const std::string cmd = std::string(CSRBF_CLI) + " " + args + " 2>&1";
-  CliRun r;
-  FILE* p = popen(cmd.c_str(), "r");
-  std::array<char, 4096> buf;
-  while (std::size_t n = fread(buf.data(), 1, buf.size(), p)) r.out.append(buf.data(), n);
-  const int status = pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+CliRun run(const std::string& args) { return csrbf::test::run_shell(std::string(CSRBF_CLI) + " " + args); }
 
 const std::string kExamples = std::string(CSRBF_SOURCE_DIR) + "/examples/";
 

@@ -1,10 +1,13 @@
 #pragma once
 
+#include <array>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <string>
+#include <sys/wait.h>
 
 namespace csrbf::test {
 
@@ -38,6 +41,22 @@ inline std::size_t files_in(const std::filesystem::path& dir) {
   std::size_t n = 0;
   for ([[maybe_unused]] const auto& e : std::filesystem::directory_iterator(dir)) ++n;
   return n;
+}
+
+struct ShellRun {
+  int code = -1;     ///< exit status, -1 if killed by a signal
+  std::string out;   ///< standard output and standard error together
+};
+
+/// Runs a shell command line and collects what it prints.
+inline ShellRun run_shell(const std::string& command) {
+  ShellRun r;
+  FILE* p = popen((command + " 2>&1").c_str(), "r");
+  std::array<char, 65536> buf;
+  while (std::size_t n = fread(buf.data(), 1, buf.size(), p)) r.out.append(buf.data(), n);
+  const int status = pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
 }
 
 }  // namespace csrbf::test
