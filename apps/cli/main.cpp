@@ -4,6 +4,7 @@
 #include "commands.hpp"
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/controls.hpp"
+#include "csrbf/io/deformation.hpp"
 #include "csrbf/io/mesh.hpp"
 #include "csrbf/space_map.hpp"
 
@@ -17,7 +18,7 @@
 namespace {
 
 struct FitArgs {
-  std::string controls;
+  std::string controls, deformation;
   double radius = 0;
   std::string kernel = "c2", polynomial = "none", ordering = "auto", solver = "auto";
 };
@@ -35,17 +36,27 @@ CLI::Validator positive_finite(const char* what) {
 }
 
 void add_fit_options(CLI::App* cmd, FitArgs& a) {
-  cmd->add_option("--controls", a.controls, "Controls file: one control vector a line, 'sx sy sz dx dy dz'")->required();
-  cmd->add_option("--radius,-r", a.radius, "Radius of support R, in the mesh's units (> 0)")
-      ->required()
-      ->check(positive_finite("--radius"));
-  cmd->add_option("--kernel,-k", a.kernel, "Wendland kernel: c0 = psi20, c2 = psi31, c4 = psi42, c6 = psi53")
-      ->check(CLI::IsMember({"c0", "c2", "c4", "c6"}))
-      ->capture_default_str();
-  cmd->add_option("--polynomial,-p", a.polynomial,
-                  "Polynomial part: none (strictly local), constant, linear (reproduces affine maps)")
-      ->check(CLI::IsMember({"none", "constant", "linear"}))
-      ->capture_default_str();
+  auto* controls =
+      cmd->add_option("--controls", a.controls, "Controls file: one control vector a line, 'sx sy sz dx dy dz'");
+  auto* deformation = cmd->add_option("--deformation", a.deformation,
+                                      "Deformation JSON (docs/scene-format.md): controls, radius, kernel and polynomial "
+                                      "in one file, instead of --controls, --radius, --kernel, --polynomial");
+  auto* radius = cmd->add_option("--radius,-r", a.radius, "Radius of support R, in the mesh's units (> 0)")
+                     ->check(positive_finite("--radius"));
+  auto* kernel = cmd->add_option("--kernel,-k", a.kernel, "Wendland kernel: c0 = psi20, c2 = psi31, c4 = psi42, c6 = psi53")
+                     ->check(CLI::IsMember({"c0", "c2", "c4", "c6"}))
+                     ->capture_default_str();
+  auto* polynomial = cmd->add_option("--polynomial,-p", a.polynomial,
+                                     "Polynomial part: none (strictly local), constant, linear (reproduces affine maps)")
+                         ->check(CLI::IsMember({"none", "constant", "linear"}))
+                         ->capture_default_str();
+  deformation->excludes(controls)->excludes(radius)->excludes(kernel)->excludes(polynomial);
+  controls->needs(radius);
+  radius->needs(controls);
+  cmd->callback([a = &a, cmd] {
+    if (a->controls.empty() && a->deformation.empty())
+      throw CLI::RequiredError(cmd->get_name() + ": give --controls with --radius, or --deformation");
+  });
   cmd->add_option("--ordering", a.ordering,
                   "Matrix ordering: auto (smallest envelope), breadth-first (paper Fig. 3), reverse-breadth-first, rcm, identity")
       ->check(CLI::IsMember({"auto", "breadth-first", "reverse-breadth-first", "rcm", "identity"}))
@@ -62,24 +73,41 @@ struct Fitted {
 };
 
 Fitted fit(const FitArgs& a) {
-  auto controls = csrbf::io::read_controls(a.controls);
-  for (const auto& w : controls.warnings) std::cerr << "csrbf: warning: " << w << '\n';
+  csrbf::io::Controls controls;
   csrbf::FitOptions o;
-  o.radius = a.radius;
-  o.kernel = *csrbf::parse_kernel(a.kernel);
-  o.polynomial = *csrbf::parse_polynomial(a.polynomial);
+  if (!a.deformation.empty()) {
+    const auto spec = csrbf::io::read_deformation(a.deformation);
+    controls.sources = spec.sources;
+    controls.destinations = spec.destinations;
+    controls.name = a.deformation;
+    o = spec.options;
+  } else {
+    controls = csrbf::io::read_controls(a.controls);
+    o.radius = a.radius;
+    o.kernel = *csrbf::parse_kernel(a.kernel);
+    o.polynomial = *csrbf::parse_polynomial(a.polynomial);
+  }
+  for (const auto& w : controls.warnings) std::cerr << "csrbf: warning: " << w << '\n';
   o.ordering = *csrbf::parse_ordering(a.ordering);
   o.solver = *csrbf::parse_solver(a.solver);
+  // Where control i came from: "file:line" for controls text, "file: sources[i]" for JSON.
+  const bool json_file = !a.deformation.empty();
+  const auto where = [&](std::size_t i) {
+    return json_file ? controls.name + ": sources[" + std::to_string(i) + "]"
+                     : controls.name + ":" + std::to_string(controls.lines[i]);
+  };
+  const auto which = [&](std::size_t i) {
+    return json_file ? "sources[" + std::to_string(i) + "]" : "line " + std::to_string(controls.lines[i]);
+  };
   try {
     return {controls, csrbf::SpaceMap::fit(controls.sources, controls.destinations, o)};
   } catch (const csrbf::DuplicateSource& e) {
-    throw csrbf::io::FileError(controls.name + ":" + std::to_string(controls.lines[e.second()]) + ": source is the same as on line " +
-                               std::to_string(controls.lines[e.first()]));
+    throw csrbf::io::FileError(where(e.second()) + ": source is the same as on " + which(e.first()));
   } catch (const csrbf::NotPositiveDefinite& e) {
-    if (e.row() >= controls.lines.size()) throw csrbf::io::FileError(controls.name + ": " + e.what());
-    throw csrbf::io::FileError(controls.name + ":" + std::to_string(controls.lines[e.row()]) +
+    if (e.row() >= controls.sources.size()) throw csrbf::io::FileError(controls.name + ": " + e.what());
+    throw csrbf::io::FileError(where(e.row()) +
                                ": the interpolation matrix is not numerically positive definite at this control (pivot " +
-                               std::to_string(e.pivot()) + "); sources too close together for R = " + std::to_string(a.radius));
+                               std::to_string(e.pivot()) + "); sources too close together for R = " + std::to_string(o.radius));
   } catch (const std::invalid_argument& e) {
     throw csrbf::io::FileError(controls.name + ": " + e.what());
   }

@@ -193,3 +193,25 @@ TEST(Cli, BenchPrintsJsonRowsWithMedians) {
   r = run("bench --scenario nope");
   EXPECT_EQ(r.code, 2) << r.out;
 }
+
+TEST(Cli, ReadsADeformationFile) {
+  TempDir dir;
+  // The same deformation as a deformation JSON (referring to the controls) and as options.
+  write_text(dir / "fish.json", R"({"format": "csrbf-deformation", "version": 1, "kernel": "c4", "radius": 0.3,
+                                    "polynomial": "constant", "controls": ")" + kExamples + R"(fish.controls"})");
+  const CliRun a = run("deform --mesh " + kExamples + "fish.obj --deformation " + (dir / "fish.json").string() + " -o " +
+                       (dir / "a.obj").string());
+  ASSERT_EQ(a.code, 0) << a.out;
+  const CliRun b = run("deform --mesh " + kExamples + "fish.obj --controls " + kExamples +
+                       "fish.controls --radius 0.3 --kernel c4 --polynomial constant -o " + (dir / "b.obj").string());
+  ASSERT_EQ(b.code, 0) << b.out;
+  EXPECT_EQ(read_text(dir / "a.obj"), read_text(dir / "b.obj"));
+  // Both ways at once, or neither, is a usage error.
+  EXPECT_EQ(run("info --deformation " + (dir / "fish.json").string() + " --radius 0.3").code, 2);
+  EXPECT_EQ(run("info").code, 2);
+  // Inline sources with a duplicate: the message names the JSON entries.
+  write_text(dir / "dup.json", R"({"radius": 0.3, "sources": [[0,0,0],[1,0,0],[0,0,0]], "destinations": [[0,0,0],[1,0,0],[0,0,1]]})");
+  const CliRun d = run("info --deformation " + (dir / "dup.json").string());
+  EXPECT_EQ(d.code, 1);
+  EXPECT_NE(d.out.find("dup.json: sources[2]: source is the same as on sources[0]"), std::string::npos) << d.out;
+}
