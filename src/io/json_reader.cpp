@@ -92,7 +92,7 @@ double JsonNode::positive() const {
 }
 
 std::size_t JsonNode::index() const {
-  if (!j_->is_number_integer() || (j_->is_number_integer() && j_->get<long long>() < 0)) expected("an integer >= 0");
+  if (!j_->is_number_unsigned()) expected("an integer >= 0");
   return j_->get<std::size_t>();
 }
 

@@ -48,8 +48,6 @@ MovieWriter::MovieWriter(const fs::path& out_in, int width, int height, double f
   const fs::path dir = out_.has_parent_path() ? out_.parent_path() : fs::path(".");
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw RenderError(out_.string() + ": the folder '" + dir.string() + "' does not exist");
-  if (fs::exists(out_, ec) && format_ != MovieFormat::PngFolder && fs::is_directory(out_, ec))
-    throw RenderError(out_.string() + ": is a folder");
   const std::string stem = hidden_name(out_, ".partial-");
   std::ostringstream rate;
   rate << fps;
