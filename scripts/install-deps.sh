@@ -15,6 +15,7 @@ packages=(
   libsuitesparse-dev     # core (optional): CHOLMOD for large fits; solvers benchmark
   libopenblas0-pthread   # BLAS under CHOLMOD (replaces reference BLAS by alternatives): 3-5x faster big fits
   libvtk9-dev            # render (csrbf animate), the `peers` benchmark, tests against vtkKochanekSpline
+  libvtk9-qt-dev qtbase5-dev   # csrbf-picker (Qt 5 widgets + VTK's QVTKOpenGLNativeWidget)
   xvfb xauth             # csrbf animate without a display starts a private Xvfb; tests use xvfb-run
   ffmpeg                 # csrbf animate writes movies through the ffmpeg program; tests read them with ffprobe
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png

@@ -1,0 +1,92 @@
+// csrbf-picker: pick control points on a mesh, drag their destinations, see the deformation live.
+//   csrbf-picker [MESH] [--deformation FILE.json | --controls FILE --radius R] [--screenshot FILE.png]
+#include "csrbf/render/process.hpp"
+#include "picker_window.hpp"
+
+#include <QApplication>
+#include <QCommandLineParser>
+#include <QSurfaceFormat>
+#include <QTimer>
+#include <QVTKOpenGLNativeWidget.h>
+
+#include <cstdlib>
+#include <iostream>
+#include <memory>
+
+int main(int argc, char** argv) {
+  // Qt needs X (Debian's VTK renders through X only): without a display, a private Xvfb, as for
+  // `csrbf animate`, so that --screenshot works on a server.
+  std::unique_ptr<csrbf::render::Display> display;
+  const char* d = std::getenv("DISPLAY");
+  if (!d || !*d) {
+    try {
+      display = std::make_unique<csrbf::render::Display>();
+    } catch (const std::exception& e) {
+      std::cerr << "csrbf-picker: error: " << e.what() << '\n';
+      return 1;
+    }
+  }
+  QSurfaceFormat::setDefaultFormat(QVTKOpenGLNativeWidget::defaultFormat());
+  QApplication app(argc, argv);
+  QApplication::setApplicationName("csrbf-picker");
+  QCommandLineParser parser;
+  parser.setApplicationDescription("Pick control points on a mesh, drag their destinations, see the deformation live");
+  parser.addHelpOption();
+  parser.addPositionalArgument("mesh", "Mesh to open (OBJ, PLY, OFF, STL, glTF, ...)", "[mesh]");
+  const QCommandLineOption deformation("deformation", "Deformation JSON to load", "file");
+  const QCommandLineOption controls("controls", "Controls file to load (with --radius)", "file");
+  const QCommandLineOption radius("radius", "Radius of support for --controls", "R");
+  const QCommandLineOption screenshot("screenshot", "Render the window once to this PNG and exit", "file");
+  const QCommandLineOption size("size", "Window size WIDTHxHEIGHT (default 1280x800)", "WxH", "1280x800");
+  parser.addOptions({deformation, controls, radius, screenshot, size});
+  parser.process(app);
+
+  csrbf::picker::PickerWindow w;
+  const QStringList wh = parser.value(size).split('x');
+  int width = 0, height = 0;
+  if (wh.size() == 2) {
+    width = wh[0].toInt();
+    height = wh[1].toInt();
+  }
+  if (width < 200 || height < 200 || width > 8192 || height > 8192) {
+    std::cerr << "csrbf-picker: error: --size: expected WIDTHxHEIGHT of at least 200x200, got '"
+              << parser.value(size).toStdString() << "'\n";
+    return 2;
+  }
+  w.resize(width, height);
+  w.show();
+  bool ok = true;
+  const QStringList args = parser.positionalArguments();
+  if (!args.isEmpty()) ok = w.open_mesh(args.front());
+  if (ok && parser.isSet(deformation)) ok = w.load_deformation(parser.value(deformation));
+  if (ok && parser.isSet(controls)) {
+    if (parser.isSet(radius)) {
+      bool number = false;
+      const double r = parser.value(radius).toDouble(&number);
+      if (!number || !(r > 0)) {
+        std::cerr << "csrbf-picker: error: --radius must be a positive number, got '" << parser.value(radius).toStdString()
+                  << "'\n";
+        return 2;
+      }
+      csrbf::picker::State s = w.document().state();
+      s.radius = r;
+      w.edit(s, "Radius");
+    }
+    ok = w.load_controls(parser.value(controls));
+  }
+  if (parser.isSet(screenshot)) {
+    if (!ok) {
+      std::cerr << "csrbf-picker: error: " << w.error_text().toStdString() << '\n';
+      return 1;
+    }
+    QApplication::processEvents();
+    w.reset_camera();
+    if (!w.save_screenshot(parser.value(screenshot))) {
+      std::cerr << "csrbf-picker: error: cannot write " << parser.value(screenshot).toStdString() << '\n';
+      return 1;
+    }
+    w.setProperty("noPrompt", true);
+    return 0;
+  }
+  return QApplication::exec();
+}

@@ -1,0 +1,127 @@
+#include "picker_document.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <limits>
+
+namespace csrbf::picker {
+
+void Document::load_mesh(const std::filesystem::path& path) {
+  io::MeshDocument m = io::MeshDocument::load(path);
+  if (m.positions().empty()) throw io::FileError(path.string() + ": the mesh has no vertices");
+  rest_ = m.positions();
+  deformed_ = rest_;
+  Vec3 lo = rest_.front(), hi = rest_.front();
+  for (const auto& p : rest_) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  diagonal_ = (hi - lo).norm();
+  if (!(diagonal_ > 0)) diagonal_ = 1.0;
+  mesh_.emplace(std::move(m));
+  mesh_path_ = path;
+  state_ = State{};
+  state_.radius = 0.05 * diagonal_;
+}
+
+Outcome Document::apply(const State& s) {
+  Outcome out;
+  using Clock = std::chrono::steady_clock;
+  std::vector<Vec3> moved = rest_;
+  try {
+    if (!(s.radius > 0) || !std::isfinite(s.radius)) throw InvalidInput("the radius must be a positive number");
+    check_phase(s.phase);
+    if (!s.controls.empty()) {
+      std::vector<Vec3> src, dst;
+      for (const auto& c : s.controls) {
+        src.push_back(c.source);
+        dst.push_back(c.destination);
+      }
+      const auto t0 = Clock::now();
+      const SpaceMap map = SpaceMap::fit(src, dst, FitOptions{s.radius, s.kernel, s.polynomial});
+      const auto t1 = Clock::now();
+      if (s.region.empty()) {
+        map.apply(rest_, moved, s.phase);
+      } else {
+        std::vector<Vec3> part;
+        part.reserve(s.region.size());
+        for (const auto v : s.region) part.push_back(rest_.at(v));
+        map.apply(part, part, s.phase);
+        for (std::size_t i = 0; i < part.size(); ++i) moved[s.region[i]] = part[i];
+      }
+      out.fit_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+      out.eval_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
+    }
+  } catch (const std::exception& e) {
+    out.ok = false;
+    out.error = e.what();
+    return out;
+  }
+  state_ = s;
+  deformed_ = std::move(moved);
+  return out;
+}
+
+std::vector<double> Document::displacement_magnitudes() const {
+  std::vector<double> m(rest_.size());
+  for (std::size_t i = 0; i < rest_.size(); ++i) m[i] = (deformed_[i] - rest_[i]).norm();
+  return m;
+}
+
+io::DeformationSpec Document::deformation() const {
+  io::DeformationSpec d;
+  d.options = FitOptions{state_.radius, state_.kernel, state_.polynomial};
+  for (const auto& c : state_.controls) {
+    d.sources.push_back(c.source);
+    d.destinations.push_back(c.destination);
+  }
+  return d;
+}
+
+State Document::state_from(const io::DeformationSpec& spec) const {
+  State s = state_;
+  s.controls.clear();
+  for (std::size_t i = 0; i < spec.sources.size(); ++i)
+    s.controls.push_back({spec.sources[i], spec.destinations[i], spec.sources[i] == spec.destinations[i]});
+  s.radius = spec.options.radius;
+  s.kernel = spec.options.kernel;
+  s.polynomial = spec.options.polynomial;
+  return s;
+}
+
+void Document::export_mesh(const std::filesystem::path& path) const {
+  io::MeshDocument copy = io::MeshDocument::load(mesh_path_);
+  copy.positions() = deformed_;
+  copy.save(path);
+}
+
+double distance_to_mesh(const std::vector<Vec3>& pos, const std::vector<std::vector<std::uint32_t>>& faces,
+                        const Vec3& p) {
+  // Ericson, Real-Time Collision Detection, 5.1.5: the closest point on a triangle by regions.
+  const auto closest = [](const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) -> Vec3 {
+    const Vec3 ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+    if (d1 <= 0 && d2 <= 0) return a;
+    const Vec3 bp = p - b;
+    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+    if (d3 >= 0 && d4 <= d3) return b;
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
+    const Vec3 cp = p - c;
+    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+    if (d6 >= 0 && d5 <= d6) return c;
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    const double den = 1 / (va + vb + vc);
+    return a + ab * (vb * den) + ac * (vc * den);
+  };
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& f : faces)
+    for (std::size_t k = 1; k + 1 < f.size(); ++k)
+      best = std::min(best, (closest(p, pos[f[0]], pos[f[k]], pos[f[k + 1]]) - p).norm());
+  return best;
+}
+
+}  // namespace csrbf::picker

@@ -1,0 +1,903 @@
+#include "picker_window.hpp"
+
+#include "csrbf/io/controls.hpp"
+
+#include <QAction>
+#include <QApplication>
+#include <QCheckBox>
+#include <QCloseEvent>
+#include <QComboBox>
+#include <QDockWidget>
+#include <QDoubleSpinBox>
+#include <QDragEnterEvent>
+#include <QDropEvent>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QFormLayout>
+#include <QHBoxLayout>
+#include <QHeaderView>
+#include <QLabel>
+#include <QMenuBar>
+#include <QMessageBox>
+#include <QMimeData>
+#include <QPushButton>
+#include <QSlider>
+#include <QStatusBar>
+#include <QTableWidget>
+#include <QUndoCommand>
+#include <QVBoxLayout>
+#include <QVTKOpenGLNativeWidget.h>
+
+#include <vtkActor.h>
+#include <vtkCamera.h>
+#include <vtkCellArray.h>
+#include <vtkCellPicker.h>
+#include <vtkGenericOpenGLRenderWindow.h>
+#include <vtkGlyph3D.h>
+#include <vtkInteractorStyleTrackballCamera.h>
+#include <vtkNew.h>
+#include <vtkObjectFactory.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkPolyDataMapper.h>
+#include <vtkPolyDataNormals.h>
+#include <vtkProperty.h>
+#include <vtkRenderWindowInteractor.h>
+#include <vtkRenderer.h>
+#include <vtkSphereSource.h>
+#include <vtkUnsignedCharArray.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace csrbf::picker {
+
+// ---------------------------------------------------------------------------------------------------
+// Mouse: left click on the surface adds a control (shift: pinned); left drag on a handle moves its
+// destination; left drag elsewhere orbits; middle drag or shift + left drag pans; wheel or right drag
+// zooms; ctrl + left drag selects the active area.
+
+class PickerStyle : public vtkInteractorStyleTrackballCamera {
+ public:
+  static PickerStyle* New();
+  vtkTypeMacro(PickerStyle, vtkInteractorStyleTrackballCamera)
+  PickerWindow* window = nullptr;
+
+  void OnLeftButtonDown() override {
+    const int* p = GetInteractor()->GetEventPosition();
+    press_[0] = p[0];
+    press_[1] = p[1];
+    moved_ = false;
+    shift_ = GetInteractor()->GetShiftKey() != 0;
+    if (GetInteractor()->GetControlKey()) {
+      banding_ = true;
+      return;
+    }
+    const int h = window->handle_at(p[0], p[1]);
+    if (h >= 0) {
+      window->select(h);
+      if (!window->doc_.state().controls[std::size_t(h)].pinned) {
+        window->begin_drag(h, p[0], p[1]);
+        return;
+      }
+    }
+    if (shift_) return;  // shift: a click pins a point; shift-drag pans (below)
+    vtkInteractorStyleTrackballCamera::OnLeftButtonDown();
+  }
+
+  void OnMouseMove() override {
+    const int* p = GetInteractor()->GetEventPosition();
+    if (std::abs(p[0] - press_[0]) + std::abs(p[1] - press_[1]) > 3) moved_ = true;
+    if (window->dragging_ >= 0) {
+      window->drag_to(p[0], p[1]);
+      return;
+    }
+    if (shift_ && moved_ && !banding_ && State == VTKIS_NONE && GetInteractor()->GetShiftKey()) {
+      FindPokedRenderer(p[0], p[1]);
+      StartPan();
+    }
+    vtkInteractorStyleTrackballCamera::OnMouseMove();
+  }
+
+  void OnLeftButtonUp() override {
+    const int* p = GetInteractor()->GetEventPosition();
+    if (window->dragging_ >= 0) {
+      window->end_drag();
+    } else if (banding_) {
+      if (moved_) window->select_region(press_[0], press_[1], p[0], p[1]);
+    } else if (!moved_ && window->handle_at(p[0], p[1]) < 0) {
+      Vec3 hit;
+      if (window->pick_surface(p[0], p[1], hit)) window->add_control(hit, shift_);
+    }
+    banding_ = false;
+    if (State == VTKIS_PAN) EndPan();
+    vtkInteractorStyleTrackballCamera::OnLeftButtonUp();
+  }
+
+ private:
+  int press_[2] = {0, 0};
+  bool moved_ = false, shift_ = false, banding_ = false;
+};
+vtkStandardNewMacro(PickerStyle);
+
+// ---------------------------------------------------------------------------------------------------
+
+/// One edit: the state before and after. The first redo() is the edit itself, already applied.
+class StateCommand : public QUndoCommand {
+ public:
+  StateCommand(PickerWindow* w, State before, State after, const QString& text, int merge_id)
+      : QUndoCommand(text), w_(w), before_(std::move(before)), after_(std::move(after)), merge_id_(merge_id) {}
+  void undo() override { w_->restore(before_); }
+  void redo() override {
+    if (first_) {
+      first_ = false;
+      return;
+    }
+    w_->restore(after_);
+  }
+  int id() const override { return merge_id_; }
+  bool mergeWith(const QUndoCommand* other) override {
+    const auto* o = static_cast<const StateCommand*>(other);
+    after_ = o->after_;
+    return true;
+  }
+
+ private:
+  PickerWindow* w_;
+  State before_, after_;
+  int merge_id_;
+  bool first_ = true;
+};
+
+namespace {
+
+enum MergeId { kMergeRadius = 1, kMergePhase = 2, kMergeTable = 3 };
+
+QString number(double v) { return QString::number(v, 'g', 6); }
+
+// Radius slider: 0 .. 1000 over R / diagonal from 1e-3 to 1, logarithmic.
+int slider_from_fraction(double f) { return int(std::lround(1000.0 * (std::log10(std::clamp(f, 1e-3, 1.0)) + 3.0) / 3.0)); }
+double fraction_from_slider(int v) { return std::pow(10.0, 3.0 * double(v) / 1000.0 - 3.0); }
+
+}  // namespace
+
+PickerWindow::PickerWindow(QWidget* parent) : QMainWindow(parent) {
+  setWindowTitle("csrbf Picker");
+  setAcceptDrops(true);
+  build_scene();
+  build_ui();
+  build_menus();
+  refresh();
+}
+
+PickerWindow::~PickerWindow() = default;
+
+vtkRenderer* PickerWindow::renderer() const { return renderer_; }
+
+void PickerWindow::build_scene() {
+  view_ = new QVTKOpenGLNativeWidget(this);
+  window_ = vtkSmartPointer<vtkGenericOpenGLRenderWindow>::New();
+  view_->setRenderWindow(window_);
+  renderer_ = vtkSmartPointer<vtkRenderer>::New();
+  renderer_->SetBackground(0.16, 0.17, 0.2);
+  renderer_->SetBackground2(0.32, 0.34, 0.4);
+  renderer_->GradientBackgroundOn();
+  window_->AddRenderer(renderer_);
+  style_ = vtkSmartPointer<PickerStyle>::New();
+  style_->window = this;
+  window_->GetInteractor()->SetInteractorStyle(style_);
+
+  mesh_ = vtkSmartPointer<vtkPolyData>::New();
+  mesh_->SetPoints(vtkNew<vtkPoints>());
+  vtkNew<vtkPolyDataNormals> normals;
+  normals->SetInputData(mesh_);
+  normals->SplittingOff();
+  vtkNew<vtkPolyDataMapper> mesh_mapper;
+  mesh_mapper->SetInputConnection(normals->GetOutputPort());
+  mesh_mapper->SetScalarModeToUsePointData();
+  mesh_mapper->SetColorModeToDirectScalars();
+  mesh_actor_ = vtkSmartPointer<vtkActor>::New();
+  mesh_actor_->SetMapper(mesh_mapper);
+  mesh_actor_->GetProperty()->SetSpecular(0.2);
+  renderer_->AddActor(mesh_actor_);
+
+  // Handles: a sphere glyph at each source and each moved destination, coloured per point.
+  handles_ = vtkSmartPointer<vtkPolyData>::New();
+  handles_->SetPoints(vtkNew<vtkPoints>());
+  vtkNew<vtkSphereSource> ball;
+  ball->SetThetaResolution(16);
+  ball->SetPhiResolution(12);
+  handle_glyph_ = vtkSmartPointer<vtkGlyph3D>::New();
+  handle_glyph_->SetInputData(handles_);
+  handle_glyph_->SetSourceConnection(ball->GetOutputPort());
+  handle_glyph_->SetScaleModeToDataScalingOff();
+  handle_glyph_->SetColorModeToColorByScalar();
+  vtkNew<vtkPolyDataMapper> handle_mapper;
+  handle_mapper->SetInputConnection(handle_glyph_->GetOutputPort());
+  handle_mapper->SetColorModeToDirectScalars();
+  handle_actor_ = vtkSmartPointer<vtkActor>::New();
+  handle_actor_->SetMapper(handle_mapper);
+  handle_actor_->PickableOff();
+  renderer_->AddActor(handle_actor_);
+
+  lines_ = vtkSmartPointer<vtkPolyData>::New();
+  lines_->SetPoints(vtkNew<vtkPoints>());
+  lines_->SetLines(vtkNew<vtkCellArray>());
+  vtkNew<vtkPolyDataMapper> line_mapper;
+  line_mapper->SetInputData(lines_);
+  line_actor_ = vtkSmartPointer<vtkActor>::New();
+  line_actor_->SetMapper(line_mapper);
+  line_actor_->GetProperty()->SetColor(1.0, 0.85, 0.2);
+  line_actor_->GetProperty()->SetLineWidth(2.0);
+  line_actor_->PickableOff();
+  renderer_->AddActor(line_actor_);
+
+  // Support spheres: radius R about each source, translucent.
+  supports_ = vtkSmartPointer<vtkPolyData>::New();
+  supports_->SetPoints(vtkNew<vtkPoints>());
+  vtkNew<vtkSphereSource> unit;
+  unit->SetRadius(1.0);
+  unit->SetThetaResolution(24);
+  unit->SetPhiResolution(16);
+  support_glyph_ = vtkSmartPointer<vtkGlyph3D>::New();
+  support_glyph_->SetInputData(supports_);
+  support_glyph_->SetSourceConnection(unit->GetOutputPort());
+  support_glyph_->SetScaleModeToDataScalingOff();
+  vtkNew<vtkPolyDataMapper> support_mapper;
+  support_mapper->SetInputConnection(support_glyph_->GetOutputPort());
+  support_mapper->ScalarVisibilityOff();
+  support_actor_ = vtkSmartPointer<vtkActor>::New();
+  support_actor_->SetMapper(support_mapper);
+  support_actor_->GetProperty()->SetColor(0.4, 0.7, 1.0);
+  support_actor_->GetProperty()->SetOpacity(0.15);
+  support_actor_->PickableOff();
+  support_actor_->VisibilityOff();
+  renderer_->AddActor(support_actor_);
+
+  setCentralWidget(view_);
+}
+
+void PickerWindow::build_ui() {
+  auto* dock = new QDockWidget("Deformation", this);
+  dock->setObjectName("deformation");
+  dock->setFeatures(QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
+  auto* panel = new QWidget(dock);
+  panel->setMinimumWidth(560);
+  auto* layout = new QVBoxLayout(panel);
+
+  table_ = new QTableWidget(0, 7, panel);
+  table_->setObjectName("controls");
+  table_->setHorizontalHeaderLabels({"sx", "sy", "sz", "dx", "dy", "dz", "pin"});
+  table_->horizontalHeader()->setSectionResizeMode(QHeaderView::Stretch);
+  table_->horizontalHeader()->setSectionResizeMode(6, QHeaderView::ResizeToContents);
+  table_->setSelectionBehavior(QAbstractItemView::SelectRows);
+  table_->setSelectionMode(QAbstractItemView::SingleSelection);
+  layout->addWidget(new QLabel("Control vectors (source, destination)", panel));
+  layout->addWidget(table_, 1);
+  connect(table_, &QTableWidget::itemSelectionChanged, this, [this] {
+    if (updating_) return;
+    const auto rows = table_->selectionModel()->selectedRows();
+    selected_ = rows.isEmpty() ? -1 : rows.front().row();
+    refresh_view();
+  });
+  connect(table_, &QTableWidget::itemChanged, this, [this](QTableWidgetItem* item) {
+    if (updating_) return;
+    State next = doc_.state();
+    const auto row = std::size_t(item->row());
+    if (row >= next.controls.size()) return;
+    auto& c = next.controls[row];
+    if (item->column() == 6) {
+      c.pinned = item->checkState() == Qt::Checked;
+      if (c.pinned) c.destination = c.source;
+      edit(next, c.pinned ? "Pin control" : "Unpin control");
+      return;
+    }
+    bool ok = false;
+    const double v = item->text().toDouble(&ok);
+    if (!ok || !std::isfinite(v)) {
+      show_error(QString("'%1' is not a number (row %2, column %3)")
+                     .arg(item->text())
+                     .arg(item->row() + 1)
+                     .arg(table_->horizontalHeaderItem(item->column())->text()));
+      refresh_table();
+      return;
+    }
+    const int col = item->column();
+    if (col < 3) {
+      c.source[col] = v;
+      if (c.pinned) c.destination = c.source;
+    } else {
+      c.destination[col - 3] = v;
+      if (c.pinned) c.source = c.destination;
+    }
+    edit(next, "Edit coordinates");
+  });
+
+  auto* del = new QPushButton("Delete", panel);
+  del->setObjectName("delete");
+  connect(del, &QPushButton::clicked, this, [this] { delete_selected(); });
+  auto* clear_region = new QPushButton("Whole mesh", panel);
+  clear_region->setObjectName("clearRegion");
+  clear_region->setToolTip("Deform the whole mesh again (ctrl + drag selects an active area)");
+  connect(clear_region, &QPushButton::clicked, this, [this] {
+    State next = doc_.state();
+    next.region.clear();
+    edit(next, "Whole mesh");
+  });
+  auto* row = new QHBoxLayout;
+  row->addWidget(del);
+  row->addWidget(clear_region);
+  layout->addLayout(row);
+  region_label_ = new QLabel(panel);
+  layout->addWidget(region_label_);
+
+  auto* form = new QFormLayout;
+  radius_ = new QDoubleSpinBox(panel);
+  radius_->setObjectName("radius");
+  radius_->setDecimals(5);
+  radius_->setRange(1e-9, 1e9);
+  radius_->setKeyboardTracking(false);
+  radius_fraction_ = new QDoubleSpinBox(panel);
+  radius_fraction_->setObjectName("radiusFraction");
+  radius_fraction_->setDecimals(2);
+  radius_fraction_->setRange(0.01, 1000.0);
+  radius_fraction_->setSuffix(" % of size");
+  radius_fraction_->setKeyboardTracking(false);
+  radius_slider_ = new QSlider(Qt::Horizontal, panel);
+  radius_slider_->setObjectName("radiusSlider");
+  radius_slider_->setRange(0, 1000);
+  auto* radius_row = new QHBoxLayout;
+  radius_row->addWidget(radius_);
+  radius_row->addWidget(radius_fraction_);
+  form->addRow("Radius R", radius_row);
+  form->addRow("", radius_slider_);
+  connect(radius_, qOverload<double>(&QDoubleSpinBox::valueChanged), this,
+          [this] { options_changed(kMergeRadius, "Radius"); });
+  connect(radius_fraction_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double pct) {
+    if (updating_) return;
+    updating_ = true;
+    radius_->setValue(pct / 100.0 * doc_.diagonal());
+    updating_ = false;
+    options_changed(kMergeRadius, "Radius");
+  });
+  connect(radius_slider_, &QSlider::valueChanged, this, [this](int v) {
+    if (updating_) return;
+    updating_ = true;
+    radius_->setValue(fraction_from_slider(v) * doc_.diagonal());
+    updating_ = false;
+    options_changed(kMergeRadius, "Radius");
+  });
+
+  kernel_ = new QComboBox(panel);
+  kernel_->setObjectName("kernel");
+  kernel_->addItems({"C0  ψ2,0 = (1-r)²", "C2  ψ3,1 = (1-r)⁴(4r+1)", "C4  ψ4,2", "C6  ψ5,3"});
+  form->addRow("Kernel", kernel_);
+  connect(kernel_, qOverload<int>(&QComboBox::currentIndexChanged), this, [this] { options_changed(-1, "Kernel"); });
+  polynomial_ = new QComboBox(panel);
+  polynomial_->setObjectName("polynomial");
+  polynomial_->addItems({"none", "constant", "linear"});
+  form->addRow("Polynomial", polynomial_);
+  connect(polynomial_, qOverload<int>(&QComboBox::currentIndexChanged), this,
+          [this] { options_changed(-1, "Polynomial"); });
+  phase_ = new QSlider(Qt::Horizontal, panel);
+  phase_->setObjectName("phase");
+  phase_->setRange(0, 100);
+  phase_label_ = new QLabel(panel);
+  auto* phase_row = new QHBoxLayout;
+  phase_row->addWidget(phase_);
+  phase_row->addWidget(phase_label_);
+  form->addRow("Phase", phase_row);
+  connect(phase_, &QSlider::valueChanged, this, [this] { options_changed(kMergePhase, "Phase"); });
+  layout->addLayout(form);
+
+  show_supports_ = new QCheckBox("Show support spheres (S)", panel);
+  show_supports_->setObjectName("supports");
+  colour_displacement_ = new QCheckBox("Colour by displacement (D)", panel);
+  colour_displacement_->setObjectName("colourDisplacement");
+  connect(show_supports_, &QCheckBox::toggled, this, [this] { refresh_view(); });
+  connect(colour_displacement_, &QCheckBox::toggled, this, [this] { refresh_view(); });
+  layout->addWidget(show_supports_);
+  layout->addWidget(colour_displacement_);
+
+  error_ = new QLabel(panel);
+  error_->setObjectName("error");
+  error_->setWordWrap(true);
+  error_->setStyleSheet("QLabel { color: white; background: #b03030; padding: 6px; border-radius: 4px; }");
+  error_->hide();
+  layout->addWidget(error_);
+
+  dock->setWidget(panel);
+  addDockWidget(Qt::RightDockWidgetArea, dock);
+  timing_ = new QLabel(this);
+  statusBar()->addPermanentWidget(timing_);
+  statusBar()->showMessage("Open a mesh (ctrl+O or drop a file here)");
+}
+
+void PickerWindow::build_menus() {
+  auto* file = menuBar()->addMenu("&File");
+  auto add = [this](QMenu* m, const QString& text, const QKeySequence& key, auto fn) {
+    QAction* a = m->addAction(text);
+    a->setShortcut(key);
+    connect(a, &QAction::triggered, this, fn);
+    return a;
+  };
+  add(file, "&Open mesh...", QKeySequence::Open, [this] {
+    const QString f = QFileDialog::getOpenFileName(this, "Open mesh", {}, "Meshes (*.obj *.ply *.off *.stl *.gltf *.glb *.xyz);;All files (*)");
+    if (!f.isEmpty()) open_mesh(f);
+  });
+  add(file, "&Load deformation...", QKeySequence("Ctrl+L"), [this] {
+    const QString f = QFileDialog::getOpenFileName(this, "Load deformation", {}, "Deformation (*.json)");
+    if (!f.isEmpty()) load_deformation(f);
+  });
+  add(file, "Load &controls...", QKeySequence("Ctrl+Shift+L"), [this] {
+    const QString f = QFileDialog::getOpenFileName(this, "Load controls", {}, "Controls (*.controls *.txt);;All files (*)");
+    if (!f.isEmpty()) load_controls(f);
+  });
+  file->addSeparator();
+  add(file, "&Save deformation...", QKeySequence::Save, [this] {
+    const QString f = QFileDialog::getSaveFileName(this, "Save deformation", "deformation.json", "Deformation (*.json)");
+    if (!f.isEmpty()) save_deformation(f);
+  });
+  add(file, "Save con&trols...", QKeySequence("Ctrl+Shift+S"), [this] {
+    const QString f = QFileDialog::getSaveFileName(this, "Save controls", "deformation.controls", "Controls (*.controls)");
+    if (!f.isEmpty()) save_controls(f);
+  });
+  add(file, "&Export deformed mesh...", QKeySequence("Ctrl+E"), [this] {
+    const QString f = QFileDialog::getSaveFileName(this, "Export deformed mesh", "deformed.obj",
+                                                   "Meshes (*.obj *.ply *.off *.stl *.glb *.gltf *.xyz)");
+    if (!f.isEmpty()) export_mesh(f);
+  });
+  file->addSeparator();
+  add(file, "&Quit", QKeySequence::Quit, [this] { close(); });
+
+  auto* editm = menuBar()->addMenu("&Edit");
+  QAction* undo = undo_.createUndoAction(this, "&Undo");
+  undo->setShortcut(QKeySequence::Undo);
+  QAction* redo = undo_.createRedoAction(this, "&Redo");
+  redo->setShortcuts({QKeySequence::Redo, QKeySequence("Ctrl+Y")});
+  editm->addAction(undo);
+  editm->addAction(redo);
+  editm->addSeparator();
+  add(editm, "&Delete control", QKeySequence::Delete, [this] { delete_selected(); });
+  add(editm, "Select &none", QKeySequence("Esc"), [this] { select(-1); });
+  add(editm, "&Whole mesh (clear active area)", QKeySequence("Ctrl+Shift+A"), [this] {
+    State next = doc_.state();
+    next.region.clear();
+    edit(next, "Whole mesh");
+  });
+
+  auto* viewm = menuBar()->addMenu("&View");
+  add(viewm, "&Reset camera", QKeySequence("R"), [this] { reset_camera(); });
+  add(viewm, "&Support spheres", QKeySequence("S"), [this] { show_supports_->toggle(); });
+  add(viewm, "Colour by &displacement", QKeySequence("D"), [this] { colour_displacement_->toggle(); });
+}
+
+// ---------------------------------------------------------------------------------------------------
+
+bool PickerWindow::open_mesh(const QString& path) {
+  try {
+    doc_.load_mesh(path.toStdString());
+  } catch (const std::exception& e) {
+    show_error(e.what());
+    return false;
+  }
+  undo_.clear();
+  selected_ = -1;
+  vtkNew<vtkCellArray> polys;
+  for (const auto& f : doc_.mesh().faces()) {
+    polys->InsertNextCell(vtkIdType(f.size()));
+    for (const auto v : f) polys->InsertCellPoint(vtkIdType(v));
+  }
+  mesh_->SetPolys(polys);
+  clear_error();
+  setWindowTitle("csrbf Picker - " + QFileInfo(path).fileName());
+  statusBar()->showMessage(QString("%1: %2 vertices, %3 polygons")
+                               .arg(QFileInfo(path).fileName())
+                               .arg(doc_.rest().size())
+                               .arg(doc_.mesh().faces().size()));
+  refresh();
+  reset_camera();
+  return true;
+}
+
+bool PickerWindow::load_deformation(const QString& path) {
+  if (!doc_.has_mesh()) {
+    show_error("Open a mesh before loading a deformation");
+    return false;
+  }
+  try {
+    const auto spec = io::read_deformation(path.toStdString());
+    return edit(doc_.state_from(spec), "Load deformation");
+  } catch (const std::exception& e) {
+    show_error(e.what());
+    return false;
+  }
+}
+
+bool PickerWindow::load_controls(const QString& path) {
+  if (!doc_.has_mesh()) {
+    show_error("Open a mesh before loading controls");
+    return false;
+  }
+  try {
+    const auto c = io::read_controls(path.toStdString());
+    io::DeformationSpec spec = doc_.deformation();
+    spec.sources = c.sources;
+    spec.destinations = c.destinations;
+    return edit(doc_.state_from(spec), "Load controls");
+  } catch (const std::exception& e) {
+    show_error(e.what());
+    return false;
+  }
+}
+
+bool PickerWindow::save_deformation(const QString& path) {
+  try {
+    io::write_deformation(path.toStdString(), doc_.deformation());
+  } catch (const std::exception& e) {
+    show_error(e.what());
+    return false;
+  }
+  undo_.setClean();
+  statusBar()->showMessage("Saved " + path, 5000);
+  return true;
+}
+
+bool PickerWindow::save_controls(const QString& path) {
+  try {
+    const auto d = doc_.deformation();
+    io::write_controls(path.toStdString(), d.sources, d.destinations);
+  } catch (const std::exception& e) {
+    show_error(e.what());
+    return false;
+  }
+  statusBar()->showMessage("Saved " + path, 5000);
+  return true;
+}
+
+bool PickerWindow::export_mesh(const QString& path) {
+  if (!doc_.has_mesh()) {
+    show_error("No mesh to export");
+    return false;
+  }
+  try {
+    doc_.export_mesh(path.toStdString());
+  } catch (const std::exception& e) {
+    show_error(e.what());
+    return false;
+  }
+  statusBar()->showMessage("Exported " + path, 5000);
+  return true;
+}
+
+bool PickerWindow::edit(const State& next, const QString& what, int merge_id) {
+  if (!doc_.has_mesh()) return false;
+  const State before = doc_.state();
+  if (next == before) return true;
+  const Outcome o = doc_.apply(next);
+  if (!o.ok) {
+    show_error(what + ": " + QString::fromStdString(o.error) + "\nThe last good state is kept.");
+    refresh();  // widgets back to the kept state
+    return false;
+  }
+  clear_error();
+  undo_.push(new StateCommand(this, before, next, what, merge_id));
+  refresh(&o);
+  return true;
+}
+
+void PickerWindow::restore(const State& s) {
+  const Outcome o = doc_.apply(s);
+  if (!o.ok) show_error(QString::fromStdString(o.error));
+  else clear_error();
+  if (selected_ >= int(doc_.state().controls.size())) selected_ = -1;
+  refresh(&o);
+}
+
+void PickerWindow::options_changed(int merge_id, const QString& what) {
+  if (updating_) return;
+  State next = doc_.state();
+  next.radius = radius_->value();
+  next.kernel = std::array{Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6}[std::size_t(std::max(0, kernel_->currentIndex()))];
+  next.polynomial = std::array{Polynomial::None, Polynomial::Constant,
+                               Polynomial::Linear}[std::size_t(std::max(0, polynomial_->currentIndex()))];
+  next.phase = phase_->value() / 100.0;
+  edit(next, what, merge_id);
+}
+
+QString PickerWindow::error_text() const { return error_->isHidden() ? QString() : error_->text(); }
+
+void PickerWindow::show_error(const QString& message) {
+  error_->setText(message);
+  error_->show();
+  statusBar()->showMessage(message.section('\n', 0, 0), 10000);
+}
+
+void PickerWindow::clear_error() {
+  error_->clear();
+  error_->hide();
+}
+
+// ---------------------------------------------------------------------------------------------------
+
+void PickerWindow::refresh(const Outcome* outcome) {
+  refresh_options();
+  refresh_table();
+  refresh_view();
+  const auto& s = doc_.state();
+  if (outcome) {
+    timing_->setText(QString("fit %1 ms, evaluation %2 ms").arg(outcome->fit_ms, 0, 'f', 3).arg(outcome->eval_ms, 0, 'f', 3));
+  }
+  region_label_->setText(s.region.empty() ? "Active area: whole mesh (ctrl + drag to select one)"
+                                          : QString("Active area: %1 of %2 vertices").arg(s.region.size()).arg(doc_.rest().size()));
+}
+
+void PickerWindow::refresh_options() {
+  updating_ = true;
+  const auto& s = doc_.state();
+  radius_->setValue(s.radius);
+  radius_fraction_->setValue(100.0 * s.radius / doc_.diagonal());
+  radius_slider_->setValue(slider_from_fraction(s.radius / doc_.diagonal()));
+  kernel_->setCurrentIndex(int(s.kernel == Kernel::C0 ? 0 : s.kernel == Kernel::C2 ? 1 : s.kernel == Kernel::C4 ? 2 : 3));
+  polynomial_->setCurrentIndex(s.polynomial == Polynomial::None ? 0 : s.polynomial == Polynomial::Constant ? 1 : 2);
+  phase_->setValue(int(std::lround(s.phase * 100)));
+  phase_label_->setText(QString::number(s.phase, 'f', 2));
+  updating_ = false;
+}
+
+void PickerWindow::refresh_table() {
+  updating_ = true;
+  const auto& cs = doc_.state().controls;
+  table_->setRowCount(int(cs.size()));
+  for (int r = 0; r < int(cs.size()); ++r) {
+    const auto& c = cs[std::size_t(r)];
+    const double v[6] = {c.source.x(), c.source.y(), c.source.z(), c.destination.x(), c.destination.y(), c.destination.z()};
+    for (int k = 0; k < 6; ++k) {
+      auto* item = new QTableWidgetItem(number(v[k]));
+      table_->setItem(r, k, item);
+    }
+    auto* pin = new QTableWidgetItem;
+    pin->setFlags(Qt::ItemIsUserCheckable | Qt::ItemIsEnabled | Qt::ItemIsSelectable);
+    pin->setCheckState(c.pinned ? Qt::Checked : Qt::Unchecked);
+    table_->setItem(r, 6, pin);
+  }
+  if (selected_ >= 0 && selected_ < int(cs.size())) table_->selectRow(selected_);
+  else table_->clearSelection();
+  updating_ = false;
+}
+
+void PickerWindow::refresh_view() {
+  if (!doc_.has_mesh()) {
+    view_->renderWindow()->Render();
+    return;
+  }
+  const auto& s = doc_.state();
+  const auto& pos = doc_.deformed();
+  vtkPoints* pts = mesh_->GetPoints();
+  pts->SetNumberOfPoints(vtkIdType(pos.size()));
+  for (std::size_t i = 0; i < pos.size(); ++i) pts->SetPoint(vtkIdType(i), pos[i].data());
+  pts->Modified();
+
+  // Colours: the mesh's, dimmed outside the active area, or a blue-to-red map of |displacement|.
+  vtkNew<vtkUnsignedCharArray> rgb;
+  rgb->SetNumberOfComponents(3);
+  rgb->SetNumberOfTuples(vtkIdType(pos.size()));
+  std::vector<char> active(pos.size(), s.region.empty() ? 1 : 0);
+  for (const auto v : s.region) active[v] = 1;
+  const bool by_displacement = colour_displacement_->isChecked();
+  std::vector<double> mag;
+  double top = 0;
+  if (by_displacement) {
+    mag = doc_.displacement_magnitudes();
+    for (const double m : mag) top = std::max(top, m);
+  }
+  for (std::size_t i = 0; i < pos.size(); ++i) {
+    double c[3] = {0.85, 0.8, 0.72};
+    if (by_displacement) {
+      const double t = top > 0 ? mag[i] / top : 0.0;
+      c[0] = 0.2 + 0.8 * t;
+      c[1] = 0.3 + 0.5 * (1 - std::abs(2 * t - 1));
+      c[2] = 1.0 - 0.8 * t;
+    }
+    if (!active[i]) c[0] = c[1] = c[2] = 0.45;
+    rgb->SetTuple3(vtkIdType(i), 255 * c[0], 255 * c[1], 255 * c[2]);
+  }
+  mesh_->GetPointData()->SetScalars(rgb);
+  mesh_->Modified();
+
+  // Handles: source (green, or blue when pinned), destination (orange), the selected one yellow.
+  const double size = 0.012 * doc_.diagonal();
+  handle_glyph_->SetScaleFactor(2 * size);
+  vtkNew<vtkPoints> hp;
+  vtkNew<vtkUnsignedCharArray> hc;
+  hc->SetNumberOfComponents(3);
+  vtkNew<vtkPoints> lp;
+  vtkNew<vtkCellArray> lc;
+  vtkNew<vtkPoints> sp;
+  for (std::size_t i = 0; i < s.controls.size(); ++i) {
+    const auto& c = s.controls[i];
+    const bool sel = int(i) == selected_;
+    hp->InsertNextPoint(c.source.data());
+    if (sel) hc->InsertNextTuple3(255, 240, 60);
+    else if (c.pinned) hc->InsertNextTuple3(70, 130, 255);
+    else hc->InsertNextTuple3(60, 200, 90);
+    sp->InsertNextPoint(c.source.data());
+    if (!c.pinned && c.destination != c.source) {
+      hp->InsertNextPoint(c.destination.data());
+      if (sel) hc->InsertNextTuple3(255, 240, 60);
+      else hc->InsertNextTuple3(255, 120, 40);
+      const vtkIdType a = lp->InsertNextPoint(c.source.data()), b = lp->InsertNextPoint(c.destination.data());
+      const vtkIdType ids[2] = {a, b};
+      lc->InsertNextCell(2, ids);
+    }
+  }
+  handles_->SetPoints(hp);
+  handles_->GetPointData()->SetScalars(hc);
+  handles_->Modified();
+  lines_->SetPoints(lp);
+  lines_->SetLines(lc);
+  lines_->Modified();
+  supports_->SetPoints(sp);
+  supports_->Modified();
+  support_glyph_->SetScaleFactor(s.radius);
+  support_actor_->SetVisibility(show_supports_->isChecked() && !s.controls.empty());
+  view_->renderWindow()->Render();
+}
+
+void PickerWindow::reset_camera() {
+  renderer_->ResetCamera();
+  view_->renderWindow()->Render();
+}
+
+// ---------------------------------------------------------------------------------------------------
+
+QPointF PickerWindow::to_display(const Vec3& w) const {
+  renderer_->SetWorldPoint(w.x(), w.y(), w.z(), 1.0);
+  renderer_->WorldToDisplay();
+  const double* d = renderer_->GetDisplayPoint();
+  return {d[0], d[1]};
+}
+
+bool PickerWindow::pick_surface(int x, int y, Vec3& hit) const {
+  if (!doc_.has_mesh()) return false;
+  vtkNew<vtkCellPicker> picker;
+  picker->SetTolerance(0.0005);
+  picker->PickFromListOn();
+  picker->AddPickList(mesh_actor_);
+  if (!picker->Pick(x, y, 0, renderer_)) return false;
+  const double* p = picker->GetPickPosition();
+  hit = Vec3(p[0], p[1], p[2]);
+  return true;
+}
+
+int PickerWindow::handle_at(int x, int y) const {
+  const auto& cs = doc_.state().controls;
+  int best = -1;
+  double best_d = 10.0;  // pixels
+  for (std::size_t i = 0; i < cs.size(); ++i) {
+    for (const Vec3& p : {cs[i].destination, cs[i].source}) {
+      const QPointF d = to_display(p);
+      const double dist = std::hypot(d.x() - x, d.y() - y);
+      if (dist < best_d) {
+        best_d = dist;
+        best = int(i);
+      }
+      if (cs[i].pinned || cs[i].destination == cs[i].source) break;  // one handle
+    }
+  }
+  return best;
+}
+
+void PickerWindow::select(int control) {
+  selected_ = control < int(doc_.state().controls.size()) ? control : -1;
+  refresh_table();
+  refresh_view();
+}
+
+void PickerWindow::add_control(const Vec3& at, bool pinned) {
+  State next = doc_.state();
+  next.controls.push_back({at, at, pinned});
+  if (edit(next, pinned ? "Add pinned point" : "Add control")) select(int(next.controls.size()) - 1);
+}
+
+void PickerWindow::begin_drag(int control, int x, int y) {
+  dragging_ = control;
+  drag_start_ = doc_.state();
+  renderer_->SetWorldPoint(doc_.state().controls[std::size_t(control)].destination.x(),
+                           doc_.state().controls[std::size_t(control)].destination.y(),
+                           doc_.state().controls[std::size_t(control)].destination.z(), 1.0);
+  renderer_->WorldToDisplay();
+  drag_depth_ = renderer_->GetDisplayPoint()[2];
+  (void)x;
+  (void)y;
+}
+
+void PickerWindow::drag_to(int x, int y) {
+  // The destination follows the cursor in the plane through it parallel to the screen.
+  renderer_->SetDisplayPoint(x, y, drag_depth_);
+  renderer_->DisplayToWorld();
+  const double* w = renderer_->GetWorldPoint();
+  if (w[3] == 0) return;
+  State next = doc_.state();
+  next.controls[std::size_t(dragging_)].destination = Vec3(w[0] / w[3], w[1] / w[3], w[2] / w[3]);
+  const Outcome o = doc_.apply(next);  // live, not yet an undo step
+  if (!o.ok) {
+    show_error(QString::fromStdString(o.error));
+    return;
+  }
+  clear_error();
+  refresh_view();
+  refresh_table();
+  timing_->setText(QString("fit %1 ms, evaluation %2 ms").arg(o.fit_ms, 0, 'f', 3).arg(o.eval_ms, 0, 'f', 3));
+}
+
+void PickerWindow::end_drag() {
+  const State after = doc_.state();
+  dragging_ = -1;
+  if (after == drag_start_) return;
+  undo_.push(new StateCommand(this, drag_start_, after, "Move destination", -1));
+  refresh();
+}
+
+void PickerWindow::select_region(int x0, int y0, int x1, int y1) {
+  if (!doc_.has_mesh()) return;
+  const double lx = std::min(x0, x1), hx = std::max(x0, x1), ly = std::min(y0, y1), hy = std::max(y0, y1);
+  State next = doc_.state();
+  next.region.clear();
+  const auto& rest = doc_.rest();
+  for (std::size_t i = 0; i < rest.size(); ++i) {
+    const QPointF d = to_display(doc_.deformed()[i]);
+    if (d.x() >= lx && d.x() <= hx && d.y() >= ly && d.y() <= hy) next.region.push_back(std::uint32_t(i));
+  }
+  if (next.region.empty()) {
+    statusBar()->showMessage("No vertex in the selected rectangle", 5000);
+    return;
+  }
+  edit(next, "Select active area");
+}
+
+void PickerWindow::delete_selected() {
+  if (selected_ < 0 || selected_ >= int(doc_.state().controls.size())) return;
+  State next = doc_.state();
+  next.controls.erase(next.controls.begin() + selected_);
+  const int was = selected_;
+  selected_ = -1;
+  if (!edit(next, "Delete control")) selected_ = was;
+}
+
+bool PickerWindow::save_screenshot(const QString& path) {
+  view_->renderWindow()->Render();
+  QApplication::processEvents();
+  const QPixmap shot = grab();
+  return shot.save(path, "PNG");
+}
+
+// ---------------------------------------------------------------------------------------------------
+
+void PickerWindow::dragEnterEvent(QDragEnterEvent* e) {
+  if (e->mimeData()->hasUrls()) e->acceptProposedAction();
+}
+
+void PickerWindow::dropEvent(QDropEvent* e) {
+  for (const QUrl& url : e->mimeData()->urls()) {
+    const QString f = url.toLocalFile();
+    if (f.endsWith(".json", Qt::CaseInsensitive)) load_deformation(f);
+    else if (f.endsWith(".controls", Qt::CaseInsensitive)) load_controls(f);
+    else open_mesh(f);
+  }
+}
+
+void PickerWindow::closeEvent(QCloseEvent* e) {
+  if (!undo_.isClean() && isVisible() && !property("noPrompt").toBool()) {
+    const auto answer = QMessageBox::question(this, "csrbf Picker", "Quit without saving the deformation?",
+                                              QMessageBox::Discard | QMessageBox::Cancel, QMessageBox::Cancel);
+    if (answer != QMessageBox::Discard) {
+      e->ignore();
+      return;
+    }
+  }
+  e->accept();
+}
+
+}  // namespace csrbf::picker

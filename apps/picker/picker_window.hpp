@@ -1,0 +1,127 @@
+// The Picker's main window (Qt 5 + VTK 9): pick control points on a mesh, drag their destinations,
+// see the deformation live. Mouse and keyboard reference: README, "Picker".
+#pragma once
+
+#include "picker_document.hpp"
+
+#include <QMainWindow>
+#include <QUndoStack>
+
+#include <vtkSmartPointer.h>
+
+class QCheckBox;
+class QComboBox;
+class QDoubleSpinBox;
+class QLabel;
+class QSlider;
+class QTableWidget;
+class QVTKOpenGLNativeWidget;
+class vtkActor;
+class vtkGenericOpenGLRenderWindow;
+class vtkPolyData;
+class vtkRenderer;
+class vtkGlyph3D;
+
+namespace csrbf::picker {
+
+class PickerStyle;
+
+class PickerWindow : public QMainWindow {
+  Q_OBJECT
+
+ public:
+  explicit PickerWindow(QWidget* parent = nullptr);
+  ~PickerWindow() override;
+
+  /// Opens a mesh; false (with the error shown) if it cannot be read.
+  bool open_mesh(const QString& path);
+  bool load_deformation(const QString& path);
+  bool load_controls(const QString& path);
+  bool save_deformation(const QString& path);
+  bool save_controls(const QString& path);
+  bool export_mesh(const QString& path);
+
+  /// Applies a whole new state as one undoable edit. merge_id >= 0 merges consecutive edits of
+  /// the same kind (slider moves). False, with the engine's message shown and the last good state
+  /// kept, when the state cannot be fitted.
+  bool edit(const State& next, const QString& what, int merge_id = -1);
+
+  const Document& document() const { return doc_; }
+  QUndoStack& undo_stack() { return undo_; }
+  QVTKOpenGLNativeWidget* view() const { return view_; }
+  vtkRenderer* renderer() const;
+  /// The message of the last refused edit or failed file operation; empty when the last one succeeded.
+  QString error_text() const;
+  int selected() const { return selected_; }
+  void select(int control);
+  /// Display coordinates (VTK: pixels from the bottom left) of a world point.
+  QPointF to_display(const Vec3& world) const;
+  /// Renders and saves the whole window as a PNG; false on failure.
+  bool save_screenshot(const QString& path);
+  void reset_camera();
+
+ protected:
+  void dragEnterEvent(QDragEnterEvent* e) override;
+  void dropEvent(QDropEvent* e) override;
+  void closeEvent(QCloseEvent* e) override;
+
+ private:
+  friend class PickerStyle;
+  friend class StateCommand;
+  void build_ui();
+  void build_menus();
+  void build_scene();
+  /// Shows state s (already applied to the document) everywhere: 3D view, table, option widgets.
+  void refresh(const Outcome* outcome = nullptr);
+  void refresh_view();
+  void refresh_table();
+  void refresh_options();
+  void show_error(const QString& message);
+  void clear_error();
+  /// The state for an option change (from the widgets).
+  void options_changed(int merge_id, const QString& what);
+  /// Restores a state from the undo stack.
+  void restore(const State& s);
+
+  // Interaction (called by PickerStyle).
+  bool pick_surface(int x, int y, Vec3& hit) const;
+  int handle_at(int x, int y) const;  ///< control whose handle is within a few pixels, or -1
+  void add_control(const Vec3& at, bool pinned);
+  void begin_drag(int control, int x, int y);
+  void drag_to(int x, int y);
+  void end_drag();
+  void select_region(int x0, int y0, int x1, int y1);
+  void delete_selected();
+
+  Document doc_;
+  QUndoStack undo_;
+  QVTKOpenGLNativeWidget* view_ = nullptr;
+  vtkSmartPointer<vtkGenericOpenGLRenderWindow> window_;
+  vtkSmartPointer<vtkRenderer> renderer_;
+  vtkSmartPointer<vtkPolyData> mesh_, handles_, lines_, supports_;
+  vtkSmartPointer<vtkActor> mesh_actor_, handle_actor_, line_actor_, support_actor_;
+  vtkSmartPointer<vtkGlyph3D> handle_glyph_, support_glyph_;
+  vtkSmartPointer<PickerStyle> style_;
+
+  QTableWidget* table_ = nullptr;
+  QDoubleSpinBox* radius_ = nullptr;
+  QDoubleSpinBox* radius_fraction_ = nullptr;
+  QSlider* radius_slider_ = nullptr;
+  QComboBox* kernel_ = nullptr;
+  QComboBox* polynomial_ = nullptr;
+  QSlider* phase_ = nullptr;
+  QLabel* phase_label_ = nullptr;
+  QCheckBox* show_supports_ = nullptr;
+  QCheckBox* colour_displacement_ = nullptr;
+  QLabel* error_ = nullptr;
+  QLabel* timing_ = nullptr;
+  QLabel* region_label_ = nullptr;
+
+  int selected_ = -1;
+  bool updating_ = false;  // widgets being set from the state: their signals are not edits
+  int dragging_ = -1;
+  double drag_depth_ = 0;
+  State drag_start_;
+};
+
+}  // namespace csrbf::picker
