@@ -9,6 +9,8 @@
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDoubleSpinBox>
+#include <QDropEvent>
+#include <QMimeData>
 #include <QPushButton>
 #include <QSurfaceFormat>
 #include <QTableWidget>
@@ -194,6 +196,25 @@ TEST_F(Fixture, LoadsDeformationsAndReportsBadFiles) {
   EXPECT_FALSE(w.open_mesh(QString::fromStdString((dir / "missing.obj").string())));
   EXPECT_EQ(w.document().rest().size(), 977u) << "the open mesh stays";
   ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-loaded.png").string())));
+
+  // A mesh dropped on the window opens; a dropped deformation file loads.
+  csrbf::io::DeformationSpec spec;
+  spec.options.radius = 0.2;
+  spec.sources = {Vec3(0.5, 0.5, 0.8)};
+  spec.destinations = {Vec3(0.5, 0.55, 0.85)};
+  csrbf::io::write_deformation(dir / "face.json", spec);
+  for (const std::string& file : {kExamples + "face.obj", (dir / "face.json").string()}) {
+    QMimeData mime;
+    mime.setUrls({QUrl::fromLocalFile(QString::fromStdString(file))});
+    QDragEnterEvent enter(QPoint(100, 100), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
+    QApplication::sendEvent(&w, &enter);
+    EXPECT_TRUE(enter.isAccepted());
+    QDropEvent drop(QPointF(100, 100), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
+    QApplication::sendEvent(&w, &drop);
+  }
+  EXPECT_EQ(w.document().rest().size(), 6158u);
+  ASSERT_EQ(w.document().state().controls.size(), 1u);
+  EXPECT_EQ(w.document().state().radius, 0.2);
 }
 
 int main(int argc, char** argv) {
