@@ -1,9 +1,9 @@
 #include "animate.hpp"
 
 #include "csrbf/io/scene.hpp"
+#include "csrbf/render/movie.hpp"
 #include "csrbf/render/movie_writer.hpp"
 #include "csrbf/render/process.hpp"
-#include "csrbf/render/scene_renderer.hpp"
 
 #include <chrono>
 #include <cmath>
@@ -91,47 +91,31 @@ int run_animate(const AnimateOptions& o) {
   sigaction(SIGTERM, &sa, nullptr);
 
   render::Display display(o.private_display);
-  anim::Player player(scene);
-  render::SceneRenderer renderer(scene);
-  renderer.open_offscreen(width, height);
-  render::MovieWriter writer(o.out, width, height, scene.fps);
   std::cout << "csrbf animate: " << o.scene << " -> " << o.out << ": " << frames << " frames, " << width << "x"
             << height << " at " << scene.fps << " fps, t = " << from << " .. " << to << " s"
             << (display.is_private() ? ", private X display " + display.name() : "") << "\n";
   std::cout.flush();
 
   Progress progress(frames);
-  std::vector<std::uint8_t> rgb;
-  double compute = 0, draw = 0, encode = 0;
-  for (std::size_t k = 0; k < frames; ++k) {
-    if (g_interrupted) {
-      std::cerr << "\ncsrbf animate: interrupted after " << k << " of " << frames << " frames; " << o.out
-                << " was not written\n";
-      return 130;  // the writer's destructor stops ffmpeg and removes the partial movie
-    }
-    const double t = from + double(k) / scene.fps;
-    auto t0 = Clock::now();
-    player.evaluate(t);
-    compute += seconds_since(t0);
-    t0 = Clock::now();
-    renderer.update(player);
-    renderer.render_rgb(rgb);
-    draw += seconds_since(t0);
-    t0 = Clock::now();
-    writer.write(rgb.data());
-    encode += seconds_since(t0);
-    progress.frame(k + 1);
-  }
-  if (g_interrupted) {
-    std::cerr << "csrbf animate: interrupted; " << o.out << " was not written\n";
+  render::MovieOptions mo;
+  mo.width = width;
+  mo.height = height;
+  mo.from = from;
+  mo.to = to;
+  const render::MovieStats st = render::render_movie(scene, o.out, mo, [&](std::size_t done, std::size_t) {
+    if (g_interrupted) return false;
+    progress.frame(done);
+    return true;
+  });
+  if (st.cancelled) {
+    std::cerr << "\ncsrbf animate: interrupted after " << st.frames << " of " << frames << " frames; " << o.out
+              << " was not written\n";
     return 130;
   }
-  const auto t0 = Clock::now();
-  writer.finish();
-  encode += seconds_since(t0);
   const double n = double(frames);
   std::printf("frames: %zu\ncomputation: %.3f ms/frame (mean)\nrendering: %.3f ms/frame (mean)\nencoding: %.3f ms/frame (mean)\nwrote %s\n",
-              frames, 1e3 * compute / n, 1e3 * draw / n, 1e3 * encode / n, o.out.c_str());
+              frames, 1e3 * st.compute_seconds / n, 1e3 * st.render_seconds / n, 1e3 * st.encode_seconds / n,
+              o.out.c_str());
   return 0;
 }
 

@@ -103,6 +103,7 @@ class PickerStyle : public vtkInteractorStyleTrackballCamera {
   void OnLeftButtonUp() override {
     const int* p = GetInteractor()->GetEventPosition();
     if (window->dragging_ >= 0) {
+      window->drag_to(p[0], p[1]);  // where the button came up, whatever moves were merged on the way
       window->end_drag();
     } else if (banding_) {
       if (moved_) window->select_region(press_[0], press_[1], p[0], p[1]);

@@ -64,7 +64,14 @@ void write_deformation(const std::filesystem::path& path, const DeformationSpec&
   if (spec.sources.size() != spec.destinations.size())
     throw FileError(path.string() + ": sources and destinations differ in number");
   const auto point = [](const Vec3& p) {
-    return "[" + format_number(p.x()) + ", " + format_number(p.y()) + ", " + format_number(p.z()) + "]";
+    std::string s("[");  // appended, not "[" + ...: GCC 12 warns falsely (-Wrestrict) on the latter
+    s += format_number(p.x());
+    s += ", ";
+    s += format_number(p.y());
+    s += ", ";
+    s += format_number(p.z());
+    s += "]";
+    return s;
   };
   write_atomically(path, [&](std::ostream& out) {
     out << "{\n  \"format\": \"csrbf-deformation\",\n  \"version\": 1,\n"

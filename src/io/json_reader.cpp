@@ -5,20 +5,24 @@
 
 namespace csrbf::io::detail {
 
-nlohmann::json read_json_file(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw FileError(path.string() + ": cannot open for reading");
-  std::ostringstream text;
-  text << in.rdbuf();
+nlohmann::json parse_json(const std::string& text, const std::string& name) {
   try {
-    return nlohmann::json::parse(text.str());
+    return nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
     // nlohmann's message reads "[json.exception.parse_error.101] parse error at line 3, column 5: ...".
     std::string m = e.what();
     const auto k = m.find("] ");
     if (k != std::string::npos) m = m.substr(k + 2);
-    throw FileError(path.string() + ": not valid JSON: " + m);
+    throw FileError(name + ": not valid JSON: " + m);
   }
+}
+
+nlohmann::json read_json_file(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw FileError(path.string() + ": cannot open for reading");
+  std::ostringstream text;
+  text << in.rdbuf();
+  return parse_json(text.str(), path.string());
 }
 
 namespace {

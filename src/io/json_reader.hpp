@@ -18,6 +18,8 @@ namespace csrbf::io::detail {
 
 /// Parses a whole file; a syntax error names the line and column.
 nlohmann::json read_json_file(const std::filesystem::path& path);
+/// Parses text; name is the file name used in messages.
+nlohmann::json parse_json(const std::string& text, const std::string& name);
 
 /// A value inside a document and where it is. Borrows the json and the file name.
 class JsonNode {

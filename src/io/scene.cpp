@@ -236,10 +236,9 @@ void read_part_selection(const JsonNode& n, const MeshDocument& mesh, anim::Part
 
 }  // namespace
 
-anim::Scene read_scene(const fs::path& path) {
-  const nlohmann::json j = detail::read_json_file(path);
-  const std::string file = path.string();
-  const fs::path base = path.parent_path();
+namespace {
+
+anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, const fs::path& base) {
   const JsonNode root(j, file);
   root.only({"format", "version", "duration", "fps", "background", "camera", "lights", "objects"});
   if (root.has("format") && root["format"].string() != "csrbf-scene") root["format"].expected("\"csrbf-scene\"");
@@ -336,6 +335,17 @@ anim::Scene read_scene(const fs::path& path) {
     scene.objects[c.object].parts[c.part].deformations[c.deformation].contact->collider = it->second;
   }
   return scene;
+}
+
+}  // namespace
+
+anim::Scene read_scene(const fs::path& path) {
+  const nlohmann::json j = detail::read_json_file(path);
+  return read_scene_json(j, path.string(), path.parent_path());
+}
+
+anim::Scene read_scene_text(const std::string& text, const std::string& name, const fs::path& base) {
+  return read_scene_json(detail::parse_json(text, name), name, base);
 }
 
 }  // namespace csrbf::io

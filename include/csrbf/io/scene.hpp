@@ -7,6 +7,7 @@
 #include "csrbf/io/error.hpp"
 
 #include <filesystem>
+#include <string>
 
 namespace csrbf::io {
 
@@ -15,5 +16,8 @@ namespace csrbf::io {
 /// bad, unknown or missing value, a missing file, or keys out of time order; errors from the engine
 /// (a degenerate polynomial, duplicate sources) are reported with the path of their deformation.
 anim::Scene read_scene(const std::filesystem::path& path);
+/// The same from JSON text (an editor's scene before it is saved): name is used in messages, base
+/// resolves relative paths.
+anim::Scene read_scene_text(const std::string& text, const std::string& name, const std::filesystem::path& base);
 
 }  // namespace csrbf::io
