@@ -1,6 +1,6 @@
 // csrbf-picker: pick control points on a mesh, drag their destinations, see the deformation live.
 //   csrbf-picker [MESH] [--deformation FILE.json | --controls FILE --radius R] [--screenshot FILE.png]
-#include "csrbf/render/process.hpp"
+#include "gui_common.hpp"
 #include "picker_window.hpp"
 
 #include <QApplication>
@@ -9,23 +9,15 @@
 #include <QTimer>
 #include <QVTKOpenGLNativeWidget.h>
 
-#include <cstdlib>
 #include <iostream>
 #include <memory>
 
 int main(int argc, char** argv) {
   // Qt needs X (Debian's VTK renders through X only): without a display, a private Xvfb, as for
   // `csrbf animate`, so that --screenshot works on a server.
-  std::unique_ptr<csrbf::render::Display> display;
-  const char* d = std::getenv("DISPLAY");
-  if (!d || !*d) {
-    try {
-      display = std::make_unique<csrbf::render::Display>();
-    } catch (const std::exception& e) {
-      std::cerr << "csrbf-picker: error: " << e.what() << '\n';
-      return 1;
-    }
-  }
+  bool have_display = true;
+  const auto display = csrbf::gui::ensure_display("csrbf-picker", have_display);
+  if (!have_display) return 1;
   QSurfaceFormat::setDefaultFormat(QVTKOpenGLNativeWidget::defaultFormat());
   QApplication app(argc, argv);
   QApplication::setApplicationName("csrbf-picker");

@@ -1,6 +1,7 @@
 #include "picker_window.hpp"
 
 #include "csrbf/io/controls.hpp"
+#include "gui_common.hpp"
 
 #include <QAction>
 #include <QApplication>
@@ -78,7 +79,7 @@ class PickerStyle : public vtkInteractorStyleTrackballCamera {
     if (h >= 0) {
       window->select(h);
       if (!window->doc_.state().controls[std::size_t(h)].pinned) {
-        window->begin_drag(h, p[0], p[1]);
+        window->begin_drag(h);
         return;
       }
     }
@@ -401,11 +402,7 @@ void PickerWindow::build_ui() {
   layout->addWidget(show_supports_);
   layout->addWidget(colour_displacement_);
 
-  error_ = new QLabel(panel);
-  error_->setObjectName("error");
-  error_->setWordWrap(true);
-  error_->setStyleSheet("QLabel { color: white; background: #b03030; padding: 6px; border-radius: 4px; }");
-  error_->hide();
+  error_ = gui::make_error_label(panel);
   layout->addWidget(error_);
 
   dock->setWidget(panel);
@@ -453,12 +450,7 @@ void PickerWindow::build_menus() {
   add(file, "&Quit", QKeySequence::Quit, [this] { close(); });
 
   auto* editm = menuBar()->addMenu("&Edit");
-  QAction* undo = undo_.createUndoAction(this, "&Undo");
-  undo->setShortcut(QKeySequence::Undo);
-  QAction* redo = undo_.createRedoAction(this, "&Redo");
-  redo->setShortcuts({QKeySequence::Redo, QKeySequence("Ctrl+Y")});
-  editm->addAction(undo);
-  editm->addAction(redo);
+  gui::add_undo_actions(editm, undo_, this);
   editm->addSeparator();
   add(editm, "&Delete control", QKeySequence::Delete, [this] { delete_selected(); });
   add(editm, "Select &none", QKeySequence("Esc"), [this] { select(-1); });
@@ -754,10 +746,8 @@ void PickerWindow::reset_camera() {
 // ---------------------------------------------------------------------------------------------------
 
 QPointF PickerWindow::to_display(const Vec3& w) const {
-  renderer_->SetWorldPoint(w.x(), w.y(), w.z(), 1.0);
-  renderer_->WorldToDisplay();
-  const double* d = renderer_->GetDisplayPoint();
-  return {d[0], d[1]};
+  const Vec3 d = gui::world_to_display(renderer_, w);
+  return {d.x(), d.y()};
 }
 
 bool PickerWindow::pick_surface(int x, int y, Vec3& hit) const {
@@ -802,26 +792,18 @@ void PickerWindow::add_control(const Vec3& at, bool pinned) {
   if (edit(next, pinned ? "Add pinned point" : "Add control")) select(int(next.controls.size()) - 1);
 }
 
-void PickerWindow::begin_drag(int control, int x, int y) {
+void PickerWindow::begin_drag(int control) {
   dragging_ = control;
   drag_start_ = doc_.state();
-  renderer_->SetWorldPoint(doc_.state().controls[std::size_t(control)].destination.x(),
-                           doc_.state().controls[std::size_t(control)].destination.y(),
-                           doc_.state().controls[std::size_t(control)].destination.z(), 1.0);
-  renderer_->WorldToDisplay();
-  drag_depth_ = renderer_->GetDisplayPoint()[2];
-  (void)x;
-  (void)y;
+  drag_depth_ = gui::world_to_display(renderer_, doc_.state().controls[std::size_t(control)].destination).z();
 }
 
 void PickerWindow::drag_to(int x, int y) {
   // The destination follows the cursor in the plane through it parallel to the screen.
-  renderer_->SetDisplayPoint(x, y, drag_depth_);
-  renderer_->DisplayToWorld();
-  const double* w = renderer_->GetWorldPoint();
-  if (w[3] == 0) return;
+  const auto w = gui::display_to_world(renderer_, x, y, drag_depth_);
+  if (!w) return;
   State next = doc_.state();
-  next.controls[std::size_t(dragging_)].destination = Vec3(w[0] / w[3], w[1] / w[3], w[2] / w[3]);
+  next.controls[std::size_t(dragging_)].destination = *w;
   const Outcome o = doc_.apply(next);  // live, not yet an undo step
   if (!o.ok) {
     show_error(QString::fromStdString(o.error));
@@ -867,12 +849,7 @@ void PickerWindow::delete_selected() {
   if (!edit(next, "Delete control")) selected_ = was;
 }
 
-bool PickerWindow::save_screenshot(const QString& path) {
-  view_->renderWindow()->Render();
-  QApplication::processEvents();
-  const QPixmap shot = grab();
-  return shot.save(path, "PNG");
-}
+bool PickerWindow::save_screenshot(const QString& path) { return gui::save_window_png(this, view_, path); }
 
 // ---------------------------------------------------------------------------------------------------
 

@@ -87,7 +87,7 @@ class PickerWindow : public QMainWindow {
   bool pick_surface(int x, int y, Vec3& hit) const;
   int handle_at(int x, int y) const;  ///< control whose handle is within a few pixels, or -1
   void add_control(const Vec3& at, bool pinned);
-  void begin_drag(int control, int x, int y);
+  void begin_drag(int control);
   void drag_to(int x, int y);
   void end_drag();
   void select_region(int x0, int y0, int x1, int y1);

@@ -1,5 +1,7 @@
 // The Picker's real window, driven with QTest mouse and key events (run under xvfb-run).
 #include "csrbf/io/deformation.hpp"
+#include "gui_common.hpp"
+#include "gui_test_helpers.hpp"
 #include "io/test_helpers.hpp"
 #include "picker_window.hpp"
 
@@ -28,32 +30,14 @@ namespace {
 const std::string kExamples = std::string(CSRBF_SOURCE_DIR) + "/examples/";
 const fs::path kShots = CSRBF_SCREENSHOT_DIR;
 
-/// Qt widget coordinates of a world point (VTK's display y runs upwards).
-QPoint widget_point(PickerWindow& w, const Vec3& p) {
-  const QPointF d = w.to_display(p);
-  const double ratio = w.view()->devicePixelRatioF();
-  return {int(std::lround(d.x() / ratio)), int(std::lround((w.view()->height() * ratio - 1 - d.y()) / ratio))};
-}
-
 struct Fixture : ::testing::Test {
   PickerWindow w;
   void SetUp() override {
-    w.setProperty("noPrompt", true);
-    w.resize(1200, 760);
-    w.show();
-    ASSERT_TRUE(QTest::qWaitForWindowExposed(&w));
-    w.activateWindow();  // keyboard shortcuts go to the active window
-    ASSERT_TRUE(QTest::qWaitForWindowActive(&w));
+    ASSERT_TRUE(csrbf::test::show_for_test(w, 1200, 760));
     ASSERT_TRUE(w.open_mesh(QString::fromStdString(kExamples + "fish.obj")));
     QApplication::processEvents();
   }
   QPoint centre() const { return {w.view()->width() / 2, w.view()->height() / 2}; }
-  void drag(const QPoint& from, const QPoint& to, Qt::KeyboardModifiers mods = Qt::NoModifier) {
-    QTest::mousePress(w.view(), Qt::LeftButton, mods, from);
-    for (int k = 1; k <= 8; ++k) QTest::mouseMove(w.view(), from + (to - from) * k / 8, 5);
-    QTest::mouseRelease(w.view(), Qt::LeftButton, mods, to);
-    QApplication::processEvents();
-  }
 };
 
 }  // namespace
@@ -70,14 +54,14 @@ TEST_F(Fixture, ClickAddsAControlOnTheSurfaceDragDeformsUndoRestores) {
   EXPECT_EQ(doc.deformed(), doc.rest());
 
   // Drag its handle 60 pixels up and right: the destination follows, the mesh deforms.
-  const QPoint handle = widget_point(w, c0.destination);
-  drag(handle, handle + QPoint(60, -60));
+  const QPoint handle = csrbf::test::widget_point(w, c0.destination);
+  csrbf::test::drag(w.view(), handle, handle + QPoint(60, -60));
   ASSERT_EQ(doc.state().controls.size(), 1u);
   const auto c1 = doc.state().controls[0];
   EXPECT_EQ(c1.source, c0.source);
   EXPECT_GT((c1.destination - c1.source).norm(), 0.02 * doc.diagonal());
   // The handle ended under the cursor.
-  const QPoint now = widget_point(w, c1.destination);
+  const QPoint now = csrbf::test::widget_point(w, c1.destination);
   EXPECT_LE((now - (handle + QPoint(60, -60))).manhattanLength(), 3);
   std::size_t moved = 0;
   for (std::size_t i = 0; i < doc.rest().size(); ++i) moved += (doc.deformed()[i] - doc.rest()[i]).norm() > 1e-6;
@@ -162,7 +146,7 @@ TEST_F(Fixture, PinsDeletesEditsAndLimitsToAnActiveArea) {
 
   // Ctrl-drag over the right half selects an active area: the left vertices no longer move.
   const int wv = w.view()->width(), hv = w.view()->height();
-  drag(QPoint(wv / 2, 5), QPoint(wv - 5, hv - 5), Qt::ControlModifier);
+  csrbf::test::drag(w.view(), QPoint(wv / 2, 5), QPoint(wv - 5, hv - 5), Qt::ControlModifier);
   ASSERT_FALSE(doc.state().region.empty());
   EXPECT_LT(doc.state().region.size(), doc.rest().size());
   std::vector<char> in(doc.rest().size(), 0);

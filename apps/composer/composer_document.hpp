@@ -1,0 +1,90 @@
+// The Animation Composer's document, without any GUI: the scene file's JSON (docs/scene-format.md)
+// and the edits the Composer makes to it. Every edit is a whole new JSON value, so undo is a swap
+// and the file written is exactly what `csrbf animate` reads.
+#pragma once
+
+#include "csrbf/anim/scene.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <string>
+
+namespace csrbf::composer {
+
+/// An edit that the scene cannot take (a key time out of order, a missing file); the message says why.
+class EditError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class Document {
+ public:
+  Document();
+
+  const nlohmann::json& json() const noexcept { return json_; }
+  /// Replaces the JSON (undo, redo); the caller keeps the old one.
+  void set_json(nlohmann::json j) { json_ = std::move(j); }
+  /// Folder that relative paths in the JSON are relative to (the scene file's folder).
+  const std::filesystem::path& base() const noexcept { return base_; }
+  const std::filesystem::path& path() const noexcept { return path_; }
+
+  /// A new empty scene (4 s at 25 fps), paths relative to `base`.
+  void reset(const std::filesystem::path& base);
+  /// Throws io::FileError (the scene is read whole, meshes and deformations included, to check it).
+  void open(const std::filesystem::path& file);
+  /// Writes atomically; relative paths are rewritten for the new folder.
+  void save(const std::filesystem::path& file);
+
+  /// The scene this JSON describes, meshes loaded and deformations fitted. Throws io::FileError.
+  anim::Scene build() const;
+
+  // Edits (each throws EditError and leaves the JSON unchanged when it cannot be made).
+  /// Adds an object for a mesh file; returns its index. Its name is the file's stem, made unique.
+  std::size_t add_object(const std::filesystem::path& mesh);
+  void remove_object(std::size_t object);
+  /// Inserts a trajectory key at time t (error if a key is already at t); returns its index.
+  std::size_t add_position_key(std::size_t object, double t, const Vec3& position);
+  void set_position(std::size_t object, std::size_t key, const Vec3& position);
+  void set_tcb(std::size_t object, std::size_t key, double tension, double continuity, double bias);
+  void remove_position_key(std::size_t object, std::size_t key);
+  /// Sets (or adds) the orientation key at time t from angles in degrees: yaw about y, then pitch
+  /// about x, then roll about z. Returns its index.
+  std::size_t set_orientation_key(std::size_t object, double t, double yaw, double pitch, double roll);
+  void remove_orientation_key(std::size_t object, std::size_t key);
+  /// Attaches a deformation file to the object's part (a new part "deformed" holding the whole mesh
+  /// if the object has none), with phase 0 at t = 0 and 1 at the scene's duration; returns its index.
+  std::size_t attach_deformation(std::size_t object, const std::filesystem::path& deformation_file);
+  std::size_t add_phase_key(std::size_t object, std::size_t deformation, double t, double phase);
+
+  /// The keys a timeline shows for an object: tracks "position", "orientation", and one per
+  /// deformation of its first deformed part ("deformation N").
+  enum class Track { Position, Orientation, Phase };
+  std::vector<double> key_times(std::size_t object, Track track, std::size_t deformation = 0) const;
+  std::size_t deformation_count(std::size_t object) const;
+  /// Moves a key in time, keeping the track in order (error if it would pass a neighbour).
+  void set_key_time(std::size_t object, Track track, std::size_t deformation, std::size_t key, double t);
+
+  void set_duration(double seconds);
+  void set_fps(double fps);
+  double duration() const;
+  double fps() const;
+  std::size_t object_count() const;
+  std::string object_name(std::size_t object) const;
+
+ private:
+  nlohmann::json& object(std::size_t i);
+  const nlohmann::json& object(std::size_t i) const;
+  nlohmann::json& keys(std::size_t object, Track track, std::size_t deformation);
+  std::string relative(const std::filesystem::path& file) const;
+
+  nlohmann::json json_;
+  std::filesystem::path base_, path_;
+};
+
+/// Angles (degrees: yaw about y, pitch about x, roll about z, applied in that order) of a rotation,
+/// and back.
+Eigen::Quaterniond quaternion_from_angles(double yaw, double pitch, double roll);
+Vec3 angles_from_quaternion(const Eigen::Quaterniond& q);
+
+}  // namespace csrbf::composer

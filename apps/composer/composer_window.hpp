@@ -1,0 +1,178 @@
+// The Animation Composer's main window (Qt 5 + VTK 9): build a scene by hand (objects, trajectory
+// keys dragged in 3D, orientation keys, deformations on a schedule), play it, export a movie.
+#pragma once
+
+#include "composer_document.hpp"
+
+#include <QMainWindow>
+#include <QUndoStack>
+#include <QWidget>
+
+#include <vtkSmartPointer.h>
+
+#include <chrono>
+#include <functional>
+#include <memory>
+#include <optional>
+
+class QCheckBox;
+class QDoubleSpinBox;
+class QLabel;
+class QListWidget;
+class QPushButton;
+class QSlider;
+class QTimer;
+class QVTKOpenGLNativeWidget;
+class vtkActor;
+class vtkGenericOpenGLRenderWindow;
+class vtkPolyData;
+class vtkRenderer;
+
+namespace csrbf::anim {
+class Player;
+}
+namespace csrbf::render {
+class SceneRenderer;
+}
+
+namespace csrbf::composer {
+
+class ComposerStyle;
+class ComposerWindow;
+class JsonCommand;
+
+/// Rows of key marks (position, orientation, each deformation's phase) against time, with the
+/// current time as a line. Click: scrub; drag a mark: move that key in time.
+class Timeline : public QWidget {
+  Q_OBJECT
+ public:
+  explicit Timeline(ComposerWindow* w);
+  QSize sizeHint() const override { return {600, 110}; }
+  /// x pixel of time t, and back.
+  double x_of(double t) const;
+  double t_of(double x) const;
+  /// Row y centre of a track row (0: position, 1: orientation, 2 + d: deformation d).
+  int y_of(int row) const { return 18 + 20 * row; }
+
+ protected:
+  void paintEvent(QPaintEvent*) override;
+  void mousePressEvent(QMouseEvent*) override;
+  void mouseMoveEvent(QMouseEvent*) override;
+  void mouseReleaseEvent(QMouseEvent*) override;
+
+ private:
+  ComposerWindow* w_;
+  int drag_row_ = -1, drag_key_ = -1;
+  double drag_time_ = 0;
+};
+
+class ComposerWindow : public QMainWindow {
+  Q_OBJECT
+
+ public:
+  explicit ComposerWindow(QWidget* parent = nullptr);
+  ~ComposerWindow() override;
+
+  // File operations (the menu's actions, without their dialogs). False with the error shown.
+  bool new_scene();
+  bool open_scene(const QString& path);
+  bool save_scene(const QString& path);
+  bool add_object(const QString& mesh);
+  bool attach_deformation(const QString& file);
+  /// Renders the scene to a movie with a progress dialog, through the renderer `csrbf animate` uses.
+  bool export_movie(const QString& path, int width, int height);
+
+  /// Applies an edit to a copy of the document; if the scene it gives can be built, it becomes the
+  /// document as one undoable step. Otherwise the error is shown and nothing changes.
+  bool edit(const QString& what, const std::function<void(Document&)>& change);
+
+  const Document& document() const { return doc_; }
+  QUndoStack& undo_stack() { return undo_; }
+  int selected_object() const { return object_; }
+  void select_object(int i);
+  int selected_key() const { return key_; }
+  void select_key(int key);
+  double time() const { return time_; }
+  void set_time(double t);
+  bool playing() const;
+  void play(bool on);
+  /// Frames shown since the window opened (the play loop counts them).
+  std::size_t frames_shown() const { return frames_shown_; }
+  QString error_text() const;
+  QVTKOpenGLNativeWidget* view() const { return view_; }
+  Timeline* timeline() const { return timeline_; }
+  QPointF to_display(const Vec3& world) const;
+  /// World position of the selected object's trajectory key k.
+  Vec3 key_position(int k) const;
+  bool save_screenshot(const QString& path);
+
+ protected:
+  void closeEvent(QCloseEvent* e) override;
+
+ private:
+  friend class ComposerStyle;
+  friend class Timeline;
+  friend class JsonCommand;
+  void build_ui();
+  void build_menus();
+  bool maybe_save();
+  void rebuild();      // scene from the document: renderer, player, overlays
+  void show_frame();   // evaluate at time_, draw
+  void refresh_panel();
+  void refresh_overlays();
+  void show_error(const QString& m);
+  void clear_error();
+  void restore(const nlohmann::json& j);
+  void tick();
+
+  // 3D interaction
+  int key_at(int x, int y) const;
+  void begin_key_drag(int key);
+  void drag_key_to(int x, int y);
+  void end_key_drag();
+  void add_key_at_display(int x, int y);
+  void rotate_by(double dyaw, double dpitch);
+  /// An edit made while dragging: applied at once, no undo step (end_key_drag makes one).
+  void live_edit(const std::function<void(Document&)>& change);
+
+  Document doc_;
+  QUndoStack undo_;
+  std::unique_ptr<anim::Scene> scene_;
+  std::unique_ptr<anim::Player> player_;
+  std::unique_ptr<render::SceneRenderer> scene_renderer_;
+  QVTKOpenGLNativeWidget* view_ = nullptr;
+  vtkSmartPointer<vtkGenericOpenGLRenderWindow> window_;
+  vtkSmartPointer<vtkRenderer> overlay_;  // trajectory curves, key handles, orientation marks
+  vtkSmartPointer<vtkPolyData> curve_, handles_, frames_;
+  vtkSmartPointer<vtkActor> curve_actor_, handle_actor_, frame_actor_;
+  vtkSmartPointer<ComposerStyle> style_;
+
+  QListWidget* objects_ = nullptr;
+  QDoubleSpinBox* key_time_ = nullptr;
+  QDoubleSpinBox* key_pos_[3] = {};
+  QDoubleSpinBox* tcb_[3] = {};
+  QDoubleSpinBox* angles_[3] = {};
+  QDoubleSpinBox* duration_ = nullptr;
+  QDoubleSpinBox* fps_ = nullptr;
+  QSlider* scrub_ = nullptr;
+  QLabel* time_label_ = nullptr;
+  QPushButton* play_ = nullptr;
+  QCheckBox* loop_ = nullptr;
+  QLabel* rates_ = nullptr;
+  QLabel* error_ = nullptr;
+  Timeline* timeline_ = nullptr;
+  QTimer* timer_ = nullptr;
+
+  int object_ = -1, key_ = -1;
+  double time_ = 0;
+  bool updating_ = false;
+  int dragging_ = -1;
+  double drag_depth_ = 0;
+  nlohmann::json drag_start_;
+  std::size_t frames_shown_ = 0;
+  double compute_s_ = 0, render_s_ = 0;
+  std::size_t rate_frames_ = 0;
+  std::chrono::steady_clock::time_point last_tick_;
+};
+
+}  // namespace csrbf::composer
