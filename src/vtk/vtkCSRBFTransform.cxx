@@ -1,0 +1,180 @@
+#include "csrbf/vtk/vtkCSRBFTransform.h"
+
+#include "csrbf/space_map.hpp"
+
+#include <vtkDataArray.h>
+#include <vtkDoubleArray.h>
+#include <vtkFloatArray.h>
+#include <vtkObjectFactory.h>
+#include <vtkPoints.h>
+
+#include <vector>
+
+vtkStandardNewMacro(vtkCSRBFTransform);
+
+struct vtkCSRBFTransform::Fitted {
+  csrbf::SpaceMap map;
+};
+
+vtkCSRBFTransform::vtkCSRBFTransform() {
+  // VTK's default Newton tolerance (0.001, in the points' units) leaves round-trip errors of 1e-4
+  // on a unit-sized model; the iteration is cheap, so ask for much less.
+  this->InverseTolerance = 1e-9;
+  this->InverseIterations = 500;
+}
+
+vtkCSRBFTransform::~vtkCSRBFTransform() {
+  this->SetSourceLandmarks(nullptr);
+  this->SetTargetLandmarks(nullptr);
+}
+
+void vtkCSRBFTransform::SetSourceLandmarks(vtkPoints* source) {
+  if (this->SourceLandmarks == source) return;
+  if (this->SourceLandmarks) this->SourceLandmarks->Delete();
+  if (source) source->Register(this);
+  this->SourceLandmarks = source;
+  this->Modified();
+}
+
+void vtkCSRBFTransform::SetTargetLandmarks(vtkPoints* target) {
+  if (this->TargetLandmarks == target) return;
+  if (this->TargetLandmarks) this->TargetLandmarks->Delete();
+  if (target) target->Register(this);
+  this->TargetLandmarks = target;
+  this->Modified();
+}
+
+vtkMTimeType vtkCSRBFTransform::GetMTime() {
+  vtkMTimeType m = this->vtkWarpTransform::GetMTime();
+  if (this->SourceLandmarks) m = std::max(m, this->SourceLandmarks->GetMTime());
+  if (this->TargetLandmarks) m = std::max(m, this->TargetLandmarks->GetMTime());
+  return m;
+}
+
+void vtkCSRBFTransform::InternalUpdate() {
+  this->Map.reset();
+  this->LastError.clear();
+  if (!this->SourceLandmarks || !this->TargetLandmarks) return;  // no landmarks: the identity
+  const vtkIdType n = this->SourceLandmarks->GetNumberOfPoints();
+  if (n == 0 && this->TargetLandmarks->GetNumberOfPoints() == 0) return;
+  try {
+    if (this->TargetLandmarks->GetNumberOfPoints() != n)
+      throw csrbf::InvalidInput("SourceLandmarks has " + std::to_string(n) + " points but TargetLandmarks has " +
+                                std::to_string(this->TargetLandmarks->GetNumberOfPoints()));
+    std::vector<csrbf::Vec3> s(static_cast<std::size_t>(n)), d(static_cast<std::size_t>(n));
+    for (vtkIdType i = 0; i < n; ++i) {
+      this->SourceLandmarks->GetPoint(i, s[std::size_t(i)].data());
+      this->TargetLandmarks->GetPoint(i, d[std::size_t(i)].data());
+    }
+    csrbf::FitOptions o;
+    o.radius = this->Radius;
+    switch (this->Kernel) {
+      case KERNEL_C0: o.kernel = csrbf::Kernel::C0; break;
+      case KERNEL_C2: o.kernel = csrbf::Kernel::C2; break;
+      case KERNEL_C4: o.kernel = csrbf::Kernel::C4; break;
+      case KERNEL_C6: o.kernel = csrbf::Kernel::C6; break;
+      default: throw csrbf::InvalidInput("Kernel must be KERNEL_C0, _C2, _C4 or _C6, got " + std::to_string(this->Kernel));
+    }
+    switch (this->Polynomial) {
+      case POLYNOMIAL_NONE: o.polynomial = csrbf::Polynomial::None; break;
+      case POLYNOMIAL_CONSTANT: o.polynomial = csrbf::Polynomial::Constant; break;
+      case POLYNOMIAL_LINEAR: o.polynomial = csrbf::Polynomial::Linear; break;
+      default: throw csrbf::InvalidInput("Polynomial must be POLYNOMIAL_NONE, _CONSTANT or _LINEAR, got " +
+                                         std::to_string(this->Polynomial));
+    }
+    csrbf::check_phase(this->Phase);
+    this->Map = std::make_shared<const Fitted>(Fitted{csrbf::SpaceMap::fit(s, d, o)});
+  } catch (const std::exception& e) {
+    this->LastError = e.what();
+    vtkErrorMacro(<< "cannot fit: " << e.what() << "; the transform is the identity until its inputs change");
+  }
+}
+
+template <class T>
+static void forward(const csrbf::SpaceMap* map, double phase, const T in[3], T out[3], T (*derivative)[3]) {
+  const csrbf::Vec3 x(in[0], in[1], in[2]);
+  if (!map) {
+    for (int i = 0; i < 3; ++i) out[i] = in[i];
+    if (derivative)
+      for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) derivative[i][j] = T(i == j);
+    return;
+  }
+  const csrbf::Vec3 y = map->map(x, phase);
+  for (int i = 0; i < 3; ++i) out[i] = T(y[i]);
+  if (derivative) {
+    const Eigen::Matrix3d jac = map->jacobian(x, phase);
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) derivative[i][j] = T(jac(i, j));
+  }
+}
+
+void vtkCSRBFTransform::ForwardTransformPoint(const float in[3], float out[3]) {
+  forward<float>(this->Map ? &this->Map->map : nullptr, this->Phase, in, out, nullptr);
+}
+void vtkCSRBFTransform::ForwardTransformPoint(const double in[3], double out[3]) {
+  forward<double>(this->Map ? &this->Map->map : nullptr, this->Phase, in, out, nullptr);
+}
+void vtkCSRBFTransform::ForwardTransformDerivative(const float in[3], float out[3], float derivative[3][3]) {
+  forward<float>(this->Map ? &this->Map->map : nullptr, this->Phase, in, out, derivative);
+}
+void vtkCSRBFTransform::ForwardTransformDerivative(const double in[3], double out[3], double derivative[3][3]) {
+  forward<double>(this->Map ? &this->Map->map : nullptr, this->Phase, in, out, derivative);
+}
+
+void vtkCSRBFTransform::TransformPoints(vtkPoints* in, vtkPoints* out) {
+  this->Update();
+  if (this->InverseFlag || !this->Map) {  // the inverse is Newton's, point by point
+    this->vtkWarpTransform::TransformPoints(in, out);
+    return;
+  }
+  const vtkIdType n = in->GetNumberOfPoints();
+  const vtkIdType start = out->GetNumberOfPoints();
+  out->SetNumberOfPoints(start + n);
+  // Contiguous float or double arrays go through the batch path without a copy.
+  vtkDataArray* src = in->GetData();
+  vtkDataArray* dst = out->GetData();
+  const auto& map = this->Map->map;
+  if (src->GetDataType() == VTK_DOUBLE && dst->GetDataType() == VTK_DOUBLE) {
+    map.apply(static_cast<double*>(src->GetVoidPointer(0)), static_cast<double*>(dst->GetVoidPointer(3 * start)),
+              std::size_t(n), this->Phase);
+  } else if (src->GetDataType() == VTK_FLOAT && dst->GetDataType() == VTK_FLOAT) {
+    map.apply(static_cast<float*>(src->GetVoidPointer(0)), static_cast<float*>(dst->GetVoidPointer(3 * start)),
+              std::size_t(n), this->Phase);
+  } else {
+    std::vector<double> buf(3 * std::size_t(n));
+    for (vtkIdType i = 0; i < n; ++i) in->GetPoint(i, buf.data() + 3 * i);
+    map.apply(buf.data(), buf.data(), std::size_t(n), this->Phase);
+    for (vtkIdType i = 0; i < n; ++i) out->SetPoint(start + i, buf.data() + 3 * i);
+  }
+  out->Modified();
+}
+
+vtkAbstractTransform* vtkCSRBFTransform::MakeTransform() { return vtkCSRBFTransform::New(); }
+
+void vtkCSRBFTransform::InternalDeepCopy(vtkAbstractTransform* transform) {
+  auto* t = static_cast<vtkCSRBFTransform*>(transform);
+  this->SetInverseTolerance(t->InverseTolerance);
+  this->SetInverseIterations(t->InverseIterations);
+  this->Radius = t->Radius;
+  this->Kernel = t->Kernel;
+  this->Polynomial = t->Polynomial;
+  this->Phase = t->Phase;
+  this->SetSourceLandmarks(t->SourceLandmarks);
+  this->SetTargetLandmarks(t->TargetLandmarks);
+  if (this->InverseFlag != t->InverseFlag) {
+    this->InverseFlag = t->InverseFlag;
+    this->Modified();
+  }
+}
+
+void vtkCSRBFTransform::PrintSelf(ostream& os, vtkIndent indent) {
+  this->Superclass::PrintSelf(os, indent);
+  os << indent << "Radius: " << this->Radius << "\n"
+     << indent << "Kernel: C" << this->Kernel << "\n"
+     << indent << "Polynomial: " << this->Polynomial << "\n"
+     << indent << "Phase: " << this->Phase << "\n"
+     << indent << "SourceLandmarks: " << this->SourceLandmarks << "\n"
+     << indent << "TargetLandmarks: " << this->TargetLandmarks << "\n"
+     << indent << "LastError: " << this->LastError << "\n";
+}

@@ -1,0 +1,193 @@
+#include "csrbf/space_map.hpp"
+#include "csrbf/vtk/vtkCSRBFTransform.h"
+
+#include <gtest/gtest.h>
+
+#include <vtkCallbackCommand.h>
+#include <vtkCommand.h>
+#include <vtkGeneralTransform.h>
+#include <vtkNew.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkSphereSource.h>
+#include <vtkTransform.h>
+#include <vtkTransformPolyDataFilter.h>
+
+#include <random>
+
+using csrbf::Vec3;
+
+namespace {
+
+struct Landmarks {
+  vtkNew<vtkPoints> source, target;
+  std::vector<Vec3> s, d;
+  Landmarks() {
+    source->SetDataTypeToDouble();  // vtkPoints are float by default
+    target->SetDataTypeToDouble();
+    // Points on the unit sphere, pushed outwards or inwards a little.
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (int i = 0; i < 40; ++i) {
+      Vec3 p(u(rng), u(rng), u(rng));
+      p.normalize();
+      const Vec3 q = p * (1 + 0.08 * u(rng));
+      s.push_back(p);
+      d.push_back(q);
+      source->InsertNextPoint(p.data());
+      target->InsertNextPoint(q.data());
+    }
+  }
+};
+
+/// Counts VTK errors instead of printing them.
+struct ErrorCounter {
+  int count = 0;
+  vtkNew<vtkCallbackCommand> cb;
+  explicit ErrorCounter(vtkObject* o) {
+    cb->SetClientData(this);
+    cb->SetCallback([](vtkObject*, unsigned long, void* self, void*) { ++static_cast<ErrorCounter*>(self)->count; });
+    o->AddObserver(vtkCommand::ErrorEvent, cb);
+  }
+};
+
+}  // namespace
+
+TEST(VtkCSRBFTransform, MatchesTheSpaceMapInFloatAndDouble) {
+  Landmarks l;
+  vtkNew<vtkCSRBFTransform> t;
+  t->SetSourceLandmarks(l.source);
+  t->SetTargetLandmarks(l.target);
+  t->SetRadius(0.8);
+  t->SetKernel(vtkCSRBFTransform::KERNEL_C4);
+  t->SetPolynomial(vtkCSRBFTransform::POLYNOMIAL_LINEAR);
+  t->SetPhase(0.7);
+  const auto map = csrbf::SpaceMap::fit(l.s, l.d, csrbf::FitOptions{0.8, csrbf::Kernel::C4, csrbf::Polynomial::Linear});
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1.2, 1.2);
+  for (int i = 0; i < 50; ++i) {
+    const Vec3 x(u(rng), u(rng), u(rng));
+    double out[3];
+    t->TransformPoint(x.data(), out);
+    EXPECT_LT((Vec3(out[0], out[1], out[2]) - map.map(x, 0.7)).norm(), 1e-14);
+    const float xf[3] = {float(x.x()), float(x.y()), float(x.z())};
+    float of[3];
+    t->TransformPoint(xf, of);
+    const Vec3 expect = map.map(Vec3(xf[0], xf[1], xf[2]), 0.7);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(of[c], expect[c], 1e-6);
+    // The derivative, against the analytic Jacobian and central differences.
+    double y[3], jac[3][3];
+    t->InternalTransformDerivative(x.data(), y, jac);
+    const Eigen::Matrix3d j = map.jacobian(x, 0.7);
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) EXPECT_NEAR(jac[a][b], j(a, b), 1e-14);
+    const double h = 1e-6;
+    for (int b = 0; b < 3; ++b) {
+      Vec3 xp = x, xm = x;
+      xp[b] += h;
+      xm[b] -= h;
+      const Vec3 fd = (map.map(xp, 0.7) - map.map(xm, 0.7)) / (2 * h);
+      for (int a = 0; a < 3; ++a) EXPECT_NEAR(jac[a][b], fd[a], 1e-6);
+    }
+  }
+}
+
+TEST(VtkCSRBFTransform, WorksInAPipelineAndRefitsWhenLandmarksChange) {
+  Landmarks l;
+  vtkNew<vtkCSRBFTransform> t;
+  t->SetSourceLandmarks(l.source);
+  t->SetTargetLandmarks(l.target);
+  t->SetRadius(0.6);
+  vtkNew<vtkSphereSource> sphere;
+  sphere->SetThetaResolution(64);
+  sphere->SetPhiResolution(64);
+  sphere->SetRadius(1.0);
+  vtkNew<vtkTransformPolyDataFilter> filter;
+  filter->SetInputConnection(sphere->GetOutputPort());
+  filter->SetTransform(t);
+  filter->Update();
+  vtkPoints* in = sphere->GetOutput()->GetPoints();
+  const auto check = [&](const std::vector<Vec3>& d) {
+    const auto map = csrbf::SpaceMap::fit(l.s, d, csrbf::FitOptions{0.6});
+    vtkPoints* out = filter->GetOutput()->GetPoints();
+    ASSERT_EQ(out->GetNumberOfPoints(), in->GetNumberOfPoints());
+    double worst = 0;
+    for (vtkIdType i = 0; i < in->GetNumberOfPoints(); ++i) {
+      Vec3 x, y;
+      in->GetPoint(i, x.data());
+      out->GetPoint(i, y.data());
+      // The sphere source makes float points: the batch path evaluates in float.
+      worst = std::max(worst, (y - map.map(Vec3(float(x.x()), float(x.y()), float(x.z())))).norm());
+    }
+    EXPECT_LT(worst, 1e-5);
+  };
+  check(l.d);
+  // Move one target landmark: the filter re-executes and the transform refits, lazily.
+  l.d[5] += Vec3(0, 0, 0.2);
+  l.target->SetPoint(5, l.d[5].data());
+  l.target->Modified();
+  filter->Update();
+  check(l.d);
+}
+
+TEST(VtkCSRBFTransform, InverseRoundTripsAndConcatenates) {
+  Landmarks l;
+  vtkNew<vtkCSRBFTransform> t;
+  t->SetSourceLandmarks(l.source);
+  t->SetTargetLandmarks(l.target);
+  t->SetRadius(0.7);
+  vtkAbstractTransform* inv = t->GetInverse();
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<double> u(-1.1, 1.1);
+  for (int i = 0; i < 100; ++i) {
+    const double x[3] = {u(rng), u(rng), u(rng)};
+    double y[3], back[3];
+    t->TransformPoint(x, y);
+    inv->TransformPoint(y, back);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(back[c], x[c], 1e-6);
+  }
+  // In a vtkGeneralTransform after a translation: x -> T(x + (0.1, 0, 0)).
+  vtkNew<vtkTransform> shift;
+  shift->Translate(0.1, 0, 0);
+  vtkNew<vtkGeneralTransform> chain;
+  chain->PostMultiply();
+  chain->Concatenate(shift);
+  chain->Concatenate(t);
+  const double x[3] = {0.8, 0.3, -0.2};
+  const double xs[3] = {0.9, 0.3, -0.2};
+  double a[3], b[3];
+  chain->TransformPoint(x, a);
+  t->TransformPoint(xs, b);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(a[c], b[c], 1e-14);
+}
+
+TEST(VtkCSRBFTransform, BadLandmarksReportAnErrorAndGiveTheIdentity) {
+  Landmarks l;
+  vtkNew<vtkCSRBFTransform> t;
+  ErrorCounter errors(t);
+  t->SetSourceLandmarks(l.source);
+  t->SetTargetLandmarks(l.target);
+  t->SetRadius(0.7);
+  t->Update();
+  EXPECT_EQ(errors.count, 0);
+  // A duplicate source: an error, and the identity rather than the old mapping.
+  l.source->SetPoint(3, l.s[4].data());
+  l.source->Modified();
+  const double x[3] = {l.s[0].x(), l.s[0].y(), l.s[0].z()};
+  double y[3];
+  t->TransformPoint(x, y);
+  EXPECT_EQ(errors.count, 1);
+  EXPECT_NE(std::string(t->GetLastError()).find("same"), std::string::npos) << t->GetLastError();
+  for (int c = 0; c < 3; ++c) EXPECT_EQ(y[c], x[c]);
+  // Fixed: fitted again.
+  l.source->SetPoint(3, l.s[3].data());
+  l.source->Modified();
+  t->TransformPoint(x, y);
+  EXPECT_STREQ(t->GetLastError(), "");
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(y[c], l.d[0][c], 1e-9);
+  // Different counts.
+  l.target->InsertNextPoint(0, 0, 0);
+  l.target->Modified();
+  t->Update();
+  EXPECT_NE(std::string(t->GetLastError()).find("40 points but TargetLandmarks has 41"), std::string::npos);
+}
