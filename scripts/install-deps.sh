@@ -18,6 +18,8 @@ packages=(
   libvtk9-qt-dev qtbase5-dev   # csrbf-picker (Qt 5 widgets + VTK's QVTKOpenGLNativeWidget)
   xvfb xauth             # csrbf animate without a display starts a private Xvfb; tests use xvfb-run
   ffmpeg                 # csrbf animate writes movies through the ffmpeg program; tests read them with ffprobe
+  pybind11-dev python3-dev python3-numpy   # the Python module (Debian's /usr/bin/python3)
+  python3-scipy python3-pip python3-setuptools python3-wheel   # Python tests: SciPy; the offline wheel
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png
 )
 

@@ -1,0 +1,349 @@
+// The Python module `csrbf` (pybind11 over numpy): SpaceMap, DisplacementField, mesh, controls,
+// deformation and scene files, and scene evaluation. Points are (n, 3) float64 or float32 arrays;
+// C-contiguous inputs of either type are read in place, without a copy. Fit and evaluation release
+// the GIL. docs/python.md is the tutorial.
+#include "csrbf/anim/scene.hpp"
+#include "csrbf/displacement_field.hpp"
+#include "csrbf/io/controls.hpp"
+#include "csrbf/io/deformation.hpp"
+#include "csrbf/io/mesh.hpp"
+#include "csrbf/io/scene.hpp"
+#include "csrbf/space_map.hpp"
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+namespace py = pybind11;
+using csrbf::Vec3;
+
+namespace {
+
+std::string shape_of(const py::array& a) {
+  std::ostringstream s;
+  s << "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s << (i ? ", " : "") << a.shape(i);
+  s << (a.ndim() == 1 ? ",)" : ")");
+  return s.str();
+}
+
+/// Checks an (n, 3) array of real numbers; `what` names the argument in messages.
+void check_points(const py::array& a, const char* what, bool allow_empty = true) {
+  if (a.ndim() != 2 || a.shape(1) != 3)
+    throw py::value_error(std::string(what) + " must have shape (n, 3), got " + shape_of(a));
+  if (!allow_empty && a.shape(0) == 0) throw py::value_error(std::string(what) + " is empty");
+  const char kind = a.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u')
+    throw py::type_error(std::string(what) + " must hold real numbers (float64 or float32), got dtype " +
+                         std::string(py::str(a.dtype())));
+}
+
+template <class T>
+void check_finite(const T* p, std::size_t n, const char* what) {
+  for (std::size_t i = 0; i < 3 * n; ++i)
+    if (!std::isfinite(p[i])) {
+      std::ostringstream m;
+      m << what << "[" << i / 3 << ", " << i % 3 << "] is " << p[i] << " (points must be finite)";
+      throw py::value_error(m.str());
+    }
+}
+
+using Dbl = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using Flt = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+std::vector<Vec3> to_vec3(const py::array& a, const char* what) {
+  check_points(a, what, false);
+  const Dbl d = Dbl::ensure(a);
+  const std::size_t n = std::size_t(d.shape(0));
+  check_finite(d.data(), n, what);
+  std::vector<Vec3> out(n);
+  for (std::size_t i = 0; i < n; ++i) out[i] = Vec3(d.data()[3 * i], d.data()[3 * i + 1], d.data()[3 * i + 2]);
+  return out;
+}
+
+py::array_t<double> from_vec3(const std::vector<Vec3>& v) {
+  py::array_t<double> out({py::ssize_t(v.size()), py::ssize_t(3)});
+  double* p = out.mutable_data();
+  for (std::size_t i = 0; i < v.size(); ++i)
+    for (int c = 0; c < 3; ++c) p[3 * i + std::size_t(c)] = v[i][c];
+  return out;
+}
+
+csrbf::Kernel kernel_of(const std::string& name) {
+  const auto k = csrbf::parse_kernel(name);
+  if (!k) throw py::value_error("kernel must be one of 'c0', 'c2', 'c4', 'c6', got '" + name + "'");
+  return *k;
+}
+csrbf::Polynomial polynomial_of(const std::string& name) {
+  const auto p = csrbf::parse_polynomial(name);
+  if (!p) throw py::value_error("polynomial must be one of 'none', 'constant', 'linear', got '" + name + "'");
+  return *p;
+}
+
+/// out = f(in) over (n, 3) points, float32 in float32 out, anything else in float64.
+template <class F64, class F32>
+py::array apply_points(const py::array& points, const char* what, F64&& f64, F32&& f32) {
+  check_points(points, what);
+  if (points.dtype().is(py::dtype::of<float>())) {
+    const Flt in = Flt::ensure(points);
+    const std::size_t n = std::size_t(in.shape(0));
+    check_finite(in.data(), n, what);
+    py::array_t<float> out({py::ssize_t(n), py::ssize_t(3)});
+    float* o = out.mutable_data();
+    {
+      py::gil_scoped_release release;
+      f32(in.data(), o, n);
+    }
+    return out;
+  }
+  const Dbl in = Dbl::ensure(points);
+  const std::size_t n = std::size_t(in.shape(0));
+  check_finite(in.data(), n, what);
+  py::array_t<double> out({py::ssize_t(n), py::ssize_t(3)});
+  double* o = out.mutable_data();
+  {
+    py::gil_scoped_release release;
+    f64(in.data(), o, n);
+  }
+  return out;
+}
+
+py::dict stats_dict(const csrbf::SpaceMap& m) {
+  const auto& s = m.stats();
+  py::dict d;
+  d["controls"] = s.controls;
+  d["neighbor_pairs"] = s.neighbor_pairs;
+  d["mean_neighbors"] = s.mean_neighbors;
+  d["ordering"] = std::string(csrbf::ordering_name(s.ordering));
+  d["bandwidth"] = s.bandwidth;
+  d["envelope_entries"] = s.envelope_entries;
+  d["envelope_bytes"] = s.envelope_bytes;
+  d["dense_bytes"] = s.dense_bytes;
+  d["envelope_work"] = s.envelope_work;
+  d["solver"] = std::string(csrbf::solver_name(s.solver));
+  d["factor_nonzeros"] = s.factor_nonzeros;
+  d["residual_max"] = s.residual_max;
+  d["residual_relative"] = s.residual_relative;
+  d["seconds_total"] = s.seconds_total();
+  return d;
+}
+
+/// A scene and its player together (the player borrows the scene).
+struct ScenePlayer {
+  std::unique_ptr<csrbf::anim::Scene> scene;
+  std::unique_ptr<csrbf::anim::Player> player;
+};
+
+}  // namespace
+
+PYBIND11_MODULE(csrbf, m) {
+  m.doc() = "Real-time 3D deformation by compactly supported radial basis functions (Wendland CSRBF)";
+  m.attr("__version__") = "0.1.0";
+
+  static py::exception<csrbf::io::FileError> file_error(m, "FileError", PyExc_OSError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const csrbf::io::FileError& e) {
+      file_error(e.what());
+    } catch (const csrbf::InvalidInput& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    } catch (const csrbf::NotPositiveDefinite& e) {
+      PyErr_SetString(PyExc_ValueError, e.what());
+    }
+  });
+
+  py::class_<csrbf::SpaceMap>(m, "SpaceMap", R"doc(
+A CSRBF space mapping T(x) = x + phase * d(x), fitted to control points.
+
+sources, destinations: (n, 3) arrays; radius: the radius of support R (> 0, in the points' units);
+kernel: 'c0', 'c2' (default), 'c4' or 'c6' (Wendland); polynomial: 'none' (default, strictly
+local), 'constant' or 'linear'. The fit releases the GIL.)doc")
+      .def(py::init([](const py::array& sources, const py::array& destinations, double radius, const std::string& kernel,
+                       const std::string& polynomial) {
+             const auto s = to_vec3(sources, "sources");
+             const auto d = to_vec3(destinations, "destinations");
+             if (s.size() != d.size())
+               throw py::value_error("sources has " + std::to_string(s.size()) + " points but destinations has " +
+                                     std::to_string(d.size()));
+             const csrbf::FitOptions o{radius, kernel_of(kernel), polynomial_of(polynomial)};
+             py::gil_scoped_release release;
+             return csrbf::SpaceMap::fit(s, d, o);
+           }),
+           py::arg("sources"), py::arg("destinations"), py::arg("radius"), py::arg("kernel") = "c2",
+           py::arg("polynomial") = "none")
+      .def(
+          "__call__",
+          [](const csrbf::SpaceMap& map, const py::array& points, double phase) {
+            csrbf::check_phase(phase);
+            return apply_points(
+                points, "points", [&](const double* i, double* o, std::size_t n) { map.apply(i, o, n, phase); },
+                [&](const float* i, float* o, std::size_t n) { map.apply(i, o, n, phase); });
+          },
+          py::arg("points"), py::arg("phase") = 1.0,
+          "T(points) = points + phase * d(points): a new (n, 3) array of the input's float type")
+      .def(
+          "displacement",
+          [](const csrbf::SpaceMap& map, const py::array& points) {
+            return apply_points(
+                points, "points", [&](const double* i, double* o, std::size_t n) { map.displacements(i, o, n); },
+                [&](const float* i, float* o, std::size_t n) { map.displacements(i, o, n); });
+          },
+          py::arg("points"), "d(points), the displacement at phase 1: an (n, 3) array")
+      .def(
+          "jacobian",
+          [](const csrbf::SpaceMap& map, const py::array& points, double phase) {
+            const auto x = to_vec3(points, "points");
+            py::array_t<double> out({py::ssize_t(x.size()), py::ssize_t(3), py::ssize_t(3)});
+            double* o = out.mutable_data();
+            {
+              py::gil_scoped_release release;
+              for (std::size_t i = 0; i < x.size(); ++i) {
+                const Eigen::Matrix3d j = map.jacobian(x[i], phase);
+                for (int a = 0; a < 3; ++a)
+                  for (int b = 0; b < 3; ++b) o[9 * i + std::size_t(3 * a + b)] = j(a, b);
+              }
+            }
+            return out;
+          },
+          py::arg("points"), py::arg("phase") = 1.0, "dT/dx at each point: an (n, 3, 3) array, [i, a, b] = dT_a/dx_b")
+      .def_property_readonly("stats", &stats_dict, "What the fit did and cost (a dict)")
+      .def_property_readonly("radius", &csrbf::SpaceMap::radius)
+      .def_property_readonly("kernel", [](const csrbf::SpaceMap& m) { return std::string(csrbf::kernel_name(m.kernel())); })
+      .def_property_readonly("polynomial",
+                             [](const csrbf::SpaceMap& m) { return std::string(csrbf::polynomial_name(m.polynomial())); })
+      .def_property_readonly("sources", [](const csrbf::SpaceMap& m) {
+        return from_vec3(std::vector<Vec3>(m.sources().begin(), m.sources().end()));
+      })
+      .def_property_readonly("destinations", [](const csrbf::SpaceMap& m) {
+        return from_vec3(std::vector<Vec3>(m.destinations().begin(), m.destinations().end()));
+      })
+      .def_property_readonly("coefficients",
+                             [](const csrbf::SpaceMap& m) {
+                               const auto& c = m.coefficients();
+                               py::array_t<double> out({py::ssize_t(c.rows()), py::ssize_t(3)});
+                               for (Eigen::Index i = 0; i < c.rows(); ++i)
+                                 for (int k = 0; k < 3; ++k) out.mutable_at(i, k) = c(i, k);
+                               return out;
+                             },
+                             "alpha, one row per source, in the sources' order")
+      .def("__len__", &csrbf::SpaceMap::size)
+      .def("__repr__", [](const csrbf::SpaceMap& m) {
+        std::ostringstream s;
+        s << "SpaceMap(" << m.size() << " controls, radius=" << m.radius() << ", kernel='" << csrbf::kernel_name(m.kernel())
+          << "', polynomial='" << csrbf::polynomial_name(m.polynomial()) << "')";
+        return s.str();
+      });
+
+  py::class_<csrbf::DisplacementField<double>>(m, "DisplacementField", R"doc(
+Per-vertex displacements of one point set under a SpaceMap, kept so that a new phase costs one pass
+over memory: field(phase) = rest + phase * d(rest).)doc")
+      .def(py::init([](const csrbf::SpaceMap& map, const py::array& rest) {
+             check_points(rest, "rest");
+             const Dbl r = Dbl::ensure(rest);
+             check_finite(r.data(), std::size_t(r.shape(0)), "rest");
+             py::gil_scoped_release release;
+             return std::make_unique<csrbf::DisplacementField<double>>(map, r.data(), std::size_t(r.shape(0)));
+           }),
+           py::arg("map"), py::arg("rest"))
+      .def(
+          "__call__",
+          [](const csrbf::DisplacementField<double>& f, double phase) {
+            csrbf::check_phase(phase);
+            py::array_t<double> out({py::ssize_t(f.size()), py::ssize_t(3)});
+            double* o = out.mutable_data();
+            py::gil_scoped_release release;
+            f.apply(phase, o);
+            return out;
+          },
+          py::arg("phase"))
+      .def("update", &csrbf::DisplacementField<double>::update, py::arg("map"),
+           py::call_guard<py::gil_scoped_release>(), "Recomputes d for another map over the same rest points")
+      .def_property_readonly("displacements", [](const csrbf::DisplacementField<double>& f) {
+        py::array_t<double> out({py::ssize_t(f.size()), py::ssize_t(3)});
+        std::copy(f.displacements().begin(), f.displacements().end(), out.mutable_data());
+        return out;
+      })
+      .def("__len__", &csrbf::DisplacementField<double>::size);
+
+  m.def(
+      "read_mesh",
+      [](const std::string& path) {
+        const auto mesh = csrbf::io::MeshDocument::load(path);
+        return py::make_tuple(from_vec3(mesh.positions()), mesh.faces());
+      },
+      py::arg("path"), "(positions (n, 3), faces as lists of vertex indices) of a mesh file");
+  m.def(
+      "write_mesh",
+      [](const std::string& template_path, const py::array& positions, const std::string& path) {
+        auto mesh = csrbf::io::MeshDocument::load(template_path);
+        const auto p = to_vec3(positions, "positions");
+        if (p.size() != mesh.positions().size())
+          throw py::value_error("positions has " + std::to_string(p.size()) + " points but " + template_path + " has " +
+                                std::to_string(mesh.positions().size()));
+        mesh.positions() = p;
+        mesh.save(path);
+      },
+      py::arg("template"), py::arg("positions"), py::arg("path"),
+      "Writes the mesh of `template` with new positions to `path` (format by extension, atomically)");
+  m.def(
+      "read_controls",
+      [](const std::string& path) {
+        const auto c = csrbf::io::read_controls(path);
+        return py::make_tuple(from_vec3(c.sources), from_vec3(c.destinations));
+      },
+      py::arg("path"), "(sources, destinations) of a controls text file");
+  m.def(
+      "read_deformation",
+      [](const std::string& path) {
+        const auto d = csrbf::io::read_deformation(path);
+        py::gil_scoped_release release;
+        return d.fit();
+      },
+      py::arg("path"), "The SpaceMap of a deformation JSON file");
+  m.def(
+      "write_deformation",
+      [](const std::string& path, const csrbf::SpaceMap& map) {
+        csrbf::io::DeformationSpec d;
+        d.options = csrbf::FitOptions{map.radius(), map.kernel(), map.polynomial()};
+        d.sources.assign(map.sources().begin(), map.sources().end());
+        d.destinations.assign(map.destinations().begin(), map.destinations().end());
+        csrbf::io::write_deformation(path, d);
+      },
+      py::arg("path"), py::arg("map"), "Writes a SpaceMap as a deformation JSON file (atomically)");
+
+  py::class_<ScenePlayer>(m, "Scene", "An animation scene file (docs/scene-format.md), evaluated at any time")
+      .def(py::init([](const std::string& path) {
+             auto sp = std::make_unique<ScenePlayer>();
+             sp->scene = std::make_unique<csrbf::anim::Scene>(csrbf::io::read_scene(path));
+             sp->player = std::make_unique<csrbf::anim::Player>(*sp->scene);
+             return sp;
+           }),
+           py::arg("path"))
+      .def_property_readonly("duration", [](const ScenePlayer& s) { return s.scene->duration; })
+      .def_property_readonly("fps", [](const ScenePlayer& s) { return s.scene->fps; })
+      .def_property_readonly("objects",
+                             [](const ScenePlayer& s) {
+                               std::vector<std::string> names;
+                               for (const auto& o : s.scene->objects) names.push_back(o.name);
+                               return names;
+                             })
+      .def(
+          "positions",
+          [](ScenePlayer& s, double t) {
+            {
+              py::gil_scoped_release release;
+              s.player->evaluate(t);
+            }
+            py::list out;
+            for (std::size_t o = 0; o < s.scene->objects.size(); ++o) out.append(from_vec3(s.player->positions(o)));
+            return out;
+          },
+          py::arg("t"), "World positions of every object's vertices at time t: a list of (n, 3) arrays")
+      .def(
+          "faces", [](const ScenePlayer& s, std::size_t o) { return s.scene->objects.at(o).faces; }, py::arg("object"));
+}

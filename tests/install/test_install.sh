@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# cmake --install into a temporary prefix, then: the programs, config files and Python module are in
+# place; a tiny consumer project builds against the installed tree with find_package(csrbf REQUIRED)
+# and runs; the offline wheel installs and imports.
+#   test_install.sh BUILD_DIR SOURCE_DIR PYTHON
+set -euo pipefail
+build=$1 src=$2 python=$3
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+cmake --install "$build" --prefix "$tmp/prefix" > "$tmp/install.log"
+for f in bin/csrbf bin/csrbf-picker bin/csrbf-composer; do
+  test -x "$tmp/prefix/$f" || { echo "missing $f"; exit 1; }
+done
+for f in lib/cmake/csrbf/csrbfConfig.cmake lib/cmake/csrbf/csrbfConfigVersion.cmake lib/cmake/csrbf/csrbfTargets.cmake \
+         include/csrbf/space_map.hpp include/csrbf/vtk/vtkCSRBFTransform.h include/csrbf/anim/scene.hpp \
+         lib/libcsrbf_core.a lib/libcsrbf_vtk.a; do
+  test -f "$tmp/prefix/$f" || { echo "missing $f"; exit 1; }
+done
+module=$(find "$tmp/prefix/lib" -name 'csrbf*.so' -path '*dist-packages*' | head -n1)
+test -n "$module" || { echo "missing the Python module under lib/python3.*/dist-packages"; exit 1; }
+PYTHONPATH=$(dirname "$module") "$python" -c "import csrbf, numpy as np; m = csrbf.SpaceMap(np.eye(3), np.eye(3) + 0.1, 2.0); assert abs(m(np.eye(3))[0, 0] - 1.1) < 1e-12"
+echo "installed: programs, headers, libraries, CMake config and version, Python module ($module)"
+
+cmake -S "$src/tests/install/consumer" -B "$tmp/consumer" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+  -DCMAKE_PREFIX_PATH="$tmp/prefix" > "$tmp/consumer.log" || { cat "$tmp/consumer.log"; exit 1; }
+cmake --build "$tmp/consumer" > "$tmp/consumer-build.log" || { cat "$tmp/consumer-build.log"; exit 1; }
+"$tmp/consumer/consumer"
+
+cmake --build "$build" --target python_wheel > /dev/null
+wheel=$(ls "$build"/dist/csrbf-*.whl | head -n1)
+PIP_ROOT_USER_ACTION=ignore "$python" -m pip install --disable-pip-version-check --no-index --no-deps --quiet --target "$tmp/site" "$wheel"
+PYTHONPATH="$tmp/site" "$python" -c "import csrbf; print('wheel', csrbf.__version__)"
+echo "consumer built with find_package(csrbf REQUIRED); wheel installs offline"

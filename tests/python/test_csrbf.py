@@ -1,0 +1,191 @@
+"""The Python module against the C++ command line (bit for bit), SciPy, and its error messages.
+
+Run by CTest with Debian's /usr/bin/python3; PYTHONPATH points at the built module, CSRBF_CLI at the
+csrbf program and CSRBF_SOURCE_DIR at the repository.
+"""
+import os
+import subprocess
+import tempfile
+import threading
+import time
+import unittest
+
+import numpy as np
+import scipy.sparse
+import scipy.sparse.linalg
+import scipy.spatial
+
+import csrbf
+
+CLI = os.environ["CSRBF_CLI"]
+EXAMPLES = os.path.join(os.environ["CSRBF_SOURCE_DIR"], "examples")
+
+
+def obj_vertices(path):
+    with open(path) as f:
+        return np.array([[float(t) for t in line.split()[1:4]] for line in f if line.startswith("v ")])
+
+
+def wendland_c2(r):
+    return np.where(r < 1, (1 - r) ** 4 * (4 * r + 1), 0.0)
+
+
+class SameAsTheCommandLine(unittest.TestCase):
+    def test_deform_fish_bit_for_bit(self):
+        sources, destinations = csrbf.read_controls(os.path.join(EXAMPLES, "fish.controls"))
+        self.assertEqual(sources.shape, (92, 3))
+        rest, faces = csrbf.read_mesh(os.path.join(EXAMPLES, "fish.obj"))
+        self.assertEqual(rest.shape, (977, 3))
+        self.assertEqual(len(faces), 1000)
+        for kernel, polynomial, phase in (("c2", "none", 1.0), ("c4", "linear", 0.5)):
+            with tempfile.TemporaryDirectory() as tmp:
+                out = os.path.join(tmp, "out.obj")
+                subprocess.run([CLI, "deform", "--mesh", os.path.join(EXAMPLES, "fish.obj"), "--controls",
+                                os.path.join(EXAMPLES, "fish.controls"), "--radius", "0.3", "--kernel", kernel,
+                                "--polynomial", polynomial, "--phase", str(phase), "-o", out],
+                               check=True, capture_output=True)
+                cli = obj_vertices(out)
+            m = csrbf.SpaceMap(sources, destinations, 0.3, kernel=kernel, polynomial=polynomial)
+            py = m(rest, phase=phase)
+            # The CLI writes the shortest text that reads back as the same double.
+            np.testing.assert_array_equal(py, cli)
+
+    def test_deformation_file_round_trip(self):
+        s, d = csrbf.read_controls(os.path.join(EXAMPLES, "face.controls"))
+        m = csrbf.SpaceMap(s, d, 0.2, kernel="c6")
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "face.json")
+            csrbf.write_deformation(path, m)
+            back = csrbf.read_deformation(path)
+        self.assertEqual(back.kernel, "c6")
+        self.assertEqual(back.radius, 0.2)
+        np.testing.assert_array_equal(back.sources, m.sources)
+        x = np.random.default_rng(0).random((100, 3))
+        np.testing.assert_array_equal(back(x), m(x))
+
+
+class AgainstScipy(unittest.TestCase):
+    def test_same_interpolation_problem_solved_by_scipy(self):
+        # SciPy's RBFInterpolator has no compactly supported kernel, so the same problem (Wendland
+        # C2, no polynomial) is built with cKDTree neighbours and solved by scipy.sparse's spsolve.
+        rng = np.random.default_rng(42)
+        n, radius = 400, 0.25
+        s = rng.random((n, 3))
+        g = 0.05 * rng.standard_normal((n, 3))
+        tree = scipy.spatial.cKDTree(s)
+        pairs = tree.query_pairs(radius, output_type="ndarray")
+        r = np.linalg.norm(s[pairs[:, 0]] - s[pairs[:, 1]], axis=1) / radius
+        rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
+        cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
+        vals = np.concatenate([wendland_c2(r), wendland_c2(r), np.ones(n)])
+        a = scipy.sparse.csc_matrix((vals, (rows, cols)), shape=(n, n))
+        alpha = scipy.sparse.linalg.spsolve(a, g)
+        m = csrbf.SpaceMap(s, s + g, radius)
+        np.testing.assert_allclose(m.coefficients, alpha, rtol=0, atol=1e-9)
+        # The interpolant at random points, evaluated by SciPy from alpha.
+        x = rng.random((500, 3))
+        near = tree.query_ball_point(x, radius)
+        expect = np.zeros_like(x)
+        for i, js in enumerate(near):
+            js = np.array(js, dtype=int)
+            if js.size:
+                w = wendland_c2(np.linalg.norm(s[js] - x[i], axis=1) / radius)
+                expect[i] = w @ alpha[js]
+        np.testing.assert_allclose(m.displacement(x), expect, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(m(x), x + expect, rtol=0, atol=1e-9)
+
+
+class Arrays(unittest.TestCase):
+    def setUp(self):
+        rng = np.random.default_rng(7)
+        self.s = rng.random((60, 3))
+        self.m = csrbf.SpaceMap(self.s, self.s + [0.0, 0.0, 0.02], 0.3)
+
+    def test_float32_in_float32_out(self):
+        x = np.random.default_rng(1).random((1000, 3))
+        y64 = self.m(x)
+        y32 = self.m(x.astype(np.float32))
+        self.assertEqual(y32.dtype, np.float32)
+        self.assertEqual(y64.dtype, np.float64)
+        np.testing.assert_allclose(y32, y64, atol=1e-5)
+        # Other layouts are accepted (converted): Fortran order, integers, a transposed view.
+        np.testing.assert_array_equal(self.m(np.asfortranarray(x)), y64)
+        np.testing.assert_array_equal(self.m(x.T.copy().T), y64)
+        self.assertEqual(self.m(np.zeros((2, 3), dtype=np.int64)).dtype, np.float64)
+
+    def test_jacobian_and_field(self):
+        x = np.random.default_rng(3).random((20, 3))
+        j = self.m.jacobian(x, phase=0.5)
+        h = 1e-6
+        for b in range(3):
+            e = np.zeros(3)
+            e[b] = h
+            fd = (self.m(x + e, phase=0.5) - self.m(x - e, phase=0.5)) / (2 * h)
+            np.testing.assert_allclose(j[:, :, b], fd, atol=1e-7)
+        field = csrbf.DisplacementField(self.m, x)
+        np.testing.assert_allclose(field(0.25), self.m(x, phase=0.25), atol=1e-15)
+        np.testing.assert_allclose(field.displacements, self.m.displacement(x), atol=0)
+        stats = self.m.stats
+        self.assertEqual(stats["controls"], 60)
+        self.assertLess(stats["residual_max"], 1e-12)
+
+    def test_clear_errors(self):
+        with self.assertRaisesRegex(ValueError, r"points must have shape \(n, 3\), got \(10, 2\)"):
+            self.m(np.zeros((10, 2)))
+        with self.assertRaisesRegex(ValueError, r"shape \(n, 3\), got \(3,\)"):
+            self.m(np.zeros(3))
+        with self.assertRaisesRegex(TypeError, "real numbers"):
+            self.m(np.array([["a", "b", "c"]]))
+        with self.assertRaisesRegex(ValueError, r"points\[1, 2\] is nan"):
+            self.m(np.array([[0, 0, 0], [0, 0, np.nan]], dtype=float))
+        with self.assertRaisesRegex(ValueError, r"sources\[0, 0\] is inf"):
+            csrbf.SpaceMap(np.array([[np.inf, 0, 0]]), np.zeros((1, 3)), 1.0)
+        with self.assertRaisesRegex(ValueError, "kernel must be one of"):
+            csrbf.SpaceMap(self.s, self.s, 0.3, kernel="gauss")
+        with self.assertRaisesRegex(ValueError, "radius"):
+            csrbf.SpaceMap(self.s, self.s, -1.0)
+        with self.assertRaisesRegex(ValueError, "sources has 60 points but destinations has 59"):
+            csrbf.SpaceMap(self.s, self.s[:-1], 0.3)
+        with self.assertRaisesRegex(ValueError, "linear"):
+            csrbf.SpaceMap(self.s[:2], self.s[:2], 0.3, polynomial="linear")
+        with self.assertRaises(csrbf.FileError):
+            csrbf.read_mesh("/nonexistent.obj")
+        self.assertTrue(issubclass(csrbf.FileError, OSError))
+
+    def test_releases_the_gil(self):
+        # A Python thread keeps counting while the main thread evaluates a million points.
+        big = np.random.default_rng(5).random((1_000_000, 3))
+        count = [0]
+        stop = threading.Event()
+
+        def counter():
+            while not stop.is_set():
+                count[0] += 1
+
+        t = threading.Thread(target=counter)
+        t.start()
+        time.sleep(0.05)
+        before = count[0]
+        for _ in range(3):
+            self.m(big)
+        after = count[0]
+        stop.set()
+        t.join()
+        self.assertGreater(after - before, 1000)
+
+
+class Scenes(unittest.TestCase):
+    def test_scene_positions_at_keys(self):
+        scene = csrbf.Scene(os.path.join(EXAMPLES, "ball.scene.json"))
+        self.assertEqual(scene.objects, ["box", "ball"])
+        self.assertEqual(scene.duration, 4.0)
+        box, ball = scene.positions(0.5)
+        self.assertEqual(box.shape, (386, 3))
+        # The ball's centre of gravity follows its second trajectory key at t = 0.5.
+        np.testing.assert_allclose(ball.mean(axis=0), [0.85, 0.55, 0.4], atol=1e-3)
+        # The box is dented on the right wall, where the ball presses (x > 1).
+        self.assertGreater(box[:, 0].max(), 1.0 + 1e-3)
+
+
+if __name__ == "__main__":
+    unittest.main()
