@@ -19,6 +19,7 @@ packages=(
   xvfb xauth             # csrbf animate without a display starts a private Xvfb; tests use xvfb-run
   ffmpeg                 # csrbf animate writes movies through the ffmpeg program; tests read them with ffprobe
   pybind11-dev python3-dev python3-numpy   # the Python module (Debian's /usr/bin/python3)
+  python3-vtk9           # vtkCSRBFTransform wrapped for VTK's Python (VTK's wrapping tools and runtime)
   python3-scipy python3-pip python3-setuptools python3-wheel   # Python tests: SciPy; the offline wheel
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png
 )

@@ -19,6 +19,11 @@ done
 module=$(find "$tmp/prefix/lib" -name 'csrbf*.so' -path '*dist-packages*' | head -n1)
 test -n "$module" || { echo "missing the Python module under lib/python3.*/dist-packages"; exit 1; }
 PYTHONPATH=$(dirname "$module") "$python" -c "import csrbf, numpy as np; m = csrbf.SpaceMap(np.eye(3), np.eye(3) + 0.1, 2.0); assert abs(m(np.eye(3))[0, 0] - 1.1) < 1e-12"
+vtkpkg=$(dirname "$module")/csrbf_vtk
+if [ -f "$vtkpkg/__init__.py" ]; then
+  PYTHONPATH=$(dirname "$module") "$python" -c "import vtk; from csrbf_vtk import vtkCSRBFTransform; t = vtkCSRBFTransform(); t.SetRadius(2.0); assert t.GetRadius() == 2.0"
+  echo "installed: csrbf_vtk (vtkCSRBFTransform for VTK's Python)"
+fi
 echo "installed: programs, headers, libraries, CMake config and version, Python module ($module)"
 
 cmake -S "$src/tests/install/consumer" -B "$tmp/consumer" -G Ninja -DCMAKE_BUILD_TYPE=Release \

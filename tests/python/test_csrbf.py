@@ -187,5 +187,39 @@ class Scenes(unittest.TestCase):
         self.assertGreater(box[:, 0].max(), 1.0 + 1e-3)
 
 
+class VtkPython(unittest.TestCase):
+    def test_wrapped_transform_in_a_vtk_pipeline(self):
+        try:
+            import vtk
+            from csrbf_vtk import vtkCSRBFTransform
+        except ImportError as e:  # a build without VTK's Python wrapping
+            self.skipTest(str(e))
+        s = np.random.default_rng(9).random((30, 3))
+        d = s + [0.0, 0.03, 0.0]
+        src, dst = vtk.vtkPoints(), vtk.vtkPoints()
+        src.SetDataTypeToDouble()
+        dst.SetDataTypeToDouble()
+        for p, q in zip(s, d):
+            src.InsertNextPoint(*p)
+            dst.InsertNextPoint(*q)
+        t = vtkCSRBFTransform()
+        t.SetSourceLandmarks(src)
+        t.SetTargetLandmarks(dst)
+        t.SetRadius(0.4)
+        t.SetKernel(vtkCSRBFTransform.KERNEL_C4)
+        m = csrbf.SpaceMap(s, d, 0.4, kernel="c4")
+        x = np.random.default_rng(10).random((20, 3))
+        got = np.array([t.TransformPoint(*p) for p in x])
+        np.testing.assert_allclose(got, m(x), atol=1e-14)
+        back = np.array([t.GetInverse().TransformPoint(*p) for p in got])
+        np.testing.assert_allclose(back, x, atol=1e-6)
+        sphere = vtk.vtkSphereSource()
+        f = vtk.vtkTransformPolyDataFilter()
+        f.SetInputConnection(sphere.GetOutputPort())
+        f.SetTransform(t)
+        f.Update()
+        self.assertEqual(f.GetOutput().GetNumberOfPoints(), sphere.GetOutput().GetNumberOfPoints())
+
+
 if __name__ == "__main__":
     unittest.main()

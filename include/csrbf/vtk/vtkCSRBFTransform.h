@@ -21,7 +21,11 @@ class vtkPoints;
 class vtkCSRBFTransform : public vtkWarpTransform {
  public:
   static vtkCSRBFTransform* New();
-  vtkTypeMacro(vtkCSRBFTransform, vtkWarpTransform)
+// VTK's wrappers need the ';' after vtkTypeMacro, which -Wpedantic calls extra.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wpedantic"
+  vtkTypeMacro(vtkCSRBFTransform, vtkWarpTransform);
+#pragma GCC diagnostic pop
   void PrintSelf(ostream& os, vtkIndent indent) override;
 
   enum { KERNEL_C0 = 0, KERNEL_C2 = 2, KERNEL_C4 = 4, KERNEL_C6 = 6 };
