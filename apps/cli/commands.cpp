@@ -1,5 +1,6 @@
 #include "commands.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <sstream>
 
@@ -73,6 +74,36 @@ std::string stats_text(const SpaceMap& map) {
                         "residual %.1f, total %.1f",
                         us(s.seconds_index), us(s.seconds_graph), us(s.seconds_ordering), us(s.seconds_assembly),
                         us(s.seconds_factorization), us(s.seconds_solve), us(s.seconds_residual), us(s.seconds_total())));
+  return o.str();
+}
+
+nlohmann::json folds_json(const FoldReport& r) {
+  nlohmann::json j;
+  j["phase"] = r.phase;
+  j["vertices"] = r.vertices;
+  j["samples"] = r.samples;
+  j["min_det"] = r.min_det;
+  j["min_at"] = {r.min_at.x(), r.min_at.y(), r.min_at.z()};
+  j["folded"] = r.folded;
+  j["folded_vertices"] = r.folded_vertices.size();
+  // JSON has no infinity: null when no checked point ever folds.
+  j["fold_free_phase"] = std::isfinite(r.fold_free_phase) ? nlohmann::json(r.fold_free_phase) : nlohmann::json();
+  return j;
+}
+
+std::string folds_text(const FoldReport& r) {
+  std::ostringstream o;
+  o << "folds (det dT/dx at phase " << r.phase << ", " << r.vertices << " vertices and " << r.samples - r.vertices
+    << " points inside triangles):\n";
+  o << "  minimum det              " << r.min_det << " at (" << r.min_at.x() << ", " << r.min_at.y() << ", "
+    << r.min_at.z() << ")\n";
+  o << "  points with det <= 0     " << r.folded << " (" << r.folded_vertices.size() << " vertices)\n";
+  if (std::isfinite(r.fold_free_phase))
+    o << "  fold-free up to phase    " << r.fold_free_phase
+      << (r.fold_free_phase < r.phase ? "  (FOLDS at the phase checked: lower the phase or raise the radius)" : "")
+      << "\n";
+  else
+    o << "  fold-free up to phase    any (no point checked ever folds)\n";
   return o.str();
 }
 

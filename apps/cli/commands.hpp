@@ -1,5 +1,6 @@
 #pragma once
 
+#include "csrbf/folds.hpp"
 #include "csrbf/space_map.hpp"
 
 #include <nlohmann/json.hpp>
@@ -12,5 +13,8 @@ namespace csrbf::cli {
 nlohmann::json stats_json(const SpaceMap& map);
 /// The stats as aligned "name  value" lines.
 std::string stats_text(const SpaceMap& map);
+/// A fold report (`csrbf info --check-folds`) as JSON and as text.
+nlohmann::json folds_json(const FoldReport& r);
+std::string folds_text(const FoldReport& r);
 
 }  // namespace csrbf::cli

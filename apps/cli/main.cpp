@@ -6,6 +6,7 @@
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/mesh.hpp"
+#include "csrbf/folds.hpp"
 #include "csrbf/space_map.hpp"
 
 #include <CLI/CLI.hpp>
@@ -14,6 +15,7 @@
 #include <chrono>
 #include <cmath>
 #include <iostream>
+#include <optional>
 
 namespace {
 
@@ -168,6 +170,15 @@ int main(int argc, char** argv) {
   auto* info = app.add_subcommand("info", "Fit the controls and print the solver's statistics");
   add_fit_options(info, info_args);
   info->add_flag("--json", json, "Print one JSON object");
+  std::string info_mesh;
+  bool check_folds = false;
+  double info_phase = 1.0;
+  info->add_option("--mesh", info_mesh, "Mesh to check for folds (with --check-folds)");
+  auto* folds_flag = info->add_flag("--check-folds", check_folds,
+                                    "Report det(dT/dx) over the mesh's vertices and points inside its triangles: "
+                                    "the minimum, where it is <= 0, and the largest fold-free phase");
+  info->add_option("--phase", info_phase, "Phase at which folds are counted (default 1)");
+  folds_flag->needs(info->get_option("--mesh"));
 
   try {
     app.parse(argc, argv);
@@ -199,10 +210,19 @@ int main(int argc, char** argv) {
       csrbf::cli::run_bench(bench_opts);
     } else if (*info) {
       Fitted f = fit(info_args);
-      if (json)
-        std::cout << csrbf::cli::stats_json(f.map).dump(2) << '\n';
-      else
+      std::optional<csrbf::FoldReport> folds;
+      if (check_folds) {
+        const auto mesh = csrbf::io::MeshDocument::load(info_mesh);
+        folds = csrbf::check_folds(f.map, mesh.positions(), mesh.faces(), info_phase);
+      }
+      if (json) {
+        auto j = csrbf::cli::stats_json(f.map);
+        if (folds) j["folds"] = csrbf::cli::folds_json(*folds);
+        std::cout << j.dump(2) << '\n';
+      } else {
         std::cout << csrbf::cli::stats_text(f.map);
+        if (folds) std::cout << csrbf::cli::folds_text(*folds);
+      }
     }
   } catch (const std::exception& e) {
     std::cerr << "csrbf: error: " << e.what() << '\n';

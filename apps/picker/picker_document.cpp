@@ -28,6 +28,7 @@ Outcome Document::apply(const State& s) {
   Outcome out;
   using Clock = std::chrono::steady_clock;
   std::vector<Vec3> moved = rest_;
+  std::optional<SpaceMap> fitted;
   try {
     if (!(s.radius > 0) || !std::isfinite(s.radius)) throw InvalidInput("the radius must be a positive number");
     check_phase(s.phase);
@@ -38,7 +39,7 @@ Outcome Document::apply(const State& s) {
         dst.push_back(c.destination);
       }
       const auto t0 = Clock::now();
-      const SpaceMap map = SpaceMap::fit(src, dst, FitOptions{s.radius, s.kernel, s.polynomial});
+      const SpaceMap& map = fitted.emplace(SpaceMap::fit(src, dst, FitOptions{s.radius, s.kernel, s.polynomial}));
       const auto t1 = Clock::now();
       if (s.region.empty()) {
         map.apply(rest_, moved, s.phase);
@@ -59,7 +60,18 @@ Outcome Document::apply(const State& s) {
   }
   state_ = s;
   deformed_ = std::move(moved);
+  map_ = std::move(fitted);
   return out;
+}
+
+FoldReport Document::folds() const {
+  if (!map_) return FoldReport{};
+  if (state_.region.empty()) return check_folds(*map_, rest_, {}, state_.phase);
+  std::vector<Vec3> part;
+  for (const auto v : state_.region) part.push_back(rest_[v]);
+  FoldReport r = check_folds(*map_, part, {}, state_.phase);
+  for (auto& v : r.folded_vertices) v = state_.region[v];
+  return r;
 }
 
 std::vector<double> Document::displacement_magnitudes() const {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "csrbf/io/deformation.hpp"
+#include "csrbf/folds.hpp"
 #include "csrbf/io/mesh.hpp"
 #include "csrbf/space_map.hpp"
 
@@ -59,6 +60,9 @@ class Document {
   const std::vector<Vec3>& deformed() const noexcept { return deformed_; }
   /// |deformed - rest| per vertex.
   std::vector<double> displacement_magnitudes() const;
+  /// det(dT/dx) at the current phase over the vertices the state moves (the active area):
+  /// folded_vertices are indices into rest(). Empty report without controls.
+  FoldReport folds() const;
 
   /// The deformation file (docs/scene-format.md) of the current state, and reading one back (as a
   /// state with the current phase and active area).
@@ -71,6 +75,7 @@ class Document {
   std::optional<io::MeshDocument> mesh_;
   std::filesystem::path mesh_path_;
   std::vector<Vec3> rest_, deformed_;
+  std::optional<SpaceMap> map_;  // of the current state; empty without controls
   double diagonal_ = 1.0;
   State state_;
 };

@@ -404,6 +404,12 @@ void PickerWindow::build_ui() {
 
   error_ = gui::make_error_label(panel);
   layout->addWidget(error_);
+  fold_warning_ = new QLabel(panel);
+  fold_warning_->setObjectName("foldWarning");
+  fold_warning_->setWordWrap(true);
+  fold_warning_->setStyleSheet("QLabel { color: black; background: #f0c040; padding: 6px; border-radius: 4px; }");
+  fold_warning_->hide();
+  layout->addWidget(fold_warning_);
 
   dock->setWidget(panel);
   addDockWidget(Qt::RightDockWidgetArea, dock);
@@ -599,6 +605,8 @@ void PickerWindow::options_changed(int merge_id, const QString& what) {
   edit(next, what, merge_id);
 }
 
+QString PickerWindow::fold_warning() const { return fold_warning_->isHidden() ? QString() : fold_warning_->text(); }
+
 QString PickerWindow::error_text() const { return error_->isHidden() ? QString() : error_->text(); }
 
 void PickerWindow::show_error(const QString& message) {
@@ -685,6 +693,20 @@ void PickerWindow::refresh_view() {
     mag = doc_.displacement_magnitudes();
     for (const double m : mag) top = std::max(top, m);
   }
+  // Folded places (det dT/dx <= 0: space turned inside out) in magenta, with a warning.
+  const FoldReport folds = doc_.folds();
+  std::vector<char> folded(pos.size(), 0);
+  for (const auto v : folds.folded_vertices) folded[v] = 1;
+  if (folds.folded > 0) {
+    fold_warning_->setText(QString("%1 %2 over (det dT/dx <= 0, shown in magenta). The map is fold-free up "
+                                   "to phase %3: lower the phase or the displacements, or raise the radius.")
+                               .arg(folds.folded)
+                               .arg(folds.folded == 1 ? "vertex folds" : "vertices fold")
+                               .arg(folds.fold_free_phase, 0, 'f', 3));
+    fold_warning_->show();
+  } else {
+    fold_warning_->hide();
+  }
   for (std::size_t i = 0; i < pos.size(); ++i) {
     double c[3] = {0.85, 0.8, 0.72};
     if (by_displacement) {
@@ -694,6 +716,7 @@ void PickerWindow::refresh_view() {
       c[2] = 1.0 - 0.8 * t;
     }
     if (!active[i]) c[0] = c[1] = c[2] = 0.45;
+    if (folded[i]) c[0] = 1.0, c[1] = 0.1, c[2] = 0.9;
     rgb->SetTuple3(vtkIdType(i), 255 * c[0], 255 * c[1], 255 * c[2]);
   }
   mesh_->GetPointData()->SetScalars(rgb);

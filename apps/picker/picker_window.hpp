@@ -52,6 +52,8 @@ class PickerWindow : public QMainWindow {
   vtkRenderer* renderer() const;
   /// The message of the last refused edit or failed file operation; empty when the last one succeeded.
   QString error_text() const;
+  /// The fold warning shown, or empty when nothing folds.
+  QString fold_warning() const;
   int selected() const { return selected_; }
   void select(int control);
   /// Display coordinates (VTK: pixels from the bottom left) of a world point.
@@ -114,6 +116,7 @@ class PickerWindow : public QMainWindow {
   QCheckBox* show_supports_ = nullptr;
   QCheckBox* colour_displacement_ = nullptr;
   QLabel* error_ = nullptr;
+  QLabel* fold_warning_ = nullptr;
   QLabel* timing_ = nullptr;
   QLabel* region_label_ = nullptr;
 

@@ -2,6 +2,7 @@
 #include "io/test_helpers.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <array>
 #include <cstdio>
@@ -214,4 +215,25 @@ TEST(Cli, ReadsADeformationFile) {
   const CliRun d = run("info --deformation " + (dir / "dup.json").string());
   EXPECT_EQ(d.code, 1);
   EXPECT_NE(d.out.find("dup.json: sources[2]: source is the same as on sources[0]"), std::string::npos) << d.out;
+}
+
+TEST(Cli, CheckFoldsReportsTheFirstFold) {
+  TempDir dir;
+  // One control pushed 0.3 along +z with R = 0.5 (0.6 R): C2 folds from phase 1 / (0.6 * 135 / 64) = 0.79.
+  write_text(dir / "push.controls", "0.5 0.5 0.9  0.5 0.5 1.2\n");
+  const CliRun r = run("info --controls " + (dir / "push.controls").string() + " --radius 0.5 --mesh " + kExamples +
+                       "face.obj --check-folds");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("FOLDS at the phase checked"), std::string::npos) << r.out;
+  const CliRun j = run("info --controls " + (dir / "push.controls").string() + " --radius 0.5 --mesh " + kExamples +
+                       "face.obj --check-folds --phase 0.5 --json");
+  ASSERT_EQ(j.code, 0) << j.out;
+  const auto json = nlohmann::json::parse(j.out);
+  EXPECT_EQ(json["folds"]["folded"], 0);
+  EXPECT_GT(json["folds"]["min_det"].get<double>(), 0.0);
+  // The face's surface does not pass exactly through r = R/4 ahead of the push: the fold starts
+  // at or after the closed form's 0.79.
+  EXPECT_GE(json["folds"]["fold_free_phase"].get<double>(), 0.79);
+  EXPECT_LT(json["folds"]["fold_free_phase"].get<double>(), 1.0);
+  EXPECT_EQ(run("info --controls " + (dir / "push.controls").string() + " --radius 0.5 --check-folds").code, 2);
 }

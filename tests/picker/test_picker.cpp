@@ -14,6 +14,7 @@
 #include <QDropEvent>
 #include <QMimeData>
 #include <QPushButton>
+#include <QSlider>
 #include <QSurfaceFormat>
 #include <QTableWidget>
 #include <QTest>
@@ -199,6 +200,30 @@ TEST_F(Fixture, LoadsDeformationsAndReportsBadFiles) {
   EXPECT_EQ(w.document().rest().size(), 6158u);
   ASSERT_EQ(w.document().state().controls.size(), 1u);
   EXPECT_EQ(w.document().state().radius, 0.2);
+}
+
+TEST_F(Fixture, FoldedRegionsAreColouredAndWarned) {
+  const auto& doc = w.document();
+  QTest::mouseClick(w.view(), Qt::LeftButton, Qt::NoModifier, centre());
+  ASSERT_EQ(doc.state().controls.size(), 1u);
+  EXPECT_TRUE(w.fold_warning().isEmpty());
+  // Push the control 0.8 R sideways: C2 folds from phase 1 / (0.8 * 135 / 64) = 0.59.
+  auto s = doc.state();
+  s.controls[0].destination = s.controls[0].source + Vec3(0, 0.8 * s.radius, 0);
+  ASSERT_TRUE(w.edit(s, "Push"));
+  const std::string warning = w.fold_warning().toStdString();
+  EXPECT_NE(warning.find("over (det dT/dx <= 0"), std::string::npos) << warning;
+  // The closed form's 0.59 holds at r = R/4 ahead of the push; the vertices near there start at or after it.
+  const auto at = warning.find("fold-free up to phase ");
+  ASSERT_NE(at, std::string::npos) << warning;
+  const double first = std::stod(warning.substr(at + 22));
+  EXPECT_GE(first, 0.59);
+  EXPECT_LT(first, 1.0);
+  EXPECT_FALSE(doc.folds().folded_vertices.empty());
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-folds.png").string())));
+  // Below the first fold nothing folds.
+  w.findChild<QSlider*>("phase")->setValue(50);
+  EXPECT_TRUE(w.fold_warning().isEmpty()) << w.fold_warning().toStdString();
 }
 
 int main(int argc, char** argv) {

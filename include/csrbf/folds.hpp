@@ -1,0 +1,39 @@
+// Fold detection: where a space mapping turns space inside out. RBF warps fold when a displacement
+// is large against the radius of support; det(dT/dx) <= 0 marks it. For T(x) = x + t d(x) the
+// determinant is a cubic in the phase t, det(I + t A) = 1 + t tr A + t^2 m2(A) + t^3 det A with A = dd/dx
+// and m2 the sum of A's principal 2x2 minors, so the first phase at which a point folds is that
+// cubic's smallest positive root.
+#pragma once
+
+#include "csrbf/space_map.hpp"
+
+#include <cstdint>
+#include <limits>
+#include <span>
+#include <vector>
+
+namespace csrbf {
+
+struct FoldReport {
+  double phase = 1.0;            ///< the phase checked
+  std::size_t vertices = 0;      ///< vertices checked
+  std::size_t samples = 0;       ///< points checked: the vertices and 4 points inside each triangle
+  double min_det = std::numeric_limits<double>::infinity();  ///< smallest det(dT/dx) at `phase`
+  Vec3 min_at = Vec3::Zero();    ///< where
+  std::size_t folded = 0;        ///< points (of `samples`) with det <= 0 at `phase`
+  std::vector<std::uint32_t> folded_vertices;  ///< vertices with det <= 0 at `phase`
+  /// The largest t such that every point checked has det > 0 for all phases in [0, t): the first
+  /// fold over the samples. Infinity if none of them ever folds.
+  double fold_free_phase = std::numeric_limits<double>::infinity();
+};
+
+/// The cubic's smallest positive root for one point: the first phase at which it folds (infinity
+/// if it never does). `jacobian_at_1` = dT/dx at phase 1, i.e. I + A.
+double first_fold_phase(const Eigen::Matrix3d& jacobian_at_1);
+
+/// Checks the vertices and, for each polygon (fanned into triangles), 4 points inside each triangle
+/// (the centroid and the points halfway between it and each corner). Runs in parallel.
+FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices,
+                       const std::vector<std::vector<std::uint32_t>>& faces, double phase = 1.0);
+
+}  // namespace csrbf
