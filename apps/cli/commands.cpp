@@ -38,6 +38,7 @@ nlohmann::json stats_json(const SpaceMap& map) {
                   {"ordering", us(s.seconds_ordering)},     {"assembly", us(s.seconds_assembly)},
                   {"factorization", us(s.seconds_factorization)}, {"solve", us(s.seconds_solve)},
                   {"residual", us(s.seconds_residual)},     {"total", us(s.seconds_total())}};
+  j["condition_estimate"] = map.condition_estimate();
   return j;
 }
 
@@ -70,6 +71,7 @@ std::string stats_text(const SpaceMap& map) {
   line("solver", fmt("%s  (factor %zu entries; envelope work %.3g multiply-adds)",
                      std::string(solver_name(s.solver)).c_str(), s.factor_nonzeros, s.envelope_work));
   line("residual", fmt("%.3g max, %.3g relative", s.residual_max, s.residual_relative));
+  line("condition", fmt("%.3g (estimate of the matrix's 2-norm condition number)", map.condition_estimate()));
   line("time (us)", fmt("index %.1f, graph %.1f, ordering %.1f, assembly %.1f, factorization %.1f, solve %.1f, "
                         "residual %.1f, total %.1f",
                         us(s.seconds_index), us(s.seconds_graph), us(s.seconds_ordering), us(s.seconds_assembly),

@@ -34,6 +34,14 @@ class DegeneratePolynomial : public InvalidInput {
   using InvalidInput::InvalidInput;
 };
 
+/// The fit cannot interpolate the controls to the documented accuracy (relative residual 1e-6):
+/// sources too close together for the radius make the matrix nearly singular. The message names
+/// the closest pair and the condition estimate.
+class IllConditioned : public InvalidInput {
+ public:
+  using InvalidInput::InvalidInput;
+};
+
 /// Throws InvalidInput unless phase is finite (any finite phase is accepted: outside [0, 1] it
 /// extrapolates).
 void check_phase(double phase);

@@ -23,7 +23,8 @@ class NeighborIndex {
  public:
   NeighborIndex() = default;
   /// radius: the search radius R (not squared), > 0 and finite; points must be finite.
-  /// Throws std::invalid_argument otherwise, or when R is below 1e-9 of the points' extent.
+  /// Throws InvalidInput (a std::invalid_argument) otherwise, or when R is below 1e-9 of the points'
+  /// extent.
   NeighborIndex(std::span<const Vec3> points, double radius);
 
   std::size_t size() const noexcept { return points_.size(); }

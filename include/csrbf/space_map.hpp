@@ -40,6 +40,8 @@ std::string_view solver_name(Solver s) noexcept;
 std::optional<Solver> parse_solver(std::string_view name) noexcept;
 /// Whether this build of csrbf can use CHOLMOD.
 bool cholmod_available() noexcept;
+/// The largest relative residual at the controls a fit accepts (FitStats::residual_relative).
+inline constexpr double kResidualLimit = 1e-6;
 /// Auto's rule: the envelope solver is used while the multiply-adds of its factorisation,
 /// sum over rows of (row length)^2 / 2, stay at or below this (measured: docs/PERFORMANCE.md).
 inline constexpr double kEnvelopeWorkLimit = 1.0e8;
@@ -79,7 +81,8 @@ struct FitStats {
   Solver solver = Solver::Envelope;      ///< the solver used
   std::size_t factor_nonzeros = 0;       ///< entries of the factor L actually stored
   double residual_max = 0.0;             ///< max_i ||s(x_i) - g_i|| at the controls
-  double residual_relative = 0.0;        ///< residual_max / max_i ||g_i|| (or residual_max if g = 0)
+  double residual_relative = 0.0;        ///< residual_max / max_i ||g_i|| (or residual_max if g = 0);
+                                         ///< at most kResidualLimit, or the fit throws IllConditioned
   double seconds_index = 0, seconds_graph = 0, seconds_ordering = 0, seconds_assembly = 0,
          seconds_factorization = 0, seconds_solve = 0, seconds_residual = 0;
   double seconds_total() const noexcept {
@@ -130,6 +133,10 @@ class SpaceMap {
   /// order[k] = input index of the source at position k of the factorised matrix.
   std::span<const std::uint32_t> order() const noexcept;
   const FitStats& stats() const noexcept;
+  /// An estimate of the 2-norm condition number of the N x N CSRBF matrix A, lambda_max / lambda_min
+  /// (power iteration and inverse iteration through the factorisation, 30 steps each). Computed on
+  /// first call and kept; thread-safe.
+  double condition_estimate() const;
   const NeighborIndex& index() const;
 
  private:

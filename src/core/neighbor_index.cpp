@@ -1,5 +1,7 @@
 #include "csrbf/neighbor_index.hpp"
 
+#include "csrbf/errors.hpp"
+
 #include <algorithm>
 #include <bit>
 #include <numeric>
@@ -12,16 +14,16 @@ NeighborIndex::NeighborIndex(std::span<const Vec3> points, double radius) : radi
   if (!(radius > 0.0) || !std::isfinite(radius)) {
     std::ostringstream os;
     os << "neighbour index: radius must be a positive finite number, got " << radius;
-    throw std::invalid_argument(os.str());
+    throw InvalidInput(os.str());
   }
-  if (points.size() >= std::size_t(UINT32_MAX)) throw std::invalid_argument("neighbour index: too many points");
+  if (points.size() >= std::size_t(UINT32_MAX)) throw InvalidInput("neighbour index: too many points");
   if (points.empty()) return;
   Vec3 lo = points[0], hi = points[0];
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (!points[i].allFinite()) {
       std::ostringstream os;
       os << "neighbour index: point " << i << " is not finite (" << points[i].transpose() << ")";
-      throw std::invalid_argument(os.str());
+      throw InvalidInput(os.str());
     }
     lo = lo.cwiseMin(points[i]);
     hi = hi.cwiseMax(points[i]);
@@ -31,8 +33,9 @@ NeighborIndex::NeighborIndex(std::span<const Vec3> points, double radius) : radi
   const double cells = (hi - lo).maxCoeff() * inv_cell_;
   if (cells > 1e9) {
     std::ostringstream os;
-    os << "neighbour index: radius " << radius << " is too small for points spanning " << (hi - lo).maxCoeff();
-    throw std::invalid_argument(os.str());
+    os << "radius " << radius << " is too small for points spanning " << (hi - lo).maxCoeff()
+       << " (more than 1e9 radii): scale the points or raise the radius";
+    throw InvalidInput(os.str());
   }
   const std::size_t n = points.size();
   std::vector<Eigen::Vector3i> cell(n);

@@ -12,6 +12,8 @@
 #include <cctype>
 #include <chrono>
 #include <cmath>
+#include <limits>
+#include <numeric>
 #include <sstream>
 #include <string>
 #include <mutex>
@@ -156,6 +158,46 @@ struct SpaceMap::Structure {
     if (sparse) sparse->solve_in_place(b);
     else factor.solve_in_place(b);
   }
+
+  mutable std::once_flag condition_once;
+  mutable double condition_ = 0;
+  /// lambda_max by power iteration with A (through the graph), lambda_min by inverse iteration with
+  /// the factorisation. A is symmetric positive definite, so both converge to the extreme eigenvalues.
+  double condition() const {
+    std::call_once(condition_once, [this] {
+      const std::size_t n = sources.size();
+      const double inv_r = 1.0 / options.radius, phi0 = wendland(options.kernel, 0.0);
+      std::vector<double> v(n, 1.0 / std::sqrt(double(n))), av(n);
+      const auto multiply = [&](const std::vector<double>& x, std::vector<double>& y) {
+        for (std::size_t i = 0; i < n; ++i) {
+          double acc = phi0 * x[i];
+          const auto nb = graph.neighbors_of(i);
+          const auto d2 = graph.dist2_of(i);
+          for (std::size_t e = 0; e < nb.size(); ++e) acc += wendland(options.kernel, std::sqrt(d2[e]) * inv_r) * x[nb[e]];
+          y[i] = acc;
+        }
+      };
+      double lmax = phi0;
+      for (int it = 0; it < 30; ++it) {
+        multiply(v, av);
+        const double norm = std::sqrt(std::inner_product(av.begin(), av.end(), av.begin(), 0.0));
+        if (!(norm > 0)) break;
+        lmax = norm;
+        for (std::size_t i = 0; i < n; ++i) v[i] = av[i] / norm;
+      }
+      RowMatrix x = RowMatrix::Constant(Eigen::Index(n), 1, 1.0 / std::sqrt(double(n)));
+      double lmin_inv = 1.0 / phi0;
+      for (int it = 0; it < 30; ++it) {
+        solve_in_place(x);
+        const double norm = x.norm();
+        if (!(norm > 0) || !std::isfinite(norm)) break;
+        lmin_inv = norm;
+        x /= norm;
+      }
+      condition_ = lmax * lmin_inv;
+    });
+    return condition_;
+  }
 };
 
 struct SpaceMap::State {
@@ -210,13 +252,27 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
     throw InvalidInput(os.str());
   }
   if (sources.empty()) throw InvalidInput("control points: none given (need at least 1)");
-  if (!(options.radius > 0.0) || !std::isfinite(options.radius)) {
+  if (!(options.radius > 0.0) || !std::isfinite(options.radius) || !std::isfinite(1.0 / options.radius)) {
     std::ostringstream os;
     os << "radius must be a positive finite number, got " << options.radius;
     throw InvalidInput(os.str());
   }
   check_points(sources, "source");
   check_points(destinations, "destination");
+  {
+    // The same limit NeighborIndex applies, checked here because small fits build it only later.
+    Vec3 lo = sources[0], hi = sources[0];
+    for (const auto& p : sources) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    if ((hi - lo).maxCoeff() / options.radius > 1e9) {
+      std::ostringstream os;
+      os << "radius " << options.radius << " is too small for sources spanning " << (hi - lo).maxCoeff()
+         << " (more than 1e9 radii): scale the points or raise the radius";
+      throw InvalidInput(os.str());
+    }
+  }
   const std::size_t n = sources.size();
   const int terms = polynomial_terms(options.polynomial);
 
@@ -419,8 +475,29 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
   stats.residual_max = res;
   stats.residual_relative = gmax > 0.0 ? res / gmax : res;
   stats.seconds_residual = seconds_since(t0);
+  if (!(stats.residual_relative <= kResidualLimit)) {
+    // Name the closest pair of sources: nearly coincident sources are what makes A nearly singular.
+    double best = std::numeric_limits<double>::infinity();
+    std::size_t a = 0, b = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto nb = st.graph.neighbors_of(i);
+      const auto d2 = st.graph.dist2_of(i);
+      for (std::size_t e = 0; e < nb.size(); ++e)
+        if (d2[e] < best) best = d2[e], a = i, b = nb[e];
+    }
+    std::ostringstream os;
+    os << "the controls cannot be interpolated to a relative residual of " << kResidualLimit << " (got "
+       << stats.residual_relative << "): the matrix is too ill-conditioned (condition estimate "
+       << st.condition() << ")";
+    if (std::isfinite(best))
+      os << "; the closest sources, " << std::min(a, b) << " and " << std::max(a, b) << ", are "
+         << std::sqrt(best) / st.options.radius << " R apart. Merge or separate them, or use a larger radius";
+    throw IllConditioned(os.str());
+  }
   return SpaceMap(std::move(s));
 }
+
+double SpaceMap::condition_estimate() const { return s_->st->condition(); }
 
 Vec3 SpaceMap::displacement(const Vec3& x) const {
   const Structure& st = *s_->st;

@@ -78,4 +78,14 @@ void write_atomically_via_folder(const fs::path& target, const std::function<voi
   }
 }
 
+void check_readable(const std::filesystem::path& path, const char* what) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  const auto st = fs::status(path, ec);
+  if (ec || st.type() == fs::file_type::not_found) throw FileError(path.string() + ": no such file");
+  if (st.type() == fs::file_type::directory) throw FileError(path.string() + ": is a folder, not " + what);
+  if (st.type() != fs::file_type::regular && st.type() != fs::file_type::fifo)
+    throw FileError(path.string() + ": is not a regular file (a device or socket), not " + what);
+}
+
 }  // namespace csrbf::io

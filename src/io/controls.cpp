@@ -65,9 +65,7 @@ Controls parse_controls(std::istream& in, const std::string& name) {
 }
 
 Controls read_controls(const std::filesystem::path& path) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw FileError(path.string() + ": no such file");
-  if (std::filesystem::is_directory(path, ec)) throw FileError(path.string() + ": is a folder, not a controls file");
+  check_readable(path, "a controls file");
   std::ifstream in(path);
   if (!in) throw FileError(path.string() + ": cannot open for reading");
   return parse_controls(in, path.string());

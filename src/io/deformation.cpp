@@ -49,15 +49,24 @@ DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::p
 
 }  // namespace detail
 
-DeformationSpec read_deformation(const std::filesystem::path& path) {
-  const nlohmann::json j = detail::read_json_file(path);
-  const std::string name = path.string();
+namespace {
+DeformationSpec from_json(const nlohmann::json& j, const std::string& name, const std::filesystem::path& base) {
   const detail::JsonNode root(j, name);
   root.only({"format", "version", "kernel", "radius", "polynomial", "sources", "destinations", "controls"});
   if (root.has("format") && root["format"].string() != "csrbf-deformation")
     root["format"].expected("\"csrbf-deformation\"");
   if (root.has("version") && root["version"].number() != 1) root["version"].expected("1");
-  return detail::parse_deformation(root, path.parent_path());
+  return detail::parse_deformation(root, base);
+}
+}  // namespace
+
+DeformationSpec read_deformation(const std::filesystem::path& path) {
+  return from_json(detail::read_json_file(path), path.string(), path.parent_path());
+}
+
+DeformationSpec read_deformation_text(const std::string& text, const std::string& name,
+                                      const std::filesystem::path& base) {
+  return from_json(detail::parse_json(text, name), name, base);
 }
 
 void write_deformation(const std::filesystem::path& path, const DeformationSpec& spec) {

@@ -8,8 +8,9 @@ namespace csrbf::io::detail {
 nlohmann::json parse_json(const std::string& text, const std::string& name) {
   try {
     return nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error& e) {
-    // nlohmann's message reads "[json.exception.parse_error.101] parse error at line 3, column 5: ...".
+  } catch (const nlohmann::json::exception& e) {
+    // nlohmann's message reads "[json.exception.parse_error.101] parse error at line 3, column 5: ...";
+    // a number too large for a double is an out_of_range.406 error.
     std::string m = e.what();
     const auto k = m.find("] ");
     if (k != std::string::npos) m = m.substr(k + 2);
@@ -18,6 +19,7 @@ nlohmann::json parse_json(const std::string& text, const std::string& name) {
 }
 
 nlohmann::json read_json_file(const std::filesystem::path& path) {
+  check_readable(path, "a JSON file");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw FileError(path.string() + ": cannot open for reading");
   std::ostringstream text;

@@ -136,9 +136,7 @@ void ply_write(unsigned char* p, PlyType t, bool swap, double value) {
 }
 
 std::string read_file(const fs::path& path) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) throw FileError(path.string() + ": no such file");
-  if (fs::is_directory(path, ec)) throw FileError(path.string() + ": is a folder, not a mesh");
+  check_readable(path, "a mesh");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw FileError(path.string() + ": cannot open for reading");
   std::ostringstream ss;
@@ -769,11 +767,9 @@ MeshDocument MeshDocument::load(const fs::path& path) {
     case MeshFormat::Off: impl->load_off(read_file(path)); break;
     case MeshFormat::Xyz: impl->load_xyz(read_file(path)); break;
     case MeshFormat::Ply: impl->load_ply(read_file(path)); break;
-    default: {
-      std::error_code ec;
-      if (!fs::exists(path, ec)) throw FileError(path.string() + ": no such file");
+    default:
+      check_readable(path, "a mesh");
       impl->load_assimp();
-    }
   }
   if (impl->positions.empty()) throw FileError(path.string() + ": the mesh has no vertices");
   return MeshDocument(std::move(impl));

@@ -334,3 +334,17 @@ TEST(SpaceMap, OneOffDeform) {
   EXPECT_DOUBLE_EQ(pts[2], 0.5);
   EXPECT_EQ(pts[3], 5.0);
 }
+
+TEST(SpaceMap, RadiusTooSmallForTheSourcesExtentIsRefusedAtFit) {
+  // Found by fuzz_spacemap: small fits build the neighbour index lazily, so the extent check must
+  // happen in fit, not at the first evaluation.
+  const std::vector<csrbf::Vec3> s{csrbf::Vec3(0, 0, 0), csrbf::Vec3(1e12, 0, 0)}, d = s;
+  try {
+    csrbf::SpaceMap::fit(s, d, csrbf::FitOptions{1.0});
+    FAIL();
+  } catch (const csrbf::InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("too small for sources spanning"), std::string::npos) << e.what();
+  }
+  // A radius whose reciprocal overflows.
+  EXPECT_THROW(csrbf::SpaceMap::fit(s, d, csrbf::FitOptions{1e-310}), csrbf::InvalidInput);
+}

@@ -199,3 +199,16 @@ TEST(DeformationFile, WritesAndReadsBackExactly) {
   EXPECT_THROW(csrbf::io::write_deformation(dir / "d.json", spec), FileError);
   EXPECT_EQ(csrbf::test::read_text(dir / "d.json"), before);
 }
+
+TEST(DeformationFile, NumbersTooLargeForADoubleAreAnError) {
+  // Found by fuzz_deformation: nlohmann reports this as out_of_range, not as a parse error.
+  TempDir dir;
+  write_text(dir / "big.json", R"({"radius": 1111E1111, "sources": [[0,0,0]], "destinations": [[0,0,0]]})");
+  try {
+    csrbf::io::read_deformation(dir / "big.json");
+    FAIL();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("number overflow"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(csrbf::io::read_deformation_text("[1E400]", "t.json", dir.path), FileError);
+}

@@ -10,6 +10,7 @@
 #include "csrbf/space_map.hpp"
 
 #include <filesystem>
+#include <string>
 #include <vector>
 
 namespace csrbf::io {
@@ -22,6 +23,9 @@ struct DeformationSpec {
 
 /// Throws FileError naming the file and the JSON path of a bad or unknown value.
 DeformationSpec read_deformation(const std::filesystem::path& path);
+/// The same from JSON text: name is used in messages, base resolves a "controls" file.
+DeformationSpec read_deformation_text(const std::string& text, const std::string& name,
+                                      const std::filesystem::path& base);
 /// Writes atomically (temporary file, then rename), numbers in their shortest exact form.
 void write_deformation(const std::filesystem::path& path, const DeformationSpec& spec);
 

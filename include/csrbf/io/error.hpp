@@ -1,5 +1,6 @@
 #pragma once
 
+#include <filesystem>
 #include <stdexcept>
 #include <string>
 
@@ -11,5 +12,10 @@ class FileError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// Throws FileError unless path names something to read a file from: a regular file or a pipe.
+/// `what` says what was expected ("a mesh"): a folder, a missing file, or a device such as /dev/zero
+/// (which would never end) are refused by name.
+void check_readable(const std::filesystem::path& path, const char* what);
 
 }  // namespace csrbf::io
