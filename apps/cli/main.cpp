@@ -12,6 +12,7 @@
 #include <CLI/CLI.hpp>
 
 #include <charconv>
+#include <csignal>
 #include <chrono>
 #include <cmath>
 #include <iostream>
@@ -23,6 +24,7 @@ struct FitArgs {
   std::string controls, deformation;
   double radius = 0;
   std::string kernel = "c2", polynomial = "none", ordering = "auto", solver = "auto";
+  double memory_limit_gib = 4.0;
 };
 
 CLI::Validator positive_finite(const char* what) {
@@ -52,6 +54,11 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
                                      "Polynomial part: none (strictly local), constant, linear (reproduces affine maps)")
                          ->check(CLI::IsMember({"none", "constant", "linear"}))
                          ->capture_default_str();
+  cmd->add_option("--memory-limit", a.memory_limit_gib,
+                  "Refuse fits whose neighbour graph and factor would need more than this many GiB (a radius near "
+                  "the model's size makes the matrix dense)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   deformation->excludes(controls)->excludes(radius)->excludes(kernel)->excludes(polynomial);
   controls->needs(radius);
   radius->needs(controls);
@@ -91,6 +98,7 @@ Fitted fit(const FitArgs& a) {
   }
   for (const auto& w : controls.warnings) std::cerr << "csrbf: warning: " << w << '\n';
   o.ordering = *csrbf::parse_ordering(a.ordering);
+  o.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
   o.solver = *csrbf::parse_solver(a.solver);
   // Where control i came from: "file:line" for controls text, "file: sources[i]" for JSON.
   const bool json_file = !a.deformation.empty();
@@ -118,6 +126,9 @@ Fitted fit(const FitArgs& a) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // A file size limit (ulimit -f, or a quota) must fail the write, so that the temporary file is
+  // removed and the target kept, rather than kill the process with SIGXFSZ half-way.
+  std::signal(SIGXFSZ, SIG_IGN);
   CLI::App app{"csrbf: real-time 3D deformation by compactly supported radial basis functions (Wendland CSRBF)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "csrbf 0.1.0");

@@ -42,6 +42,13 @@ class IllConditioned : public InvalidInput {
   using InvalidInput::InvalidInput;
 };
 
+/// A fit or evaluation would need more memory than allowed (FitOptions::memory_limit_bytes); the
+/// message says how much it would take.
+class ResourceLimit : public InvalidInput {
+ public:
+  using InvalidInput::InvalidInput;
+};
+
 /// Throws InvalidInput unless phase is finite (any finite phase is accepted: outside [0, 1] it
 /// extrapolates).
 void check_phase(double phase);

@@ -64,7 +64,19 @@ struct FitOptions {
   Polynomial polynomial = Polynomial::None;
   Ordering ordering = Ordering::Auto;  ///< of the envelope solver (the sparse solvers order themselves)
   Solver solver = Solver::Auto;
+  /// The fit refuses (throws ResourceLimit) when its neighbour graph and factor would need more
+  /// memory than this, estimated from a sample of the sources before anything large is built: a
+  /// radius near the model's size makes the matrix dense, N^2 entries.
+  double memory_limit_bytes = 4.0 * (1ull << 30);
 };
+
+/// Estimated memory (bytes) of a fit's neighbour graph and factor, and the mean number of other
+/// sources within R, from a seeded sample of at most 256 sources (exact up to 256 sources).
+struct FitMemoryEstimate {
+  double bytes = 0;
+  double mean_neighbors = 0;
+};
+FitMemoryEstimate estimate_fit_memory(std::span<const Vec3> sources, double radius);
 
 /// What a fit did and what it cost. Times are wall-clock seconds of each phase.
 struct FitStats {
@@ -107,7 +119,10 @@ class SpaceMap {
   /// d(x), the full displacement (phase 1).
   Vec3 displacement(const Vec3& x) const;
   /// T(x) = x + phase * d(x).
-  Vec3 map(const Vec3& x, double phase = 1.0) const { return x + phase * displacement(x); }
+  Vec3 map(const Vec3& x, double phase = 1.0) const {
+    check_phase(phase);
+    return x + phase * displacement(x);
+  }
   /// dT/dx at x: I + phase * dd/dx (row a, column b = d T_a / d x_b).
   Eigen::Matrix3d jacobian(const Vec3& x, double phase = 1.0) const;
 

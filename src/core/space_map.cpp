@@ -14,6 +14,7 @@
 #include <cmath>
 #include <limits>
 #include <numeric>
+#include <random>
 #include <sstream>
 #include <string>
 #include <mutex>
@@ -313,6 +314,20 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   auto t0 = Clock::now();
   // The neighbour graph: every pair for a few hundred sources (the grid is then left to the first
   // evaluation); from the grid's cell lists above that; from NeighborIndex where the grid is unusable.
+  if (n > kBruteForceGraph) {
+    const FitMemoryEstimate m = estimate_fit_memory(sources, options.radius);
+    if (m.bytes > options.memory_limit_bytes) {
+      std::ostringstream os;
+      os.precision(3);
+      os << "radius " << options.radius << " gives each source about " << m.mean_neighbors << " neighbours ("
+         << 100.0 * m.mean_neighbors / double(n - 1) << "% of the " << n << " sources): the fit would need about "
+         << m.bytes / double(1ull << 30) << " GiB for its neighbour graph and factor, above the limit of "
+         << options.memory_limit_bytes / double(1ull << 30)
+         << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius: the compact support "
+            "is what keeps the system sparse";
+      throw ResourceLimit(os.str());
+    }
+  }
   const bool brute = n <= kBruteForceGraph;
   if (!brute && !st->grid().usable) st->index();
   stats.seconds_index = seconds_since(t0);
@@ -495,6 +510,29 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
     throw IllConditioned(os.str());
   }
   return SpaceMap(std::move(s));
+}
+
+FitMemoryEstimate estimate_fit_memory(std::span<const Vec3> sources, double radius) {
+  const std::size_t n = sources.size();
+  FitMemoryEstimate e;
+  if (n < 2) return e;
+  // Neighbours of a seeded sample of sources, counted against all of them (O(256 n)).
+  const std::size_t samples = std::min<std::size_t>(n, 256);
+  std::mt19937_64 rng(12345);
+  const double r2 = radius * radius;
+  double count = 0;
+  for (std::size_t k = 0; k < samples; ++k) {
+    const std::size_t i = samples == n ? k : std::size_t(rng() % n);
+    const Vec3& p = sources[i];
+    for (std::size_t j = 0; j < n; ++j) count += j != i && (sources[j] - p).squaredNorm() < r2;
+  }
+  e.mean_neighbors = count / double(samples);
+  const double nd = double(n), pairs = nd * e.mean_neighbors / 2;
+  // Graph: both directions, a 4-byte index and an 8-byte squared distance each. Factor: at least the
+  // matrix's lower triangle, and for a dense-ish matrix the full N^2 / 2 of the envelope.
+  const double graph = 2 * pairs * 12, factor = std::max(8 * (pairs + nd), e.mean_neighbors > nd / 4 ? 4 * nd * nd : 0.0);
+  e.bytes = graph + factor;
+  return e;
 }
 
 double SpaceMap::condition_estimate() const { return s_->st->condition(); }
