@@ -104,6 +104,8 @@ using Clock = std::chrono::steady_clock;
 constexpr std::size_t kEvalListBytes = std::size_t(512) << 20;
 /// Up to this many sources the fit tests every pair for the neighbour graph (cheaper than the grid).
 constexpr std::size_t kBruteForceGraph = 256;
+/// Coordinates (and so distances) stay below this, so that their squares are finite.
+constexpr double kMaxCoordinate = 1e150;
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
@@ -114,9 +116,10 @@ int polynomial_terms(Polynomial p) {
 
 void check_points(std::span<const Vec3> pts, const char* what) {
   for (std::size_t i = 0; i < pts.size(); ++i)
-    if (!pts[i].allFinite()) {
+    if (!pts[i].allFinite() || pts[i].cwiseAbs().maxCoeff() > kMaxCoordinate) {
       std::ostringstream os;
-      os << what << " " << i << " is not finite: (" << pts[i].x() << ", " << pts[i].y() << ", " << pts[i].z() << ")";
+      os << what << " " << i << (pts[i].allFinite() ? " is out of range (a coordinate beyond 1e150)" : " is not finite")
+         << ": (" << pts[i].x() << ", " << pts[i].y() << ", " << pts[i].z() << ")";
       throw InvalidInput(os.str());
     }
 }
@@ -253,9 +256,10 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
     throw InvalidInput(os.str());
   }
   if (sources.empty()) throw InvalidInput("control points: none given (need at least 1)");
-  if (!(options.radius > 0.0) || !std::isfinite(options.radius) || !std::isfinite(1.0 / options.radius)) {
+  // Squared distances and radii must stay normal doubles: R in [1e-150, 1e150].
+  if (!(options.radius >= 1e-150 && options.radius <= 1e150)) {
     std::ostringstream os;
-    os << "radius must be a positive finite number, got " << options.radius;
+    os << "radius must be a positive finite number in [1e-150, 1e150], got " << options.radius;
     throw InvalidInput(os.str());
   }
   check_points(sources, "source");

@@ -163,7 +163,12 @@ TEST(BadInput, LibraryApi) {
   };
   expect([&] { SpaceMap::fit({}, {}, FitOptions{1.0}); }, "none given");
   expect([&] { SpaceMap::fit(s, std::vector<Vec3>{d[0]}, FitOptions{1.0}); }, "2 sources but 1 destinations");
-  expect([&] { SpaceMap::fit(s, d, FitOptions{-1.0}); }, "radius must be a positive finite number, got -1");
+  expect([&] { SpaceMap::fit(s, d, FitOptions{-1.0}); }, "radius must be a positive finite number in [1e-150, 1e150], got -1");
+  // Found by fuzz_spacemap: with R = 1e-304, R^2 underflows to 0 and two sources at one point passed
+  // as different ones.
+  expect([&] { SpaceMap::fit(std::vector<Vec3>{s[0], s[0]}, d, FitOptions{1e-304}); }, "[1e-150, 1e150]");
+  expect([&] { SpaceMap::fit(std::vector<Vec3>{Vec3(1e200, 0, 0), s[1]}, d, FitOptions{1.0}); },
+         "source 0 is out of range");
   expect([&] { SpaceMap::fit(s, d, FitOptions{NAN}); }, "radius must be a positive finite number");
   expect([&] { SpaceMap::fit(std::vector<Vec3>{Vec3(0, NAN, 0), s[1]}, d, FitOptions{1.0}); }, "source 0 is not finite");
   expect([&] { SpaceMap::fit(s, std::vector<Vec3>{d[0], Vec3(INFINITY, 0, 0)}, FitOptions{1.0}); },
