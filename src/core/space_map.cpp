@@ -488,9 +488,12 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
       v += wendland(st.options.kernel, std::sqrt(d2[e]) * inv_r) * s->alpha.row(nb[e]).transpose();
     v += s->polynomial_at(st.sources[i]);
     const Vec3 g = destinations[i] - st.sources[i];
-    res = std::max(res, (v - g).norm());
+    const double e = (v - g).norm();
+    res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
     gmax = std::max(gmax, g.norm());
   }
+  // A solve that overflowed leaves NaN or infinite coefficients (std::max above would drop a NaN).
+  if (!s->alpha.allFinite() || !s->beta.allFinite()) res = std::numeric_limits<double>::infinity();
   stats.residual_max = res;
   stats.residual_relative = gmax > 0.0 ? res / gmax : res;
   stats.seconds_residual = seconds_since(t0);
