@@ -11,7 +11,7 @@ shift || true
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(controls deformation scene spacemap)
 jobs=${JOBS:-$(nproc)}
-command -v clang++ > /dev/null || { echo "fuzz: clang++ is needed (apt-get install clang)"; exit 2; }
+command -v clang++ > /dev/null || { echo "fuzz: clang++ is needed (bash scripts/install-deps.sh)"; exit 2; }
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCSRBF_FUZZ=ON \
   -DCSRBF_BUILD_APPS=OFF -DCSRBF_BUILD_GUI=OFF -DCSRBF_BUILD_TESTS=OFF -DCSRBF_BUILD_BENCH=OFF \
   -DCSRBF_BUILD_PYTHON=OFF -DCSRBF_BUILD_RENDER=OFF -DCSRBF_BUILD_VTK=OFF -DCSRBF_WITH_AVX512=ON > /dev/null

@@ -21,6 +21,7 @@ packages=(
   pybind11-dev python3-dev python3-numpy   # the Python module (Debian's /usr/bin/python3)
   python3-vtk9           # vtkCSRBFTransform wrapped for VTK's Python (VTK's wrapping tools and runtime)
   python3-scipy python3-pip python3-setuptools python3-wheel   # Python tests: SciPy; the offline wheel
+  clang libclang-rt-14-dev   # scripts/fuzz.sh: libFuzzer targets (not needed to build or test)
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png
 )
 

@@ -26,6 +26,9 @@ class NeighborIndex {
   /// Throws InvalidInput (a std::invalid_argument) otherwise, or when R is below 1e-9 of the points'
   /// extent.
   NeighborIndex(std::span<const Vec3> points, double radius);
+  /// The extent rule above on its own: throws InvalidInput when the box [lo, hi] spans more than
+  /// 1e9 radii (a grid of cells of side R could not index it). `what` names the points in the message.
+  static void check_extent(const Vec3& lo, const Vec3& hi, double radius, const char* what);
 
   std::size_t size() const noexcept { return points_.size(); }
   bool empty() const noexcept { return points_.empty(); }

@@ -10,6 +10,15 @@
 
 namespace csrbf {
 
+void NeighborIndex::check_extent(const Vec3& lo, const Vec3& hi, double radius, const char* what) {
+  if ((hi - lo).maxCoeff() / radius > 1e9) {
+    std::ostringstream os;
+    os << "radius " << radius << " is too small for " << what << " spanning " << (hi - lo).maxCoeff()
+       << " (more than 1e9 radii): scale the points or raise the radius";
+    throw InvalidInput(os.str());
+  }
+}
+
 NeighborIndex::NeighborIndex(std::span<const Vec3> points, double radius) : radius_(radius) {
   if (!(radius > 0.0) || !std::isfinite(radius)) {
     std::ostringstream os;
@@ -28,15 +37,9 @@ NeighborIndex::NeighborIndex(std::span<const Vec3> points, double radius) : radi
     lo = lo.cwiseMin(points[i]);
     hi = hi.cwiseMax(points[i]);
   }
+  check_extent(lo, hi, radius, "points");
   origin_ = lo;
   inv_cell_ = 1.0 / radius;
-  const double cells = (hi - lo).maxCoeff() * inv_cell_;
-  if (cells > 1e9) {
-    std::ostringstream os;
-    os << "radius " << radius << " is too small for points spanning " << (hi - lo).maxCoeff()
-       << " (more than 1e9 radii): scale the points or raise the radius";
-    throw InvalidInput(os.str());
-  }
   const std::size_t n = points.size();
   std::vector<Eigen::Vector3i> cell(n);
   for (std::size_t i = 0; i < n; ++i) {

@@ -271,12 +271,7 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
       lo = lo.cwiseMin(p);
       hi = hi.cwiseMax(p);
     }
-    if ((hi - lo).maxCoeff() / options.radius > 1e9) {
-      std::ostringstream os;
-      os << "radius " << options.radius << " is too small for sources spanning " << (hi - lo).maxCoeff()
-         << " (more than 1e9 radii): scale the points or raise the radius";
-      throw InvalidInput(os.str());
-    }
+    NeighborIndex::check_extent(lo, hi, options.radius, "sources");
   }
   const std::size_t n = sources.size();
   const int terms = polynomial_terms(options.polynomial);
