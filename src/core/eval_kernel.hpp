@@ -14,16 +14,19 @@
 namespace csrbf::detail {
 namespace {  // NOLINT(google-build-namespaces): see above
 
-/// phi(r) for r in [0, 1], branch-free; every member is exactly 0 at r = 1. V is a scalar or a GCC
-/// vector of S (the vector extensions broadcast the scalar constants).
+/// phi(r) / kLead<K> for r in [0, 1], branch-free; every member is exactly 0 at r = 1. V is a
+/// scalar or a GCC vector of S (the vector extensions broadcast the scalar constants). Dividing by
+/// the leading coefficient of the polynomial factor makes that factor monic, which saves a multiply
+/// per candidate (C2: (1-r)^4 (r + 1/4) instead of (1-r)^4 (4r + 1)); EvalData's coefficients carry
+/// the factor instead (phi_lead()).
 template <Kernel K, class V, class S = V>
 inline __attribute__((always_inline)) V phi(V r) {
   const V s = S(1) - r;
   const V s2 = s * s;
   if constexpr (K == Kernel::C0) return s2;
-  else if constexpr (K == Kernel::C2) return (s2 * s2) * (S(4) * r + S(1));
-  else if constexpr (K == Kernel::C4) return (s2 * s2 * s2) * ((S(35) * r + S(18)) * r + S(3));
-  else return (s2 * s2) * (s2 * s2) * (((S(32) * r + S(25)) * r + S(8)) * r + S(1));
+  else if constexpr (K == Kernel::C2) return (s2 * s2) * (r + S(0.25));
+  else if constexpr (K == Kernel::C4) return (s2 * s2 * s2) * ((r + S(18.0 / 35.0)) * r + S(3.0 / 35.0));
+  else return (s2 * s2) * (s2 * s2) * (((r + S(25.0 / 32.0)) * r + S(0.25)) * r + S(1.0 / 32.0));
 }
 
 /// Runs sum a cell's run [b, e) (a multiple of kLanes long) for kGroup points at once: the
@@ -32,7 +35,62 @@ inline __attribute__((always_inline)) V phi(V r) {
 /// a short loop at every vertex.) Points that do not share a cell use a group of one.
 constexpr std::size_t kGroup = 4;
 
+/// One call of evaluate(): the grid's geometry, the points and what to write.
+template <class T>
+struct Block {
+  const EvalGrid& g;
+  const EvalData<T>& a;
+  const PolynomialPart* poly;
+  const T* in;
+  T* out;
+  double phase;
+  bool add_point;
+  double inv_r = 1.0 / g.radius;
+  static constexpr std::size_t none = ~std::size_t(0);
+
+  /// The cell of point i; none outside the grid (the sources' box grown by R: no source within R)
+  /// or for NaN.
+  std::size_t cell_of(std::size_t i) const {
+    const double fx = std::floor((double(in[3 * i]) - g.origin.x()) * g.inv_h),
+                 fy = std::floor((double(in[3 * i + 1]) - g.origin.y()) * g.inv_h),
+                 fz = std::floor((double(in[3 * i + 2]) - g.origin.z()) * g.inv_h);
+    if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(g.nx) && fy < double(g.ny) && fz < double(g.nz))
+      return std::size_t((std::int64_t(fz) * g.ny + std::int64_t(fy)) * g.nx + std::int64_t(fx));
+    return none;
+  }
+  /// Point i in units of R, as EvalData stores the sources: double absolute, float relative to the
+  /// grid's origin.
+  void local(std::size_t i, T (&t)[3]) const {
+    constexpr bool dbl = std::is_same_v<T, double>;
+    for (int c = 0; c < 3; ++c)
+      t[c] = T((dbl ? double(in[3 * i + c]) : double(in[3 * i + c]) - g.origin[c]) * inv_r);
+  }
+  /// Writes point i's output from its CSRBF sum d (the polynomial part added here).
+  void finish(std::size_t i, const T (&d)[3]) const {
+    const double px = double(in[3 * i]), py = double(in[3 * i + 1]), pz = double(in[3 * i + 2]);
+    double d0 = double(d[0]), d1 = double(d[1]), d2 = double(d[2]);
+    if (poly) {
+      const double u0 = (px - poly->center.x()) * poly->inv_scale, u1 = (py - poly->center.y()) * poly->inv_scale,
+                   u2 = (pz - poly->center.z()) * poly->inv_scale;
+      d0 += poly->b[0][0] + u0 * poly->b[1][0] + u1 * poly->b[2][0] + u2 * poly->b[3][0];
+      d1 += poly->b[0][1] + u0 * poly->b[1][1] + u1 * poly->b[2][1] + u2 * poly->b[3][1];
+      d2 += poly->b[0][2] + u0 * poly->b[1][2] + u1 * poly->b[2][2] + u2 * poly->b[3][2];
+    }
+    if (add_point) {
+      out[3 * i] = T(px + phase * d0);
+      out[3 * i + 1] = T(py + phase * d1);
+      out[3 * i + 2] = T(pz + phase * d2);
+    } else {
+      out[3 * i] = T(d0);
+      out[3 * i + 1] = T(d1);
+      out[3 * i + 2] = T(d2);
+    }
+  }
+};
+
 /// The portable run: plain loops with one accumulator per lane, which the compiler vectorises.
+/// A Run provides cells() (the cells of n points), group() (kGroup points that share a cell's run)
+/// and one() (a single point); evaluate_block() drives them.
 struct PortableRun {
   template <Kernel K, class T, std::size_t P>
   static inline __attribute__((always_inline)) void sum(const EvalData<T>& a, std::uint32_t b, std::uint32_t e,
@@ -64,80 +122,65 @@ struct PortableRun {
       for (std::size_t c = 0; c < 3; ++c)
         for (std::size_t l = 0; l < L; ++l) d[p][c] += acc[p][c][l];
   }
+
+  template <class T>
+  static inline __attribute__((always_inline)) void cells(const Block<T>& k, std::size_t first, std::size_t n,
+                                                          std::size_t* cell) {
+    for (std::size_t i = 0; i < n; ++i) cell[i] = k.cell_of(first + i);
+  }
+
+  /// Points i .. i + kGroup - 1, all in the cell whose run is [b, e) (not empty).
+  template <Kernel K, class Run, class T>
+  static inline __attribute__((always_inline)) void group(const Block<T>& k, std::uint32_t b, std::uint32_t e,
+                                                          std::size_t i) {
+    T t[kGroup][3], d[kGroup][3] = {};
+    for (std::size_t p = 0; p < kGroup; ++p) k.local(i + p, t[p]);
+    Run::template sum<K, T, kGroup>(k.a, b, e, t, d);
+    for (std::size_t p = 0; p < kGroup; ++p) k.finish(i + p, d[p]);
+  }
+
+  /// Point i, whose cell's run is [b, e) (may be empty).
+  template <Kernel K, class Run, class T>
+  static inline __attribute__((always_inline)) void one(const Block<T>& k, std::uint32_t b, std::uint32_t e,
+                                                        std::size_t i) {
+    T t[1][3], d[1][3] = {};
+    if (b != e) {
+      k.local(i, t[0]);
+      Run::template sum<K, T, 1>(k.a, b, e, t, d);
+    }
+    k.finish(i, d[0]);
+  }
 };
 
-/// Points [begin, end) of in/out through the cell lists; Run sums one cell's run.
+/// Points [begin, end) of in/out through the cell lists.
 template <Kernel K, class T, class Run>
 inline __attribute__((always_inline)) void evaluate_block(const EvalGrid& g, const EvalData<T>& a,
                                                           const PolynomialPart* poly, const T* in, T* out,
                                                           std::size_t begin, std::size_t end, double phase,
                                                           bool add_point) {
+  const Block<T> blk{g, a, poly, in, out, phase, add_point};
   const std::uint32_t* cb = g.begin.data();
-  const double inv_h = g.inv_h;
-  const double inv_r = 1.0 / g.radius;
-  const std::int64_t nx = g.nx, ny = g.ny, nz = g.nz;
-  constexpr std::size_t none = ~std::size_t(0);
-  // The cell of a point; none outside the grid (the sources' box grown by R: no source within R)
-  // or for NaN.
-  const auto cell_of = [&](std::size_t i) {
-    const double fx = std::floor((double(in[3 * i]) - g.origin.x()) * inv_h),
-                 fy = std::floor((double(in[3 * i + 1]) - g.origin.y()) * inv_h),
-                 fz = std::floor((double(in[3 * i + 2]) - g.origin.z()) * inv_h);
-    if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(nx) && fy < double(ny) && fz < double(nz))
-      return std::size_t((std::int64_t(fz) * ny + std::int64_t(fy)) * nx + std::int64_t(fx));
-    return none;
-  };
-  // In units of R (EvalData's coordinates): double absolute, float relative to the grid's origin.
-  constexpr bool dbl = std::is_same_v<T, double>;
-  const auto local = [&](std::size_t i, T (&t)[3]) {
-    for (int c = 0; c < 3; ++c) t[c] = T((dbl ? double(in[3 * i + c]) : double(in[3 * i + c]) - g.origin[c]) * inv_r);
-  };
-  const auto finish = [&](std::size_t i, const T (&d)[3]) {
-    const double px = double(in[3 * i]), py = double(in[3 * i + 1]), pz = double(in[3 * i + 2]);
-    double d0 = double(d[0]), d1 = double(d[1]), d2 = double(d[2]);
-    if (poly) {
-      const double u0 = (px - poly->center.x()) * poly->inv_scale, u1 = (py - poly->center.y()) * poly->inv_scale,
-                   u2 = (pz - poly->center.z()) * poly->inv_scale;
-      d0 += poly->b[0][0] + u0 * poly->b[1][0] + u1 * poly->b[2][0] + u2 * poly->b[3][0];
-      d1 += poly->b[0][1] + u0 * poly->b[1][1] + u1 * poly->b[2][1] + u2 * poly->b[3][1];
-      d2 += poly->b[0][2] + u0 * poly->b[1][2] + u1 * poly->b[2][2] + u2 * poly->b[3][2];
-    }
-    if (add_point) {
-      out[3 * i] = T(px + phase * d0);
-      out[3 * i + 1] = T(py + phase * d1);
-      out[3 * i + 2] = T(pz + phase * d2);
-    } else {
-      out[3 * i] = T(d0);
-      out[3 * i + 1] = T(d1);
-      out[3 * i + 2] = T(d2);
-    }
-  };
+  constexpr std::size_t none = Block<T>::none;
   // Cells are found for a chunk of points first (a loop without branches on data), then the points
   // go through their runs: groups of kGroup when consecutive points share a cell, else one by one.
   constexpr std::size_t kChunk = 256;
   std::size_t cells[kChunk + kGroup];
   for (std::size_t c0 = begin; c0 < end; c0 += kChunk) {
     const std::size_t n = end - c0 < kChunk ? end - c0 : kChunk;
-    for (std::size_t k = 0; k < n; ++k) cells[k] = cell_of(c0 + k);
+    Run::cells(blk, c0, n, cells);
     for (std::size_t k = n; k < n + kGroup; ++k) cells[k] = none;  // a group never runs past the chunk
     std::size_t k = 0;
     while (k < n) {
       const std::size_t cell = cells[k];
-      if (cell != none && cells[k + 1] == cell && cells[k + 2] == cell && cells[k + 3] == cell) {
-        static_assert(kGroup == 4, "the test above checks 4 cells");
-        T t[kGroup][3], d[kGroup][3] = {};
-        for (std::size_t p = 0; p < kGroup; ++p) local(c0 + k + p, t[p]);
-        if (cb[cell] != cb[cell + 1]) Run::template sum<K, T, kGroup>(a, cb[cell], cb[cell + 1], t, d);
-        for (std::size_t p = 0; p < kGroup; ++p) finish(c0 + k + p, d[p]);
+      static_assert(kGroup == 4, "the test below checks 4 cells");
+      if (cell != none && cells[k + 1] == cell && cells[k + 2] == cell && cells[k + 3] == cell &&
+          cb[cell] != cb[cell + 1]) {
+        Run::template group<K, Run>(blk, cb[cell], cb[cell + 1], c0 + k);
         k += kGroup;
         continue;
       }
-      T t[1][3], d[1][3] = {};
-      if (cell != none && cb[cell] != cb[cell + 1]) {
-        local(c0 + k, t[0]);
-        Run::template sum<K, T, 1>(a, cb[cell], cb[cell + 1], t, d);
-      }
-      finish(c0 + k, d[0]);
+      if (cell != none) Run::template one<K, Run>(blk, cb[cell], cb[cell + 1], c0 + k);
+      else Run::template one<K, Run>(blk, 0, 0, c0 + k);
       ++k;
     }
   }

@@ -126,7 +126,8 @@ void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::si
 }
 
 template <class T>
-void EvalData<T>::assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha) {
+void EvalData<T>::assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha, Kernel kernel) {
+  const double lead = phi_lead(kernel);
   const std::size_t total = g.source.size(), n = sources.size();
   constexpr T far = T(1e18);  // inert padding: r clips to 1 and phi(1) = 0
   const double inv_r = 1.0 / g.radius;
@@ -137,7 +138,7 @@ void EvalData<T>::assign(const EvalGrid& g, std::span<const Vec3> sources, const
     if (s == n) continue;
     const Vec3 p = (std::is_same_v<T, double> ? sources[s] : Vec3(sources[s] - g.origin)) * inv_r;
     x[e] = T(p.x()), y[e] = T(p.y()), z[e] = T(p.z());
-    ax[e] = T(alpha[3 * s]), ay[e] = T(alpha[3 * s + 1]), az[e] = T(alpha[3 * s + 2]);
+    ax[e] = T(lead * alpha[3 * s]), ay[e] = T(lead * alpha[3 * s + 1]), az[e] = T(lead * alpha[3 * s + 2]);
   }
 }
 template struct EvalData<float>;

@@ -47,14 +47,21 @@ struct EvalGrid {
   std::size_t bytes() const noexcept { return source.size() * 4 + begin.size() * 4; }
 };
 
+/// The leading coefficient of the polynomial factor of phi (4 for C2's 4r + 1), which the evaluation
+/// loops fold into the coefficients.
+constexpr double phi_lead(Kernel k) noexcept {
+  return k == Kernel::C2 ? 4.0 : k == Kernel::C4 ? 35.0 : k == Kernel::C6 ? 32.0 : 1.0;
+}
+
 /// The runs of EvalGrid copied out: coordinates in units of R (double: absolute, as the simple
 /// path; float: relative to the grid's origin, to keep digits) and coefficients alpha, by entry.
 /// Padding entries lie far away (r clips to 1, phi(1) = 0) with zero coefficients.
 template <class T>
 struct EvalData {
   std::vector<T> x, y, z, ax, ay, az;
-  /// alpha: N x 3 row-major, the input order of the sources.
-  void assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha);
+  /// alpha: N x 3 row-major, the input order of the sources. The coefficients are stored times
+  /// phi_lead(kernel), the factor the evaluation loops leave out of phi.
+  void assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha, Kernel kernel);
   std::size_t bytes() const noexcept { return x.size() * 6 * sizeof(T); }
 };
 extern template struct EvalData<float>;

@@ -69,15 +69,17 @@ template <> struct V8<float> {
   }
 };
 
-struct Avx512Run {
+struct Avx512Run : PortableRun {
+  /// The CSRBF sums of P points over the run [b, e), left in one vector per point and component.
   template <Kernel K, class T, std::size_t P>
-  static inline __attribute__((always_inline)) void sum(const EvalData<T>& a, std::uint32_t b, std::uint32_t e,
-                                                        const T (&t)[P][3], T (&d)[P][3]) {
+  static inline __attribute__((always_inline)) void accumulate(const EvalData<T>& a, std::uint32_t b,
+                                                               std::uint32_t e, const T (&t)[P][3],
+                                                               typename V8<T>::v (&acc)[P][3]) {
     static_assert(EvalGrid::kLanes == 8, "one vector of 8 lanes a block");
     using O = V8<T>;
     using v = typename O::v;
     const v one = O::set1(T(1)), tiny = O::set1(O::tiny);
-    v tx[P], ty[P], tz[P], acc[P][3];
+    v tx[P], ty[P], tz[P];
 #pragma GCC unroll 4
     for (std::size_t p = 0; p < P; ++p) {
       tx[p] = O::set1(t[p][0]), ty[p] = O::set1(t[p][1]), tz[p] = O::set1(t[p][2]);
@@ -99,9 +101,133 @@ struct Avx512Run {
         acc[p][2] = O::fmadd(f, az, acc[p][2]);
       }
     }
+  }
+
+  template <Kernel K, class T, std::size_t P>
+  static inline __attribute__((always_inline)) void sum(const EvalData<T>& a, std::uint32_t b, std::uint32_t e,
+                                                        const T (&t)[P][3], T (&d)[P][3]) {
+    typename V8<T>::v acc[P][3];
+    accumulate<K, T, P>(a, b, e, t, acc);
 #pragma GCC unroll 4
     for (std::size_t p = 0; p < P; ++p)
-      for (std::size_t c = 0; c < 3; ++c) d[p][c] += O::hsum(acc[p][c]);
+      for (std::size_t c = 0; c < 3; ++c) d[p][c] += V8<T>::hsum(acc[p][c]);
+  }
+
+  /// The cells of points first .. first + n - 1: 8 at a time in vectors, with the same arithmetic as
+  /// Block::cell_of (which takes the rest).
+  template <class T>
+  static inline __attribute__((always_inline)) void cells(const Block<T>& k, std::size_t first, std::size_t n,
+                                                          std::size_t* cell) {
+    const EvalGrid& g = k.g;
+    const __m512d ox = _mm512_set1_pd(g.origin.x()), oy = _mm512_set1_pd(g.origin.y()),
+                  oz = _mm512_set1_pd(g.origin.z()), ih = _mm512_set1_pd(g.inv_h), zero = _mm512_setzero_pd();
+    const __m512d nx = _mm512_set1_pd(double(g.nx)), ny = _mm512_set1_pd(double(g.ny)),
+                  nz = _mm512_set1_pd(double(g.nz));
+    const __m512i inx = _mm512_set1_epi64(g.nx), iny = _mm512_set1_epi64(g.ny),
+                  outside = _mm512_set1_epi64(std::int64_t(Block<T>::none));
+    // x y z of 8 points from 24 interleaved values v0 | v1 | v2: two permutes each.
+    const __m512i x01 = _mm512_setr_epi64(0, 3, 6, 9, 12, 15, 0, 0), x2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 5, 10, 13);
+    const __m512i y01 = _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), y2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14);
+    const __m512i z01 = _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0), z2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15);
+    constexpr int down = _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC;
+    std::size_t i = 0;
+    for (; i + 8 <= n; i += 8) {
+      const T* p = k.in + 3 * (first + i);
+      __m512d v0, v1, v2;
+      if constexpr (std::is_same_v<T, double>) {
+        v0 = _mm512_loadu_pd(p), v1 = _mm512_loadu_pd(p + 8), v2 = _mm512_loadu_pd(p + 16);
+      } else {
+        v0 = _mm512_cvtps_pd(_mm256_loadu_ps(p)), v1 = _mm512_cvtps_pd(_mm256_loadu_ps(p + 8));
+        v2 = _mm512_cvtps_pd(_mm256_loadu_ps(p + 16));
+      }
+      const __m512d x = _mm512_permutex2var_pd(_mm512_permutex2var_pd(v0, x01, v1), x2, v2);
+      const __m512d y = _mm512_permutex2var_pd(_mm512_permutex2var_pd(v0, y01, v1), y2, v2);
+      const __m512d z = _mm512_permutex2var_pd(_mm512_permutex2var_pd(v0, z01, v1), z2, v2);
+      const __m512d fx = _mm512_roundscale_pd(_mm512_mul_pd(_mm512_sub_pd(x, ox), ih), down);
+      const __m512d fy = _mm512_roundscale_pd(_mm512_mul_pd(_mm512_sub_pd(y, oy), ih), down);
+      const __m512d fz = _mm512_roundscale_pd(_mm512_mul_pd(_mm512_sub_pd(z, oz), ih), down);
+      // Ordered comparisons: false for NaN.
+      __mmask8 in = _mm512_cmp_pd_mask(fx, zero, _CMP_GE_OQ);
+      in = _mm512_mask_cmp_pd_mask(in, fy, zero, _CMP_GE_OQ);
+      in = _mm512_mask_cmp_pd_mask(in, fz, zero, _CMP_GE_OQ);
+      in = _mm512_mask_cmp_pd_mask(in, fx, nx, _CMP_LT_OQ);
+      in = _mm512_mask_cmp_pd_mask(in, fy, ny, _CMP_LT_OQ);
+      in = _mm512_mask_cmp_pd_mask(in, fz, nz, _CMP_LT_OQ);
+      const __m512i c = _mm512_add_epi64(
+          _mm512_mullo_epi64(_mm512_add_epi64(_mm512_mullo_epi64(_mm512_cvttpd_epi64(fz), iny), _mm512_cvttpd_epi64(fy)), inx),
+          _mm512_cvttpd_epi64(fx));
+      static_assert(sizeof(std::size_t) == 8, "cells are stored as 64-bit lanes");
+      _mm512_storeu_si512(cell + i, _mm512_mask_mov_epi64(outside, in, c));
+    }
+    for (; i < n; ++i) cell[i] = k.cell_of(first + i);
+  }
+
+  /// Double precision: the 12 sums of a group are reduced together (a transposed tree of shuffles,
+  /// about a third of 12 separate reductions) into the layout of the output, x0 y0 z0 x1 ... z3,
+  /// and finished as two vectors. Float takes the generic path.
+  template <Kernel K, class Run, class T>
+  static inline __attribute__((always_inline)) void group(const Block<T>& k, std::uint32_t b, std::uint32_t e,
+                                                          std::size_t i) {
+    if constexpr (!std::is_same_v<T, double>) {
+      PortableRun::group<K, Run>(k, b, e, i);
+    } else {
+      static_assert(kGroup == 4, "12 sums: 4 points, 3 components");
+      double t[kGroup][3];
+      for (std::size_t p = 0; p < kGroup; ++p) k.local(i + p, t[p]);
+      __m512d acc[kGroup][3];
+      accumulate<K, double, kGroup>(k.a, b, e, t, acc);
+      const __m512d* s = &acc[0][0];  // sum m of the output: s[m], m = 3 point + component
+      // Step 1: pairs (a, b) -> 128-bit lanes [a', a'', b', b''] whose halves sum to a and b.
+      const auto fold4 = [](__m512d a, __m512d b) {
+        return _mm512_add_pd(_mm512_shuffle_f64x2(a, b, 0x44), _mm512_shuffle_f64x2(a, b, 0xEE));
+      };
+      // Step 2: two of those -> one 128-bit lane (2 partial sums) per output.
+      const auto fold2 = [](__m512d a, __m512d b) {
+        return _mm512_add_pd(_mm512_shuffle_f64x2(a, b, 0x88), _mm512_shuffle_f64x2(a, b, 0xDD));
+      };
+      const __m512d even = fold2(fold4(s[0], s[2]), fold4(s[4], s[6]));  // outputs 0 2 4 6
+      const __m512d odd = fold2(fold4(s[1], s[3]), fold4(s[5], s[7]));   // outputs 1 3 5 7
+      const __m512d last = fold2(fold4(s[8], s[9]), fold4(s[10], s[11]));  // outputs 8 9 10 11
+      // Step 3: the pairs' halves; the first 8 outputs interleave into order.
+      __m512d lo = _mm512_add_pd(_mm512_unpacklo_pd(even, odd), _mm512_unpackhi_pd(even, odd));
+      __m512d hi = _mm512_permutexvar_pd(_mm512_setr_epi64(0, 2, 4, 6, 0, 2, 4, 6),
+                                         _mm512_add_pd(last, _mm512_permute_pd(last, 0x55)));
+      const double* in = k.in + 3 * i;
+      const __m512d in_lo = _mm512_loadu_pd(in), in_hi = _mm512_castpd256_pd512(_mm256_loadu_pd(in + 8));
+      if (k.poly) {
+        // As Block::finish: b0 + u0 b1 + u1 b2 + u2 b3, u = (p - center) / scale, per output lane.
+        const PolynomialPart& q = *k.poly;
+        const __m512i comp_lo = _mm512_setr_epi64(0, 1, 2, 0, 1, 2, 0, 1), comp_hi = _mm512_setr_epi64(2, 0, 1, 2, 2, 2, 2, 2);
+        const __m512d is = _mm512_set1_pd(q.inv_scale);
+        __m512d plo, phi_;
+        for (int r = 0; r < 4; ++r) {
+          const __m512d row = _mm512_castpd256_pd512(_mm256_setr_pd(q.b[r][0], q.b[r][1], q.b[r][2], 0.0));
+          const __m512d blo = _mm512_permutexvar_pd(comp_lo, row), bhi = _mm512_permutexvar_pd(comp_hi, row);
+          if (r == 0) {
+            plo = blo, phi_ = bhi;
+            continue;
+          }
+          const int c = r - 1;  // the coordinate that multiplies row r
+          const __m512i ilo = _mm512_add_epi64(_mm512_setr_epi64(0, 0, 0, 3, 3, 3, 6, 6), _mm512_set1_epi64(c));
+          const __m512i ihi = _mm512_add_epi64(_mm512_setr_epi64(6, 9, 9, 9, 9, 9, 9, 9), _mm512_set1_epi64(c));
+          const __m512d ctr = _mm512_set1_pd(q.center[c]);
+          const __m512d ulo = _mm512_mul_pd(_mm512_sub_pd(_mm512_permutex2var_pd(in_lo, ilo, in_hi), ctr), is);
+          const __m512d uhi = _mm512_mul_pd(_mm512_sub_pd(_mm512_permutex2var_pd(in_lo, ihi, in_hi), ctr), is);
+          plo = _mm512_add_pd(plo, _mm512_mul_pd(ulo, blo));
+          phi_ = _mm512_add_pd(phi_, _mm512_mul_pd(uhi, bhi));
+        }
+        lo = _mm512_add_pd(lo, plo);
+        hi = _mm512_add_pd(hi, phi_);
+      }
+      if (k.add_point) {
+        const __m512d ph = _mm512_set1_pd(k.phase);
+        lo = _mm512_add_pd(in_lo, _mm512_mul_pd(ph, lo));
+        hi = _mm512_add_pd(in_hi, _mm512_mul_pd(ph, hi));
+      }
+      double* out = k.out + 3 * i;
+      _mm512_storeu_pd(out, lo);
+      _mm256_storeu_pd(out + 8, _mm512_castpd512_pd256(hi));
+    }
   }
 };
 

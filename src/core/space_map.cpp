@@ -233,7 +233,7 @@ struct SpaceMap::State {
     }();
     std::call_once(flag, [&] {
       const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> rows = alpha;
-      data.assign(st->grid(), st->sources, rows.data());
+      data.assign(st->grid(), st->sources, rows.data(), st->options.kernel);
     });
     return data;
   }

@@ -13,8 +13,10 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
+#include <limits>
 #include <random>
-#include <tuple>
+#include <string>
 
 using namespace csrbf;
 
@@ -55,16 +57,14 @@ void for_each_loop(F f) {
   detail::set_eval_isa(saved);
 }
 
-/// Probes in three orders: random (mostly one point a cell), sorted into cells of side 0.04 (runs of
-/// points in one cell, as a mesh stores them: the grouped path), and the sources themselves (r = 0).
+/// Probes in three orders: random (mostly one point a cell), in tight clusters of 8 (runs of points
+/// in one cell, as a mesh stores them: the grouped path), and the sources themselves (r = 0).
 std::vector<Vec3> probe_points(const std::vector<Vec3>& sources, std::mt19937& rng) {
   auto random = random_points(3000, rng, -0.3, 1.3);  // inside, at the edge and outside the grid
-  auto sorted = random_points(3000, rng, -0.3, 1.3);
-  const auto key = [](const Vec3& p) {
-    return std::tuple(std::floor(p.z() / 0.04), std::floor(p.y() / 0.04), std::floor(p.x() / 0.04));
-  };
-  std::sort(sorted.begin(), sorted.end(), [&](const Vec3& a, const Vec3& b) { return key(a) < key(b); });
-  random.insert(random.end(), sorted.begin(), sorted.end());
+  const auto centres = random_points(375, rng, -0.3, 1.3);
+  std::uniform_real_distribution<double> jitter(-0.01, 0.01);
+  for (const auto& c : centres)
+    for (int k = 0; k < 8; ++k) random.push_back(c + Vec3(jitter(rng), jitter(rng), jitter(rng)));
   random.insert(random.end(), sources.begin(), sources.end());
   return random;
 }
@@ -98,6 +98,58 @@ TEST(FastPaths, VectorisedEvaluationEqualsTheSimplePath) {
           EXPECT_LT(worst, 1e-13 * std::max(scale, 1.0)) << "n=" << n << " kernel " << kernel_name(k);
         }
     }
+  });
+}
+
+TEST(FastPaths, GroupedApplyWithPhaseAndPolynomial) {
+  // apply() through the grouped path (runs of points in one cell), with a phase and each polynomial
+  // part, in place and not, equals x + t d(x) from the simple path; a NaN point inside a run stays
+  // NaN where the simple path's is, and leaves its neighbours alone.
+  for_each_loop([] {
+    std::mt19937 rng(103);
+    const auto s = random_points(400, rng);
+    const auto d = displaced(s, rng);
+    auto probes = probe_points(s, rng);
+    const std::size_t nan_at = 3000 + 8 * 187 + 2;  // inside a cluster (the grouped path)
+    probes[nan_at] = Vec3(std::numeric_limits<double>::quiet_NaN(), 0.5, 0.5);
+    const auto xyz = flat(probes);
+    const std::vector<float> xyzf(xyz.begin(), xyz.end());
+    const double t = 0.35;
+    for (Kernel k : kKernels)
+      for (Polynomial p : kPolys) {
+        SCOPED_TRACE(std::string(kernel_name(k)) + " polynomial " + std::to_string(int(p)));
+        const SpaceMap map = SpaceMap::fit(s, d, {0.17, k, p});
+        double amax = 0;
+        for (Eigen::Index i = 0; i < map.coefficients().rows(); ++i)
+          amax = std::max(amax, map.coefficients().row(i).cwiseAbs().maxCoeff());
+        std::vector<double> out(xyz.size()), inplace = xyz;
+        std::vector<float> outf(xyz.size());
+        map.apply(xyz.data(), out.data(), probes.size(), t);
+        map.apply(inplace.data(), inplace.data(), probes.size(), t);
+        map.apply(xyzf.data(), outf.data(), probes.size(), t);
+        double worst = 0, worst_f = 0;
+        for (std::size_t i = 0; i < probes.size(); ++i) {
+          const Vec3 expect = probes[i] + t * map.displacement(probes[i]);
+          for (int c = 0; c < 3; ++c) {
+            const double e = expect[c], o = out[3 * i + c];
+            if (std::isnan(e)) {
+              ASSERT_TRUE(std::isnan(o)) << "point " << i;
+              ASSERT_TRUE(std::isnan(outf[3 * i + c])) << "point " << i;
+              continue;
+            }
+            ASSERT_FALSE(std::isnan(o)) << "point " << i;
+            ASSERT_EQ(std::memcmp(&o, &inplace[3 * i + c], sizeof o), 0) << "point " << i;
+            worst = std::max(worst, std::abs(o - e));
+            worst_f = std::max(worst_f, std::abs(double(outf[3 * i + c]) - e));
+          }
+        }
+        EXPECT_TRUE(std::isnan(out[3 * nan_at]));
+        EXPECT_LT(worst, 1e-13 * std::max(amax, 1.0));
+        // float: the input rounded to float (|x| < 1.3: 1.2e-7), the sums within 1e-5 of the largest
+        // coefficient (FloatPathAccuracy) and the output rounded to float.
+        EXPECT_LT(worst_f, 1e-5 * amax + 3e-7);
+        EXPECT_GT(worst_f, 0.0);
+      }
   });
 }
 
