@@ -6,6 +6,7 @@
 
 #include "evaluator.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -49,15 +50,20 @@ struct Block {
   static constexpr std::size_t none = ~std::size_t(0);
 
   /// The cell of point i; none outside the grid (the sources' box grown by R: no source within R)
-  /// or for NaN.
-  std::size_t cell_of(std::size_t i) const {
-    const double fx = std::floor((double(in[3 * i]) - g.origin.x()) * g.inv_h),
-                 fy = std::floor((double(in[3 * i + 1]) - g.origin.y()) * g.inv_h),
-                 fz = std::floor((double(in[3 * i + 2]) - g.origin.z()) * g.inv_h);
+  /// or for NaN. limit: 1 + |p - c| / R for the cell's centre c, rounded up (EvalData::trim).
+  std::size_t cell_of(std::size_t i, double& limit) const {
+    const double ux = (double(in[3 * i]) - g.origin.x()) * g.inv_h, uy = (double(in[3 * i + 1]) - g.origin.y()) * g.inv_h,
+                 uz = (double(in[3 * i + 2]) - g.origin.z()) * g.inv_h;
+    const double fx = std::floor(ux), fy = std::floor(uy), fz = std::floor(uz);
+    const double dx = ux - fx - 0.5, dy = uy - fy - 0.5, dz = uz - fz - 0.5;
+    limit = kLimitSlack + std::sqrt(dx * dx + dy * dy + dz * dz) * h_over_r;
     if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(g.nx) && fy < double(g.ny) && fz < double(g.nz))
       return std::size_t((std::int64_t(fz) * g.ny + std::int64_t(fy)) * g.nx + std::int64_t(fx));
     return none;
   }
+  /// 1 plus a margin far above the rounding of the cell coordinates above (1e-16 of a cell index).
+  static constexpr double kLimitSlack = 1.0 + 1e-6;
+  double h_over_r = g.h / g.radius;
   /// Point i in units of R, as EvalData stores the sources: double absolute, float relative to the
   /// grid's origin.
   void local(std::size_t i, T (&t)[3]) const {
@@ -125,11 +131,11 @@ struct PortableRun {
 
   template <class T>
   static inline __attribute__((always_inline)) void cells(const Block<T>& k, std::size_t first, std::size_t n,
-                                                          std::size_t* cell) {
-    for (std::size_t i = 0; i < n; ++i) cell[i] = k.cell_of(first + i);
+                                                          std::size_t* cell, double* limit) {
+    for (std::size_t i = 0; i < n; ++i) cell[i] = k.cell_of(first + i, limit[i]);
   }
 
-  /// Points i .. i + kGroup - 1, all in the cell whose run is [b, e) (not empty).
+  /// Points i .. i + kGroup - 1, all in the cell whose run (trimmed) is [b, e) (may be empty).
   template <Kernel K, class Run, class T>
   static inline __attribute__((always_inline)) void group(const Block<T>& k, std::uint32_t b, std::uint32_t e,
                                                           std::size_t i) {
@@ -163,23 +169,26 @@ inline __attribute__((always_inline)) void evaluate_block(const EvalGrid& g, con
   constexpr std::size_t none = Block<T>::none;
   // Cells are found for a chunk of points first (a loop without branches on data), then the points
   // go through their runs: groups of kGroup when consecutive points share a cell, else one by one.
+  // Each point's run ends where EvalData::trim says (sorted runs; the whole run otherwise).
   constexpr std::size_t kChunk = 256;
   std::size_t cells[kChunk + kGroup];
+  double limit[kChunk];
   for (std::size_t c0 = begin; c0 < end; c0 += kChunk) {
     const std::size_t n = end - c0 < kChunk ? end - c0 : kChunk;
-    Run::cells(blk, c0, n, cells);
+    Run::cells(blk, c0, n, cells, limit);
     for (std::size_t k = n; k < n + kGroup; ++k) cells[k] = none;  // a group never runs past the chunk
     std::size_t k = 0;
     while (k < n) {
       const std::size_t cell = cells[k];
-      static_assert(kGroup == 4, "the test below checks 4 cells");
+      static_assert(kGroup == 4, "the tests below check 4 cells");
       if (cell != none && cells[k + 1] == cell && cells[k + 2] == cell && cells[k + 3] == cell &&
           cb[cell] != cb[cell + 1]) {
-        Run::template group<K, Run>(blk, cb[cell], cb[cell + 1], c0 + k);
+        const double most = std::max(std::max(limit[k], limit[k + 1]), std::max(limit[k + 2], limit[k + 3]));
+        Run::template group<K, Run>(blk, cb[cell], a.trim(cb[cell], cb[cell + 1], most), c0 + k);
         k += kGroup;
         continue;
       }
-      if (cell != none) Run::template one<K, Run>(blk, cb[cell], cb[cell + 1], c0 + k);
+      if (cell != none) Run::template one<K, Run>(blk, cb[cell], a.trim(cb[cell], cb[cell + 1], limit[k]), c0 + k);
       else Run::template one<K, Run>(blk, 0, 0, c0 + k);
       ++k;
     }

@@ -2,9 +2,14 @@
 
 #include "eval_kernel.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 #include <atomic>
+#include <bit>
 #include <cmath>
+#include <utility>
 #include <type_traits>
 
 // Multi-versioning: an AVX2 clone and a baseline clone of each hot loop, picked at load time, so a
@@ -125,21 +130,65 @@ void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::si
   }
 }
 
+namespace {
+/// The next float towards zero (x > 0): rounds a conversion down where it went up.
+float below(float x) noexcept { return std::bit_cast<float>(std::bit_cast<std::uint32_t>(x) - 1); }
+}  // namespace
+
 template <class T>
 void EvalData<T>::assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha, Kernel kernel) {
   const double lead = phi_lead(kernel);
   const std::size_t total = g.source.size(), n = sources.size();
   constexpr T far = T(1e18);  // inert padding: r clips to 1 and phi(1) = 0
   const double inv_r = 1.0 / g.radius;
-  x.assign(total, far), y.assign(total, far), z.assign(total, far);
-  ax.assign(total, T(0)), ay.assign(total, T(0)), az.assign(total, T(0));
-  for (std::size_t e = 0; e < total; ++e) {
-    const std::uint32_t s = g.source[e];
-    if (s == n) continue;
+  for (Buffer<T>* b : {&x, &y, &z, &ax, &ay, &az}) b->allocate(total);
+  reach.assign(total / EvalGrid::kLanes + 8, 0.0f);
+  sorted = total >= kSortEntries;
+  const auto put = [&](std::size_t e, std::uint32_t s) {
+    if (s == n) {
+      x[e] = y[e] = z[e] = far;
+      ax[e] = ay[e] = az[e] = T(0);
+      return;
+    }
     const Vec3 p = (std::is_same_v<T, double> ? sources[s] : Vec3(sources[s] - g.origin)) * inv_r;
     x[e] = T(p.x()), y[e] = T(p.y()), z[e] = T(p.z());
     ax[e] = T(lead * alpha[3 * s]), ay[e] = T(lead * alpha[3 * s + 1]), az[e] = T(lead * alpha[3 * s + 2]);
+  };
+  if (!sorted) {
+    for (std::size_t e = 0; e < total; ++e) put(e, g.source[e]);
+    return;
   }
+  // Cells in parallel (each entry is written once, so the pages are first touched by the threads that
+  // fill them); in each run the sources sorted by their squared distance from the centre, in units
+  // of R, as a float rounded down, packed above the source index: one 64-bit key to sort.
+  const std::size_t ncell = g.begin.size() - 1;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ncell, 4096), [&](const tbb::blocked_range<std::size_t>& cells) {
+    std::vector<std::uint64_t> run;
+    for (std::size_t c = cells.begin(); c < cells.end(); ++c) {
+      const std::uint32_t b = g.begin[c], e = g.begin[c + 1];
+      if (b == e) continue;
+      const auto cx = std::int64_t(c) % g.nx, cy = std::int64_t(c) / g.nx % g.ny, cz = std::int64_t(c) / (g.nx * g.ny);
+      const Vec3 centre = g.origin + g.h * Vec3(double(cx) + 0.5, double(cy) + 0.5, double(cz) + 0.5);
+      run.clear();
+      for (std::uint32_t k = b; k < e; ++k) {
+        const std::uint32_t src = g.source[k];
+        if (src == n) continue;
+        const double d2 = (sources[src] - centre).squaredNorm() * (inv_r * inv_r);
+        float key = float(d2);
+        if (double(key) > d2) key = below(key);
+        run.push_back(std::uint64_t(std::bit_cast<std::uint32_t>(key)) << 32 | src);  // >= 0: ordered as integers
+      }
+      std::sort(run.begin(), run.end());
+      for (std::uint32_t k = b; k < e; ++k) put(k, k - b < run.size() ? std::uint32_t(run[k - b]) : std::uint32_t(n));
+      for (std::uint32_t k = b; k < e; k += std::uint32_t(EvalGrid::kLanes)) {
+        // The block's nearest source (every block holds one): its distance, rounded down.
+        const double d = std::sqrt(double(std::bit_cast<float>(std::uint32_t(run[k - b] >> 32))));
+        float r = float(d);
+        if (double(r) > d) r = below(r);
+        reach[k / EvalGrid::kLanes] = r;
+      }
+    }
+  });
 }
 template struct EvalData<float>;
 template struct EvalData<double>;

@@ -19,6 +19,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -56,13 +57,58 @@ constexpr double phi_lead(Kernel k) noexcept {
 /// The runs of EvalGrid copied out: coordinates in units of R (double: absolute, as the simple
 /// path; float: relative to the grid's origin, to keep digits) and coefficients alpha, by entry.
 /// Padding entries lie far away (r clips to 1, phi(1) = 0) with zero coefficients.
+///
+/// Large grids (kSortEntries entries or more) also sort each run by the sources' distance from the
+/// cell's centre c and keep, for each block of kLanes entries, the least such distance (`reach`, in
+/// units of R, rounded down). A point p of the cell needs only the sources closer than
+/// R + |p - c| to c (triangle inequality), so the evaluation stops at the first block whose reach
+/// is beyond that: about 15% fewer blocks on a surface with cells of side R/2. Small grids skip
+/// the sort (it costs more than it saves on one evaluation of a small mesh); their reach is 0.
+/// An array that is not zeroed when allocated: EvalData writes each entry once, the large ones in
+/// parallel, so the pages are first touched by the threads that fill them.
+template <class T>
+class Buffer {
+ public:
+  void allocate(std::size_t n) {
+    data_.reset(n > 0 ? new T[n] : nullptr);
+    size_ = n;
+  }
+  T* data() noexcept { return data_.get(); }
+  const T* data() const noexcept { return data_.get(); }
+  T& operator[](std::size_t i) noexcept { return data_[i]; }
+  const T& operator[](std::size_t i) const noexcept { return data_[i]; }
+  std::size_t size() const noexcept { return size_; }
+
+ private:
+  std::unique_ptr<T[]> data_;
+  std::size_t size_ = 0;
+};
+
 template <class T>
 struct EvalData {
-  std::vector<T> x, y, z, ax, ay, az;
+  Buffer<T> x, y, z, ax, ay, az;
+  std::vector<float> reach;  // per block of kLanes entries, and 8 of padding
+  bool sorted = false;
+  static constexpr std::size_t kSortEntries = std::size_t(1) << 16;
   /// alpha: N x 3 row-major, the input order of the sources. The coefficients are stored times
   /// phi_lead(kernel), the factor the evaluation loops leave out of phi.
   void assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha, Kernel kernel);
-  std::size_t bytes() const noexcept { return x.size() * 6 * sizeof(T); }
+  std::size_t bytes() const noexcept { return x.size() * 6 * sizeof(T) + reach.size() * sizeof(float); }
+  /// The end of the part of run [b, e) that a point with the given limit (1 + |p - c| / R, rounded
+  /// up) needs.
+  /// Counted without branches on the data, 8 blocks at a time (reach has 8 entries of padding): a
+  /// loop that stops at the first block beyond reach mispredicts its exit at nearly every run.
+  std::uint32_t trim(std::uint32_t b, std::uint32_t e, double limit) const noexcept {
+    constexpr std::uint32_t L = EvalGrid::kLanes;
+    const std::uint32_t blocks = (e - b) / L;
+    const float* r = reach.data() + b / L;
+    std::uint32_t keep = 0;
+    for (std::uint32_t k = 0; k < blocks; k += 8) {
+      const std::uint32_t m = blocks - k;
+      for (std::uint32_t j = 0; j < 8; ++j) keep += std::uint32_t(j < m) & std::uint32_t(double(r[k + j]) < limit);
+    }
+    return b + keep * L;
+  }
 };
 extern template struct EvalData<float>;
 extern template struct EvalData<double>;

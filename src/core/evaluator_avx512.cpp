@@ -113,11 +113,11 @@ struct Avx512Run : PortableRun {
       for (std::size_t c = 0; c < 3; ++c) d[p][c] += V8<T>::hsum(acc[p][c]);
   }
 
-  /// The cells of points first .. first + n - 1: 8 at a time in vectors, with the same arithmetic as
-  /// Block::cell_of (which takes the rest).
+  /// The cells and limits of points first .. first + n - 1: 8 at a time in vectors, with the same
+  /// arithmetic as Block::cell_of (which takes the rest).
   template <class T>
   static inline __attribute__((always_inline)) void cells(const Block<T>& k, std::size_t first, std::size_t n,
-                                                          std::size_t* cell) {
+                                                          std::size_t* cell, double* limit) {
     const EvalGrid& g = k.g;
     const __m512d ox = _mm512_set1_pd(g.origin.x()), oy = _mm512_set1_pd(g.origin.y()),
                   oz = _mm512_set1_pd(g.origin.z()), ih = _mm512_set1_pd(g.inv_h), zero = _mm512_setzero_pd();
@@ -130,6 +130,8 @@ struct Avx512Run : PortableRun {
     const __m512i y01 = _mm512_setr_epi64(1, 4, 7, 10, 13, 0, 0, 0), y2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 8, 11, 14);
     const __m512i z01 = _mm512_setr_epi64(2, 5, 8, 11, 14, 0, 0, 0), z2 = _mm512_setr_epi64(0, 1, 2, 3, 4, 9, 12, 15);
     constexpr int down = _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC;
+    const __m512d half = _mm512_set1_pd(0.5), h_over_r = _mm512_set1_pd(k.h_over_r),
+                  slack = _mm512_set1_pd(Block<T>::kLimitSlack);
     std::size_t i = 0;
     for (; i + 8 <= n; i += 8) {
       const T* p = k.in + 3 * (first + i);
@@ -143,9 +145,14 @@ struct Avx512Run : PortableRun {
       const __m512d x = _mm512_permutex2var_pd(_mm512_permutex2var_pd(v0, x01, v1), x2, v2);
       const __m512d y = _mm512_permutex2var_pd(_mm512_permutex2var_pd(v0, y01, v1), y2, v2);
       const __m512d z = _mm512_permutex2var_pd(_mm512_permutex2var_pd(v0, z01, v1), z2, v2);
-      const __m512d fx = _mm512_roundscale_pd(_mm512_mul_pd(_mm512_sub_pd(x, ox), ih), down);
-      const __m512d fy = _mm512_roundscale_pd(_mm512_mul_pd(_mm512_sub_pd(y, oy), ih), down);
-      const __m512d fz = _mm512_roundscale_pd(_mm512_mul_pd(_mm512_sub_pd(z, oz), ih), down);
+      const __m512d ux = _mm512_mul_pd(_mm512_sub_pd(x, ox), ih), uy = _mm512_mul_pd(_mm512_sub_pd(y, oy), ih),
+                    uz = _mm512_mul_pd(_mm512_sub_pd(z, oz), ih);
+      const __m512d fx = _mm512_roundscale_pd(ux, down), fy = _mm512_roundscale_pd(uy, down),
+                    fz = _mm512_roundscale_pd(uz, down);
+      const __m512d dx = _mm512_sub_pd(_mm512_sub_pd(ux, fx), half), dy = _mm512_sub_pd(_mm512_sub_pd(uy, fy), half),
+                    dz = _mm512_sub_pd(_mm512_sub_pd(uz, fz), half);
+      const __m512d d2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+      _mm512_storeu_pd(limit + i, _mm512_add_pd(_mm512_mul_pd(_mm512_sqrt_pd(d2), h_over_r), slack));
       // Ordered comparisons: false for NaN.
       __mmask8 in = _mm512_cmp_pd_mask(fx, zero, _CMP_GE_OQ);
       in = _mm512_mask_cmp_pd_mask(in, fy, zero, _CMP_GE_OQ);
@@ -159,7 +166,7 @@ struct Avx512Run : PortableRun {
       static_assert(sizeof(std::size_t) == 8, "cells are stored as 64-bit lanes");
       _mm512_storeu_si512(cell + i, _mm512_mask_mov_epi64(outside, in, c));
     }
-    for (; i < n; ++i) cell[i] = k.cell_of(first + i);
+    for (; i < n; ++i) cell[i] = k.cell_of(first + i, limit[i]);
   }
 
   /// Double precision: the 12 sums of a group are reduced together (a transposed tree of shuffles,

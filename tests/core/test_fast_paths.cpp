@@ -243,6 +243,57 @@ TEST(FastPaths, CellListsHoldEverySourceWithinReach) {
   EXPECT_GT(c.neighbors.size(), s.size());  // a real graph, not an empty one
 }
 
+TEST(FastPaths, SortedRunsKeepEverySourceWithinReach) {
+  // Large grids sort each run by distance from the cell's centre and let a point stop early
+  // (EvalData::trim): the part kept still holds every source within R of the point, in float and
+  // double, and the blocks' reach never exceeds their sources' distance. Small grids are not sorted.
+  std::mt19937 rng(108);
+  const auto s = random_points(1500, rng);
+  const double r = 0.15;
+  const auto g = detail::EvalGrid::build(s, r, std::size_t(512) << 20);
+  ASSERT_TRUE(g.usable);
+  ASSERT_GE(g.source.size(), detail::EvalData<double>::kSortEntries);
+  std::vector<double> alpha(3 * s.size(), 1.0);
+  detail::EvalData<double> a;
+  detail::EvalData<float> af;
+  a.assign(g, s, alpha.data(), Kernel::C2);
+  af.assign(g, s, alpha.data(), Kernel::C2);
+  ASSERT_TRUE(a.sorted);
+  ASSERT_TRUE(af.sorted);
+  EXPECT_EQ(a.reach, af.reach);
+  std::size_t kept = 0, listed = 0;
+  for (const auto& q : random_points(3000, rng, -0.1, 1.1)) {
+    const Vec3 u = (q - g.origin) * g.inv_h;
+    const Vec3 f(std::floor(u.x()), std::floor(u.y()), std::floor(u.z()));
+    const std::size_t cell = std::size_t((std::int64_t(f.z()) * g.ny + std::int64_t(f.y())) * g.nx + std::int64_t(f.x()));
+    const Vec3 centre = g.origin + g.h * (f + Vec3::Constant(0.5));
+    const std::uint32_t b = g.begin[cell], e = g.begin[cell + 1];
+    // As the evaluation loops compute it (Block::cell_of), with its slack.
+    const double limit = 1.0 + 1e-6 + (u - f - Vec3::Constant(0.5)).norm() * g.h / r;
+    const std::uint32_t end = a.trim(b, e, limit);
+    ASSERT_EQ((end - b) % detail::EvalGrid::kLanes, 0u);
+    kept += end - b;
+    listed += e - b;
+    for (std::uint32_t k = b; k < e; k += detail::EvalGrid::kLanes)
+      for (std::uint32_t j = k; j < k + detail::EvalGrid::kLanes; ++j)
+        if (a.x[j] < 1e17) {  // not padding
+          ASSERT_LE(double(a.reach[k / detail::EvalGrid::kLanes]), (Vec3(a.x[j], a.y[j], a.z[j]) * r - centre).norm() / r);
+        }
+    std::size_t within = 0, found = 0;
+    for (const auto& p : s) within += (p - q).norm() < r;
+    for (std::uint32_t j = b; j < end; ++j) found += (Vec3(a.x[j], a.y[j], a.z[j]) * r - q).norm() < r;
+    ASSERT_EQ(found, within) << "probe " << q.transpose();
+  }
+  EXPECT_LT(double(kept), 0.95 * double(listed));  // the trim does cut
+  // A small grid: unsorted, nothing trimmed.
+  const std::vector<Vec3> few(s.begin(), s.begin() + 20);
+  const auto g2 = detail::EvalGrid::build(few, r, std::size_t(512) << 20);
+  detail::EvalData<double> a2;
+  a2.assign(g2, few, alpha.data(), Kernel::C2);
+  EXPECT_FALSE(a2.sorted);
+  EXPECT_EQ(a2.trim(0, std::uint32_t(g2.source.size()), 1.0), std::uint32_t(g2.source.size()));
+}
+
 TEST(FastPaths, SmallAndLargeFitsBuildTheSameGraph) {
   // Up to 256 sources the fit tests every pair and leaves the cell lists to the first evaluation;
   // past it the lists give the graph. Either way the map interpolates and the fast path agrees
