@@ -1,7 +1,10 @@
 #include "csrbf/ordering.hpp"
 
+#include "csrbf/errors.hpp"
+
 #include <algorithm>
 #include <cctype>
+#include <cmath>
 #include <numeric>
 #include <string>
 
@@ -228,6 +231,94 @@ OrderingChoice choose_ordering(const AdjacencyGraph& g, Ordering requested) {
     default: c.order = std::move(rbf); break;
   }
   return c;
+}
+
+namespace {
+
+/// One nested dissection: the state shared by the recursion.
+class Dissection {
+ public:
+  Dissection(const AdjacencyGraph& g, std::span<const Vec3> points, double radius, std::size_t leaf)
+      : g_(g), points_(points), radius_(radius), leaf_(std::max<std::size_t>(leaf, 1)), side_(points.size(), 0) {
+    order_.reserve(points.size());
+  }
+
+  std::vector<std::uint32_t> run() {
+    std::vector<std::uint32_t> ids = identity_order(points_.size());
+    cut(ids, 0, ids.size());
+    return std::move(order_);
+  }
+
+ private:
+  // side_ flags: which half (kLeft or kRight) and whether the point touches the other half.
+  static constexpr std::uint8_t kLeft = 1, kRight = 2, kHalf = 3, kTouches = 4;
+
+  void keep(const std::vector<std::uint32_t>& ids, std::size_t b, std::size_t e) {
+    order_.insert(order_.end(), ids.begin() + std::ptrdiff_t(b), ids.begin() + std::ptrdiff_t(e));
+  }
+
+  // Orders ids[b, e) (a set with no edges to the points not yet ordered outside it, but for
+  // separators placed later) and appends it to order_.
+  void cut(std::vector<std::uint32_t>& ids, std::size_t b, std::size_t e) {
+    const auto first = ids.begin() + std::ptrdiff_t(b), last = ids.begin() + std::ptrdiff_t(e);
+    if (e - b <= leaf_) return keep(ids, b, e);
+    Vec3 lo = points_[ids[b]], hi = lo;
+    for (auto it = first; it != last; ++it) {
+      lo = lo.cwiseMin(points_[*it]);
+      hi = hi.cwiseMax(points_[*it]);
+    }
+    int axis = 0;
+    (hi - lo).maxCoeff(&axis);
+    if (!(hi[axis] - lo[axis] > 2 * radius_)) return keep(ids, b, e);  // a dense block anyway
+    const auto mid = first + std::ptrdiff_t((e - b) / 2);
+    std::nth_element(first, mid, last, [&](std::uint32_t p, std::uint32_t q) { return points_[p][axis] < points_[q][axis]; });
+    const double m = points_[*mid][axis];
+    for (auto it = first; it != last; ++it) side_[*it] = points_[*it][axis] < m ? kLeft : kRight;
+    // Only points closer than R to the plane can have a neighbour across it.
+    std::size_t touching[3] = {0, 0, 0};
+    for (auto it = first; it != last; ++it) {
+      const std::uint32_t v = *it;
+      if (!(std::abs(points_[v][axis] - m) < radius_)) continue;
+      const std::uint8_t other = (side_[v] & kHalf) == kLeft ? kRight : kLeft;
+      for (std::uint32_t u : g_.neighbors_of(v))
+        if ((side_[u] & kHalf) == other) {
+          ++touching[side_[v] & kHalf];
+          side_[v] |= kTouches;
+          break;
+        }
+    }
+    const std::uint8_t sep = touching[kLeft] <= touching[kRight] ? kLeft : kRight;
+    const auto part = [&](std::uint32_t v) {  // 0 left half, 1 right half, 2 separator
+      const std::uint8_t f = side_[v];
+      return (f & kTouches) && (f & kHalf) == sep ? 2 : (f & kHalf) == kLeft ? 0 : 1;
+    };
+    const auto left_end = std::partition(first, last, [&](std::uint32_t v) { return part(v) == 0; });
+    const auto right_end = std::partition(left_end, last, [&](std::uint32_t v) { return part(v) == 1; });
+    for (auto it = first; it != last; ++it) side_[*it] = 0;
+    const auto l = std::size_t(left_end - ids.begin()), r = std::size_t(right_end - ids.begin());
+    if (l == b || r == l) return keep(ids, b, e);  // nothing to cut off
+    const std::vector<std::uint32_t> separator(right_end, last);
+    cut(ids, b, l);
+    cut(ids, l, r);
+    order_.insert(order_.end(), separator.begin(), separator.end());
+  }
+
+  const AdjacencyGraph& g_;
+  std::span<const Vec3> points_;
+  double radius_;
+  std::size_t leaf_;
+  std::vector<std::uint8_t> side_;
+  std::vector<std::uint32_t> order_;
+};
+
+}  // namespace
+
+std::vector<std::uint32_t> nested_dissection_order(const AdjacencyGraph& g, std::span<const Vec3> points, double radius,
+                                                   std::size_t leaf) {
+  if (points.size() != g.size())
+    throw InvalidInput("nested_dissection_order: " + std::to_string(points.size()) + " points for a graph of " +
+                       std::to_string(g.size()));
+  return Dissection(g, points, radius, leaf).run();
 }
 
 }  // namespace csrbf

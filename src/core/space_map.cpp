@@ -403,7 +403,7 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
     stats.dense_bytes = 4 * n * n;
     st->order = identity_order(n);
     t0 = Clock::now();
-    st->sparse = detail::factor_sparse(st->graph, options.kernel, options.radius, solver);
+    st->sparse = detail::factor_sparse(st->graph, sources, options.kernel, options.radius, solver);
     stats.factor_nonzeros = st->sparse->nonzeros();
     stats.seconds_factorization = seconds_since(t0);
   }

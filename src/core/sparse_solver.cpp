@@ -10,6 +10,9 @@
 
 #include <cmath>
 #include <mutex>
+#include <span>
+#include <utility>
+#include <vector>
 
 namespace csrbf::detail {
 
@@ -17,47 +20,41 @@ namespace {
 
 using Sparse = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 
-// Lower triangle of A (diagonal included), column-compressed.
-Sparse lower_matrix(const AdjacencyGraph& g, Kernel kernel, double radius) {
+// Lower triangle of A (diagonal included), column-compressed, with row and column k the source
+// order[k] (the identity when order is empty).
+Sparse lower_matrix(const AdjacencyGraph& g, Kernel kernel, double radius, std::span<const std::uint32_t> order = {}) {
   const std::size_t n = g.size();
   const double inv_r = 1.0 / radius, phi0 = wendland(kernel, 0.0);
   const auto en = Eigen::Index(n);
+  std::vector<std::uint32_t> position(n);  // of each source
+  for (std::size_t k = 0; k < n; ++k) position[order.empty() ? k : order[k]] = std::uint32_t(k);
+  const auto source = [&](std::size_t k) { return order.empty() ? k : std::size_t(order[k]); };
   Sparse a(en, en);
   Eigen::VectorXi per_col(en);
-  for (std::size_t j = 0; j < n; ++j) {
+  for (std::size_t k = 0; k < n; ++k) {
     int c = 1;
-    for (std::uint32_t i : g.neighbors_of(j)) c += i > j;
-    per_col(Eigen::Index(j)) = c;
+    for (std::uint32_t i : g.neighbors_of(source(k))) c += position[i] > k;
+    per_col(Eigen::Index(k)) = c;
   }
   a.reserve(per_col);
-  for (std::size_t j = 0; j < n; ++j) {
-    a.insert(Eigen::Index(j), Eigen::Index(j)) = phi0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t j = source(k);
+    a.insert(Eigen::Index(k), Eigen::Index(k)) = phi0;
     const auto nb = g.neighbors_of(j);
     const auto d2 = g.dist2_of(j);
     for (std::size_t e = 0; e < nb.size(); ++e)
-      if (nb[e] > j) a.insert(Eigen::Index(nb[e]), Eigen::Index(j)) = wendland(kernel, std::sqrt(d2[e]) * inv_r);
+      if (position[nb[e]] > k)
+        a.insert(Eigen::Index(position[nb[e]]), Eigen::Index(k)) = wendland(kernel, std::sqrt(d2[e]) * inv_r);
   }
   a.makeCompressed();
   return a;
 }
 
-// The correlation dimension of the sources, from the graph: pairs closer than R against pairs closer
-// than R/2 is 2^d (4 on a surface, 8 in a volume).
-double correlation_dimension(const AdjacencyGraph& g, double radius) {
-  const double quarter = radius * radius / 4.0;
-  std::size_t all = 0, near = 0;
-  for (std::size_t i = 0; i < g.size(); ++i)
-    for (double d2 : g.dist2_of(i)) {
-      ++all;
-      near += d2 < quarter;
-    }
-  return near > 0 ? std::log2(double(all) / double(near)) : 3.0;
-}
-
 template <class Decomposition>
 class EigenFactor final : public SparseFactor {
  public:
-  EigenFactor(const Sparse& a, const char* name, double dimension = 3.0) : dimension_(dimension) {
+  /// order: row k of a is the source order[k] (empty: the input order).
+  EigenFactor(const Sparse& a, const char* name, std::vector<std::uint32_t> order = {}) : order_(std::move(order)) {
     init(a);
     if (llt_.info() != Eigen::Success)
       throw NotPositiveDefinite(std::string("the interpolation matrix is not numerically positive definite (") +
@@ -65,15 +62,22 @@ class EigenFactor final : public SparseFactor {
   }
   void solve_in_place(RowMatrix& b) const override {
     std::lock_guard lock(mutex_);  // CHOLMOD's workspace is shared by solves
-    const Eigen::MatrixXd x = llt_.solve(Eigen::MatrixXd(b));
-    b = x;
+    if (order_.empty()) {
+      const Eigen::MatrixXd x = llt_.solve(Eigen::MatrixXd(b));
+      b = x;
+      return;
+    }
+    Eigen::MatrixXd bp(b.rows(), b.cols());
+    for (Eigen::Index k = 0; k < b.rows(); ++k) bp.row(k) = b.row(Eigen::Index(order_[std::size_t(k)]));
+    const Eigen::MatrixXd x = llt_.solve(bp);
+    for (Eigen::Index k = 0; k < b.rows(); ++k) b.row(Eigen::Index(order_[std::size_t(k)])) = x.row(k);
   }
   std::size_t nonzeros() const override { return count(); }
 
  private:
   void init(const Sparse& a) { llt_.compute(a); }
   std::size_t count() const;
-  double dimension_;
+  std::vector<std::uint32_t> order_;
   mutable Decomposition llt_;
   mutable std::mutex mutex_;
 };
@@ -88,13 +92,12 @@ using Supernodal = Eigen::CholmodSupernodalLLT<Sparse, Eigen::Lower>;
 template <>
 void EigenFactor<Supernodal>::init(const Sparse& a) {
   llt_.cholmod().supernodal = CHOLMOD_SUPERNODAL;
-  // One fill-reducing ordering, chosen by the shape of the sources, instead of CHOLMOD's default
-  // (AMD, then METIS too when the fill is large, keeping the smaller fill). On control points that
-  // lie on a surface (dimension about 2) AMD's factor is the faster one, on volumes METIS's; trying
-  // both costs the second analysis (measured in docs/PERFORMANCE.md, N = 1e5: sphere 1.7 s with AMD
-  // against 2.2 s by default, cube 3.6 s with METIS against 5.2 s).
+  // The matrix comes in csrbf's geometric nested dissection order (nested_dissection_order); CHOLMOD
+  // keeps it (and postorders its elimination tree). Its own choices measured slower on the scale
+  // sweep (docs/PERFORMANCE.md, N = 1e5 on the sphere): AMD's factor takes 60% more flops, METIS's
+  // ordering alone costs about 0.9 s.
   llt_.cholmod().nmethods = 1;
-  llt_.cholmod().method[0].ordering = dimension_ < 2.5 ? CHOLMOD_AMD : CHOLMOD_METIS;
+  llt_.cholmod().method[0].ordering = CHOLMOD_NATURAL;
   llt_.compute(a);
 }
 template <>
@@ -106,12 +109,18 @@ std::size_t EigenFactor<Supernodal>::count() const {
 
 }  // namespace
 
-std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, Kernel kernel, double radius, Solver which) {
-  const Sparse a = lower_matrix(g, kernel, radius);
-  if (which == Solver::Eigen) return std::make_unique<EigenFactor<Simplicial>>(a, "Eigen SimplicialLLT");
+std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, std::span<const Vec3> sources, Kernel kernel,
+                                            double radius, Solver which) {
+  if (which == Solver::Eigen)
+    return std::make_unique<EigenFactor<Simplicial>>(lower_matrix(g, kernel, radius), "Eigen SimplicialLLT");
 #ifdef CSRBF_HAVE_CHOLMOD
-  if (which == Solver::Cholmod)
-    return std::make_unique<EigenFactor<Supernodal>>(a, "CHOLMOD", correlation_dimension(g, radius));
+  if (which == Solver::Cholmod) {
+    std::vector<std::uint32_t> order = nested_dissection_order(g, sources, radius);
+    const Sparse a = lower_matrix(g, kernel, radius, order);
+    return std::make_unique<EigenFactor<Supernodal>>(a, "CHOLMOD", std::move(order));
+  }
+#else
+  (void)sources;
 #endif
   throw InvalidInput(std::string("solver '") + std::string(solver_name(which)) +
                      "' is not available in this build of csrbf");

@@ -1,7 +1,7 @@
 // The general sparse Cholesky factorisations of the CSRBF matrix (private to csrbf::core): Eigen's
 // SimplicialLLT with AMD ordering, and SuiteSparse CHOLMOD's supernodal factorisation (nested
-// dissection or AMD, BLAS-3 on dense supernodes) when csrbf is built with it. They work in the input
-// order of the sources (they permute internally).
+// dissection, BLAS-3 on dense supernodes) when csrbf is built with it. They work in the input order of
+// the sources (they permute internally).
 #pragma once
 
 #include "csrbf/envelope_cholesky.hpp"
@@ -22,8 +22,10 @@ class SparseFactor {
   virtual std::size_t nonzeros() const = 0;
 };
 
-/// Assembles A from the neighbour graph and factorises it with Solver::Eigen or Solver::Cholmod.
-/// Throws NotPositiveDefinite on failure, InvalidInput when CHOLMOD is asked for but not built in.
-std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, Kernel kernel, double radius, Solver which);
+/// Assembles A from the neighbour graph and factorises it with Solver::Eigen (AMD ordering) or
+/// Solver::Cholmod (in nested_dissection_order of the sources). Throws NotPositiveDefinite on
+/// failure, InvalidInput when CHOLMOD is asked for but not built in.
+std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, std::span<const Vec3> sources, Kernel kernel,
+                                            double radius, Solver which);
 
 }  // namespace csrbf::detail
