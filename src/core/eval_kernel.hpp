@@ -51,17 +51,18 @@ struct Block {
 
   /// The cell of point i; none outside the grid (the sources' box grown by R: no source within R)
   /// or for NaN. limit: 1 + |p - c| / R for the cell's centre c, rounded up (EvalData::trim).
-  std::size_t cell_of(std::size_t i, double& limit) const {
+  std::size_t cell_of(std::size_t i, float& limit) const {
     const double ux = (double(in[3 * i]) - g.origin.x()) * g.inv_h, uy = (double(in[3 * i + 1]) - g.origin.y()) * g.inv_h,
                  uz = (double(in[3 * i + 2]) - g.origin.z()) * g.inv_h;
     const double fx = std::floor(ux), fy = std::floor(uy), fz = std::floor(uz);
     const double dx = ux - fx - 0.5, dy = uy - fy - 0.5, dz = uz - fz - 0.5;
-    limit = kLimitSlack + std::sqrt(dx * dx + dy * dy + dz * dz) * h_over_r;
+    limit = float(kLimitSlack + std::sqrt(dx * dx + dy * dy + dz * dz) * h_over_r);
     if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(g.nx) && fy < double(g.ny) && fz < double(g.nz))
       return std::size_t((std::int64_t(fz) * g.ny + std::int64_t(fy)) * g.nx + std::int64_t(fx));
     return none;
   }
-  /// 1 plus a margin far above the rounding of the cell coordinates above (1e-16 of a cell index).
+  /// 1 plus a margin far above the rounding of the cell coordinates above (1e-16 of a cell index)
+  /// and of the limit to float (6e-8).
   static constexpr double kLimitSlack = 1.0 + 1e-6;
   double h_over_r = g.h / g.radius;
   /// Point i in units of R, as EvalData stores the sources: double absolute, float relative to the
@@ -131,7 +132,7 @@ struct PortableRun {
 
   template <class T>
   static inline __attribute__((always_inline)) void cells(const Block<T>& k, std::size_t first, std::size_t n,
-                                                          std::size_t* cell, double* limit) {
+                                                          std::size_t* cell, float* limit) {
     for (std::size_t i = 0; i < n; ++i) cell[i] = k.cell_of(first + i, limit[i]);
   }
 
@@ -172,7 +173,7 @@ inline __attribute__((always_inline)) void evaluate_block(const EvalGrid& g, con
   // Each point's run ends where EvalData::trim says (sorted runs; the whole run otherwise).
   constexpr std::size_t kChunk = 256;
   std::size_t cells[kChunk + kGroup];
-  double limit[kChunk];
+  float limit[kChunk];
   for (std::size_t c0 = begin; c0 < end; c0 += kChunk) {
     const std::size_t n = end - c0 < kChunk ? end - c0 : kChunk;
     Run::cells(blk, c0, n, cells, limit);
@@ -183,7 +184,7 @@ inline __attribute__((always_inline)) void evaluate_block(const EvalGrid& g, con
       static_assert(kGroup == 4, "the tests below check 4 cells");
       if (cell != none && cells[k + 1] == cell && cells[k + 2] == cell && cells[k + 3] == cell &&
           cb[cell] != cb[cell + 1]) {
-        const double most = std::max(std::max(limit[k], limit[k + 1]), std::max(limit[k + 2], limit[k + 3]));
+        const float most = std::max(std::max(limit[k], limit[k + 1]), std::max(limit[k + 2], limit[k + 3]));
         Run::template group<K, Run>(blk, cb[cell], a.trim(cb[cell], cb[cell + 1], most), c0 + k);
         k += kGroup;
         continue;

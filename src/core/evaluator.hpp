@@ -95,17 +95,18 @@ struct EvalData {
   void assign(const EvalGrid& g, std::span<const Vec3> sources, const double* alpha, Kernel kernel);
   std::size_t bytes() const noexcept { return x.size() * 6 * sizeof(T) + reach.size() * sizeof(float); }
   /// The end of the part of run [b, e) that a point with the given limit (1 + |p - c| / R, rounded
-  /// up) needs.
-  /// Counted without branches on the data, 8 blocks at a time (reach has 8 entries of padding): a
-  /// loop that stops at the first block beyond reach mispredicts its exit at nearly every run.
-  std::uint32_t trim(std::uint32_t b, std::uint32_t e, double limit) const noexcept {
+  /// up) needs. Counted without branches on the data, 8 blocks at a time (reach has 8 entries of
+  /// padding): a loop that stops at the first block beyond reach mispredicts its exit at nearly
+  /// every run.
+  std::uint32_t trim(std::uint32_t b, std::uint32_t e, float limit) const noexcept {
+    if (!sorted) return e;
     constexpr std::uint32_t L = EvalGrid::kLanes;
     const std::uint32_t blocks = (e - b) / L;
     const float* r = reach.data() + b / L;
     std::uint32_t keep = 0;
     for (std::uint32_t k = 0; k < blocks; k += 8) {
       const std::uint32_t m = blocks - k;
-      for (std::uint32_t j = 0; j < 8; ++j) keep += std::uint32_t(j < m) & std::uint32_t(double(r[k + j]) < limit);
+      for (std::uint32_t j = 0; j < 8; ++j) keep += std::uint32_t(j < m) & std::uint32_t(r[k + j] < limit);
     }
     return b + keep * L;
   }

@@ -117,7 +117,7 @@ struct Avx512Run : PortableRun {
   /// arithmetic as Block::cell_of (which takes the rest).
   template <class T>
   static inline __attribute__((always_inline)) void cells(const Block<T>& k, std::size_t first, std::size_t n,
-                                                          std::size_t* cell, double* limit) {
+                                                          std::size_t* cell, float* limit) {
     const EvalGrid& g = k.g;
     const __m512d ox = _mm512_set1_pd(g.origin.x()), oy = _mm512_set1_pd(g.origin.y()),
                   oz = _mm512_set1_pd(g.origin.z()), ih = _mm512_set1_pd(g.inv_h), zero = _mm512_setzero_pd();
@@ -152,7 +152,7 @@ struct Avx512Run : PortableRun {
       const __m512d dx = _mm512_sub_pd(_mm512_sub_pd(ux, fx), half), dy = _mm512_sub_pd(_mm512_sub_pd(uy, fy), half),
                     dz = _mm512_sub_pd(_mm512_sub_pd(uz, fz), half);
       const __m512d d2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
-      _mm512_storeu_pd(limit + i, _mm512_add_pd(_mm512_mul_pd(_mm512_sqrt_pd(d2), h_over_r), slack));
+      _mm256_storeu_ps(limit + i, _mm512_cvtpd_ps(_mm512_add_pd(_mm512_mul_pd(_mm512_sqrt_pd(d2), h_over_r), slack)));
       // Ordered comparisons: false for NaN.
       __mmask8 in = _mm512_cmp_pd_mask(fx, zero, _CMP_GE_OQ);
       in = _mm512_mask_cmp_pd_mask(in, fy, zero, _CMP_GE_OQ);

@@ -269,7 +269,7 @@ TEST(FastPaths, SortedRunsKeepEverySourceWithinReach) {
     const Vec3 centre = g.origin + g.h * (f + Vec3::Constant(0.5));
     const std::uint32_t b = g.begin[cell], e = g.begin[cell + 1];
     // As the evaluation loops compute it (Block::cell_of), with its slack.
-    const double limit = 1.0 + 1e-6 + (u - f - Vec3::Constant(0.5)).norm() * g.h / r;
+    const float limit = float(1.0 + 1e-6 + (u - f - Vec3::Constant(0.5)).norm() * g.h / r);
     const std::uint32_t end = a.trim(b, e, limit);
     ASSERT_EQ((end - b) % detail::EvalGrid::kLanes, 0u);
     kept += end - b;
