@@ -33,7 +33,7 @@ std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept;
 enum class Solver {
   Envelope,  ///< the paper's: ordering + Jennings envelope Cholesky (envelope_cholesky.hpp)
   Eigen,     ///< Eigen's SimplicialLLT with AMD ordering
-  Cholmod,   ///< SuiteSparse CHOLMOD, supernodal (only when csrbf was built with it)
+  Cholmod,   ///< SuiteSparse CHOLMOD, supernodal, in nested_dissection_order (only when csrbf was built with it)
   Auto,      ///< Envelope while its estimated work is small, then CHOLMOD (or Eigen without it)
 };
 std::string_view solver_name(Solver s) noexcept;

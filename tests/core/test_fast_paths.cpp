@@ -314,7 +314,7 @@ TEST(FastPaths, SmallAndLargeFitsBuildTheSameGraph) {
 
 TEST(FastPaths, SparseSolversAgreeWithTheEnvelopeSolver) {
   std::mt19937 rng(105);
-  // A volume and a surface (CHOLMOD orders them with METIS and with AMD).
+  // A volume and a surface (two shapes of nested dissection for CHOLMOD).
   auto cube = random_points(800, rng);
   std::vector<Vec3> sphere;
   std::normal_distribution<double> gauss(0.0, 1.0);
