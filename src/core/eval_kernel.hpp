@@ -15,11 +15,11 @@
 namespace csrbf::detail {
 namespace {  // NOLINT(google-build-namespaces): see above
 
-/// phi(r) / kLead<K> for r in [0, 1], branch-free; every member is exactly 0 at r = 1. V is a
+/// phi(r) / phi_lead(K) for r in [0, 1], branch-free; every member is exactly 0 at r = 1. V is a
 /// scalar or a GCC vector of S (the vector extensions broadcast the scalar constants). Dividing by
 /// the leading coefficient of the polynomial factor makes that factor monic, which saves a multiply
 /// per candidate (C2: (1-r)^4 (r + 1/4) instead of (1-r)^4 (4r + 1)); EvalData's coefficients carry
-/// the factor instead (phi_lead()).
+/// the factor instead.
 template <Kernel K, class V, class S = V>
 inline __attribute__((always_inline)) V phi(V r) {
   const V s = S(1) - r;
@@ -47,7 +47,11 @@ struct Block {
   double phase;
   bool add_point;
   double inv_r = 1.0 / g.radius;
+  double h_over_r = g.h / g.radius;
   static constexpr std::size_t none = ~std::size_t(0);
+  /// 1 plus a margin far above the rounding of the cell coordinates below (1e-16 of a cell index)
+  /// and of the limit to float (6e-8).
+  static constexpr double kLimitSlack = 1.0 + 1e-6;
 
   /// The cell of point i; none outside the grid (the sources' box grown by R: no source within R)
   /// or for NaN. limit: 1 + |p - c| / R for the cell's centre c, rounded up (EvalData::trim).
@@ -61,10 +65,6 @@ struct Block {
       return std::size_t((std::int64_t(fz) * g.ny + std::int64_t(fy)) * g.nx + std::int64_t(fx));
     return none;
   }
-  /// 1 plus a margin far above the rounding of the cell coordinates above (1e-16 of a cell index)
-  /// and of the limit to float (6e-8).
-  static constexpr double kLimitSlack = 1.0 + 1e-6;
-  double h_over_r = g.h / g.radius;
   /// Point i in units of R, as EvalData stores the sources: double absolute, float relative to the
   /// grid's origin.
   void local(std::size_t i, T (&t)[3]) const {

@@ -54,16 +54,6 @@ constexpr double phi_lead(Kernel k) noexcept {
   return k == Kernel::C2 ? 4.0 : k == Kernel::C4 ? 35.0 : k == Kernel::C6 ? 32.0 : 1.0;
 }
 
-/// The runs of EvalGrid copied out: coordinates in units of R (double: absolute, as the simple
-/// path; float: relative to the grid's origin, to keep digits) and coefficients alpha, by entry.
-/// Padding entries lie far away (r clips to 1, phi(1) = 0) with zero coefficients.
-///
-/// Large grids (kSortEntries entries or more) also sort each run by the sources' distance from the
-/// cell's centre c and keep, for each block of kLanes entries, the least such distance (`reach`, in
-/// units of R, rounded down). A point p of the cell needs only the sources closer than
-/// R + |p - c| to c (triangle inequality), so the evaluation stops at the first block whose reach
-/// is beyond that: about 15% fewer blocks on a surface with cells of side R/2. Small grids skip
-/// the sort (it costs more than it saves on one evaluation of a small mesh); their reach is 0.
 /// An array that is not zeroed when allocated: EvalData writes each entry once, the large ones in
 /// parallel, so the pages are first touched by the threads that fill them.
 template <class T>
@@ -84,6 +74,17 @@ class Buffer {
   std::size_t size_ = 0;
 };
 
+/// The runs of EvalGrid copied out: coordinates in units of R (double: absolute, as the simple
+/// path; float: relative to the grid's origin, to keep digits) and coefficients alpha, by entry.
+/// Padding entries lie far away (r clips to 1, phi(1) = 0) with zero coefficients.
+///
+/// Large grids (kSortEntries entries or more) also sort each run by the sources' distance from the
+/// cell's centre c and keep, for each block of kLanes entries, the least such distance (`reach`, in
+/// units of R, rounded down). A point p of the cell needs only the sources closer than
+/// R + |p - c| to c (triangle inequality), so the evaluation stops at the first block whose reach
+/// is beyond that: about 15% fewer blocks on a surface with cells of side R/2. Small grids skip
+/// the sort (it costs more than it saves on one evaluation of a small mesh); trim() leaves their
+/// runs whole.
 template <class T>
 struct EvalData {
   Buffer<T> x, y, z, ax, ay, az;
