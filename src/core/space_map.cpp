@@ -13,7 +13,6 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <numeric>
 #include <random>
 #include <sstream>
 #include <string>
@@ -163,6 +162,21 @@ struct SpaceMap::Structure {
     else factor.solve_in_place(b);
   }
 
+  /// A x through the neighbour graph (the sparse rows of A), rows in the input order of the sources.
+  Eigen::MatrixXd times_a(const Eigen::MatrixXd& x) const {
+    const double inv_r = 1.0 / options.radius, phi0 = wendland(options.kernel, 0.0);
+    Eigen::MatrixXd y(x.rows(), x.cols());
+    for (std::size_t i = 0; i < sources.size(); ++i) {
+      const auto k = Eigen::Index(i);
+      y.row(k) = phi0 * x.row(k);
+      const auto nb = graph.neighbors_of(i);
+      const auto d2 = graph.dist2_of(i);
+      for (std::size_t e = 0; e < nb.size(); ++e)
+        y.row(k) += wendland(options.kernel, std::sqrt(d2[e]) * inv_r) * x.row(Eigen::Index(nb[e]));
+    }
+    return y;
+  }
+
   mutable std::once_flag condition_once;
   mutable double condition_ = 0;
   /// lambda_max by power iteration with A (through the graph), lambda_min by inverse iteration with
@@ -170,24 +184,15 @@ struct SpaceMap::Structure {
   double condition() const {
     std::call_once(condition_once, [this] {
       const std::size_t n = sources.size();
-      const double inv_r = 1.0 / options.radius, phi0 = wendland(options.kernel, 0.0);
-      std::vector<double> v(n, 1.0 / std::sqrt(double(n))), av(n);
-      const auto multiply = [&](const std::vector<double>& x, std::vector<double>& y) {
-        for (std::size_t i = 0; i < n; ++i) {
-          double acc = phi0 * x[i];
-          const auto nb = graph.neighbors_of(i);
-          const auto d2 = graph.dist2_of(i);
-          for (std::size_t e = 0; e < nb.size(); ++e) acc += wendland(options.kernel, std::sqrt(d2[e]) * inv_r) * x[nb[e]];
-          y[i] = acc;
-        }
-      };
+      const double phi0 = wendland(options.kernel, 0.0);
+      Eigen::MatrixXd v = Eigen::MatrixXd::Constant(Eigen::Index(n), 1, 1.0 / std::sqrt(double(n)));
       double lmax = phi0;
       for (int it = 0; it < 30; ++it) {
-        multiply(v, av);
-        const double norm = std::sqrt(std::inner_product(av.begin(), av.end(), av.begin(), 0.0));
+        const Eigen::MatrixXd av = times_a(v);
+        const double norm = av.norm();
         if (!(norm > 0)) break;
         lmax = norm;
-        for (std::size_t i = 0; i < n; ++i) v[i] = av[i] / norm;
+        v = av / norm;
       }
       RowMatrix x = RowMatrix::Constant(Eigen::Index(n), 1, 1.0 / std::sqrt(double(n)));
       double lmin_inv = 1.0 / phi0;
@@ -472,16 +477,10 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
 
   // Residual at the controls, through the neighbour graph (the sparse rows of A, unpermuted).
   t0 = Clock::now();
-  const double inv_r = 1.0 / st.options.radius;
-  const double phi0 = wendland(st.options.kernel, 0.0);
+  const Eigen::MatrixXd a_alpha = st.times_a(s->alpha);
   double res = 0.0, gmax = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
-    Vec3 v = phi0 * s->alpha.row(Eigen::Index(i)).transpose();
-    const auto nb = st.graph.neighbors_of(i);
-    const auto d2 = st.graph.dist2_of(i);
-    for (std::size_t e = 0; e < nb.size(); ++e)
-      v += wendland(st.options.kernel, std::sqrt(d2[e]) * inv_r) * s->alpha.row(nb[e]).transpose();
-    v += s->polynomial_at(st.sources[i]);
+    const Vec3 v = a_alpha.row(Eigen::Index(i)).transpose() + s->polynomial_at(st.sources[i]);
     const Vec3 g = destinations[i] - st.sources[i];
     const double e = (v - g).norm();
     res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
