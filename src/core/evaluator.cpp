@@ -142,8 +142,8 @@ void EvalData<T>::assign(const EvalGrid& g, std::span<const Vec3> sources, const
   constexpr T far = T(1e18);  // inert padding: r clips to 1 and phi(1) = 0
   const double inv_r = 1.0 / g.radius;
   for (Buffer<T>* b : {&x, &y, &z, &ax, &ay, &az}) b->allocate(total);
-  reach.assign(total / EvalGrid::kLanes + 8, 0.0f);
   sorted = total >= kSortEntries;
+  reach.assign(sorted ? total / EvalGrid::kLanes + 8 : 0, 0.0f);
   const auto put = [&](std::size_t e, std::uint32_t s) {
     if (s == n) {
       x[e] = y[e] = z[e] = far;

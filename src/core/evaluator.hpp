@@ -83,12 +83,12 @@ class Buffer {
 /// units of R, rounded down). A point p of the cell needs only the sources closer than
 /// R + |p - c| to c (triangle inequality), so the evaluation stops at the first block whose reach
 /// is beyond that: about 15% fewer blocks on a surface with cells of side R/2. Small grids skip
-/// the sort (it costs more than it saves on one evaluation of a small mesh); trim() leaves their
-/// runs whole.
+/// the sort (it costs more than it saves on one evaluation of a small mesh); they have no reach,
+/// and trim() leaves their runs whole.
 template <class T>
 struct EvalData {
   Buffer<T> x, y, z, ax, ay, az;
-  std::vector<float> reach;  // per block of kLanes entries, and 8 of padding
+  std::vector<float> reach;  // sorted only: per block of kLanes entries, and 8 of padding
   bool sorted = false;
   static constexpr std::size_t kSortEntries = std::size_t(1) << 16;
   /// alpha: N x 3 row-major, the input order of the sources. The coefficients are stored times

@@ -297,10 +297,9 @@ class Dissection {
     for (auto it = first; it != last; ++it) side_[*it] = 0;
     const auto l = std::size_t(left_end - ids.begin()), r = std::size_t(right_end - ids.begin());
     if (l == b || r == l) return keep(ids, b, e);  // nothing to cut off
-    const std::vector<std::uint32_t> separator(right_end, last);
-    cut(ids, b, l);
+    cut(ids, b, l);  // each cut reorders only its own range: ids[r, e) stays the separator
     cut(ids, l, r);
-    order_.insert(order_.end(), separator.begin(), separator.end());
+    keep(ids, r, e);
   }
 
   const AdjacencyGraph& g_;
