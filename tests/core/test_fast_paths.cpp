@@ -69,6 +69,13 @@ std::vector<Vec3> probe_points(const std::vector<Vec3>& sources, std::mt19937& r
   return random;
 }
 
+/// The cell of g that holds q (inside the grid), and the cell's corner in cell units.
+std::size_t grid_cell(const detail::EvalGrid& g, const Vec3& q, Vec3& corner) {
+  const Vec3 u = (q - g.origin) * g.inv_h;
+  corner = Vec3(std::floor(u.x()), std::floor(u.y()), std::floor(u.z()));
+  return std::size_t((std::int64_t(corner.z()) * g.ny + std::int64_t(corner.y())) * g.nx + std::int64_t(corner.x()));
+}
+
 }  // namespace
 
 TEST(FastPaths, VectorisedEvaluationEqualsTheSimplePath) {
@@ -215,8 +222,8 @@ TEST(FastPaths, CellListsHoldEverySourceWithinReach) {
   EXPECT_EQ(g.subdivision, 2);
   // Every probe's cell lists every source within R of the probe, exactly once.
   for (const auto& q : random_points(2000, rng, -0.1, 1.1)) {
-    const Vec3 c = (q - g.origin) * g.inv_h;
-    const std::size_t cell = std::size_t((std::int64_t(c.z()) * g.ny + std::int64_t(c.y())) * g.nx + std::int64_t(c.x()));
+    Vec3 corner;
+    const std::size_t cell = grid_cell(g, q, corner);
     ASSERT_EQ((g.begin[cell + 1] - g.begin[cell]) % detail::EvalGrid::kLanes, 0u);
     std::vector<int> seen(s.size(), 0);
     for (std::uint32_t e = g.begin[cell]; e < g.begin[cell + 1]; ++e)
@@ -263,13 +270,12 @@ TEST(FastPaths, SortedRunsKeepEverySourceWithinReach) {
   EXPECT_EQ(a.reach, af.reach);
   std::size_t kept = 0, listed = 0;
   for (const auto& q : random_points(3000, rng, -0.1, 1.1)) {
-    const Vec3 u = (q - g.origin) * g.inv_h;
-    const Vec3 f(std::floor(u.x()), std::floor(u.y()), std::floor(u.z()));
-    const std::size_t cell = std::size_t((std::int64_t(f.z()) * g.ny + std::int64_t(f.y())) * g.nx + std::int64_t(f.x()));
+    Vec3 f;
+    const std::size_t cell = grid_cell(g, q, f);
     const Vec3 centre = g.origin + g.h * (f + Vec3::Constant(0.5));
     const std::uint32_t b = g.begin[cell], e = g.begin[cell + 1];
     // As the evaluation loops compute it (Block::cell_of), with its slack.
-    const float limit = float(1.0 + 1e-6 + (u - f - Vec3::Constant(0.5)).norm() * g.h / r);
+    const float limit = float(1.0 + 1e-6 + ((q - g.origin) * g.inv_h - f - Vec3::Constant(0.5)).norm() * g.h / r);
     const std::uint32_t end = a.trim(b, e, limit);
     ASSERT_EQ((end - b) % detail::EvalGrid::kLanes, 0u);
     kept += end - b;
