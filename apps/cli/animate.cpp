@@ -5,6 +5,7 @@
 #include "csrbf/render/movie_writer.hpp"
 #include "csrbf/render/process.hpp"
 
+#include <charconv>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -59,12 +60,19 @@ class Progress {
 };
 
 std::pair<int, int> parse_size(const std::string& s) {
+  const auto bad = [&] {
+    return UsageError("--size: expected WIDTHxHEIGHT with each in 16..16384, got '" + s + "'");
+  };
   const auto x = s.find('x');
+  if (x == std::string::npos) throw bad();
   int w = 0, h = 0;
-  char tail = 0;
-  if (x == std::string::npos || std::sscanf(s.c_str(), "%dx%d%c", &w, &h, &tail) != 2 || w < 16 || h < 16 || w > 16384 ||
+  const char* e1 = s.data() + x;
+  const char* e2 = s.data() + s.size();
+  const auto r1 = std::from_chars(s.data(), e1, w);
+  const auto r2 = std::from_chars(e1 + 1, e2, h);
+  if (r1.ec != std::errc() || r1.ptr != e1 || r2.ec != std::errc() || r2.ptr != e2 || w < 16 || h < 16 || w > 16384 ||
       h > 16384)
-    throw std::invalid_argument("--size: expected WIDTHxHEIGHT with each in 16..16384, got '" + s + "'");
+    throw bad();
   return {w, h};
 }
 
@@ -73,14 +81,22 @@ std::pair<int, int> parse_size(const std::string& s) {
 int run_animate(const AnimateOptions& o) {
   const auto [width, height] = parse_size(o.size);
   // Check the target before the (slow) scene load, so a typo fails at once.
-  render::movie_format_for(o.out);
+  render::check_movie_output(o.out);
   anim::Scene scene = io::read_scene(o.scene);
   if (o.fps) scene.fps = *o.fps;
   const double from = o.from.value_or(0.0), to = o.to.value_or(scene.duration);
   if (!(to >= from)) {
     std::ostringstream m;
     m << "--from " << from << " is after --to " << to;
-    throw std::invalid_argument(m.str());
+    throw UsageError(m.str());
+  }
+  // Bounded before anything is allocated or started: 1e6 frames is 11 hours at 25 fps.
+  constexpr double kMaxFrames = 1e6;
+  if ((to - from) * scene.fps + 1 > kMaxFrames) {
+    std::ostringstream m;
+    m << "--from " << from << " --to " << to << " at " << scene.fps << " fps is " << (to - from) * scene.fps + 1
+      << " frames; at most " << kMaxFrames << " are rendered at once";
+    throw UsageError(m.str());
   }
   const std::size_t frames = scene.frame_count(from, to);
 
@@ -89,11 +105,15 @@ int run_animate(const AnimateOptions& o) {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, nullptr);
   sigaction(SIGTERM, &sa, nullptr);
+  sigaction(SIGHUP, &sa, nullptr);
 
   render::Display display(o.private_display);
   std::cout << "csrbf animate: " << o.scene << " -> " << o.out << ": " << frames << " frames, " << width << "x"
             << height << " at " << scene.fps << " fps, t = " << from << " .. " << to << " s"
-            << (display.is_private() ? ", private X display " + display.name() : "") << "\n";
+            << (display.is_private() ? ", private X display " + display.name() : "")
+            << (display.unreachable_display().empty() ? ""
+                                                      : " (DISPLAY " + display.unreachable_display() + " does not open)")
+            << "\n";
   std::cout.flush();
 
   Progress progress(frames);

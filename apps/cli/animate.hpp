@@ -1,9 +1,16 @@
 #pragma once
 
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 namespace csrbf::cli {
+
+/// A bad option value found after parsing (its message names the option): exit status 2.
+class UsageError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
 
 struct AnimateOptions {
   std::string scene, out;

@@ -2,26 +2,186 @@
 
 #include "csrbf/io/error.hpp"
 
+#include <algorithm>
+#include <atomic>
+#include <csignal>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <ctime>
+#include <fcntl.h>
 #include <fstream>
+#include <poll.h>
 #include <random>
+#include <sys/file.h>
+#include <sys/stat.h>
 #include <system_error>
 #include <unistd.h>
+#include <vector>
 
 namespace fs = std::filesystem;
 
 namespace csrbf::io {
 
 namespace {
+
+constexpr const char* kMarker = ".csrbf-partial-";
+
 std::string unique_suffix() {
-  static thread_local std::mt19937_64 rng(std::random_device{}() ^ (std::uint64_t(::getpid()) << 32));
+  static thread_local std::mt19937_64 rng([] {
+    std::random_device rd;
+    return (std::uint64_t(rd()) << 32) ^ rd() ^ std::uint64_t(std::time(nullptr));
+  }());
   char buf[32];
   std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(rng()));
   return buf;
 }
+
 fs::path folder_of(const fs::path& target) {
   return target.has_parent_path() ? target.parent_path() : fs::path(".");
 }
+
+std::string errno_text() { return std::strerror(errno); }
+
+/// ".NAME.csrbf-partial-RANDOM.ext", NAME cut so that the whole stays within 255 bytes.
+std::string partial_name(const fs::path& target, const std::string& ext) {
+  std::string base = target.filename().string();
+  if (base.size() > 180) base.resize(180);
+  std::string s(".");  // built by appends: GCC 12 warns falsely on '"." + string' (-Wrestrict, PR 105329)
+  s += base;
+  s += kMarker;
+  s += unique_suffix();
+  s += ext.size() <= 16 ? ext : ext.substr(0, 16);
+  return s;
+}
+
+/// Removes a stale partial folder: the regular files it holds (all written by csrbf), then itself.
+void remove_partial_folder(const fs::path& dir) noexcept {
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code e2;
+    if (it->is_regular_file(e2)) fs::remove(it->path(), e2);
+  }
+  fs::remove(dir, ec);  // fails, and keeps the folder, if anything else is inside
+}
+
+/// Partial files of this process, for a signal handler to remove (fixed storage: a handler may
+/// not allocate).
+constexpr int kSlots = 32;
+char g_partials[kSlots][4096];
+std::atomic<int> g_used[kSlots];
+
+int register_partial(const fs::path& p) noexcept {
+  const std::string& s = p.native();
+  if (s.size() >= sizeof g_partials[0]) return -1;
+  for (int i = 0; i < kSlots; ++i) {
+    int expected = 0;
+    if (g_used[i].compare_exchange_strong(expected, 2)) {
+      std::memcpy(g_partials[i], s.c_str(), s.size() + 1);
+      g_used[i].store(1);
+      return i;
+    }
+  }
+  return -1;
+}
+void unregister_partial(int slot) noexcept {
+  if (slot >= 0) g_used[slot].store(0);
+}
+
+extern "C" void remove_partials_and_die(int sig) {
+  for (int i = 0; i < kSlots; ++i)
+    if (g_used[i].load() == 1) ::unlink(g_partials[i]);
+  ::signal(sig, SIG_DFL);
+  ::raise(sig);
+}
+
 }  // namespace
+
+int pipe_timeout_seconds(int fallback) {
+  if (const char* e = std::getenv("CSRBF_PIPE_TIMEOUT")) {
+    const int v = std::atoi(e);
+    if (v >= 1 && v <= 86400) return v;
+  }
+  return fallback;
+}
+
+void remove_partials_on_signals() noexcept {
+  struct sigaction sa {};
+  sa.sa_handler = remove_partials_and_die;
+  sigemptyset(&sa.sa_mask);
+  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT}) ::sigaction(sig, &sa, nullptr);
+}
+
+bool is_frame_name(const std::string& name) {
+  // frame_ + 5 or more digits + .png
+  if (name.size() < 15 || name.compare(0, 6, "frame_") != 0 || name.compare(name.size() - 4, 4, ".png") != 0) return false;
+  for (std::size_t i = 6; i + 4 < name.size(); ++i)
+    if (name[i] < '0' || name[i] > '9') return false;
+  return true;
+}
+
+void remove_stale_partials(const fs::path& folder) noexcept {
+  std::error_code ec;
+  for (fs::directory_iterator it(folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    if (name.empty() || name[0] != '.' || name.find(kMarker) == std::string::npos) continue;
+    struct stat st {};
+    if (::lstat(it->path().c_str(), &st) != 0) continue;
+    const bool dir = S_ISDIR(st.st_mode);
+    if (!dir && !S_ISREG(st.st_mode)) continue;
+    // Between its creation and its lock a live partial is unlocked for a few microseconds: leave
+    // anything younger than 2 s.
+    if (std::time(nullptr) - st.st_ctime < 2) continue;
+    const int fd = ::open(it->path().c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | (dir ? O_DIRECTORY : 0));
+    if (fd < 0) continue;
+    if (::flock(fd, LOCK_EX | LOCK_NB) == 0) {
+      if (dir) remove_partial_folder(it->path());
+      else ::unlink(it->path().c_str());
+    }
+    ::close(fd);
+  }
+}
+
+Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : kind_(kind) {
+  const fs::path dir = folder_of(target);
+  remove_stale_partials(dir);
+  for (int attempt = 0; attempt < 8; ++attempt) {
+    path_ = dir / partial_name(target, ext);
+    if (kind == Kind::File) {
+      lock_fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
+    } else if (::mkdir(path_.c_str(), 0777) == 0) {
+      lock_fd_ = ::open(path_.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+      if (lock_fd_ < 0) ::rmdir(path_.c_str());
+    }
+    if (lock_fd_ >= 0) break;
+    if (errno != EEXIST) break;
+  }
+  if (lock_fd_ < 0)
+    throw FileError("cannot write '" + target.string() + "': cannot create a " +
+                    (kind == Kind::File ? "file" : "folder") + " in '" + dir.string() + "': " + errno_text());
+  ::flock(lock_fd_, LOCK_EX | LOCK_NB);
+  if (kind == Kind::File) slot_ = register_partial(path_);
+}
+
+Partial::~Partial() {
+  unregister_partial(slot_);
+  if (!committed_) {
+    if (kind_ == Kind::File) ::unlink(path_.c_str());
+    else remove_partial_folder(path_);
+  }
+  if (lock_fd_ >= 0) ::close(lock_fd_);
+}
+
+void Partial::commit(const fs::path& target) {
+  check_output_path(target);  // again: the target may have changed while we wrote
+  std::error_code ec;
+  unregister_partial(slot_);
+  slot_ = -1;
+  fs::rename(path_, target, ec);
+  if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
+  committed_ = true;
+}
 
 void check_output_path(const fs::path& target) {
   if (target.empty()) throw FileError("output path is empty");
@@ -29,52 +189,59 @@ void check_output_path(const fs::path& target) {
   std::error_code ec;
   if (!fs::exists(dir, ec)) throw FileError("cannot write '" + target.string() + "': folder '" + dir.string() + "' does not exist");
   if (!fs::is_directory(dir, ec)) throw FileError("cannot write '" + target.string() + "': '" + dir.string() + "' is not a folder");
-  if (fs::is_directory(target, ec)) throw FileError("cannot write '" + target.string() + "': it is a folder");
+  const auto st = fs::status(target, ec);
+  switch (st.type()) {
+    case fs::file_type::not_found:
+    case fs::file_type::regular: return;
+    case fs::file_type::directory: throw FileError("cannot write '" + target.string() + "': it is a folder");
+    default:
+      throw FileError("cannot write '" + target.string() +
+                      "': it exists and is not a regular file (a device, FIFO or socket is never replaced)");
+  }
 }
 
 void write_atomically(const fs::path& target, const std::function<void(std::ostream&)>& write) {
   check_output_path(target);
-  std::string name = ".";  // built by appends: GCC 12 warns falsely on '"." + string' (-Wrestrict, PR 105329)
-  name += target.filename().string();
-  name += ".tmp-";
-  name += unique_suffix();
-  const fs::path tmp = folder_of(target) / name;
-  try {
-    {
-      std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-      if (!out) throw FileError("cannot write '" + target.string() + "': cannot create a file in '" + folder_of(target).string() + "'");
-      write(out);
-      out.flush();
-      if (!out) throw FileError("cannot write '" + target.string() + "': write failed (disk full?)");
-    }
-    std::error_code ec;
-    fs::rename(tmp, target, ec);
-    if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
-  } catch (...) {
-    std::error_code ignore;
-    fs::remove(tmp, ignore);
-    throw;
+  Partial partial(target, Partial::Kind::File);
+  std::streamoff written = 0;
+  {
+    std::ofstream out(partial.path(), std::ios::binary | std::ios::trunc);
+    if (!out) throw FileError("cannot write '" + target.string() + "': cannot open a file in '" + folder_of(target).string() + "'");
+    write(out);
+    out.flush();
+    written = out ? std::streamoff(out.tellp()) : -1;
+    out.close();
+    if (!out || written < 0) throw FileError("cannot write '" + target.string() + "': write failed (disk full or file size limit?)");
   }
+  std::error_code ec;
+  const auto size = fs::file_size(partial.path(), ec);
+  if (ec || std::streamoff(size) != written)
+    throw FileError("cannot write '" + target.string() + "': only " + std::to_string(ec ? 0 : size) + " of " +
+                    std::to_string(written) + " bytes reached the disk");
+  partial.commit(target);
 }
 
 void write_atomically_via_folder(const fs::path& target, const std::function<void(const fs::path&)>& write) {
   check_output_path(target);
-  const fs::path dir = folder_of(target) / (".csrbf-tmp-" + unique_suffix());
+  Partial partial(target, Partial::Kind::Folder);
+  const fs::path dir = partial.path();
+  write(dir / target.filename());
   std::error_code ec;
-  if (!fs::create_directory(dir, ec) || ec)
-    throw FileError("cannot write '" + target.string() + "': cannot create a temporary folder in '" + folder_of(target).string() + "'");
-  try {
-    write(dir / target.filename());
-    if (!fs::exists(dir / target.filename())) throw FileError("cannot write '" + target.string() + "': the writer produced no file");
-    for (const auto& e : fs::directory_iterator(dir)) {
-      fs::rename(e.path(), folder_of(target) / e.path().filename(), ec);
-      if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
-    }
-    fs::remove_all(dir, ec);
-  } catch (...) {
-    std::error_code ignore;
-    fs::remove_all(dir, ignore);
-    throw;
+  if (!fs::is_regular_file(dir / target.filename(), ec))
+    throw FileError("cannot write '" + target.string() + "': the writer produced no file");
+  // Check every destination first, so that either all files move or none.
+  std::vector<fs::path> made;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    if (!it->is_regular_file()) throw FileError("cannot write '" + target.string() + "': the writer made '" + it->path().filename().string() + "', not a file");
+    check_output_path(folder_of(target) / it->path().filename());
+    made.push_back(it->path());
+  }
+  if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
+  // The main file last: once it is there, its side files are too.
+  std::stable_partition(made.begin(), made.end(), [&](const fs::path& p) { return p.filename() != target.filename(); });
+  for (const auto& p : made) {
+    fs::rename(p, folder_of(target) / p.filename(), ec);
+    if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
   }
 }
 
@@ -86,6 +253,51 @@ void check_readable(const std::filesystem::path& path, const char* what) {
   if (st.type() == fs::file_type::directory) throw FileError(path.string() + ": is a folder, not " + what);
   if (st.type() != fs::file_type::regular && st.type() != fs::file_type::fifo)
     throw FileError(path.string() + ": is not a regular file (a device or socket), not " + what);
+}
+
+std::string read_input(const std::filesystem::path& path, const char* what, double max_bytes) {
+  check_readable(path, what);
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) throw FileError(path.string() + ": cannot open for reading: " + errno_text());
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) throw FileError(path.string() + ": cannot read: " + errno_text());
+  if (S_ISFIFO(st.st_mode)) {
+    // A FIFO nobody writes to would block for ever: wait for a writer for a bounded time.
+    const int wait = pipe_timeout_seconds(60);
+    pollfd p{fd, POLLIN, 0};
+    int r;
+    while ((r = ::poll(&p, 1, wait * 1000)) < 0 && errno == EINTR) {
+    }
+    if (r == 0) throw FileError(path.string() + ": nothing was written to this FIFO in " + std::to_string(wait) + " s");
+  }
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
+  if (S_ISREG(st.st_mode) && double(st.st_size) > max_bytes)
+    throw FileError(path.string() + ": " + std::to_string(st.st_size) + " bytes is more than the " +
+                    std::to_string(std::llround(max_bytes)) + " bytes allowed for " + what + " (--memory-limit)");
+  std::string text;
+  try {
+    if (S_ISREG(st.st_mode)) text.reserve(std::size_t(st.st_size));
+    char buf[1 << 16];
+    for (;;) {
+      const ssize_t n = ::read(fd, buf, sizeof buf);
+      if (n < 0) {
+        if (errno == EINTR) continue;
+        throw FileError(path.string() + ": read error after " + std::to_string(text.size()) + " bytes: " + errno_text());
+      }
+      if (n == 0) break;
+      if (double(text.size() + std::size_t(n)) > max_bytes)
+        throw FileError(path.string() + ": more than the " + std::to_string(std::llround(max_bytes)) + " bytes allowed for " +
+                        what + " (--memory-limit)");
+      text.append(buf, std::size_t(n));
+    }
+  } catch (const std::bad_alloc&) {
+    throw FileError(path.string() + ": not enough memory to read it (" + std::to_string(text.size()) + " bytes read)");
+  }
+  return text;
 }
 
 }  // namespace csrbf::io

@@ -8,13 +8,13 @@
 #include <fcntl.h>
 #include <fstream>
 #include <poll.h>
-#include <spawn.h>
+#include <sys/prctl.h>
 #include <sstream>
 #include <sys/wait.h>
 #include <thread>
 #include <unistd.h>
 
-extern char** environ;
+#include <X11/Xlib.h>
 
 namespace csrbf::render {
 
@@ -22,67 +22,144 @@ namespace {
 std::string errno_text() { return std::strerror(errno); }
 }  // namespace
 
-Child::Child(const std::vector<std::string>& argv, bool stdin_pipe, int extra_fd) {
+namespace {
+/// A temporary file with no name: it is unlinked at once, so nothing is left behind whatever
+/// happens to this process.
+int anonymous_file(const std::string& program) {
   char tmpl[] = "/tmp/csrbf-child-XXXXXX";
-  const int err_fd = mkstemp(tmpl);
-  if (err_fd < 0) throw RenderError("cannot create a temporary file for " + argv[0] + "'s messages: " + errno_text());
-  err_path_ = tmpl;
-  int in[2] = {-1, -1};
-  if (stdin_pipe && pipe2(in, O_CLOEXEC) != 0) {
-    ::close(err_fd);
-    throw RenderError("cannot create a pipe to " + argv[0] + ": " + errno_text());
+  const int fd = mkostemp(tmpl, O_CLOEXEC);
+  if (fd < 0) throw RenderError("cannot create a temporary file for " + program + "'s messages: " + errno_text());
+  ::unlink(tmpl);
+  return fd;
+}
+
+std::string read_all(int fd) {
+  std::string t;
+  if (fd < 0) return t;
+  char buf[4096];
+  off_t at = 0;
+  for (;;) {
+    const ssize_t n = ::pread(fd, buf, sizeof buf, at);
+    if (n <= 0) break;
+    t.append(buf, std::size_t(n));
+    at += n;
   }
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  if (stdin_pipe) posix_spawn_file_actions_adddup2(&fa, in[0], 0);
-  else posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
-  posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_adddup2(&fa, err_fd, 2);
-  posix_spawnattr_t attr;
-  posix_spawnattr_init(&attr);
-  // Own process group: a terminal's Ctrl-C goes to csrbf, which stops its children itself.
-  posix_spawnattr_setpgroup(&attr, 0);
-  sigset_t def, none;
-  sigemptyset(&def);
-  sigaddset(&def, SIGINT);
-  sigaddset(&def, SIGTERM);
-  sigaddset(&def, SIGPIPE);
-  sigemptyset(&none);
-  posix_spawnattr_setsigdefault(&attr, &def);
-  posix_spawnattr_setsigmask(&attr, &none);
-  posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETPGROUP | POSIX_SPAWN_SETSIGDEF | POSIX_SPAWN_SETSIGMASK);
+  return t;
+}
+
+/// argv[0] looked up in PATH (before fork: the child may only call async-signal-safe functions).
+std::string find_program(const std::string& name) {
+  if (name.find('/') != std::string::npos) return name;
+  const char* env = std::getenv("PATH");
+  const std::string path = env ? env : "/usr/local/bin:/usr/bin:/bin";
+  std::size_t i = 0;
+  while (i <= path.size()) {
+    std::size_t j = path.find(':', i);
+    if (j == std::string::npos) j = path.size();
+    const std::string dir = j > i ? path.substr(i, j - i) : std::string(".");
+    const std::string cand = dir + "/" + name;
+    if (::access(cand.c_str(), X_OK) == 0) return cand;
+    i = j + 1;
+  }
+  return {};
+}
+}  // namespace
+
+Child::Child(const std::vector<std::string>& argv, bool stdin_pipe, int extra_fd, bool capture_stdout) {
+  const std::string program = find_program(argv[0]);
+  if (program.empty())
+    throw RenderError("cannot run '" + argv[0] + "': " + std::strerror(ENOENT) +
+                      " (is it installed? scripts/install-deps.sh installs it)");
+  err_fd_ = anonymous_file(argv[0]);
+  if (capture_stdout) out_fd_ = anonymous_file(argv[0]);
+  int in[2] = {-1, -1}, report[2] = {-1, -1};
+  if ((stdin_pipe && pipe2(in, O_CLOEXEC) != 0) || pipe2(report, O_CLOEXEC) != 0) {
+    const std::string why = errno_text();
+    for (int fd : {in[0], in[1], report[0], report[1]})
+      if (fd >= 0) ::close(fd);
+    throw RenderError("cannot create a pipe to " + argv[0] + ": " + why);
+  }
+  const int null_fd = ::open("/dev/null", O_RDWR | O_CLOEXEC);
   std::vector<char*> args;
   for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
   args.push_back(nullptr);
-  if (extra_fd >= 0) fcntl(extra_fd, F_SETFD, 0);  // inherited (e.g. Xvfb's -displayfd)
-  const int rc = posix_spawnp(&pid_, argv[0].c_str(), &fa, &attr, args.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  posix_spawnattr_destroy(&attr);
-  ::close(err_fd);
-  if (stdin_pipe) ::close(in[0]);
-  if (rc != 0) {
-    if (stdin_pipe) ::close(in[1]);
-    std::filesystem::remove(err_path_);
-    pid_ = -1;
-    throw RenderError("cannot run '" + argv[0] + "': " + std::strerror(rc) +
-                      (rc == ENOENT ? " (is it installed? scripts/install-deps.sh installs it)" : ""));
+  const pid_t parent = ::getpid();
+  const int death = argv[0] == "Xvfb" ? SIGTERM : SIGKILL;  // Xvfb removes its lock files on SIGTERM
+  pid_ = ::fork();
+  if (pid_ == 0) {
+    // The child: async-signal-safe calls only, then exec.
+    ::setpgid(0, 0);  // own process group: a terminal's Ctrl-C reaches csrbf, which stops its children
+    ::prctl(PR_SET_PDEATHSIG, death);  // dies with csrbf, even after kill -9 of csrbf
+    if (::getppid() != parent) ::_exit(127);
+    struct sigaction dfl {};
+    dfl.sa_handler = SIG_DFL;
+    for (int sig : {SIGINT, SIGTERM, SIGPIPE, SIGHUP, SIGXFSZ}) ::sigaction(sig, &dfl, nullptr);
+    sigset_t none;
+    sigemptyset(&none);
+    ::sigprocmask(SIG_SETMASK, &none, nullptr);
+    ::dup2(stdin_pipe ? in[0] : null_fd, 0);
+    ::dup2(out_fd_ >= 0 ? out_fd_ : null_fd, 1);
+    ::dup2(err_fd_, 2);
+    if (extra_fd >= 0) ::fcntl(extra_fd, F_SETFD, 0);  // inherited (e.g. Xvfb's -displayfd)
+    ::execv(program.c_str(), args.data());
+    const int e = errno;
+    [[maybe_unused]] const ssize_t w = ::write(report[1], &e, sizeof e);
+    ::_exit(127);
   }
-  stdin_fd_ = stdin_pipe ? in[1] : -1;
+  const int fork_errno = errno;
+  if (null_fd >= 0) ::close(null_fd);
+  ::close(report[1]);
+  if (stdin_pipe) ::close(in[0]);
+  int exec_errno = 0;
+  if (pid_ > 0) {
+    ssize_t n;
+    while ((n = ::read(report[0], &exec_errno, sizeof exec_errno)) < 0 && errno == EINTR) {
+    }
+    if (n != sizeof exec_errno) exec_errno = 0;
+  }
+  ::close(report[0]);
+  if (pid_ < 0 || exec_errno != 0) {
+    const int why = pid_ < 0 ? fork_errno : exec_errno;
+    if (stdin_pipe) ::close(in[1]);
+    if (pid_ > 0) {
+      int st = 0;
+      while (waitpid(pid_, &st, 0) < 0 && errno == EINTR) {
+      }
+    }
+    pid_ = -1;
+    throw RenderError("cannot run '" + argv[0] + "': " + std::strerror(why));
+  }
+  if (stdin_pipe) {
+    stdin_fd_ = in[1];
+    ::fcntl(stdin_fd_, F_SETFL, ::fcntl(stdin_fd_, F_GETFL) | O_NONBLOCK);
+  }
 }
 
 Child::~Child() {
   if (pid_ > 0 && status_ < 0) kill();
   if (stdin_fd_ >= 0) ::close(stdin_fd_);
-  std::error_code ec;
-  std::filesystem::remove(err_path_, ec);
+  if (err_fd_ >= 0) ::close(err_fd_);
+  if (out_fd_ >= 0) ::close(out_fd_);
 }
 
-bool Child::write(const void* data, std::size_t bytes) {
+bool Child::write(const void* data, std::size_t bytes, int stall_seconds) {
   const char* p = static_cast<const char*>(data);
   while (bytes > 0) {
     const ssize_t n = ::write(stdin_fd_, p, bytes);
     if (n < 0) {
       if (errno == EINTR) continue;
+      if (errno == EAGAIN || errno == EWOULDBLOCK) {
+        // A reader that stops reading but does not exit must not hang us.
+        pollfd q{stdin_fd_, POLLOUT, 0};
+        int r;
+        while ((r = poll(&q, 1, stall_seconds * 1000)) < 0 && errno == EINTR) {
+        }
+        if (r == 0) {
+          stalled_ = true;
+          return false;
+        }
+        continue;
+      }
       return false;  // EPIPE: the child has gone
     }
     p += n;
@@ -125,11 +202,10 @@ void Child::kill() {
   status_ = 128 + SIGKILL;
 }
 
+std::string Child::output() const { return read_all(out_fd_); }
+
 std::string Child::error_output() const {
-  std::ifstream in(err_path_);
-  std::stringstream s;
-  s << in.rdbuf();
-  std::string t = s.str();
+  std::string t = read_all(err_fd_);
   while (!t.empty() && (t.back() == '\n' || t.back() == ' ')) t.pop_back();
   if (t.size() > 2000) t = "..." + t.substr(t.size() - 2000);
   return t;
@@ -142,8 +218,14 @@ Display::Display(bool force_private) {
   had_previous_ = d != nullptr;
   if (d) previous_ = d;
   if (d && *d && !force_private) {
-    name_ = d;
-    return;
+    // A DISPLAY that names no running server (a stale :77) would abort inside VTK: check it, and
+    // render on a private Xvfb instead.
+    if (::Display* x = XOpenDisplay(d)) {
+      XCloseDisplay(x);
+      name_ = d;
+      return;
+    }
+    fallback_from_ = d;
   }
   // Xvfb picks a free display number and writes it to the descriptor given by -displayfd.
   int fds[2];

@@ -127,8 +127,15 @@ TEST(Animate, FullFrameAviAndPngFolder) {
   ASSERT_EQ(a.size(), 1u);
   ASSERT_EQ(b.size(), 1u);
   EXPECT_GT(difference(a[0], b[0]), 0.5);
-  // Rendering again replaces the folder whole, only at the end.
-  write_text(dir / "frames" / "stale.txt", "old");
+  // A file csrbf did not write in the folder: refused, and nothing in it changes.
+  write_text(dir / "frames" / "notes.txt", "mine");
+  const Shell refused = animate(kExamples + "fish.scene.json -o " + (dir / "frames").string() + " --size 96x64 --fps 5 --to 0.4");
+  EXPECT_EQ(refused.code, 1) << refused.out;
+  EXPECT_NE(refused.out.find("notes.txt"), std::string::npos) << refused.out;
+  EXPECT_EQ(entries(dir / "frames"), 7u);
+  EXPECT_EQ(read_text(dir / "frames" / "notes.txt"), "mine");
+  // Frames of an earlier run are replaced whole, only at the end.
+  fs::remove(dir / "frames" / "notes.txt");
   ASSERT_EQ(animate(kExamples + "fish.scene.json -o " + (dir / "frames").string() + " --size 96x64 --fps 5 --to 0.4").code, 0);
   EXPECT_EQ(entries(dir / "frames"), 3u);
   EXPECT_EQ(entries(dir.path), 2u);
@@ -155,8 +162,14 @@ TEST(Animate, BadInputFailsAndWritesNothing) {
       {scene + " -o " + (dir / "x.mov").string(), "unknown movie type '.mov'", 1},
       {scene + " -o " + (dir / "nowhere" / "x.mp4").string(), "does not exist", 1},
       {scene + " -o " + (dir / "x.mp4").string() + " --size 101x100", "even width and height", 1},
-      {scene + " -o " + (dir / "x.mp4").string() + " --size big", "--size", 1},
-      {scene + " -o " + (dir / "x.mp4").string() + " --from 2 --to 1", "--from 2 is after --to 1", 1},
+      {scene + " -o " + (dir / "x.mp4").string() + " --size big", "--size", 2},
+      {scene + " -o " + (dir / "x.mp4").string() + " --size 4294967312x4294967312", "--size", 2},
+      {scene + " -o " + (dir / "x.mp4").string() + " --from 2 --to 1", "--from 2 is after --to 1", 2},
+      {scene + " -o " + (dir / "x.mp4").string() + " --to inf", "--to", 2},
+      {scene + " -o " + (dir / "x.mp4").string() + " --from -inf", "--from", 2},
+      {scene + " -o " + (dir / "x.mp4").string() + " --from -1e300 --to 1e300", "--from", 2},
+      {scene + " -o " + (dir / "x.mp4").string() + " --to 1e5", "at most 1e+06", 2},
+      {scene + " -o " + (dir / "x.mp4").string() + " --fps nan", "--fps", 2},
       {scene + " -o " + (dir / "x.mp4").string() + " --fps 0", "--fps", 2},
       {kExamples + "missing.scene.json -o " + (dir / "keep.mp4").string(), "missing.scene.json", 1},
       {kExamples + "fish.obj -o " + (dir / "keep.mp4").string(), "not valid JSON", 1},

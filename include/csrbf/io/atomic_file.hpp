@@ -1,25 +1,78 @@
 // Writing outputs so that a failure never leaves a half-written file or clobbers an existing one:
-// everything is written to a temporary name in the target's folder and renamed over the target
-// only once complete.
+// everything is written to a hidden partial beside the target and renamed over the target only
+// once complete and verified. csrbf never removes or replaces anything it did not write:
+// - a target may only be a new name or an existing regular file (never a folder, device, FIFO or
+//   socket);
+// - partials are named ".NAME.csrbf-partial-RANDOM[.ext]" and locked (flock) by the process that
+//   writes them; a partial left by a killed run (its lock released by the kernel) is removed by the
+//   next csrbf write into that folder.
 #pragma once
 
 #include <filesystem>
 #include <functional>
 #include <ostream>
+#include <string>
 
 namespace csrbf::io {
 
-/// Throws FileError when the target's folder does not exist or is not a folder.
+/// Throws FileError when the target's folder does not exist or is not a folder, or when the target
+/// exists and is not a regular file (a folder, a device, a FIFO or a socket is never replaced).
 void check_output_path(const std::filesystem::path& target);
 
-/// Calls write(stream) on a temporary file beside target, then renames it to target. On any
-/// exception the temporary file is removed and target is untouched.
+/// Calls write(stream) on a partial file beside target, checks the stream and that the file on
+/// disk holds every byte written, then renames it to target. On any failure the partial is removed
+/// and target is untouched.
 void write_atomically(const std::filesystem::path& target, const std::function<void(std::ostream&)>& write);
 
 /// For writers that need a path of their own (and may write side files, like glTF's .bin): calls
-/// write(path) with path = a fresh temporary folder / target's file name, then moves every file the
-/// writer made there into target's folder. On failure nothing is moved and the folder is removed.
+/// write(path) with path = a fresh partial folder / target's file name, then moves every file the
+/// writer made there into target's folder (each must be new there or replace a regular file). On
+/// failure nothing is moved and the folder is removed.
 void write_atomically_via_folder(const std::filesystem::path& target,
                                  const std::function<void(const std::filesystem::path&)>& write);
+
+/// A hidden, locked partial file or folder beside a target. The lock is held for the object's
+/// lifetime; the destructor removes the partial unless it was committed. Not copyable.
+class Partial {
+ public:
+  enum class Kind { File, Folder };
+  /// Removes stale partials in target's folder, then creates a new one (ext appended to its name,
+  /// e.g. ".mp4" so that a child program picks the format from it). Throws FileError.
+  Partial(const std::filesystem::path& target, Kind kind, const std::string& ext = {});
+  ~Partial();
+  Partial(const Partial&) = delete;
+  Partial& operator=(const Partial&) = delete;
+
+  const std::filesystem::path& path() const noexcept { return path_; }
+  /// Renames the partial file over target (which check_output_path accepted). Throws FileError.
+  void commit(const std::filesystem::path& target);
+  /// The partial is gone or has been moved by the caller: nothing to remove.
+  void release() noexcept { committed_ = true; }
+
+ private:
+  std::filesystem::path path_;
+  Kind kind_;
+  int lock_fd_ = -1;
+  int slot_ = -1;
+  bool committed_ = false;
+};
+
+/// Installs handlers for SIGINT, SIGTERM, SIGHUP, SIGPIPE and SIGQUIT that remove this process's
+/// partial files, then die of the signal as before. (Partial folders, and partials of a process
+/// killed by SIGKILL, are removed by the next run.) For programs, not libraries.
+void remove_partials_on_signals() noexcept;
+
+/// How long csrbf waits on a pipe that makes no progress (a FIFO nobody writes to, a child that
+/// stops reading) before failing: the environment variable CSRBF_PIPE_TIMEOUT (seconds, 1 to
+/// 86400) or fallback.
+int pipe_timeout_seconds(int fallback);
+
+/// Whether a file name is one of the numbered frames csrbf writes into a PNG folder
+/// ("frame_00042.png").
+bool is_frame_name(const std::string& name);
+
+/// Removes partials in folder whose writer has died (their lock is free). Never touches anything
+/// else. Called by every Partial; exposed for tests.
+void remove_stale_partials(const std::filesystem::path& folder) noexcept;
 
 }  // namespace csrbf::io

@@ -4,6 +4,7 @@
 // which replaces the target only when finish() succeeds.
 #pragma once
 
+#include "csrbf/io/atomic_file.hpp"
 #include "csrbf/render/process.hpp"
 
 #include <cstdint>
@@ -17,6 +18,11 @@ enum class MovieFormat { Mp4, Avi, PngFolder };
 /// .mp4 and .avi by extension (case-insensitive); anything else (no extension, a trailing '/', an
 /// existing folder) is a folder of PNG frames. Throws RenderError for another extension.
 MovieFormat movie_format_for(const std::filesystem::path& out);
+
+/// Throws RenderError unless out may be written: a movie file may be new or replace a regular file;
+/// a PNG frame folder may be new, empty, or hold only frame_NNNNN.png files (an earlier run's). A
+/// device, FIFO, socket or any other file is never replaced.
+void check_movie_output(const std::filesystem::path& out);
 
 class MovieWriter {
  public:
@@ -38,7 +44,10 @@ class MovieWriter {
 
  private:
   void abandon() noexcept;
-  std::filesystem::path out_, temp_;
+  [[noreturn]] void fail(const std::string& message);
+  std::size_t count_frames(const std::filesystem::path& movie) const;
+  std::filesystem::path out_;
+  std::unique_ptr<io::Partial> partial_;
   MovieFormat format_;
   int width_, height_;
   std::size_t frames_ = 0;
