@@ -13,6 +13,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <pybind11/stl/filesystem.h>
 
 #include <cmath>
 #include <memory>
@@ -55,9 +56,24 @@ void check_finite(const T* p, std::size_t n, const char* what) {
 using Dbl = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using Flt = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
-std::vector<Vec3> to_vec3(const py::array& a, const char* what) {
-  check_points(a, what, false);
-  const Dbl d = Dbl::ensure(a);
+/// A C-contiguous array of A's type, reading a in place where it already is one. A copy numpy
+/// cannot make (a broadcast view of 2**40 rows) is a MemoryError, not a null array.
+template <class A>
+A ensure_array(const py::array& a, const char* what) {
+  A r = A::ensure(a);
+  if (!r) {
+    std::ostringstream m;
+    m << what << ": cannot make a contiguous copy of " << shape_of(a) << " points ("
+      << double(a.size()) * double(sizeof(typename A::value_type)) / double(1ull << 30) << " GiB)";
+    PyErr_SetString(PyExc_MemoryError, m.str().c_str());
+    throw py::error_already_set();
+  }
+  return r;
+}
+
+std::vector<Vec3> to_vec3(const py::array& a, const char* what, bool allow_empty = false) {
+  check_points(a, what, allow_empty);
+  const Dbl d = ensure_array<Dbl>(a, what);
   const std::size_t n = std::size_t(d.shape(0));
   check_finite(d.data(), n, what);
   std::vector<Vec3> out(n);
@@ -89,7 +105,7 @@ template <class F64, class F32>
 py::array apply_points(const py::array& points, const char* what, F64&& f64, F32&& f32) {
   check_points(points, what);
   if (points.dtype().is(py::dtype::of<float>())) {
-    const Flt in = Flt::ensure(points);
+    const Flt in = ensure_array<Flt>(points, what);
     const std::size_t n = std::size_t(in.shape(0));
     check_finite(in.data(), n, what);
     py::array_t<float> out({py::ssize_t(n), py::ssize_t(3)});
@@ -100,7 +116,7 @@ py::array apply_points(const py::array& points, const char* what, F64&& f64, F32
     }
     return out;
   }
-  const Dbl in = Dbl::ensure(points);
+  const Dbl in = ensure_array<Dbl>(points, what);
   const std::size_t n = std::size_t(in.shape(0));
   check_finite(in.data(), n, what);
   py::array_t<double> out({py::ssize_t(n), py::ssize_t(3)});
@@ -197,7 +213,8 @@ local), 'constant' or 'linear'. The fit releases the GIL.)doc")
       .def(
           "jacobian",
           [](const csrbf::SpaceMap& map, const py::array& points, double phase) {
-            const auto x = to_vec3(points, "points");
+            csrbf::check_phase(phase);
+            const auto x = to_vec3(points, "points", true);
             py::array_t<double> out({py::ssize_t(x.size()), py::ssize_t(3), py::ssize_t(3)});
             double* o = out.mutable_data();
             {
@@ -244,7 +261,7 @@ Per-vertex displacements of one point set under a SpaceMap, kept so that a new p
 over memory: field(phase) = rest + phase * d(rest).)doc")
       .def(py::init([](const csrbf::SpaceMap& map, const py::array& rest) {
              check_points(rest, "rest");
-             const Dbl r = Dbl::ensure(rest);
+             const Dbl r = ensure_array<Dbl>(rest, "rest");
              check_finite(r.data(), std::size_t(r.shape(0)), "rest");
              py::gil_scoped_release release;
              return std::make_unique<csrbf::DisplacementField<double>>(map, r.data(), std::size_t(r.shape(0)));
@@ -272,18 +289,18 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
 
   m.def(
       "read_mesh",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path) {
         const auto mesh = csrbf::io::MeshDocument::load(path);
         return py::make_tuple(from_vec3(mesh.positions()), mesh.faces());
       },
       py::arg("path"), "(positions (n, 3), faces as lists of vertex indices) of a mesh file");
   m.def(
       "write_mesh",
-      [](const std::string& template_path, const py::array& positions, const std::string& path) {
+      [](const std::filesystem::path& template_path, const py::array& positions, const std::filesystem::path& path) {
         auto mesh = csrbf::io::MeshDocument::load(template_path);
         const auto p = to_vec3(positions, "positions");
         if (p.size() != mesh.positions().size())
-          throw py::value_error("positions has " + std::to_string(p.size()) + " points but " + template_path + " has " +
+          throw py::value_error("positions has " + std::to_string(p.size()) + " points but " + template_path.string() + " has " +
                                 std::to_string(mesh.positions().size()));
         mesh.positions() = p;
         mesh.save(path);
@@ -292,14 +309,14 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       "Writes the mesh of `template` with new positions to `path` (format by extension, atomically)");
   m.def(
       "read_controls",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path) {
         const auto c = csrbf::io::read_controls(path);
         return py::make_tuple(from_vec3(c.sources), from_vec3(c.destinations));
       },
       py::arg("path"), "(sources, destinations) of a controls text file");
   m.def(
       "read_deformation",
-      [](const std::string& path) {
+      [](const std::filesystem::path& path) {
         const auto d = csrbf::io::read_deformation(path);
         py::gil_scoped_release release;
         return d.fit();
@@ -307,7 +324,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       py::arg("path"), "The SpaceMap of a deformation JSON file");
   m.def(
       "write_deformation",
-      [](const std::string& path, const csrbf::SpaceMap& map) {
+      [](const std::filesystem::path& path, const csrbf::SpaceMap& map) {
         csrbf::io::DeformationSpec d;
         d.options = csrbf::FitOptions{map.radius(), map.kernel(), map.polynomial()};
         d.sources.assign(map.sources().begin(), map.sources().end());
@@ -317,7 +334,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       py::arg("path"), py::arg("map"), "Writes a SpaceMap as a deformation JSON file (atomically)");
 
   py::class_<ScenePlayer>(m, "Scene", "An animation scene file (docs/scene-format.md), evaluated at any time")
-      .def(py::init([](const std::string& path) {
+      .def(py::init([](const std::filesystem::path& path) {
              auto sp = std::make_unique<ScenePlayer>();
              sp->scene = std::make_unique<csrbf::anim::Scene>(csrbf::io::read_scene(path));
              sp->player = std::make_unique<csrbf::anim::Player>(*sp->scene);

@@ -17,6 +17,7 @@
 #include <cmath>
 #include <iostream>
 #include <optional>
+#include <sstream>
 
 namespace {
 
@@ -27,16 +28,29 @@ struct FitArgs {
   double memory_limit_gib = 4.0;
 };
 
-CLI::Validator positive_finite(const char* what) {
+/// A finite number in [lo, hi]; NaN and infinities are refused (CLI::Range lets NaN through).
+CLI::Validator finite_in(double lo, double hi, const std::string& what) {
+  std::ostringstream range;
+  range << "[" << lo << ", " << hi << "]";
   return CLI::Validator(
-      [what](std::string& s) -> std::string {
+      [lo, hi, what, r = range.str()](std::string& s) -> std::string {
         double v = 0;
-        const auto r = std::from_chars(s.data(), s.data() + s.size(), v);
-        if (r.ec != std::errc() || r.ptr != s.data() + s.size()) return std::string(what) + " must be a number, got '" + s + "'";
-        if (!(v > 0) || !std::isfinite(v)) return std::string(what) + " must be a positive finite number, got '" + s + "'";
+        const char* b = s.data();
+        const char* e = s.data() + s.size();
+        if (b != e && *b == '+') ++b;
+        const auto res = std::from_chars(b, e, v);
+        if (res.ptr != e || (res.ec != std::errc() && res.ec != std::errc::result_out_of_range))
+          return what + " must be a number, got '" + s + "'";
+        if (res.ec == std::errc::result_out_of_range || !std::isfinite(v) || v < lo || v > hi)
+          return what + " must be a finite number in " + r + ", got '" + s + "'";
         return {};
       },
-      "R > 0");
+      "in " + range.str());
+}
+
+CLI::Validator positive_finite(const char* what) {
+  // The radius is limited as SpaceMap::fit limits it, so that a bad value is a usage error (2).
+  return finite_in(1e-150, 1e150, what);
 }
 
 void add_fit_options(CLI::App* cmd, FitArgs& a) {
@@ -57,7 +71,7 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
   cmd->add_option("--memory-limit", a.memory_limit_gib,
                   "Refuse fits whose neighbour graph and factor would need more than this many GiB (a radius near "
                   "the model's size makes the matrix dense)")
-      ->check(CLI::PositiveNumber)
+      ->check(finite_in(1e-6, 1e6, "--memory-limit"))
       ->capture_default_str();
   deformation->excludes(controls)->excludes(radius)->excludes(kernel)->excludes(polynomial);
   controls->needs(radius);
@@ -129,6 +143,8 @@ int main(int argc, char** argv) {
   // A file size limit (ulimit -f, or a quota) must fail the write, so that the temporary file is
   // removed and the target kept, rather than kill the process with SIGXFSZ half-way.
   std::signal(SIGXFSZ, SIG_IGN);
+  // A signal during a write removes the partial file instead of leaving it.
+  csrbf::io::remove_partials_on_signals();
   CLI::App app{"csrbf: real-time 3D deformation by compactly supported radial basis functions (Wendland CSRBF)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "csrbf 0.1.0");
@@ -140,7 +156,7 @@ int main(int argc, char** argv) {
   deform->add_option("--mesh,-m", mesh_in, "Input mesh: .obj .ply .off .xyz (order kept), .stl .gltf .glb (assimp)")->required();
   add_fit_options(deform, deform_args);
   deform->add_option("--phase,-t", phase, "Phase t in [0, 1]: each point moves to x + t d(x)")
-      ->check(CLI::Range(0.0, 1.0))
+      ->check(finite_in(0.0, 1.0, "--phase"))
       ->capture_default_str();
   deform->add_option("-o,--output", mesh_out, "Output mesh; its extension sets the format")->required();
 
@@ -156,7 +172,7 @@ int main(int argc, char** argv) {
   bench->add_option("--threads", bench_opts.threads, "Threads (default: 1 for fish/face/ball/solvers, all for scale/peers)")
       ->check(CLI::Range(1, 1024));
   bench->add_option("--seconds", bench_opts.seconds, "Time spent on each measured quantity")
-      ->check(CLI::Range(0.0, 60.0))
+      ->check(finite_in(0.0, 60.0, "--seconds"))
       ->capture_default_str();
   bench->add_option("--loop", bench_opts.loop, "Evaluation loop: auto, portable or avx512 (each row names the one used)")
       ->check(CLI::IsMember({"auto", "portable", "avx512"}))
@@ -171,10 +187,10 @@ int main(int argc, char** argv) {
   animate->add_option("-o,--output", anim_opts.out,
                       "Movie: .mp4 (H.264), .avi (full uncompressed frames) or a folder of numbered PNG frames")
       ->required();
-  animate->add_option("--fps", anim_opts.fps, "Frames per second (default: the scene's)")->check(CLI::Range(0.1, 1000.0));
+  animate->add_option("--fps", anim_opts.fps, "Frames per second (default: the scene's)")->check(finite_in(0.1, 1000.0, "--fps"));
   animate->add_option("--size", anim_opts.size, "Frame size WIDTHxHEIGHT")->capture_default_str();
-  animate->add_option("--from", anim_opts.from, "Start time in seconds (default 0)");
-  animate->add_option("--to", anim_opts.to, "End time in seconds (default: the scene's duration)");
+  animate->add_option("--from", anim_opts.from, "Start time in seconds (default 0)")->check(finite_in(-1e6, 1e6, "--from"));
+  animate->add_option("--to", anim_opts.to, "End time in seconds (default: the scene's duration)")->check(finite_in(-1e6, 1e6, "--to"));
   animate->add_flag("--private-display", anim_opts.private_display,
                     "Render on a private Xvfb even when DISPLAY is set (one is started anyway when it is not)");
 
@@ -188,7 +204,7 @@ int main(int argc, char** argv) {
   auto* folds_flag = info->add_flag("--check-folds", check_folds,
                                     "Report det(dT/dx) over the mesh's vertices and points inside its triangles: "
                                     "the minimum, where it is <= 0, and the largest fold-free phase");
-  info->add_option("--phase", info_phase, "Phase at which folds are counted (default 1)");
+  info->add_option("--phase", info_phase, "Phase at which folds are counted (default 1)")->check(finite_in(-1e6, 1e6, "--phase"));
   folds_flag->needs(info->get_option("--mesh"));
 
   try {
@@ -235,6 +251,12 @@ int main(int argc, char** argv) {
         if (folds) std::cout << csrbf::cli::folds_text(*folds);
       }
     }
+  } catch (const csrbf::cli::UsageError& e) {
+    std::cerr << "csrbf: error: " << e.what() << '\n';
+    return 2;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "csrbf: error: out of memory (a limit such as ulimit -v, or --memory-limit too high for this machine)\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "csrbf: error: " << e.what() << '\n';
     return 1;

@@ -49,8 +49,7 @@ class ResourceLimit : public InvalidInput {
   using InvalidInput::InvalidInput;
 };
 
-/// Throws InvalidInput unless phase is finite (any finite phase is accepted: outside [0, 1] it
-/// extrapolates).
+/// Throws InvalidInput unless phase is finite and within [-1e6, 1e6].
 void check_phase(double phase);
 
 }  // namespace csrbf

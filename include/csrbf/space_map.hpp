@@ -42,6 +42,10 @@ std::optional<Solver> parse_solver(std::string_view name) noexcept;
 bool cholmod_available() noexcept;
 /// The largest relative residual at the controls a fit accepts (FitStats::residual_relative).
 inline constexpr double kResidualLimit = 1e-6;
+/// Float (single-precision) evaluation is used only where it agrees with double evaluation to this
+/// fraction of the largest control displacement, measured once per map on (up to 4096 of) its
+/// sources; otherwise float inputs are evaluated in double and rounded once.
+inline constexpr double kFloatTolerance = 1e-4;
 /// Auto's rule: the envelope solver is used while the multiply-adds of its factorisation,
 /// sum over rows of (row length)^2 / 2, stay at or below this (measured: docs/PERFORMANCE.md).
 inline constexpr double kEnvelopeWorkLimit = 1.0e8;
@@ -160,6 +164,8 @@ class SpaceMap {
   explicit SpaceMap(std::shared_ptr<const State> s) : s_(std::move(s)) {}
   SpaceMap solve_destinations(std::span<const Vec3> destinations) const;  // sizes and values already checked
   template <class T> void apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
+  template <class T> void apply_direct(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
+  bool float_trusted() const;
   std::shared_ptr<const State> s_;
 };
 

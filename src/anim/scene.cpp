@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <sstream>
 
 namespace csrbf::anim {
 
@@ -183,7 +184,18 @@ void Player::evaluate(double t) {
       for (std::size_t i = 0; i < n; ++i) st.model[part.vertices[i]] = Vec3(ps.a[3 * i], ps.a[3 * i + 1], ps.a[3 * i + 2]);
     }
     const Eigen::Matrix3d r = pose.rotation.toRotationMatrix();
-    for (std::size_t i = 0; i < st.model.size(); ++i) st.world[i] = r * (st.model[i] - obj.centre) + pose.position;
+    bool finite = pose.position.allFinite() && r.allFinite();
+    for (std::size_t i = 0; i < st.model.size(); ++i) {
+      st.world[i] = r * (st.model[i] - obj.centre) + pose.position;
+      finite = finite && st.world[i].allFinite();
+    }
+    if (!finite) {
+      // A trajectory far out (keys at 1e308) or a deformation that overflows: never a NaN frame.
+      std::ostringstream m;
+      m << "objects[" << o << "]" << (obj.name.empty() ? "" : " ('" + obj.name + "')") << " at t = " << t
+        << " s: the pose or a vertex is not finite (trajectory keys or displacements too large)";
+      throw InvalidInput(m.str());
+    }
   }
 }
 

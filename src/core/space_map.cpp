@@ -88,9 +88,10 @@ std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept {
 }
 
 void check_phase(double phase) {
-  if (!std::isfinite(phase)) {
+  // |phase| <= 1e6: beyond it x + phase d(x) can overflow for displacements that fit allows.
+  if (!std::isfinite(phase) || std::abs(phase) > 1e6) {
     std::ostringstream os;
-    os << "phase must be a finite number, got " << phase;
+    os << "phase must be a finite number within [-1e6, 1e6], got " << phase;
     throw InvalidInput(os.str());
   }
 }
@@ -226,7 +227,9 @@ struct SpaceMap::State {
     return alpha_by_slot_;
   }
   // The evaluation grid's runs with coordinates and alpha, made on first use of each precision.
-  mutable std::once_flag once_double, once_float;
+  mutable std::once_flag once_double, once_float, once_float_trust;
+  mutable bool float_ok = true;       // float evaluation agrees with double (float_trusted())
+  mutable double float_error = 0;     // the largest difference measured
   mutable detail::EvalData<double> data_double;
   mutable detail::EvalData<float> data_float;
   template <class T>
@@ -265,6 +268,11 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   if (!(options.radius >= 1e-150 && options.radius <= 1e150)) {
     std::ostringstream os;
     os << "radius must be a positive finite number in [1e-150, 1e150], got " << options.radius;
+    throw InvalidInput(os.str());
+  }
+  if (!(options.memory_limit_bytes > 0)) {  // NaN must not switch the limit off
+    std::ostringstream os;
+    os << "memory_limit_bytes must be a number > 0, got " << options.memory_limit_bytes;
     throw InvalidInput(os.str());
   }
   check_points(sources, "source");
@@ -378,6 +386,18 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   stats.seconds_ordering = seconds_since(t0);
 
   if (solver == Solver::Envelope) {
+    // The envelope of the chosen order is known exactly now, before it is allocated.
+    double entries = double(n);
+    for (std::size_t k = 0; k < n; ++k) entries += double(k - first[k]);
+    if (8 * entries > options.memory_limit_bytes) {
+      std::ostringstream os;
+      os.precision(3);
+      os << "the envelope of the " << ordering_name(stats.ordering) << " ordering holds " << entries
+         << " entries, about " << 8 * entries / double(1ull << 30) << " GiB, above the limit of "
+         << options.memory_limit_bytes / double(1ull << 30)
+         << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use another ordering or solver, or a smaller radius";
+      throw ResourceLimit(os.str());
+    }
     t0 = Clock::now();
     EnvelopeMatrix a = kernel_matrix(st->graph, st->order, std::move(first), options.kernel, options.radius);
     stats.bandwidth = a.bandwidth();
@@ -408,7 +428,8 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
     stats.dense_bytes = 4 * n * n;
     st->order = identity_order(n);
     t0 = Clock::now();
-    st->sparse = detail::factor_sparse(st->graph, sources, options.kernel, options.radius, solver);
+    st->sparse = detail::factor_sparse(st->graph, sources, options.kernel, options.radius, solver,
+                                       options.memory_limit_bytes);
     stats.factor_nonzeros = st->sparse->nonzeros();
     stats.seconds_factorization = seconds_since(t0);
   }
@@ -544,10 +565,13 @@ FitMemoryEstimate estimate_fit_memory(std::span<const Vec3> sources, double radi
   }
   e.mean_neighbors = count / double(samples);
   const double nd = double(n), pairs = nd * e.mean_neighbors / 2;
-  // Graph: both directions, a 4-byte index and an 8-byte squared distance each. Factor: at least the
-  // matrix's lower triangle, and for a dense-ish matrix the full N^2 / 2 of the envelope.
-  const double graph = 2 * pairs * 12, factor = std::max(8 * (pairs + nd), e.mean_neighbors > nd / 4 ? 4 * nd * nd : 0.0);
-  e.bytes = graph + factor;
+  // Graph: both directions, a 4-byte index and an 8-byte squared distance each. The sparse solvers'
+  // lower triangle (an 8-byte value and a 4-byte index an entry), held beside the graph. Factor: at
+  // least that triangle again, and for a dense-ish matrix the full N^2 / 2 of the envelope. The
+  // solver's own analysis checks the factor's real size later, before it is allocated.
+  const double graph = 2 * pairs * 12, matrix = 12 * (pairs + nd);
+  const double factor = std::max(12 * (pairs + nd), e.mean_neighbors > nd / 4 ? 4 * nd * nd : 0.0);
+  e.bytes = graph + matrix + factor;
   return e;
 }
 
@@ -583,9 +607,61 @@ Eigen::Matrix3d SpaceMap::jacobian(const Vec3& x, double phase) const {
   return Eigen::Matrix3d::Identity() + phase * j;
 }
 
+bool SpaceMap::float_trusted() const {
+  std::call_once(s_->once_float_trust, [this] {
+    // Single-precision evaluation sums terms of the coefficients' size: when they are far larger
+    // than the displacements (an ill-conditioned fit) or the model sits far from the origin, the
+    // float sum can be garbage although the double one is exact. Compare both on (a seeded sample
+    // of) the sources, rounded to float first so that only the evaluation differs.
+    const Structure& st = *s_->st;
+    const std::size_t n = st.sources.size(), m = std::min<std::size_t>(n, 4096);
+    std::mt19937_64 rng(20261201);
+    std::vector<float> inf(3 * m), outf(3 * m);
+    std::vector<double> ind(3 * m), outd(3 * m);
+    double gmax = 0;
+    for (std::size_t i = 0; i < n; ++i) gmax = std::max(gmax, (s_->destinations[i] - st.sources[i]).norm());
+    for (std::size_t k = 0; k < m; ++k) {
+      const std::size_t i = m == n ? k : std::size_t(rng() % n);
+      for (int c = 0; c < 3; ++c) {
+        inf[3 * k + std::size_t(c)] = float(st.sources[i][c]);
+        ind[3 * k + std::size_t(c)] = double(inf[3 * k + std::size_t(c)]);
+      }
+    }
+    apply_direct(inf.data(), outf.data(), m, 1.0, false);
+    apply_direct(ind.data(), outd.data(), m, 1.0, false);
+    double err = 0;
+    for (std::size_t k = 0; k < 3 * m; ++k) {
+      const double e = std::abs(double(outf[k]) - outd[k]);
+      err = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(err, e);
+    }
+    s_->float_error = err;
+    s_->float_ok = gmax == 0 ? err == 0 : err <= kFloatTolerance * gmax;
+  });
+  return s_->float_ok;
+}
+
 template <class T>
 void SpaceMap::apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const {
   check_phase(phase);
+  if constexpr (std::is_same_v<T, float>) {
+    if (!float_trusted()) {
+      // Evaluated in double, in blocks, and rounded once at the end.
+      constexpr std::size_t block = 1 << 16;
+      std::vector<double> a(3 * std::min(n, block)), b(a.size());
+      for (std::size_t i0 = 0; i0 < n; i0 += block) {
+        const std::size_t m = std::min(block, n - i0);
+        for (std::size_t k = 0; k < 3 * m; ++k) a[k] = double(in[3 * i0 + k]);
+        apply_direct(a.data(), b.data(), m, phase, add_point);
+        for (std::size_t k = 0; k < 3 * m; ++k) out[3 * i0 + k] = float(b[k]);
+      }
+      return;
+    }
+  }
+  apply_direct(in, out, n, phase, add_point);
+}
+
+template <class T>
+void SpaceMap::apply_direct(const T* in, T* out, std::size_t n, double phase, bool add_point) const {
   const Structure& st = *s_->st;
   const detail::EvalGrid& grid = st.grid();
   if (grid.usable) {

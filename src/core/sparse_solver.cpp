@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <mutex>
+#include <sstream>
 #include <span>
 #include <utility>
 #include <vector>
@@ -54,8 +55,23 @@ template <class Decomposition>
 class EigenFactor final : public SparseFactor {
  public:
   /// order: row k of a is the source order[k] (empty: the input order).
-  EigenFactor(const Sparse& a, const char* name, std::vector<std::uint32_t> order = {}) : order_(std::move(order)) {
+  /// memory_limit_bytes: the factor's size, as the symbolic analysis predicts it, is checked before
+  /// the numeric factorisation (ResourceLimit beyond it).
+  EigenFactor(const Sparse& a, const char* name, double memory_limit_bytes, std::vector<std::uint32_t> order = {})
+      : order_(std::move(order)) {
     init(a);
+    // Values and row indices of L (CHOLMOD's supernodes hold dense blocks: its own count).
+    const double bytes = 12.0 * predicted_entries();
+    if (bytes > memory_limit_bytes) {
+      std::ostringstream os;
+      os.precision(3);
+      os << name << "'s analysis predicts " << predicted_entries() << " entries in the factor, about "
+         << bytes / double(1ull << 30) << " GiB, above the limit of " << memory_limit_bytes / double(1ull << 30)
+         << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius: the compact support "
+            "is what keeps the system sparse";
+      throw ResourceLimit(os.str());
+    }
+    llt_.factorize(a);
     if (llt_.info() != Eigen::Success)
       throw NotPositiveDefinite(std::string("the interpolation matrix is not numerically positive definite (") +
                                 name + " factorisation failed)");
@@ -75,14 +91,23 @@ class EigenFactor final : public SparseFactor {
   std::size_t nonzeros() const override { return count(); }
 
  private:
-  void init(const Sparse& a) { llt_.compute(a); }
+  void init(const Sparse& a) { llt_.analyzePattern(a); }
+  double predicted_entries() const;
   std::size_t count() const;
   std::vector<std::uint32_t> order_;
   mutable Decomposition llt_;
   mutable std::mutex mutex_;
 };
 
-using Simplicial = Eigen::SimplicialLLT<Sparse, Eigen::Lower, Eigen::AMDOrdering<int>>;
+/// SimplicialLLT, with the size of L that analyzePattern has computed (and reserved, untouched).
+class Simplicial : public Eigen::SimplicialLLT<Sparse, Eigen::Lower, Eigen::AMDOrdering<int>> {
+ public:
+  Eigen::Index reserved() const { return m_matrix.nonZeros(); }
+};
+template <>
+double EigenFactor<Simplicial>::predicted_entries() const {
+  return double(llt_.reserved());
+}
 template <>
 std::size_t EigenFactor<Simplicial>::count() const {
   return std::size_t(llt_.matrixL().nestedExpression().nonZeros());
@@ -98,7 +123,11 @@ void EigenFactor<Supernodal>::init(const Sparse& a) {
   // ordering alone costs about 0.9 s.
   llt_.cholmod().nmethods = 1;
   llt_.cholmod().method[0].ordering = CHOLMOD_NATURAL;
-  llt_.compute(a);
+  llt_.analyzePattern(a);
+}
+template <>
+double EigenFactor<Supernodal>::predicted_entries() const {
+  return llt_.cholmod().lnz;  // set by cholmod_analyze
 }
 template <>
 std::size_t EigenFactor<Supernodal>::count() const {
@@ -110,14 +139,15 @@ std::size_t EigenFactor<Supernodal>::count() const {
 }  // namespace
 
 std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, std::span<const Vec3> sources, Kernel kernel,
-                                            double radius, Solver which) {
+                                            double radius, Solver which, double memory_limit_bytes) {
   if (which == Solver::Eigen)
-    return std::make_unique<EigenFactor<Simplicial>>(lower_matrix(g, kernel, radius), "Eigen SimplicialLLT");
+    return std::make_unique<EigenFactor<Simplicial>>(lower_matrix(g, kernel, radius), "Eigen SimplicialLLT",
+                                                     memory_limit_bytes);
 #ifdef CSRBF_HAVE_CHOLMOD
   if (which == Solver::Cholmod) {
     std::vector<std::uint32_t> order = nested_dissection_order(g, sources, radius);
     const Sparse a = lower_matrix(g, kernel, radius, order);
-    return std::make_unique<EigenFactor<Supernodal>>(a, "CHOLMOD", std::move(order));
+    return std::make_unique<EigenFactor<Supernodal>>(a, "CHOLMOD", memory_limit_bytes, std::move(order));
   }
 #else
   (void)sources;

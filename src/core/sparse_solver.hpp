@@ -24,8 +24,9 @@ class SparseFactor {
 
 /// Assembles A from the neighbour graph and factorises it with Solver::Eigen (AMD ordering) or
 /// Solver::Cholmod (in nested_dissection_order of the sources). Throws NotPositiveDefinite on
-/// failure, InvalidInput when CHOLMOD is asked for but not built in.
+/// failure, InvalidInput when CHOLMOD is asked for but not built in, ResourceLimit when the
+/// symbolic analysis predicts a factor beyond memory_limit_bytes (before the numeric factorisation).
 std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, std::span<const Vec3> sources, Kernel kernel,
-                                            double radius, Solver which);
+                                            double radius, Solver which, double memory_limit_bytes);
 
 }  // namespace csrbf::detail

@@ -5,9 +5,24 @@
 
 namespace csrbf::io::detail {
 
+namespace {
+struct TooDeep {
+  int depth;
+};
+}  // namespace
+
 nlohmann::json parse_json(const std::string& text, const std::string& name) {
   try {
-    return nlohmann::json::parse(text);
+    // Nesting is limited while parsing, so that nothing later (messages, copies) recurses deeply.
+    const nlohmann::json::parser_callback_t limit = [](int depth, nlohmann::json::parse_event_t event, nlohmann::json&) {
+      if (depth > kMaxJsonDepth && (event == nlohmann::json::parse_event_t::object_start ||
+                                    event == nlohmann::json::parse_event_t::array_start))
+        throw TooDeep{depth};
+      return true;
+    };
+    return nlohmann::json::parse(text, limit);
+  } catch (const TooDeep& d) {
+    throw FileError(name + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels (arrays and objects)");
   } catch (const nlohmann::json::exception& e) {
     // nlohmann's message reads "[json.exception.parse_error.101] parse error at line 3, column 5: ...";
     // a number too large for a double is an out_of_range.406 error.
@@ -19,17 +34,22 @@ nlohmann::json parse_json(const std::string& text, const std::string& name) {
 }
 
 nlohmann::json read_json_file(const std::filesystem::path& path) {
-  check_readable(path, "a JSON file");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw FileError(path.string() + ": cannot open for reading");
-  std::ostringstream text;
-  text << in.rdbuf();
-  return parse_json(text.str(), path.string());
+  // csrbf's documents are small (controls inline take about 100 bytes each): 1 GiB at most.
+  return parse_json(read_input(path, "a JSON file", double(1ull << 30)), path.string());
 }
 
 namespace {
+/// A short text for a value: scalars as JSON (cut), containers by their size only (no recursion).
 std::string shown(const nlohmann::json& j) {
-  std::string s = j.dump();
+  if (j.is_array()) return "an array of " + std::to_string(j.size()) + " elements";
+  if (j.is_object()) return "an object with " + std::to_string(j.size()) + " members";
+  std::string s;
+  if (j.is_string()) {
+    const auto& str = j.get_ref<const std::string&>();
+    s = nlohmann::json(str.size() > 60 ? str.substr(0, 60) : str).dump();
+  } else {
+    s = j.dump();
+  }
   if (s.size() > 60) s = s.substr(0, 57) + "...";
   return s;
 }
@@ -94,6 +114,8 @@ double JsonNode::number(double lo, double hi) const {
 double JsonNode::positive() const {
   const double v = number();
   if (!(v > 0)) expected("a number > 0");
+  // The range of every length csrbf takes (SpaceMap::fit limits radii to it).
+  if (v < 1e-150 || v > 1e150) expected("a number in [1e-150, 1e150]");
   return v;
 }
 
@@ -115,7 +137,8 @@ bool JsonNode::boolean() const {
 Vec3 JsonNode::vec3() const {
   if (!j_->is_array() || j_->size() != 3) expected("[x, y, z]");
   Vec3 v;
-  for (std::size_t k = 0; k < 3; ++k) v[Eigen::Index(k)] = (*this)[k].number();
+  // Coordinates within +-1e150, as SpaceMap::fit takes them: products and sums stay finite.
+  for (std::size_t k = 0; k < 3; ++k) v[Eigen::Index(k)] = (*this)[k].number(-1e150, 1e150);
   return v;
 }
 

@@ -16,7 +16,11 @@
 
 namespace csrbf::io::detail {
 
-/// Parses a whole file; a syntax error names the line and column.
+/// Arrays and objects nest at most this deep (csrbf's documents need 6 levels).
+constexpr int kMaxJsonDepth = 64;
+
+/// Parses a whole file; a syntax error names the line and column; nesting deeper than
+/// kMaxJsonDepth is refused.
 nlohmann::json read_json_file(const std::filesystem::path& path);
 /// Parses text; name is the file name used in messages.
 nlohmann::json parse_json(const std::string& text, const std::string& name);

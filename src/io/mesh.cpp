@@ -5,6 +5,8 @@
 #include "text.hpp"
 
 #include <assimp/Exporter.hpp>
+#include <assimp/IOStream.hpp>
+#include <assimp/IOSystem.hpp>
 #include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
@@ -12,6 +14,8 @@
 #include <algorithm>
 #include <bit>
 #include <cctype>
+#include <cerrno>
+#include <cstdio>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -135,16 +139,6 @@ void ply_write(unsigned char* p, PlyType t, bool swap, double value) {
   std::memcpy(p, b, n);
 }
 
-std::string read_file(const fs::path& path) {
-  check_readable(path, "a mesh");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw FileError(path.string() + ": cannot open for reading");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  if (in.bad()) throw FileError(path.string() + ": read error");
-  return std::move(ss).str();
-}
-
 std::vector<std::string> split_lines(std::string_view text) {
   std::vector<std::string> lines;
   std::size_t i = 0;
@@ -230,15 +224,15 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
   std::vector<std::string> current_groups;
   std::string current_material;
   for (std::size_t li = 0; li < lines.size(); ++li) {
-    const auto body = strip_comment(lines[li]);
+    const auto body = strip_comment(li == 0 ? detail::skip_bom(lines[li]) : std::string_view(lines[li]));
     if (body.empty()) continue;
     const auto tok = split(body);
     if (tok[0] == "v" || tok[0] == "vn") {
-      if (tok.size() < 4) throw FileError(where(li) + "expected '" + std::string(tok[0]) + " x y z', got '" + std::string(body) + "'");
+      if (tok.size() < 4) throw FileError(where(li) + "expected '" + std::string(tok[0]) + " x y z', got '" + detail::cut(body) + "'");
       Vec3 p;
       for (int k = 0; k < 3; ++k)
         if (!parse_double(tok[k + 1], p[k]) || !std::isfinite(p[k]))
-          throw FileError(where(li) + "'" + std::string(tok[k + 1]) + "' is not a finite number (line: '" + std::string(body) + "')");
+          throw FileError(where(li) + "'" + std::string(tok[k + 1]) + "' is not a finite number (line: '" + detail::cut(body) + "')");
       if (tok[0] == "v") {
         positions.push_back(p);
         position_slots.push_back({Slot{li, 1}, Slot{li, 2}, Slot{li, 3}});
@@ -248,7 +242,7 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
         ++vn_count;
       }
     } else if (tok[0] == "f") {
-      if (tok.size() < 4) throw FileError(where(li) + "a face needs at least 3 vertices: '" + std::string(body) + "'");
+      if (tok.size() < 4) throw FileError(where(li) + "a face needs at least 3 vertices: '" + detail::cut(body) + "'");
       std::vector<std::uint32_t> f;
       std::vector<std::int64_t> fn;
       for (std::size_t k = 1; k < tok.size(); ++k) {
@@ -294,7 +288,7 @@ void MeshDocument::Impl::load_off(const std::string& text) {
   std::size_t li = 0;
   auto next = [&]() -> std::vector<std::string_view> {
     while (li < lines.size()) {
-      const auto b = strip_comment(lines[li]);
+      const auto b = strip_comment(li == 0 ? detail::skip_bom(lines[li]) : std::string_view(lines[li]));
       if (!b.empty()) return split(b);
       ++li;
     }
@@ -320,7 +314,11 @@ void MeshDocument::Impl::load_off(const std::string& text) {
   if (tok.empty()) { ++li; tok = next(); }
   std::size_t nv = 0, nf = 0;
   if (tok.size() < 2 || !parse_int(tok[0], nv) || !parse_int(tok[1], nf))
-    throw FileError(where(li) + "expected 'vertex_count face_count edge_count', got '" + lines[std::min(li, lines.size() - 1)] + "'");
+    throw FileError(where(li) + "expected 'vertex_count face_count edge_count', got '" + detail::cut(lines[std::min(li, lines.size() - 1)]) + "'");
+  // Each vertex and face takes a line: the counts are bounded by the file before any allocation.
+  if (nv > lines.size() || nf > lines.size() || nv + nf > lines.size())
+    throw FileError(where(li) + "the header declares " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
+                    " faces but the file has only " + std::to_string(lines.size()) + " lines");
   ++li;
   for (std::size_t v = 0; v < nv; ++v) {
     tok = next();
@@ -346,8 +344,9 @@ void MeshDocument::Impl::load_off(const std::string& text) {
     tok = next();
     if (tok.empty()) throw FileError(path.string() + ": ends after " + std::to_string(f) + " of " + std::to_string(nf) + " faces");
     std::size_t k = 0;
-    if (!parse_int(tok[0], k) || k < 1 || tok.size() < k + 1)
-      throw FileError(where(li) + "bad face '" + lines[li] + "'");
+    if (!parse_int(tok[0], k) || k >= tok.size())
+      throw FileError(where(li) + "bad face '" + detail::cut(lines[li]) + "' (expected 'n i1 ... in')");
+    if (k < 3) throw FileError(where(li) + "a face has " + std::to_string(k) + " vertices; a face needs at least 3: '" + detail::cut(lines[li]) + "'");
     std::vector<std::uint32_t> face(k);
     for (std::size_t j = 0; j < k; ++j)
       if (!parse_int(tok[j + 1], face[j]))
@@ -362,10 +361,10 @@ void MeshDocument::Impl::load_off(const std::string& text) {
 void MeshDocument::Impl::load_xyz(const std::string& text) {
   lines = split_lines(text);
   for (std::size_t li = 0; li < lines.size(); ++li) {
-    const auto b = strip_comment(lines[li]);
+    const auto b = strip_comment(li == 0 ? detail::skip_bom(lines[li]) : std::string_view(lines[li]));
     if (b.empty()) continue;
     const auto tok = split(b);
-    if (tok.size() < 3) throw FileError(where(li) + "expected 'x y z', got '" + std::string(b) + "'");
+    if (tok.size() < 3) throw FileError(where(li) + "expected 'x y z', got '" + detail::cut(b) + "'");
     Vec3 p;
     for (int k = 0; k < 3; ++k)
       if (!parse_double(tok[k], p[k]) || !std::isfinite(p[k]))
@@ -426,6 +425,34 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
     }
   }
   if (!format_seen) throw FileError(name + ": PLY header has no 'format' line");
+  // Counts come from the header and are not trusted: each is bounded by what the body can hold
+  // before anything is allocated, and a list's length and indices must be integers.
+  const std::size_t body_bytes = text.size() - (body_start + 1);
+  for (std::size_t a = 0; a < elements.size(); ++a) {
+    const auto& e = elements[a];
+    for (std::size_t b = 0; b < a; ++b)
+      if (elements[b].name == e.name) throw FileError(name + ": PLY header declares element '" + e.name + "' twice");
+    if (e.props.empty() && e.count > 0)
+      throw FileError(name + ": PLY element '" + e.name + "' has " + std::to_string(e.count) + " entries but no properties");
+    std::size_t least = 0;  // bytes (binary) or tokens (ASCII) of one entry at the least
+    for (const auto& pr : e.props) {
+      if (pr.list) {
+        const auto integral = [](PlyType t) { return t != PlyType::F32 && t != PlyType::F64; };
+        if (!integral(pr.count_type) || !integral(pr.type))
+          throw FileError(name + ": PLY list property '" + pr.name + "' of element '" + e.name +
+                          "' must have integer count and index types");
+        least += ply_binary ? ply_size(pr.count_type) : 1;
+      } else {
+        least += ply_binary ? ply_size(pr.type) : 1;
+      }
+    }
+    // An ASCII token takes at least 2 bytes with its separator.
+    const std::size_t room = ply_binary ? body_bytes : (body_bytes + 1) / 2;
+    if (least > 0 && e.count > room / least)
+      throw FileError(name + ": PLY element '" + e.name + "' declares " + std::to_string(e.count) +
+                      " entries but the file's body (" + std::to_string(body_bytes) + " bytes) can hold at most " +
+                      std::to_string(room / least));
+  }
   const PlyElement* vertex = nullptr;
   for (const auto& e : elements)
     if (e.name == "vertex") vertex = &e;
@@ -470,12 +497,16 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
             const double c = ply_read(&ply_body[off], pr.count_type, ply_swap);
             off += ply_size(pr.count_type);
             if (c < 0) throw FileError(name + ": negative list length in " + what);
-            need(std::size_t(c) * ply_size(pr.type), what);
+            if (c > double((size - off) / ply_size(pr.type))) throw FileError(name + ": PLY body ends early, in " + what);
+            const bool face_list = e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
+            if (face_list && c < 3)
+              throw FileError(name + ": face " + std::to_string(i) + " has " + std::to_string(std::size_t(c)) +
+                              " vertices; a face needs at least 3");
             const bool is_face = e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
             for (std::size_t j = 0; j < std::size_t(c); ++j) {
               if (is_face) {
                 const double v = ply_read(&ply_body[off], pr.type, ply_swap);
-                if (v < 0) throw FileError(name + ": negative vertex index in " + what);
+                if (v < 0 || v > 4294967295.0) throw FileError(name + ": vertex index " + std::to_string(std::int64_t(v)) + " out of range in " + what);
                 face.push_back(std::uint32_t(v));
               }
               off += ply_size(pr.type);
@@ -496,6 +527,8 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
         }
       }
     }
+    if (off != size)
+      throw FileError(name + ": " + std::to_string(size - off) + " bytes of trailing data after the last PLY element");
   } else {
     lines = split_lines(std::string_view(text).substr(body_start + 1));
     std::size_t li = 0, tk = 0;
@@ -537,6 +570,9 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
             std::size_t c = 0;
             if (!parse_int(t, c)) throw FileError(body_where(s) + "bad list length '" + std::string(t) + "'");
             const bool is_face = e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
+            if (c > body_bytes / 2) throw FileError(body_where(s) + "list length " + std::string(t) + " is longer than the file");
+            if (is_face && c < 3)
+              throw FileError(body_where(s) + "a face has " + std::string(t) + " vertices; a face needs at least 3");
             for (std::size_t j = 0; j < c; ++j) {
               auto [t2, s2] = advance();
               if (is_face) {
@@ -557,6 +593,12 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
         }
       }
     }
+    for (; li < lines.size(); ++li, tk = 0) {
+      if (tk == 0) tok = split(lines[li]);
+      if (tk < tok.size())
+        throw FileError(name + ":" + std::to_string(header_lines + li + 1) + ": trailing data after the last PLY element: '" +
+                        detail::cut(lines[li]) + "'");
+    }
   }
   check_faces();
 }
@@ -564,15 +606,23 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
 void MeshDocument::Impl::load_assimp() {
   importer = std::make_unique<Assimp::Importer>();
   unsigned flags = aiProcess_PreTransformVertices | aiProcess_ValidateDataStructure;
-  if (format == MeshFormat::Stl) flags |= aiProcess_JoinIdenticalVertices;
+  // STL repeats every vertex for each facet with the facet's normal: drop the normals so that the
+  // copies of one vertex are joined (they are recomputed on output).
+  if (format == MeshFormat::Stl) flags |= aiProcess_DropNormals | aiProcess_JoinIdenticalVertices;
   const aiScene* scene = importer->ReadFile(path.string(), flags);
   if (!scene) throw FileError(path.string() + ": cannot read mesh: " + importer->GetErrorString());
   if (scene->mNumMeshes == 0) throw FileError(path.string() + ": the file holds no mesh");
   for (unsigned m = 0; m < scene->mNumMeshes; ++m) {
     const aiMesh* mesh = scene->mMeshes[m];
     const auto base = std::uint32_t(positions.size());
-    for (unsigned v = 0; v < mesh->mNumVertices; ++v)
-      positions.emplace_back(mesh->mVertices[v].x, mesh->mVertices[v].y, mesh->mVertices[v].z);
+    for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
+      const Vec3 p(mesh->mVertices[v].x, mesh->mVertices[v].y, mesh->mVertices[v].z);
+      // assimp passes NaN through, and a node's scale of 1e39 overflows single precision.
+      if (!p.allFinite())
+        throw FileError(path.string() + ": mesh " + std::to_string(m) + " vertex " + std::to_string(v) +
+                        " is not finite (" + format_number(p.x()) + " " + format_number(p.y()) + " " + format_number(p.z()) + ")");
+      positions.push_back(p);
+    }
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
       const aiFace& face = mesh->mFaces[f];
       if (face.mNumIndices < 3) continue;
@@ -691,12 +741,80 @@ const char* assimp_export_id(MeshFormat f) {
   }
 }
 
+/// assimp's exporters do not check their writes: this file system records every short write, and
+/// every failed flush or close, so that a full disk or a file size limit fails the export.
+class CheckedIOSystem : public Assimp::IOSystem {
+ public:
+  class Stream : public Assimp::IOStream {
+   public:
+    Stream(std::FILE* f, CheckedIOSystem& sys, std::string name) : f_(f), sys_(sys), name_(std::move(name)) {}
+    ~Stream() override {
+      if (std::fflush(f_) != 0) sys_.fail(name_, errno);
+      if (std::ferror(f_)) sys_.fail(name_, errno ? errno : EIO);
+      if (std::fclose(f_) != 0) sys_.fail(name_, errno);
+    }
+    size_t Read(void* buf, size_t size, size_t count) override { return std::fread(buf, size, count, f_); }
+    size_t Write(const void* buf, size_t size, size_t count) override {
+      const size_t n = std::fwrite(buf, size, count, f_);
+      if (n != count) sys_.fail(name_, errno);
+      return n;
+    }
+    aiReturn Seek(size_t offset, aiOrigin origin) override {
+      const int w = origin == aiOrigin_SET ? SEEK_SET : origin == aiOrigin_CUR ? SEEK_CUR : SEEK_END;
+      return std::fseek(f_, long(offset), w) == 0 ? aiReturn_SUCCESS : aiReturn_FAILURE;
+    }
+    size_t Tell() const override { return size_t(std::ftell(f_)); }
+    size_t FileSize() const override {
+      const long here = std::ftell(f_);
+      std::fseek(f_, 0, SEEK_END);
+      const long end = std::ftell(f_);
+      std::fseek(f_, here, SEEK_SET);
+      return size_t(end);
+    }
+    void Flush() override {
+      if (std::fflush(f_) != 0) sys_.fail(name_, errno);
+    }
+
+   private:
+    std::FILE* f_;
+    CheckedIOSystem& sys_;
+    std::string name_;
+  };
+
+  bool Exists(const char* file) const override { return fs::exists(file); }
+  char getOsSeparator() const override { return '/'; }
+  Assimp::IOStream* Open(const char* file, const char* mode) override {
+    std::FILE* f = std::fopen(file, mode);
+    if (!f) {
+      fail(file, errno);
+      return nullptr;
+    }
+    return new Stream(f, *this, fs::path(file).filename().string());
+  }
+  void Close(Assimp::IOStream* s) override { delete s; }
+
+  void fail(const std::string& name, int err) {
+    if (error_.empty()) error_ = "writing '" + name + "' failed: " + std::strerror(err ? err : EIO) + " (disk full or file size limit?)";
+  }
+  const std::string& error() const { return error_; }
+
+ private:
+  std::string error_;
+};
+
 void export_scene(const aiScene* scene, const fs::path& out, MeshFormat f) {
   const char* id = assimp_export_id(f);
   write_atomically_via_folder(out, [&](const fs::path& tmp) {
     Assimp::Exporter exporter;
-    if (exporter.Export(scene, id, tmp.string()) != AI_SUCCESS)
-      throw FileError("cannot write '" + out.string() + "': " + exporter.GetErrorString());
+    auto* io = new CheckedIOSystem;  // owned by the exporter
+    exporter.SetIOHandler(io);
+    const aiReturn r = exporter.Export(scene, id, tmp.string());
+    if (!io->error().empty()) throw FileError("cannot write '" + out.string() + "': " + io->error());
+    if (r != AI_SUCCESS) {
+      const std::string why = exporter.GetErrorString();
+      throw FileError("cannot write '" + out.string() + "': " + format_name(f) + " export failed" +
+                      (why.empty() ? std::string(" (assimp gave no reason)") : ": " + why));
+    }
   });
 }
 
@@ -758,18 +876,32 @@ void MeshDocument::Impl::save_generic(const fs::path& out, MeshFormat f) const {
                   "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
 }
 
-MeshDocument MeshDocument::load(const fs::path& path) {
+MeshDocument MeshDocument::load(const fs::path& path, double memory_limit_bytes) {
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   impl->format = format_for(path);
-  switch (impl->format) {
-    case MeshFormat::Obj: impl->load_obj(read_file(path)); break;
-    case MeshFormat::Off: impl->load_off(read_file(path)); break;
-    case MeshFormat::Xyz: impl->load_xyz(read_file(path)); break;
-    case MeshFormat::Ply: impl->load_ply(read_file(path)); break;
-    default:
-      check_readable(path, "a mesh");
-      impl->load_assimp();
+  // A text mesh takes about 4 times its file's size once read (its lines, and where each number is).
+  const double max_file = memory_limit_bytes / 4;
+  try {
+    switch (impl->format) {
+      case MeshFormat::Obj: impl->load_obj(read_input(path, "a mesh", max_file)); break;
+      case MeshFormat::Off: impl->load_off(read_input(path, "a mesh", max_file)); break;
+      case MeshFormat::Xyz: impl->load_xyz(read_input(path, "a mesh", max_file)); break;
+      case MeshFormat::Ply: impl->load_ply(read_input(path, "a mesh", max_file)); break;
+      default: {
+        check_readable(path, "a mesh");
+        std::error_code ec;
+        if (!fs::is_regular_file(path, ec)) throw FileError(path.string() + ": " + format_name(impl->format) + " meshes are read from regular files only, not pipes");
+        const auto size = fs::file_size(path, ec);
+        if (!ec && double(size) > max_file)
+          throw FileError(path.string() + ": " + std::to_string(size) + " bytes is more than the memory limit allows (--memory-limit)");
+        impl->load_assimp();
+      }
+    }
+  } catch (const std::bad_alloc&) {
+    throw FileError(path.string() + ": not enough memory to read the mesh");
+  } catch (const std::length_error&) {
+    throw FileError(path.string() + ": the mesh is too large to read");
   }
   if (impl->positions.empty()) throw FileError(path.string() + ": the mesh has no vertices");
   return MeshDocument(std::move(impl));
@@ -796,7 +928,9 @@ void MeshDocument::save(const fs::path& path) const {
   check_output_path(path);
   const bool text_same = out == in && (in == MeshFormat::Obj || in == MeshFormat::Ply || in == MeshFormat::Off || in == MeshFormat::Xyz);
   if (text_same) return impl_->save_same(path);
-  if (impl_->importer && assimp_export_id(out)) {
+  // STL keeps nothing but triangles, so it is always written from positions and faces (assimp's STL
+  // exporter also refuses some of its importer's scenes without a reason).
+  if (impl_->importer && assimp_export_id(out) && out != MeshFormat::Stl) {
     // Keep the scene assimp read (materials, texture coordinates, ...) and change its positions.
     auto* scene = const_cast<aiScene*>(impl_->importer->GetScene());
     std::size_t base = 0;

@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <fstream>
 #include <map>
 #include <numbers>
 #include <sstream>
@@ -28,6 +30,44 @@ double key_time(const JsonNode& keys, std::size_t i, double previous) {
   return v;
 }
 
+constexpr std::size_t kMaxLights = 16;
+constexpr std::uint64_t kMaxTextureSide = 16384, kMaxTexturePixels = std::uint64_t(1) << 26;
+
+/// The texture's header, read before any image library sees the file: a PNG or JPEG of at most
+/// 16384 pixels a side and 2^26 pixels in all (256 MiB as RGBA).
+void check_texture(const JsonNode& t, const fs::path& file) {
+  std::ifstream in(file, std::ios::binary);
+  std::string head(1 << 16, '\0');
+  in.read(head.data(), std::streamsize(head.size()));
+  head.resize(std::size_t(in.gcount()));
+  const auto byte = [&](std::size_t i) { return std::uint64_t(static_cast<unsigned char>(head[i])); };
+  std::uint64_t w = 0, h = 0;
+  if (head.size() >= 24 && head.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0 && head.compare(12, 4, "IHDR") == 0) {
+    w = byte(16) << 24 | byte(17) << 16 | byte(18) << 8 | byte(19);
+    h = byte(20) << 24 | byte(21) << 16 | byte(22) << 8 | byte(23);
+  } else if (head.size() >= 4 && byte(0) == 0xFF && byte(1) == 0xD8) {
+    // JPEG: walk the segments to the first start-of-frame marker (C0-CF but C4, C8, CC).
+    std::size_t i = 2;
+    while (i + 9 < head.size() && byte(i) == 0xFF) {
+      const std::uint64_t marker = byte(i + 1);
+      const std::size_t len = std::size_t(byte(i + 2) << 8 | byte(i + 3));
+      if (marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC) {
+        h = byte(i + 5) << 8 | byte(i + 6);
+        w = byte(i + 7) << 8 | byte(i + 8);
+        break;
+      }
+      if (len < 2) break;
+      i += 2 + len;
+    }
+    if (w == 0 || h == 0) t.fail("texture file '" + file.string() + "': no JPEG frame header in its first 64 KiB");
+  } else {
+    t.fail("texture file '" + file.string() + "' is not a PNG or JPEG image");
+  }
+  if (w == 0 || h == 0 || w > kMaxTextureSide || h > kMaxTextureSide || w * h > kMaxTexturePixels)
+    t.fail("texture file '" + file.string() + "' is " + std::to_string(w) + "x" + std::to_string(h) +
+           " pixels; textures must be 1 to 16384 pixels a side and at most 67108864 pixels in all");
+}
+
 void read_material(const JsonNode& n, const fs::path& base, anim::Material& m) {
   if (n.has("color")) m.color = n["color"].color();
   if (n.has("opacity")) m.opacity = n["opacity"].number(0.0, 1.0);
@@ -37,6 +77,7 @@ void read_material(const JsonNode& n, const fs::path& base, anim::Material& m) {
     const fs::path file = base / t.string();
     std::error_code ec;
     if (!fs::is_regular_file(file, ec)) t.fail("texture file '" + file.string() + "' does not exist");
+    check_texture(t, file);
     m.texture = file.string();
   }
   if (n.has("texture_mapping")) {
@@ -97,7 +138,12 @@ anim::OrientationTrack read_orientation(const JsonNode& n) {
     if (k.has("quaternion")) {
       const JsonNode q = k["quaternion"];
       if (q.size() != 4) q.expected("[w, x, y, z]");
-      const Eigen::Quaterniond v(q[std::size_t{0}].number(), q[1].number(), q[2].number(), q[3].number());
+      Eigen::Quaterniond v(q[std::size_t{0}].number(), q[1].number(), q[2].number(), q[3].number());
+      // Scaled by its largest component first, so that [1e200, 1e200, 0, 0] normalises instead of
+      // overflowing.
+      const double big = v.coeffs().cwiseAbs().maxCoeff();
+      if (!(big > 0)) q.fail("the quaternion is zero");
+      v.coeffs() /= big;
       if (v.norm() < 1e-12) q.fail("the quaternion is zero");
       key.rotation = v.normalized();
     } else {
@@ -262,6 +308,8 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
   }
   if (root.has("lights")) {
     const JsonNode ls = root["lights"];
+    if (ls.size() > kMaxLights)
+      ls.fail("at most " + std::to_string(kMaxLights) + " lights are rendered, got " + std::to_string(ls.size()));
     for (std::size_t i = 0; i < ls.size(); ++i) {
       const JsonNode l = ls[i];
       l.only({"position", "color", "intensity", "headlight"});

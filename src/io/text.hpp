@@ -2,6 +2,7 @@
 #pragma once
 
 #include <charconv>
+#include <cstdlib>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -28,16 +29,41 @@ inline std::vector<std::string_view> split(std::string_view s) {
   return out;
 }
 
+/// A UTF-8 byte order mark at the start of a file is not part of its first line's text.
+inline std::string_view skip_bom(std::string_view s) {
+  return s.substr(0, 3) == "\xEF\xBB\xBF" ? s.substr(3) : s;
+}
+
+/// Text quoted in a message: at most 120 bytes, so that a huge line is not echoed whole.
+inline std::string cut(std::string_view s) {
+  if (s.size() <= 120) return std::string(s);
+  return std::string(s.substr(0, 100)) + "... (" + std::to_string(s.size()) + " bytes)";
+}
+
 /// Whole-token parse; false if the token is not a number. Accepts "nan"/"inf" (callers check).
+/// One sign at most ("+-1" is not a number); a value too small for a double (1e-400) reads as 0,
+/// one too large (1e400) as infinity, which callers refuse as not finite.
 inline bool parse_double(std::string_view t, double& v) {
-  if (!t.empty() && t[0] == '+') t.remove_prefix(1);
+  if (!t.empty() && t[0] == '+') {
+    t.remove_prefix(1);
+    if (!t.empty() && (t[0] == '-' || t[0] == '+')) return false;
+  }
   const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
-  return r.ec == std::errc() && r.ptr == t.data() + t.size();
+  if (r.ptr != t.data() + t.size()) return false;
+  if (r.ec == std::errc::result_out_of_range) {
+    const std::string copy(t);
+    v = std::strtod(copy.c_str(), nullptr);  // 0 (underflow) or +-HUGE_VAL (overflow), as C reads it
+    return true;
+  }
+  return r.ec == std::errc();
 }
 
 template <class I>
 inline bool parse_int(std::string_view t, I& v) {
-  if (!t.empty() && t[0] == '+') t.remove_prefix(1);
+  if (!t.empty() && t[0] == '+') {
+    t.remove_prefix(1);
+    if (!t.empty() && (t[0] == '-' || t[0] == '+')) return false;
+  }
   const auto r = std::from_chars(t.data(), t.data() + t.size(), v);
   return r.ec == std::errc() && r.ptr == t.data() + t.size();
 }

@@ -115,7 +115,7 @@ TEST(BadInput, CommandLine) {
       {"radius a word", "deform --mesh " + fish + " --controls {dir}/ok.controls --radius big -o {dir}/out.obj", "--radius",
        2},
       {"unknown kernel", deform + "{dir}/ok.controls --kernel c3", "c3", 2},
-      {"phase NaN", deform + "{dir}/ok.controls --phase nan", "phase", 1},
+      {"phase NaN", deform + "{dir}/ok.controls --phase nan", "--phase", 2},
       {"linear polynomial on a plane", deform + "{dir}/planar.controls --polynomial linear", "coplanar", 1},
       {"dense beyond the memory limit",
        "info --controls {dir}/many.controls --radius 100 --memory-limit 0.05", "GiB for its neighbour graph", 1},

@@ -178,7 +178,11 @@ TEST(Mesh, PlyBinaryBothEndiansKeepOtherBytes) {
     EXPECT_EQ(get<std::uint16_t>(out, v1 + 24, big), 1001);
     EXPECT_EQ(out.substr(header.size() + 78), body.substr(78));  // faces untouched
     test::write_text(dir / "trunc.ply", header + body.substr(0, 40));
+    EXPECT_NE(error_of(dir / "trunc.ply").find("can hold at most"), std::string::npos);
+    test::write_text(dir / "trunc.ply", header + body.substr(0, body.size() - 1));
     EXPECT_NE(error_of(dir / "trunc.ply").find("ends early"), std::string::npos);
+    test::write_text(dir / "trail.ply", header + body + "xyz");
+    EXPECT_NE(error_of(dir / "trail.ply").find("3 bytes of trailing data"), std::string::npos);
   }
 }
 

@@ -18,4 +18,9 @@ class FileError : public std::runtime_error {
 /// (which would never end) are refused by name.
 void check_readable(const std::filesystem::path& path, const char* what);
 
+/// The whole of a file (or a pipe) after check_readable. A FIFO that no writer opens within 60 s
+/// is an error, not a hang; more than max_bytes is refused before (regular files) or while it is
+/// read. Every error names the file.
+std::string read_input(const std::filesystem::path& path, const char* what, double max_bytes = 4.0 * (1ull << 30));
+
 }  // namespace csrbf::io

@@ -27,7 +27,8 @@ const char* format_name(MeshFormat f) noexcept;
 class MeshDocument {
  public:
   /// Throws FileError naming the file, the line (for text formats) and the bad text.
-  static MeshDocument load(const std::filesystem::path& path);
+  /// memory_limit_bytes: a file that would take more once read is refused before it is read.
+  static MeshDocument load(const std::filesystem::path& path, double memory_limit_bytes = 4.0 * (1ull << 30));
   MeshDocument(MeshDocument&&) noexcept;
   MeshDocument& operator=(MeshDocument&&) noexcept;
   ~MeshDocument();
