@@ -3,13 +3,14 @@
 # for SECONDS (default 600), at most JOBS at once (default: the number of cores). Crashes, leaks and
 # timeouts land in build-fuzz/findings/TARGET/; the corpora grown from fuzz/corpus/TARGET in
 # build-fuzz/corpus/TARGET. Exit status: non-zero if any target found something.
-#   bash scripts/fuzz.sh [SECONDS] [TARGET...]      targets: controls deformation scene spacemap
+#   bash scripts/fuzz.sh [SECONDS] [TARGET...]
+# targets: controls deformation scene spacemap mesh_obj mesh_ply mesh_off mesh_xyz mesh_stl mesh_glb
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=${1:-600}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(controls deformation scene spacemap)
+[ ${#targets[@]} -gt 0 ] || targets=(controls deformation scene spacemap mesh_obj mesh_ply mesh_off mesh_xyz mesh_stl mesh_glb)
 jobs=${JOBS:-$(nproc)}
 command -v clang++ > /dev/null || { echo "fuzz: clang++ is needed (bash scripts/install-deps.sh)"; exit 2; }
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCSRBF_FUZZ=ON \

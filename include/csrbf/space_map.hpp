@@ -68,9 +68,11 @@ struct FitOptions {
   Polynomial polynomial = Polynomial::None;
   Ordering ordering = Ordering::Auto;  ///< of the envelope solver (the sparse solvers order themselves)
   Solver solver = Solver::Auto;
-  /// The fit refuses (throws ResourceLimit) when its neighbour graph and factor would need more
-  /// memory than this, estimated from a sample of the sources before anything large is built: a
-  /// radius near the model's size makes the matrix dense, N^2 entries.
+  /// The fit refuses (throws ResourceLimit) when it would need more memory than this: first from an
+  /// estimate of the neighbour graph, matrix and factor (a sample of the sources) before anything
+  /// large is built, then from the exact envelope of the chosen ordering or the factor size the
+  /// sparse solver's symbolic analysis predicts, before the factorisation. A radius near the
+  /// model's size makes the matrix dense, N^2 entries. Must be > 0 (NaN is refused).
   double memory_limit_bytes = 4.0 * (1ull << 30);
 };
 
@@ -152,6 +154,10 @@ class SpaceMap {
   /// order[k] = input index of the source at position k of the factorised matrix.
   std::span<const std::uint32_t> order() const noexcept;
   const FitStats& stats() const noexcept;
+  /// Whether float inputs are evaluated in single precision: true when that agrees with double
+  /// evaluation to kFloatTolerance of the largest displacement on the sources (measured once, on
+  /// first use); false sends float inputs through double evaluation. Thread-safe.
+  bool float_trusted() const;
   /// An estimate of the 2-norm condition number of the N x N CSRBF matrix A, lambda_max / lambda_min
   /// (power iteration and inverse iteration through the factorisation, 30 steps each). Computed on
   /// first call and kept; thread-safe.
@@ -165,7 +171,6 @@ class SpaceMap {
   SpaceMap solve_destinations(std::span<const Vec3> destinations) const;  // sizes and values already checked
   template <class T> void apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
   template <class T> void apply_direct(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
-  bool float_trusted() const;
   std::shared_ptr<const State> s_;
 };
 

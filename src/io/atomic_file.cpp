@@ -13,6 +13,7 @@
 #include <fcntl.h>
 #include <fstream>
 #include <poll.h>
+#include <pthread.h>
 #include <random>
 #include <sys/file.h>
 #include <sys/stat.h>
@@ -146,6 +147,10 @@ void remove_stale_partials(const fs::path& folder) noexcept {
 Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : kind_(kind) {
   const fs::path dir = folder_of(target);
   remove_stale_partials(dir);
+  // No signal between the partial's creation and its registration for the signal handler.
+  sigset_t all, old;
+  sigfillset(&all);
+  pthread_sigmask(SIG_BLOCK, &all, &old);
   for (int attempt = 0; attempt < 8; ++attempt) {
     path_ = dir / partial_name(target, ext);
     if (kind == Kind::File) {
@@ -157,11 +162,16 @@ Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : ki
     if (lock_fd_ >= 0) break;
     if (errno != EEXIST) break;
   }
+  const int open_errno = errno;
+  if (lock_fd_ >= 0) {
+    ::flock(lock_fd_, LOCK_EX | LOCK_NB);
+    if (kind == Kind::File) slot_ = register_partial(path_);
+  }
+  pthread_sigmask(SIG_SETMASK, &old, nullptr);
+  errno = open_errno;
   if (lock_fd_ < 0)
     throw FileError("cannot write '" + target.string() + "': cannot create a " +
                     (kind == Kind::File ? "file" : "folder") + " in '" + dir.string() + "': " + errno_text());
-  ::flock(lock_fd_, LOCK_EX | LOCK_NB);
-  if (kind == Kind::File) slot_ = register_partial(path_);
 }
 
 Partial::~Partial() {
@@ -176,10 +186,11 @@ Partial::~Partial() {
 void Partial::commit(const fs::path& target) {
   check_output_path(target);  // again: the target may have changed while we wrote
   std::error_code ec;
-  unregister_partial(slot_);
-  slot_ = -1;
   fs::rename(path_, target, ec);
   if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
+  // Only now: a signal handler that runs in between unlinks a name that is gone, harmlessly.
+  unregister_partial(slot_);
+  slot_ = -1;
   committed_ = true;
 }
 

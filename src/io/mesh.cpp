@@ -228,11 +228,11 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
     if (body.empty()) continue;
     const auto tok = split(body);
     if (tok[0] == "v" || tok[0] == "vn") {
-      if (tok.size() < 4) throw FileError(where(li) + "expected '" + std::string(tok[0]) + " x y z', got '" + detail::cut(body) + "'");
+      if (tok.size() < 4) throw FileError(where(li) + "expected '" + detail::cut(tok[0]) + " x y z', got '" + detail::cut(body) + "'");
       Vec3 p;
       for (int k = 0; k < 3; ++k)
         if (!parse_double(tok[k + 1], p[k]) || !std::isfinite(p[k]))
-          throw FileError(where(li) + "'" + std::string(tok[k + 1]) + "' is not a finite number (line: '" + detail::cut(body) + "')");
+          throw FileError(where(li) + "'" + detail::cut(tok[k + 1]) + "' is not a finite number (line: '" + detail::cut(body) + "')");
       if (tok[0] == "v") {
         positions.push_back(p);
         position_slots.push_back({Slot{li, 1}, Slot{li, 2}, Slot{li, 3}});
@@ -250,10 +250,10 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
         const auto s1 = t.find('/');
         std::int64_t vi = 0, ni = 0;
         if (!parse_int(t.substr(0, s1), vi) || vi == 0)
-          throw FileError(where(li) + "bad vertex reference '" + std::string(t) + "'");
+          throw FileError(where(li) + "bad vertex reference '" + detail::cut(t) + "'");
         if (vi < 0) vi += std::int64_t(positions.size()) + 1;
         if (vi < 1 || vi > std::int64_t(positions.size()))
-          throw FileError(where(li) + "vertex reference '" + std::string(t) + "' is out of range (" +
+          throw FileError(where(li) + "vertex reference '" + detail::cut(t) + "' is out of range (" +
                           std::to_string(positions.size()) + " vertices so far)");
         f.push_back(std::uint32_t(vi - 1));
         std::int64_t n_id = -1;
@@ -261,10 +261,10 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
           const auto s2 = t.find('/', s1 + 1);
           if (s2 != std::string_view::npos && s2 + 1 < t.size()) {
             if (!parse_int(t.substr(s2 + 1), ni) || ni == 0)
-              throw FileError(where(li) + "bad normal reference '" + std::string(t) + "'");
+              throw FileError(where(li) + "bad normal reference '" + detail::cut(t) + "'");
             if (ni < 0) ni += std::int64_t(vn_count) + 1;
             if (ni < 1 || ni > std::int64_t(vn_count))
-              throw FileError(where(li) + "normal reference '" + std::string(t) + "' is out of range");
+              throw FileError(where(li) + "normal reference '" + detail::cut(t) + "' is out of range");
             n_id = ni - 1;
           }
         }
@@ -329,7 +329,7 @@ void MeshDocument::Impl::load_off(const std::string& text) {
     for (std::size_t k = 0; k < need; ++k) {
       double x;
       if (!parse_double(tok[k], x) || !std::isfinite(x))
-        throw FileError(where(li) + "'" + std::string(tok[k]) + "' is not a finite number");
+        throw FileError(where(li) + "'" + detail::cut(tok[k]) + "' is not a finite number");
       (k < 3 ? p[k] : n[k - 3]) = x;
     }
     positions.push_back(p);
@@ -350,7 +350,7 @@ void MeshDocument::Impl::load_off(const std::string& text) {
     std::vector<std::uint32_t> face(k);
     for (std::size_t j = 0; j < k; ++j)
       if (!parse_int(tok[j + 1], face[j]))
-        throw FileError(where(li) + "bad vertex index '" + std::string(tok[j + 1]) + "'");
+        throw FileError(where(li) + "bad vertex index '" + detail::cut(tok[j + 1]) + "'");
     faces.push_back(std::move(face));
     ++li;
   }
@@ -368,7 +368,7 @@ void MeshDocument::Impl::load_xyz(const std::string& text) {
     Vec3 p;
     for (int k = 0; k < 3; ++k)
       if (!parse_double(tok[k], p[k]) || !std::isfinite(p[k]))
-        throw FileError(where(li) + "'" + std::string(tok[k]) + "' is not a finite number (line: '" + std::string(b) + "')");
+        throw FileError(where(li) + "'" + detail::cut(tok[k]) + "' is not a finite number (line: '" + detail::cut(b) + "')");
     positions.push_back(p);
     position_slots.push_back({Slot{li, 0}, Slot{li, 1}, Slot{li, 2}});
   }
@@ -557,27 +557,27 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
           if (!pr.list) {
             auto [t, s] = advance();
             double v;
-            if (!parse_double(t, v)) throw FileError(body_where(s) + "'" + std::string(t) + "' is not a number");
+            if (!parse_double(t, v)) throw FileError(body_where(s) + "'" + detail::cut(t) + "' is not a number");
             if (&e == vertex)
               for (int k = 0; k < 6; ++k)
                 if (idx[k] == int(pi)) {
-                  if (!std::isfinite(v)) throw FileError(body_where(s) + "'" + std::string(t) + "' is not a finite number");
+                  if (!std::isfinite(v)) throw FileError(body_where(s) + "'" + detail::cut(t) + "' is not a finite number");
                   slots[std::size_t(k)] = s;
                   (k < 3 ? p[k] : n[k - 3]) = v;
                 }
           } else {
             auto [t, s] = advance();
             std::size_t c = 0;
-            if (!parse_int(t, c)) throw FileError(body_where(s) + "bad list length '" + std::string(t) + "'");
+            if (!parse_int(t, c)) throw FileError(body_where(s) + "bad list length '" + detail::cut(t) + "'");
             const bool is_face = e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
-            if (c > body_bytes / 2) throw FileError(body_where(s) + "list length " + std::string(t) + " is longer than the file");
+            if (c > body_bytes / 2) throw FileError(body_where(s) + "list length " + detail::cut(t) + " is longer than the file");
             if (is_face && c < 3)
-              throw FileError(body_where(s) + "a face has " + std::string(t) + " vertices; a face needs at least 3");
+              throw FileError(body_where(s) + "a face has " + detail::cut(t) + " vertices; a face needs at least 3");
             for (std::size_t j = 0; j < c; ++j) {
               auto [t2, s2] = advance();
               if (is_face) {
                 std::uint32_t v = 0;
-                if (!parse_int(t2, v)) throw FileError(body_where(s2) + "bad vertex index '" + std::string(t2) + "'");
+                if (!parse_int(t2, v)) throw FileError(body_where(s2) + "bad vertex index '" + detail::cut(t2) + "'");
                 face.push_back(v);
               }
             }
@@ -609,7 +609,18 @@ void MeshDocument::Impl::load_assimp() {
   // STL repeats every vertex for each facet with the facet's normal: drop the normals so that the
   // copies of one vertex are joined (they are recomputed on output).
   if (format == MeshFormat::Stl) flags |= aiProcess_DropNormals | aiProcess_JoinIdenticalVertices;
-  const aiScene* scene = importer->ReadFile(path.string(), flags);
+  // Read first without post-processing, so that a non-finite vertex is found before joining or
+  // cleaning steps can drop or merge it.
+  const aiScene* raw = importer->ReadFile(path.string(), aiProcess_ValidateDataStructure);
+  if (!raw) throw FileError(path.string() + ": cannot read mesh: " + importer->GetErrorString());
+  for (unsigned m = 0; m < raw->mNumMeshes; ++m)
+    for (unsigned v = 0; v < raw->mMeshes[m]->mNumVertices; ++v) {
+      const aiVector3D& p = raw->mMeshes[m]->mVertices[v];
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw FileError(path.string() + ": mesh " + std::to_string(m) + " vertex " + std::to_string(v) + " is not finite (" +
+                        format_number(p.x) + " " + format_number(p.y) + " " + format_number(p.z) + ")");
+    }
+  const aiScene* scene = importer->ApplyPostProcessing(flags & ~unsigned(aiProcess_ValidateDataStructure));
   if (!scene) throw FileError(path.string() + ": cannot read mesh: " + importer->GetErrorString());
   if (scene->mNumMeshes == 0) throw FileError(path.string() + ": the file holds no mesh");
   for (unsigned m = 0; m < scene->mNumMeshes; ++m) {

@@ -177,3 +177,23 @@ TEST(Scene, FrameCount) {
   EXPECT_EQ(s.frame_count(1, 1), 1u);
   EXPECT_EQ(s.frame_count(1, 0.5), 0u);
 }
+
+TEST(Scene, AFrameThatOverflowsIsAnErrorNotNaN) {
+  // Keys at +-1.7e308 are finite, but the trajectory between them overflows: evaluate refuses the
+  // frame, naming the object and the time, instead of handing NaN to the renderer or a writer.
+  Scene scene;
+  Object o = cloud_object(box_points(2));
+  o.name = "far";
+  o.trajectory = PositionTrack({{0.0, Vec3(1.7e308, 0, 0)}, {1.0, Vec3(-1.7e308, 0, 0)}, {2.0, Vec3(1.7e308, 0, 0)}});
+  scene.objects.push_back(std::move(o));
+  scene.duration = 2;
+  Player player(scene);
+  player.evaluate(0.0);  // at a key: finite
+  EXPECT_TRUE(player.positions(0)[0].allFinite());
+  try {
+    player.evaluate(0.5);
+    FAIL() << "a non-finite frame was accepted";
+  } catch (const csrbf::InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("objects[0] ('far') at t = 0.5 s"), std::string::npos) << e.what();
+  }
+}

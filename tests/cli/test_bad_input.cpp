@@ -5,6 +5,7 @@
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/mesh.hpp"
 #include "csrbf/space_map.hpp"
+#include "cli/catalogue.hpp"
 #include "io/test_helpers.hpp"
 
 #include <gtest/gtest.h>
@@ -14,29 +15,14 @@
 
 namespace fs = std::filesystem;
 using csrbf::Vec3;
+using csrbf::test::Case;
+using csrbf::test::expand;
+using csrbf::test::kCli;
+using csrbf::test::kExamples;
 using csrbf::test::read_text;
 using csrbf::test::run_shell;
 using csrbf::test::TempDir;
 using csrbf::test::write_text;
-
-namespace {
-
-const std::string kCli = CSRBF_CLI;
-const std::string kExamples = std::string(CSRBF_SOURCE_DIR) + "/examples/";
-
-struct Case {
-  std::string name;     // what is wrong
-  std::string args;     // after "csrbf"; {dir} is the test's folder
-  std::string message;  // a piece of the error message
-  int code;             // exit status
-};
-
-std::string expand(std::string s, const std::string& dir) {
-  for (std::size_t at; (at = s.find("{dir}")) != std::string::npos;) s.replace(at, 5, dir);
-  return s;
-}
-
-}  // namespace
 
 TEST(BadInput, CommandLine) {
   TempDir dir;

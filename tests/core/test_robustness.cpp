@@ -111,3 +111,101 @@ TEST(Robustness, HugeCoordinatesGiveTheCentredProblemsResults) {
     EXPECT_LT(far.stats().residual_relative, 1e-12);
   }
 }
+
+namespace {
+/// Max |float path - double path| over points rounded to float first, and the largest displacement.
+std::pair<double, double> float_error(const SpaceMap& m, const std::vector<Vec3>& pts) {
+  std::vector<float> f(3 * pts.size()), fo(f.size());
+  std::vector<double> d(f.size()), dout(f.size());
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    for (int c = 0; c < 3; ++c) {
+      f[3 * i + std::size_t(c)] = float(pts[i][c]);
+      d[3 * i + std::size_t(c)] = double(f[3 * i + std::size_t(c)]);
+    }
+  m.displacements(f.data(), fo.data(), pts.size());
+  m.displacements(d.data(), dout.data(), pts.size());
+  double err = 0, dmax = 0;
+  for (std::size_t k = 0; k < f.size(); ++k) {
+    err = std::max(err, std::abs(double(fo[k]) - dout[k]));
+    dmax = std::max(dmax, std::abs(dout[k]));
+  }
+  return {err, dmax};
+}
+}  // namespace
+
+TEST(Robustness, FloatEvaluationIsUsedOnlyWhereItCanBeTrusted) {
+  // The fuzzers' cases: C6 through 167 sources with R 5 times the model, 3.3e4 from the origin,
+  // displacements up to about 500 (float evaluation was off by 6.8e3); and near-duplicates at 1e-5 R
+  // (off by 200 times the largest displacement). Now float inputs agree with double evaluation.
+  std::mt19937 rng(167);
+  std::uniform_real_distribution<double> u(0, 1), g(-300, 300);
+  std::vector<Vec3> s, d;
+  for (int i = 0; i < 167; ++i) {
+    const Vec3 x = Vec3(u(rng), u(rng), u(rng)) + Vec3(3.3e4, 3.3e4, 0);
+    s.push_back(x);
+    d.push_back(x + Vec3(g(rng), g(rng), g(rng)));
+  }
+  int checked = 0;
+  for (const double radius : {5.0, 2.0}) {
+    try {
+      const SpaceMap m = SpaceMap::fit(s, d, FitOptions{radius, Kernel::C6});
+      const auto [err, dmax] = float_error(m, s);
+      EXPECT_LE(err, kFloatTolerance * dmax) << "R = " << radius;
+      ++checked;
+    } catch (const IllConditioned&) {
+      // refused outright: also a clean answer
+    }
+  }
+  const Problem p = near_duplicate(1e-5, 0.3);
+  const SpaceMap near = SpaceMap::fit(p.s, p.d, FitOptions{0.3, Kernel::C2});
+  EXPECT_FALSE(near.float_trusted());
+  const auto [err, dmax] = float_error(near, p.s);
+  EXPECT_LE(err, kFloatTolerance * dmax);
+  ++checked;
+  EXPECT_GE(checked, 2);
+  // A well-conditioned map keeps single precision (the fast path): float differs from double only
+  // by rounding.
+  const Problem ok = near_duplicate(0.5, 0.3);
+  const SpaceMap good = SpaceMap::fit(ok.s, ok.d, FitOptions{0.3, Kernel::C2});
+  EXPECT_TRUE(good.float_trusted());
+  const auto [gerr, gmax] = float_error(good, ok.s);
+  EXPECT_LE(gerr, 1e-5 * gmax + 1e-7);
+}
+
+TEST(Robustness, MemoryLimitCountsWhatTheSolverWillHold) {
+  // 20000 random sources in a cube with R = 0.15: about 140 neighbours each, so the graph and the
+  // matrix fit in 0.2 GiB, but the factor's fill does not. Each solver refuses before factorising,
+  // from its own analysis; the envelope of the identity ordering is refused from its exact size.
+  std::mt19937 rng(20000);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::vector<Vec3> s(20000), d;
+  for (auto& x : s) x = Vec3(u(rng), u(rng), u(rng));
+  for (const auto& x : s) d.push_back(x + Vec3(0, 0, 0.01));
+  const std::vector<std::pair<FitOptions, std::string>> cases{
+      {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Auto, Solver::Cholmod}, "CHOLMOD's analysis predicts"},
+      {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Auto, Solver::Eigen}, "Eigen SimplicialLLT's analysis predicts"},
+      {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Identity, Solver::Envelope}, "the envelope of the identity ordering"},
+  };
+  for (auto [o, words] : cases) {
+    if (o.solver == Solver::Cholmod && !cholmod_available()) continue;
+    o.memory_limit_bytes = 0.2 * double(1ull << 30);
+    try {
+      SpaceMap::fit(s, d, o);
+      ADD_FAILURE() << words << ": accepted";
+    } catch (const ResourceLimit& e) {
+      EXPECT_NE(std::string(e.what()).find(words), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find("above the limit of 0.2 GiB"), std::string::npos) << e.what();
+    }
+  }
+  FitOptions nan_limit{0.15};
+  nan_limit.memory_limit_bytes = NAN;
+  EXPECT_THROW(SpaceMap::fit(s, d, nan_limit), InvalidInput);
+}
+
+TEST(Robustness, PhaseIsBounded) {
+  const std::vector<Vec3> s{Vec3(0, 0, 0)}, d{Vec3(0, 0, 1)};
+  const SpaceMap m = SpaceMap::fit(s, d, FitOptions{1.0});
+  EXPECT_THROW(m.map(Vec3(0, 0, 0), 1.7e308), InvalidInput);
+  EXPECT_THROW(m.map(Vec3(0, 0, 0), NAN), InvalidInput);
+  EXPECT_DOUBLE_EQ(m.map(Vec3(0, 0, 0), 1e6).z(), 1e6);
+}

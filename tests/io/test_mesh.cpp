@@ -194,6 +194,87 @@ TEST(Mesh, PlyHeaderErrors) {
   EXPECT_NE(error_of(dir / "b.ply").find("not a PLY"), std::string::npos);
 }
 
+TEST(Mesh, PlyCountsAreBoundedByTheFile) {
+  test::TempDir dir;
+  const std::string v3 = "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+  const std::string ascii = "ply\nformat ascii 1.0\n" + v3;
+  const std::string body = "0 0 0\n1 0 0\n0 1 0\n";
+  const std::vector<std::pair<std::string, std::string>> cases{
+      {ascii + "element face 1000000000000\nproperty list uchar int vertex_indices\nend_header\n" + body + "3 0 1 2\n",
+       "element 'face' declares 1000000000000 entries but the file's body (26 bytes) can hold at most 13"},
+      {ascii + "element junk 1000000000000000\nend_header\n" + body, "has 1000000000000000 entries but no properties"},
+      {ascii + v3 + "end_header\n" + body + body, "declares element 'vertex' twice"},
+      {ascii + "end_header\n" + body + "1 2 3\n", "p.ply:11: trailing data after the last PLY element: '1 2 3'"},
+      {ascii + "element face 1\nproperty list uchar int vertex_indices\nend_header\n" + body + "2 0 1\n",
+       "p.ply:13: a face has 2 vertices; a face needs at least 3"},
+      {ascii + "element face 1\nproperty list double int vertex_indices\nend_header\n" + body + "3 0 1 2\n",
+       "must have integer count and index types"},
+      {ascii + "element face 1\nproperty list uchar float vertex_indices\nend_header\n" + body + "3 0 1 2\n",
+       "must have integer count and index types"},
+  };
+  for (const auto& [text, words] : cases) {
+    test::write_text(dir / "p.ply", text);
+    const std::string e = error_of(dir / "p.ply");
+    EXPECT_NE(e.find(words), std::string::npos) << e;
+  }
+  // Binary: a face list longer than the body, and a face of 0 vertices (which crashed assimp's STL
+  // export), each named.
+  std::string bin = "ply\nformat binary_little_endian 1.0\n" + v3 + "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  bin += std::string(36, '\0');
+  test::write_text(dir / "b.ply", bin + std::string(1, char(200)) + std::string(12, '\0'));
+  EXPECT_NE(error_of(dir / "b.ply").find("ends early, in face 0"), std::string::npos) << error_of(dir / "b.ply");
+  test::write_text(dir / "b.ply", bin + std::string(1, '\0'));
+  EXPECT_NE(error_of(dir / "b.ply").find("face 0 has 0 vertices"), std::string::npos) << error_of(dir / "b.ply");
+  // A memory limit refuses a file before it is read.
+  test::write_text(dir / "ok.ply", ascii + "end_header\n" + body);
+  try {
+    MeshDocument::load(dir / "ok.ply", 100);
+    FAIL();
+  } catch (const io::FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("ok.ply"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--memory-limit"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(MeshDocument::load(dir / "ok.ply").positions().size(), 3u);
+}
+
+TEST(Mesh, OffAndObjEdgeCases) {
+  test::TempDir dir;
+  test::write_text(dir / "a.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n");
+  EXPECT_NE(error_of(dir / "a.off").find("a.off:6: a face has 2 vertices"), std::string::npos) << error_of(dir / "a.off");
+  test::write_text(dir / "b.off", "OFF\n18446744073709551615 18446744073709551615 0\n");
+  EXPECT_NE(error_of(dir / "b.off").find("but the file has only 2 lines"), std::string::npos) << error_of(dir / "b.off");
+  test::write_text(dir / "c.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n18446744073709551615 0 1 2\n");
+  EXPECT_NE(error_of(dir / "c.off").find("c.off:6: bad face"), std::string::npos) << error_of(dir / "c.off");
+  // A byte order mark does not hide the first vertex, and is kept on output.
+  test::write_text(dir / "bom.obj", "\xEF\xBB\xBFv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  auto m = MeshDocument::load(dir / "bom.obj");
+  ASSERT_EQ(m.positions().size(), 3u);
+  m.positions()[0] = Vec3(0, 0, 2);
+  m.save(dir / "bom2.obj");
+  EXPECT_EQ(test::read_text(dir / "bom2.obj").substr(0, 10), "\xEF\xBB\xBFv 0 0 2");
+  // A 50 MB token is cut in the message.
+  test::write_text(dir / "wide.xyz", "0 0 " + std::string(1000000, 'x') + "\n");
+  const std::string e = error_of(dir / "wide.xyz");
+  EXPECT_LT(e.size(), 600u);
+  EXPECT_NE(e.find("(1000004 bytes)"), std::string::npos) << e;
+}
+
+TEST(Mesh, NonFiniteVerticesThroughAssimpAreRefused) {
+  test::TempDir dir;
+  // A glTF whose node scales by 1e39 (beyond single precision): assimp's pre-transform overflows.
+  test::write_text(dir / "a.obj", kObj);
+  const auto m = MeshDocument::load(dir / "a.obj");
+  m.save(dir / "a.gltf");
+  std::string g = test::read_text(dir / "a.gltf");
+  const auto at = g.find("\"nodes\"");
+  ASSERT_NE(at, std::string::npos) << g;
+  const auto brace = g.find('{', at);
+  g.insert(brace + 1, "\"scale\": [1e39, 1e39, 1e39], ");
+  test::write_text(dir / "b.gltf", g);
+  const std::string e = error_of(dir / "b.gltf");
+  EXPECT_NE(e.find("is not finite"), std::string::npos) << e;
+}
+
 TEST(Mesh, StlAndGltfThroughAssimp) {
   test::TempDir dir;
   test::write_text(dir / "a.obj", kObj);

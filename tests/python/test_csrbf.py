@@ -152,6 +152,38 @@ class Arrays(unittest.TestCase):
             csrbf.read_mesh("/nonexistent.obj")
         self.assertTrue(issubclass(csrbf.FileError, OSError))
 
+    def test_hostile_inputs(self):
+        # A broadcast view of 2**40 rows needs a 26 TB copy: MemoryError, never a crash.
+        huge = np.broadcast_to([0.5, 0.5, 0.5], (2**40, 3))
+        for call in (lambda: self.m(huge), lambda: self.m.displacement(huge), lambda: self.m.jacobian(huge),
+                     lambda: csrbf.DisplacementField(self.m, huge), lambda: csrbf.SpaceMap(huge, huge, 0.3)):
+            with self.assertRaisesRegex(MemoryError, r"cannot make a contiguous copy of \(1099511627776, 3\)"):
+                call()
+        # Phases: NaN and beyond 1e6 are refused, in every function that takes one.
+        x = self.s[:4]
+        for bad in (np.nan, 1.7e308, -np.inf):
+            with self.assertRaisesRegex(ValueError, "phase must be a finite number"):
+                self.m(x, phase=bad)
+            with self.assertRaisesRegex(ValueError, "phase must be a finite number"):
+                self.m.jacobian(x, phase=bad)
+        # (0, 3) arrays give (0, 3) and (0, 3, 3) results alike.
+        self.assertEqual(self.m(np.zeros((0, 3))).shape, (0, 3))
+        self.assertEqual(self.m.jacobian(np.zeros((0, 3))).shape, (0, 3, 3))
+        # pathlib paths are taken wherever a path is.
+        import pathlib
+        with tempfile.TemporaryDirectory() as d:
+            p = pathlib.Path(d)
+            csrbf.write_deformation(p / "m.json", self.m)
+            again = csrbf.read_deformation(p / "m.json")
+            np.testing.assert_allclose(again(x), self.m(x), atol=1e-12)
+            pos, faces = csrbf.read_mesh(pathlib.Path(EXAMPLES) / "fish.obj")
+            csrbf.write_mesh(pathlib.Path(EXAMPLES) / "fish.obj", pos, p / "f.obj")
+            self.assertEqual(csrbf.read_mesh(p / "f.obj")[0].shape, pos.shape)
+            s, _ = csrbf.read_controls(pathlib.Path(EXAMPLES) / "fish.controls")
+            self.assertEqual(s.shape, (92, 3))
+            scene = csrbf.Scene(pathlib.Path(EXAMPLES) / "fish.scene.json")
+            self.assertGreater(scene.duration, 0)
+
     def test_releases_the_gil(self):
         # A Python thread keeps counting while the main thread evaluates a million points.
         big = np.random.default_rng(5).random((1_000_000, 3))
