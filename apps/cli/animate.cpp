@@ -18,7 +18,7 @@ namespace csrbf::cli {
 namespace {
 
 volatile std::sig_atomic_t g_interrupted = 0;
-extern "C" void on_signal(int) { g_interrupted = 1; }
+extern "C" void on_signal(int sig) { g_interrupted = sig; }
 
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
@@ -82,6 +82,8 @@ int run_animate(const AnimateOptions& o) {
   const auto [width, height] = parse_size(o.size);
   // Check the target before the (slow) scene load, so a typo fails at once.
   render::check_movie_output(o.out);
+  if (render::movie_format_for(o.out) == render::MovieFormat::Mp4 && (width % 2 || height % 2))
+    throw UsageError("--size: H.264 (.mp4) needs an even width and height, got '" + o.size + "'");
   anim::Scene scene = io::read_scene(o.scene);
   if (o.fps) scene.fps = *o.fps;
   const double from = o.from.value_or(0.0), to = o.to.value_or(scene.duration);
@@ -130,7 +132,7 @@ int run_animate(const AnimateOptions& o) {
   if (st.cancelled) {
     std::cerr << "\ncsrbf animate: interrupted after " << st.frames << " of " << frames << " frames; " << o.out
               << " was not written\n";
-    return 130;
+    return 128 + int(g_interrupted);  // 130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP
   }
   const double n = double(frames);
   std::printf("frames: %zu\ncomputation: %.3f ms/frame (mean)\nrendering: %.3f ms/frame (mean)\nencoding: %.3f ms/frame (mean)\nwrote %s\n",

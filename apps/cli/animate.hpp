@@ -19,8 +19,9 @@ struct AnimateOptions {
   bool private_display = false;  ///< start a private Xvfb even when DISPLAY is set
 };
 
-/// `csrbf animate`: renders the scene to a movie. Returns the exit status (0, 1 on failure, 130
-/// when interrupted); throws for bad input (the caller prints it and exits 1).
+/// `csrbf animate`: renders the scene to a movie. Returns the exit status (0, 1 on failure, 128 + the
+/// signal when interrupted); throws for bad input (the caller prints it and exits 1, or 2 for a
+/// UsageError).
 int run_animate(const AnimateOptions& o);
 
 }  // namespace csrbf::cli

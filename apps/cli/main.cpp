@@ -206,6 +206,7 @@ int main(int argc, char** argv) {
                                     "the minimum, where it is <= 0, and the largest fold-free phase");
   info->add_option("--phase", info_phase, "Phase at which folds are counted (default 1)")->check(finite_in(-1e6, 1e6, "--phase"));
   folds_flag->needs(info->get_option("--mesh"));
+  info->get_option("--mesh")->needs(folds_flag);  // a mesh is read only to check it for folds
 
   try {
     app.parse(argc, argv);
@@ -219,7 +220,7 @@ int main(int argc, char** argv) {
       csrbf::io::check_output_path(mesh_out);
       const auto t0 = std::chrono::steady_clock::now();
       Fitted f = fit(deform_args);
-      auto mesh = csrbf::io::MeshDocument::load(mesh_in);
+      auto mesh = csrbf::io::MeshDocument::load(mesh_in, deform_args.memory_limit_gib * double(1ull << 30));
       auto& p = mesh.positions();
       const std::vector<csrbf::Vec3> before = p;
       f.map.apply(p, p, phase);
@@ -239,7 +240,7 @@ int main(int argc, char** argv) {
       Fitted f = fit(info_args);
       std::optional<csrbf::FoldReport> folds;
       if (check_folds) {
-        const auto mesh = csrbf::io::MeshDocument::load(info_mesh);
+        const auto mesh = csrbf::io::MeshDocument::load(info_mesh, info_args.memory_limit_gib * double(1ull << 30));
         folds = csrbf::check_folds(f.map, mesh.positions(), mesh.faces(), info_phase);
       }
       if (json) {

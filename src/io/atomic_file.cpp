@@ -183,8 +183,24 @@ Partial::~Partial() {
   if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 
+void keep_mode(const fs::path& from, const fs::path& onto) noexcept {
+  struct stat st {};
+  if (::stat(from.c_str(), &st) == 0) ::chmod(onto.c_str(), st.st_mode & 07777);
+}
+
+fs::path resolve_output(const fs::path& target) {
+  // A symbolic link to a file is followed, so that the link stays and its file gets the output.
+  std::error_code ec;
+  if (fs::is_symlink(fs::symlink_status(target, ec))) {
+    const fs::path real = fs::canonical(target, ec);
+    if (!ec) return real;
+  }
+  return target;
+}
+
 void Partial::commit(const fs::path& target) {
   check_output_path(target);  // again: the target may have changed while we wrote
+  keep_mode(target, path_);   // a replaced file keeps its permissions
   std::error_code ec;
   fs::rename(path_, target, ec);
   if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
@@ -211,7 +227,8 @@ void check_output_path(const fs::path& target) {
   }
 }
 
-void write_atomically(const fs::path& target, const std::function<void(std::ostream&)>& write) {
+void write_atomically(const fs::path& target_in, const std::function<void(std::ostream&)>& write) {
+  const fs::path target = resolve_output(target_in);
   check_output_path(target);
   Partial partial(target, Partial::Kind::File);
   std::streamoff written = 0;
@@ -232,7 +249,8 @@ void write_atomically(const fs::path& target, const std::function<void(std::ostr
   partial.commit(target);
 }
 
-void write_atomically_via_folder(const fs::path& target, const std::function<void(const fs::path&)>& write) {
+void write_atomically_via_folder(const fs::path& target_in, const std::function<void(const fs::path&)>& write) {
+  const fs::path target = resolve_output(target_in);
   check_output_path(target);
   Partial partial(target, Partial::Kind::Folder);
   const fs::path dir = partial.path();
@@ -244,13 +262,27 @@ void write_atomically_via_folder(const fs::path& target, const std::function<voi
   std::vector<fs::path> made;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
     if (!it->is_regular_file()) throw FileError("cannot write '" + target.string() + "': the writer made '" + it->path().filename().string() + "', not a file");
-    check_output_path(folder_of(target) / it->path().filename());
+    const fs::path dest = folder_of(target) / it->path().filename();
+    check_output_path(dest);
+    // A side file (glTF's .bin) replaces an existing file only when that is the side file of the
+    // target being replaced (the target names it): otherwise it is someone else's file.
+    if (it->path().filename() != target.filename() && fs::exists(dest)) {
+      std::ifstream old(target, std::ios::binary);
+      std::string head(1 << 20, '\0');
+      old.read(head.data(), std::streamsize(head.size()));
+      head.resize(std::size_t(old.gcount()));
+      if (head.find("\"" + it->path().filename().string() + "\"") == std::string::npos)
+        throw FileError("cannot write '" + target.string() + "': its side file '" + dest.string() +
+                        "' exists and is not the side file of an earlier '" + target.filename().string() +
+                        "' (csrbf does not replace it; move it away or choose another name)");
+    }
     made.push_back(it->path());
   }
   if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
   // The main file last: once it is there, its side files are too.
   std::stable_partition(made.begin(), made.end(), [&](const fs::path& p) { return p.filename() != target.filename(); });
   for (const auto& p : made) {
+    keep_mode(folder_of(target) / p.filename(), p);
     fs::rename(p, folder_of(target) / p.filename(), ec);
     if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
   }

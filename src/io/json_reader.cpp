@@ -43,12 +43,15 @@ namespace {
 std::string shown(const nlohmann::json& j) {
   if (j.is_array()) return "an array of " + std::to_string(j.size()) + " elements";
   if (j.is_object()) return "an object with " + std::to_string(j.size()) + " members";
+  // A cut string may end inside a UTF-8 sequence (and the file's may be invalid to begin with):
+  // replaced, never thrown from inside an error message (fuzz_deformation).
+  constexpr auto replace = nlohmann::json::error_handler_t::replace;
   std::string s;
   if (j.is_string()) {
     const auto& str = j.get_ref<const std::string&>();
-    s = nlohmann::json(str.size() > 60 ? str.substr(0, 60) : str).dump();
+    s = nlohmann::json(str.size() > 60 ? str.substr(0, 60) : str).dump(-1, ' ', false, replace);
   } else {
-    s = j.dump();
+    s = j.dump(-1, ' ', false, replace);
   }
   if (s.size() > 60) s = s.substr(0, 57) + "...";
   return s;

@@ -30,6 +30,8 @@ void check_frame_folder(const fs::path& out) {
   std::error_code ec;
   const auto st = fs::symlink_status(out, ec);
   if (st.type() == fs::file_type::not_found) return;
+  if (st.type() == fs::file_type::symlink)
+    throw RenderError(out.string() + ": is a symbolic link; give the folder of PNG frames itself");
   if (st.type() != fs::file_type::directory)
     throw RenderError(out.string() + ": exists and is not a folder; a folder of PNG frames must be new, empty, or "
                       "hold only frames csrbf wrote (frame_NNNNN.png). Give a new name, or .mp4 / .avi for a movie");
@@ -39,7 +41,7 @@ void check_frame_folder(const fs::path& out) {
     if (!io::is_frame_name(name) || !it->is_regular_file(e2))
       throw RenderError(out.string() + ": the folder holds '" + name +
                         "', which csrbf did not write; frames go only into a new or empty folder, or one that holds "
-                        "only frame_NNNNN.png files from an earlier run (nothing is replaced)");
+                        "only frame_NNNNN.png files (an earlier run's frames, which are replaced); nothing was changed");
   }
   if (ec) throw RenderError(out.string() + ": cannot list the folder: " + ec.message());
 }
@@ -90,7 +92,7 @@ MovieWriter::MovieWriter(const fs::path& out_in, int width, int height, double f
     : format_(movie_format_for(out_in)), width_(width), height_(height) {
   fs::path out = out_in;
   if (out.filename().empty()) out = out.parent_path();  // "frames/" -> "frames"
-  out_ = out;
+  out_ = format_ == MovieFormat::PngFolder ? out : io::resolve_output(out);
   if (width < 16 || height < 16 || width > 16384 || height > 16384)
     throw RenderError("frame size " + std::to_string(width) + "x" + std::to_string(height) +
                       " is out of range (16 to 16384 pixels a side)");
@@ -207,6 +209,7 @@ void MovieWriter::finish() {
       } catch (const io::FileError& e) {
         fail(e.what());
       }
+      io::keep_mode(out_, partial_->path());
       fs::rename(out_, old->path(), ec);  // replaces the empty folder Partial made
       if (ec) fail("cannot move the earlier frames aside: " + ec.message());
       fs::rename(partial_->path(), out_, ec);

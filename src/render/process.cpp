@@ -247,7 +247,10 @@ Display::Display(bool force_private) {
     const auto left =
         std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now()).count();
     pollfd p{fds[0], POLLIN, 0};
-    if (left <= 0 || poll(&p, 1, int(left)) <= 0) break;
+    if (left <= 0) break;
+    const int r = poll(&p, 1, int(left));
+    if (r < 0 && errno == EINTR) continue;  // a Ctrl-C now is seen by the caller once Xvfb is up
+    if (r <= 0) break;
     char buf[32];
     const ssize_t n = ::read(fds[0], buf, sizeof buf);
     if (n <= 0) break;

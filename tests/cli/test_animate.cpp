@@ -161,7 +161,7 @@ TEST(Animate, BadInputFailsAndWritesNothing) {
   const std::vector<Case> cases{
       {scene + " -o " + (dir / "x.mov").string(), "unknown movie type '.mov'", 1},
       {scene + " -o " + (dir / "nowhere" / "x.mp4").string(), "does not exist", 1},
-      {scene + " -o " + (dir / "x.mp4").string() + " --size 101x100", "even width and height", 1},
+      {scene + " -o " + (dir / "x.mp4").string() + " --size 101x100", "even width and height", 2},
       {scene + " -o " + (dir / "x.mp4").string() + " --size big", "--size", 2},
       {scene + " -o " + (dir / "x.mp4").string() + " --size 4294967312x4294967312", "--size", 2},
       {scene + " -o " + (dir / "x.mp4").string() + " --from 2 --to 1", "--from 2 is after --to 1", 2},

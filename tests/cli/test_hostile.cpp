@@ -193,6 +193,30 @@ TEST(Hostile, OutputsThatAreNotOurs) {
   ASSERT_EQ(stat((dir / "fifo.obj").c_str(), &st), 0);
   EXPECT_TRUE(S_ISFIFO(st.st_mode));
   EXPECT_EQ(read_text(dir / "Makefile"), "all:\n");
+  // A replaced file keeps its permissions; a symbolic link stays a link and its file is replaced.
+  write_text(dir / "mine.obj", "old");
+  fs::permissions(dir / "mine.obj", fs::perms::owner_read | fs::perms::owner_write);
+  fs::create_symlink("mine.obj", dir / "link.obj");
+  ASSERT_EQ(run_shell(kCli + " " + deform + d + "/link.obj").code, 0);
+  EXPECT_TRUE(fs::is_symlink(dir / "link.obj"));
+  EXPECT_GT(fs::file_size(dir / "mine.obj"), 1000u);
+  EXPECT_EQ(fs::status(dir / "mine.obj").permissions() & fs::perms::all, fs::perms::owner_read | fs::perms::owner_write);
+  // glTF's side file: a .bin of someone else's is not replaced; the .bin of an earlier .gltf is.
+  write_text(dir / "model.bin", "my firmware");
+  const auto g = run_shell(kCli + " " + deform + d + "/model.gltf");
+  EXPECT_EQ(g.code, 1) << g.out;
+  EXPECT_NE(g.out.find("model.bin' exists and is not the side file"), std::string::npos) << g.out;
+  EXPECT_EQ(read_text(dir / "model.bin"), "my firmware");
+  EXPECT_FALSE(fs::exists(dir / "model.gltf"));
+  fs::remove(dir / "model.bin");
+  ASSERT_EQ(run_shell(kCli + " " + deform + d + "/model.gltf").code, 0);
+  const auto again = run_shell(kCli + " " + deform + d + "/model.gltf");
+  EXPECT_EQ(again.code, 0) << again.out;
+  // Usage found late is still usage: an odd size for H.264, a mesh for info without --check-folds.
+  const auto odd = run_shell("env -u DISPLAY " + kCli + " " + anim + d + "/odd.mp4 --size 321x240");
+  EXPECT_EQ(odd.code, 2) << odd.out;
+  const auto info = run_shell(kCli + " info --controls " + kFishControls + " --radius 0.3 --mesh nope.obj");
+  EXPECT_EQ(info.code, 2) << info.out;
   // A name of 240 characters is valid: its partial's name must stay within 255.
   const std::string long_name = std::string(236, 'n') + ".obj";
   const auto r = run_shell(kCli + " " + deform + d + "/" + long_name);

@@ -212,3 +212,36 @@ TEST(DeformationFile, NumbersTooLargeForADoubleAreAnError) {
   }
   EXPECT_THROW(csrbf::io::read_deformation_text("[1E400]", "t.json", dir.path), FileError);
 }
+
+TEST(DeformationFile, NestingAndMessagesAreBounded) {
+  TempDir dir;
+  // 70 000 levels: refused while parsing (the error path once recursed and overflowed the stack).
+  write_text(dir / "deep.json", "{\"radius\": 1, \"sources\": " + std::string(70000, '[') + std::string(70000, ']') + "}");
+  try {
+    csrbf::io::read_deformation(dir / "deep.json");
+    FAIL();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("deep.json: JSON nested deeper than 64 levels"), std::string::npos) << e.what();
+  }
+  // 64 levels are fine for the parser (the value is then the wrong type, named by its path).
+  write_text(dir / "d64.json", "{\"radius\": " + std::string(63, '[') + std::string(63, ']') + "}");
+  try {
+    csrbf::io::read_deformation(dir / "d64.json");
+    FAIL();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("radius: expected a number, got an array of 1 elements"), std::string::npos)
+        << e.what();
+  }
+  // A long string of multi-byte characters is cut inside a character: still a clean message
+  // (fuzz_deformation found it throwing nlohmann's type_error from the message).
+  std::string accents;
+  for (int i = 0; i < 40; ++i) accents += "\xC3\xA9";
+  write_text(dir / "utf8.json", "{\"radius\": \"" + accents + "\"}");
+  try {
+    csrbf::io::read_deformation(dir / "utf8.json");
+    FAIL();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("radius: expected a number, got \"\xC3\xA9"), std::string::npos) << e.what();
+    EXPECT_LT(std::string(e.what()).size(), 200u);
+  }
+}

@@ -20,8 +20,9 @@ namespace csrbf::io {
 void check_output_path(const std::filesystem::path& target);
 
 /// Calls write(stream) on a partial file beside target, checks the stream and that the file on
-/// disk holds every byte written, then renames it to target. On any failure the partial is removed
-/// and target is untouched.
+/// disk holds every byte written, then renames it to target (which keeps its permissions; a
+/// symbolic link is followed, so the link stays and the file it names is replaced). On any failure
+/// the partial is removed and target is untouched.
 void write_atomically(const std::filesystem::path& target, const std::function<void(std::ostream&)>& write);
 
 /// For writers that need a path of their own (and may write side files, like glTF's .bin): calls
@@ -66,6 +67,11 @@ void remove_partials_on_signals() noexcept;
 /// stops reading) before failing: the environment variable CSRBF_PIPE_TIMEOUT (seconds, 1 to
 /// 86400) or fallback.
 int pipe_timeout_seconds(int fallback);
+
+/// target, or the file a symbolic link target names (outputs replace the file, not the link).
+std::filesystem::path resolve_output(const std::filesystem::path& target);
+/// Gives onto the permission bits of from, if from exists.
+void keep_mode(const std::filesystem::path& from, const std::filesystem::path& onto) noexcept;
 
 /// Whether a file name is one of the numbered frames csrbf writes into a PNG folder
 /// ("frame_00042.png").
