@@ -124,6 +124,7 @@ int run_animate(const AnimateOptions& o) {
   mo.height = height;
   mo.from = from;
   mo.to = to;
+  mo.cancelled = [] { return g_interrupted != 0; };
   const render::MovieStats st = render::render_movie(scene, o.out, mo, [&](std::size_t done, std::size_t) {
     if (g_interrupted) return false;
     progress.frame(done);

@@ -217,7 +217,10 @@ int main(int argc, char** argv) {
 
   try {
     if (*deform) {
-      csrbf::io::check_output_path(mesh_out);
+      csrbf::io::check_output_path(csrbf::io::resolve_output(mesh_out));
+      if (csrbf::io::format_for(mesh_out) == csrbf::io::MeshFormat::Assimp)
+        throw csrbf::cli::UsageError("-o: unknown output format '" + std::filesystem::path(mesh_out).extension().string() +
+                                     "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
       const auto t0 = std::chrono::steady_clock::now();
       Fitted f = fit(deform_args);
       auto mesh = csrbf::io::MeshDocument::load(mesh_in, deform_args.memory_limit_gib * double(1ull << 30));

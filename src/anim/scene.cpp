@@ -164,7 +164,17 @@ void Player::evaluate(double t) {
           contact_controls(ps.lo, ps.hi, centre, def.contact->collider_radius, def.contact->spread, impl_->s,
                            impl_->d);
           if (impl_->s.size() == 8) continue;  // no wall touched: corners only, the identity
-          const SpaceMap map = SpaceMap::fit(impl_->s, impl_->d, def.options);
+          // A contact is refitted at every frame: a fit that fails says where and when.
+          const SpaceMap map = [&] {
+            try {
+              return SpaceMap::fit(impl_->s, impl_->d, def.options);
+            } catch (const std::exception& e) {
+              std::ostringstream m;
+              m << "objects[" << o << "].parts[" << p << "].deformations[" << k << "] (contact) at t = " << t
+                << " s: " << e.what();
+              throw InvalidInput(m.str());
+            }
+          }();
           const double* in = part.combine == Combine::Sum ? ps.rest.data() : ps.a.data();
           if (part.combine == Combine::Sum) {
             map.displacements(in, ps.b.data(), n);

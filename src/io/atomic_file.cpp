@@ -111,7 +111,8 @@ void remove_partials_on_signals() noexcept {
   struct sigaction sa {};
   sa.sa_handler = remove_partials_and_die;
   sigemptyset(&sa.sa_mask);
-  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT}) ::sigaction(sig, &sa, nullptr);
+  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU})
+    ::sigaction(sig, &sa, nullptr);
 }
 
 bool is_frame_name(const std::string& name) {
@@ -193,7 +194,8 @@ fs::path resolve_output(const fs::path& target) {
   std::error_code ec;
   if (fs::is_symlink(fs::symlink_status(target, ec))) {
     const fs::path real = fs::canonical(target, ec);
-    if (!ec) return real;
+    if (ec) throw FileError("cannot write '" + target.string() + "': it is a symbolic link to nothing (" + ec.message() + ")");
+    return real;
   }
   return target;
 }

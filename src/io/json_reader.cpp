@@ -1,6 +1,10 @@
 #include "json_reader.hpp"
 
+#include "text.hpp"
+
 #include <fstream>
+#include <set>
+#include <vector>
 #include <sstream>
 
 namespace csrbf::io::detail {
@@ -9,20 +13,30 @@ namespace {
 struct TooDeep {
   int depth;
 };
+struct DuplicateKey {
+  std::string key;
+};
 }  // namespace
 
 nlohmann::json parse_json(const std::string& text, const std::string& name) {
   try {
     // Nesting is limited while parsing, so that nothing later (messages, copies) recurses deeply.
-    const nlohmann::json::parser_callback_t limit = [](int depth, nlohmann::json::parse_event_t event, nlohmann::json&) {
-      if (depth > kMaxJsonDepth && (event == nlohmann::json::parse_event_t::object_start ||
-                                    event == nlohmann::json::parse_event_t::array_start))
-        throw TooDeep{depth};
+    // A key given twice in one object is refused (nlohmann would keep the last silently).
+    std::vector<std::set<std::string>> keys;
+    using Event = nlohmann::json::parse_event_t;
+    const nlohmann::json::parser_callback_t limit = [&keys](int depth, Event event, nlohmann::json& parsed) {
+      if (depth > kMaxJsonDepth && (event == Event::object_start || event == Event::array_start)) throw TooDeep{depth};
+      if (event == Event::object_start) keys.emplace_back();
+      else if (event == Event::object_end && !keys.empty()) keys.pop_back();
+      else if (event == Event::key && !keys.empty() && !keys.back().insert(parsed.get<std::string>()).second)
+        throw DuplicateKey{parsed.get<std::string>()};
       return true;
     };
     return nlohmann::json::parse(text, limit);
   } catch (const TooDeep& d) {
     throw FileError(name + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels (arrays and objects)");
+  } catch (const DuplicateKey& k) {
+    throw FileError(name + ": the key \"" + detail::cut(k.key) + "\" appears twice in one object");
   } catch (const nlohmann::json::exception& e) {
     // nlohmann's message reads "[json.exception.parse_error.101] parse error at line 3, column 5: ...";
     // a number too large for a double is an out_of_range.406 error.

@@ -4,6 +4,7 @@
 #include "csrbf/io/controls.hpp"
 #include "text.hpp"
 
+#include <assimp/DefaultIOSystem.h>
 #include <assimp/Exporter.hpp>
 #include <assimp/IOStream.hpp>
 #include <assimp/IOSystem.hpp>
@@ -19,6 +20,7 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <optional>
 #include <sstream>
 
@@ -139,7 +141,7 @@ void ply_write(unsigned char* p, PlyType t, bool swap, double value) {
   std::memcpy(p, b, n);
 }
 
-std::vector<std::string> split_lines(std::string_view text) {
+std::vector<std::string> split_lines(std::string_view text, const fs::path& path) {
   std::vector<std::string> lines;
   std::size_t i = 0;
   while (i < text.size()) {
@@ -147,6 +149,11 @@ std::vector<std::string> split_lines(std::string_view text) {
     if (j == std::string_view::npos) j = text.size();
     std::string l(text.substr(i, j - i));
     if (!l.empty() && l.back() == '\r') l.pop_back();
+    // A carriage return inside a line: old Mac (CR-only) line endings, which would read as one line
+    // and silently lose everything after its first record.
+    if (l.find('\r') != std::string::npos)
+      throw FileError(path.string() + ":" + std::to_string(lines.size() + 1) +
+                      ": a carriage return inside the line (old Mac line endings? convert them to LF or CRLF)");
     lines.push_back(std::move(l));
     i = j + 1;
   }
@@ -165,6 +172,32 @@ std::string rewrite_line(const std::string& line, const std::vector<std::pair<st
   }
   return s;
 }
+
+/// assimp reads the files a glTF names (its buffers, images) by itself: only regular files, and
+/// all of them together within the memory limit.
+class LimitedIOSystem : public Assimp::DefaultIOSystem {
+ public:
+  explicit LimitedIOSystem(double max_bytes) : left_(max_bytes) {}
+  Assimp::IOStream* Open(const char* file, const char* mode) override {
+    std::error_code ec;
+    const auto st = fs::status(file, ec);
+    if (st.type() != fs::file_type::regular) {
+      error_ = std::string("'") + file + "' is not a regular file";
+      return nullptr;
+    }
+    left_ -= double(fs::file_size(file, ec));
+    if (left_ < 0) {
+      error_ = std::string("'") + file + "' takes the files read past the memory limit (--memory-limit)";
+      return nullptr;
+    }
+    return DefaultIOSystem::Open(file, mode);
+  }
+  const std::string& error() const { return error_; }
+
+ private:
+  double left_;
+  std::string error_;
+};
 
 std::string_view strip_comment(std::string_view s) {
   if (const auto h = s.find('#'); h != std::string_view::npos) s = s.substr(0, h);
@@ -200,18 +233,22 @@ struct MeshDocument::Impl {
 
   std::string where(std::size_t line) const { return path.string() + ":" + std::to_string(line + 1) + ": "; }
   void check_faces() const {
-    for (std::size_t f = 0; f < faces.size(); ++f)
+    for (std::size_t f = 0; f < faces.size(); ++f) {
+      if (faces[f].size() < 3)
+        throw FileError(path.string() + ": face " + std::to_string(f) + " has " + std::to_string(faces[f].size()) +
+                        " vertices; a face needs at least 3");
       for (auto v : faces[f])
         if (v >= positions.size())
           throw FileError(path.string() + ": face " + std::to_string(f) + " refers to vertex " + std::to_string(v) +
                           " but there are " + std::to_string(positions.size()) + " vertices");
+    }
   }
 
   void load_obj(const std::string& text);
   void load_off(const std::string& text);
   void load_xyz(const std::string& text);
   void load_ply(const std::string& text);
-  void load_assimp();
+  void load_assimp(double max_bytes);
 
   std::vector<Vec3> vertex_normals() const;  // area-weighted, normalised; original where none
   void save_same(const fs::path& out) const;
@@ -219,7 +256,7 @@ struct MeshDocument::Impl {
 };
 
 void MeshDocument::Impl::load_obj(const std::string& text) {
-  lines = split_lines(text);
+  lines = split_lines(text, path);
   std::size_t vn_count = 0;
   std::vector<std::string> current_groups;
   std::string current_material;
@@ -284,7 +321,7 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
 }
 
 void MeshDocument::Impl::load_off(const std::string& text) {
-  lines = split_lines(text);
+  lines = split_lines(text, path);
   std::size_t li = 0;
   auto next = [&]() -> std::vector<std::string_view> {
     while (li < lines.size()) {
@@ -359,7 +396,7 @@ void MeshDocument::Impl::load_off(const std::string& text) {
 }
 
 void MeshDocument::Impl::load_xyz(const std::string& text) {
-  lines = split_lines(text);
+  lines = split_lines(text, path);
   for (std::size_t li = 0; li < lines.size(); ++li) {
     const auto b = strip_comment(li == 0 ? detail::skip_bom(lines[li]) : std::string_view(lines[li]));
     if (b.empty()) continue;
@@ -383,7 +420,7 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
   const auto body_start = text.find('\n', end);
   if (body_start == std::string::npos) throw FileError(name + ": PLY file ends after its header");
   ply_header = text.substr(0, body_start + 1);
-  const auto hlines = split_lines(ply_header);
+  const auto hlines = split_lines(ply_header, path);
   std::vector<PlyElement> elements;
   bool format_seen = false;
   for (std::size_t li = 1; li < hlines.size(); ++li) {
@@ -454,8 +491,14 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
                       std::to_string(room / least));
   }
   const PlyElement* vertex = nullptr;
-  for (const auto& e : elements)
+  for (const auto& e : elements) {
     if (e.name == "vertex") vertex = &e;
+    if (e.name == "face" && e.count > 0 &&
+        std::none_of(e.props.begin(), e.props.end(), [](const PlyProperty& p) {
+          return p.list && (p.name == "vertex_indices" || p.name == "vertex_index");
+        }))
+      throw FileError(name + ": PLY element 'face' has no list property 'vertex_indices' (or 'vertex_index')");
+  }
   if (!vertex) throw FileError(name + ": PLY file has no 'vertex' element");
   int idx[6] = {-1, -1, -1, -1, -1, -1};
   const char* names[6] = {"x", "y", "z", "nx", "ny", "nz"};
@@ -530,7 +573,7 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
     if (off != size)
       throw FileError(name + ": " + std::to_string(size - off) + " bytes of trailing data after the last PLY element");
   } else {
-    lines = split_lines(std::string_view(text).substr(body_start + 1));
+    lines = split_lines(std::string_view(text).substr(body_start + 1), path);
     std::size_t li = 0, tk = 0;
     std::vector<std::string_view> tok;
     auto advance = [&]() -> std::pair<std::string_view, Slot> {
@@ -603,8 +646,10 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
   check_faces();
 }
 
-void MeshDocument::Impl::load_assimp() {
+void MeshDocument::Impl::load_assimp(double max_bytes) {
   importer = std::make_unique<Assimp::Importer>();
+  auto* io = new LimitedIOSystem(max_bytes);  // owned by the importer
+  importer->SetIOHandler(io);
   unsigned flags = aiProcess_PreTransformVertices | aiProcess_ValidateDataStructure;
   // STL repeats every vertex for each facet with the facet's normal: drop the normals so that the
   // copies of one vertex are joined (they are recomputed on output).
@@ -612,7 +657,8 @@ void MeshDocument::Impl::load_assimp() {
   // Read first without post-processing, so that a non-finite vertex is found before joining or
   // cleaning steps can drop or merge it.
   const aiScene* raw = importer->ReadFile(path.string(), aiProcess_ValidateDataStructure);
-  if (!raw) throw FileError(path.string() + ": cannot read mesh: " + importer->GetErrorString());
+  if (!raw)
+    throw FileError(path.string() + ": cannot read mesh: " + (io->error().empty() ? std::string(importer->GetErrorString()) : io->error()));
   for (unsigned m = 0; m < raw->mNumMeshes; ++m)
     for (unsigned v = 0; v < raw->mMeshes[m]->mNumVertices; ++v) {
       const aiVector3D& p = raw->mMeshes[m]->mVertices[v];
@@ -891,14 +937,21 @@ MeshDocument MeshDocument::load(const fs::path& path, double memory_limit_bytes)
   auto impl = std::make_unique<Impl>();
   impl->path = path;
   impl->format = format_for(path);
-  // A text mesh takes about 4 times its file's size once read (its lines, and where each number is).
-  const double max_file = memory_limit_bytes / 4;
+  // A mesh takes up to about 12 times its file's size once read (a text file's lines and where each
+  // number is; a binary file's faces as vectors, and assimp's copies).
+  const double max_file = memory_limit_bytes / 12;
   try {
     switch (impl->format) {
       case MeshFormat::Obj: impl->load_obj(read_input(path, "a mesh", max_file)); break;
       case MeshFormat::Off: impl->load_off(read_input(path, "a mesh", max_file)); break;
       case MeshFormat::Xyz: impl->load_xyz(read_input(path, "a mesh", max_file)); break;
       case MeshFormat::Ply: impl->load_ply(read_input(path, "a mesh", max_file)); break;
+      case MeshFormat::Assimp:
+        check_readable(path, "a mesh");
+        // assimp reads dozens of other formats, some of whose readers crash or loop on bad files:
+        // only the ones csrbf is tested and fuzzed with.
+        throw FileError(path.string() + ": unknown mesh format '" + path.extension().string() +
+                        "' (csrbf reads .obj .ply .off .xyz .stl .gltf .glb)");
       default: {
         check_readable(path, "a mesh");
         std::error_code ec;
@@ -906,7 +959,7 @@ MeshDocument MeshDocument::load(const fs::path& path, double memory_limit_bytes)
         const auto size = fs::file_size(path, ec);
         if (!ec && double(size) > max_file)
           throw FileError(path.string() + ": " + std::to_string(size) + " bytes is more than the memory limit allows (--memory-limit)");
-        impl->load_assimp();
+        impl->load_assimp(max_file);
       }
     }
   } catch (const std::bad_alloc&) {
@@ -937,6 +990,20 @@ void MeshDocument::save(const fs::path& path) const {
   const MeshFormat out = format_for(path);
   const MeshFormat in = impl_->format;
   check_output_path(path);
+  // Never a NaN or an infinity in a file: checked in double, and against single precision where the
+  // format stores float (STL, glTF, GLB; PLY whose coordinates are float).
+  const bool single = out == MeshFormat::Stl || out == MeshFormat::Gltf || out == MeshFormat::Glb ||
+                      (out == MeshFormat::Ply && in == MeshFormat::Ply &&
+                       (impl_->ply_types[0] == PlyType::F32 || impl_->ply_types[1] == PlyType::F32 ||
+                        impl_->ply_types[2] == PlyType::F32));
+  const double limit = single ? double(std::numeric_limits<float>::max()) : std::numeric_limits<double>::max();
+  for (std::size_t i = 0; i < impl_->positions.size(); ++i) {
+    const Vec3& p = impl_->positions[i];
+    if (!(p.cwiseAbs().maxCoeff() <= limit))
+      throw FileError("cannot write '" + path.string() + "': vertex " + std::to_string(i) + " (" + format_number(p.x()) +
+                      " " + format_number(p.y()) + " " + format_number(p.z()) + ") is " +
+                      (p.allFinite() ? std::string("beyond the single precision the format stores") : "not finite"));
+  }
   const bool text_same = out == in && (in == MeshFormat::Obj || in == MeshFormat::Ply || in == MeshFormat::Off || in == MeshFormat::Xyz);
   if (text_same) return impl_->save_same(path);
   // STL keeps nothing but triangles, so it is always written from positions and faces (assimp's STL

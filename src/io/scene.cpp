@@ -31,6 +31,9 @@ double key_time(const JsonNode& keys, std::size_t i, double previous) {
 }
 
 constexpr std::size_t kMaxLights = 16;
+// Bounds on a scene's counts, far above any real scene, so that a small file cannot ask for
+// gigabytes (60 000 deformations in 2.7 MB did).
+constexpr std::size_t kMaxObjects = 1000, kMaxParts = 256, kMaxDeformations = 64;
 constexpr std::uint64_t kMaxTextureSide = 16384, kMaxTexturePixels = std::uint64_t(1) << 26;
 
 /// The texture's header, read before any image library sees the file: a PNG or JPEG of at most
@@ -49,6 +52,10 @@ void check_texture(const JsonNode& t, const fs::path& file) {
     // JPEG: walk the segments to the first start-of-frame marker (C0-CF but C4, C8, CC).
     std::size_t i = 2;
     while (i + 9 < head.size() && byte(i) == 0xFF) {
+      if (byte(i + 1) == 0xFF) {  // fill bytes before a marker
+        ++i;
+        continue;
+      }
       const std::uint64_t marker = byte(i + 1);
       const std::size_t len = std::size_t(byte(i + 2) << 8 | byte(i + 3));
       if (marker >= 0xC0 && marker <= 0xCF && marker != 0xC4 && marker != 0xC8 && marker != 0xCC) {
@@ -76,7 +83,8 @@ void read_material(const JsonNode& n, const fs::path& base, anim::Material& m) {
     const JsonNode t = n["texture"];
     const fs::path file = base / t.string();
     std::error_code ec;
-    if (!fs::is_regular_file(file, ec)) t.fail("texture file '" + file.string() + "' does not exist");
+    if (!fs::exists(file, ec)) t.fail("texture file '" + file.string() + "' does not exist");
+    if (!fs::is_regular_file(file, ec)) t.fail("texture file '" + file.string() + "' is not a regular file");
     check_texture(t, file);
     m.texture = file.string();
   }
@@ -325,6 +333,7 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
 
   const JsonNode objects = root["objects"];
   if (objects.size() == 0) objects.fail("at least one object is needed");
+  if (objects.size() > kMaxObjects) objects.fail("at most " + std::to_string(kMaxObjects) + " objects, got " + std::to_string(objects.size()));
   std::vector<PendingContact> contacts;
   std::map<std::string, std::size_t> names;
   for (std::size_t o = 0; o < objects.size(); ++o) {
@@ -350,6 +359,7 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
     if (on.has("orientation")) obj.orientation = read_orientation(on["orientation"]);
     if (on.has("parts")) {
       const JsonNode ps = on["parts"];
+      if (ps.size() > kMaxParts) ps.fail("at most " + std::to_string(kMaxParts) + " parts, got " + std::to_string(ps.size()));
       for (std::size_t p = 0; p < ps.size(); ++p) {
         const JsonNode pn = ps[p];
         pn.only({"name", "vertices", "group", "material", "color", "opacity", "specular", "texture",
@@ -367,6 +377,8 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
         }
         if (pn.has("deformations")) {
           const JsonNode ds = pn["deformations"];
+          if (ds.size() > kMaxDeformations)
+            ds.fail("at most " + std::to_string(kMaxDeformations) + " deformations a part, got " + std::to_string(ds.size()));
           for (std::size_t d = 0; d < ds.size(); ++d)
             part.deformations.push_back(read_deformation_entry(ds[d], base, contacts, o, p, d));
         }

@@ -35,9 +35,23 @@ inline std::string_view skip_bom(std::string_view s) {
 }
 
 /// Text quoted in a message: at most 120 bytes, so that a huge line is not echoed whole.
+/// Control bytes (a NUL would end the message early) are shown as \xNN.
 inline std::string cut(std::string_view s) {
-  if (s.size() <= 120) return std::string(s);
-  return std::string(s.substr(0, 100)) + "... (" + std::to_string(s.size()) + " bytes)";
+  const bool whole = s.size() <= 120;
+  std::string out;
+  for (const char c : whole ? s : s.substr(0, 100)) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u < 0x20 && c != '\t') {
+      static const char* hex = "0123456789abcdef";
+      out += "\\x";
+      out += hex[u >> 4];
+      out += hex[u & 15];
+    } else {
+      out += c;
+    }
+  }
+  if (!whole) out += "... (" + std::to_string(s.size()) + " bytes)";
+  return out;
 }
 
 /// Whole-token parse; false if the token is not a number. Accepts "nan"/"inf" (callers check).

@@ -18,6 +18,7 @@ MovieStats render_movie(const anim::Scene& scene, const std::filesystem::path& o
   SceneRenderer renderer(scene);
   renderer.open_offscreen(o.width, o.height);
   MovieWriter writer(out, o.width, o.height, scene.fps);
+  writer.set_cancel(o.cancelled);
   std::vector<std::uint8_t> rgb;
   for (std::size_t k = 0; k < total; ++k) {
     auto t0 = Clock::now();
@@ -28,16 +29,16 @@ MovieStats render_movie(const anim::Scene& scene, const std::filesystem::path& o
     renderer.render_rgb(rgb);
     stats.render_seconds += since(t0);
     t0 = Clock::now();
-    writer.write(rgb.data());
+    const bool written = writer.write(rgb.data());
     stats.encode_seconds += since(t0);
     stats.frames = k + 1;
-    if (progress && !progress(k + 1, total)) {
+    if (!written || (o.cancelled && o.cancelled()) || (progress && !progress(k + 1, total))) {
       stats.cancelled = true;
       return stats;  // the writer's destructor removes the partial output
     }
   }
   const auto t0 = Clock::now();
-  writer.finish();
+  stats.cancelled = !writer.finish();
   stats.encode_seconds += since(t0);
   return stats;
 }

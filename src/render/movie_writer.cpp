@@ -146,9 +146,14 @@ void MovieWriter::fail(const std::string& message) {
   throw RenderError(out_.string() + ": " + message);
 }
 
-void MovieWriter::write(const std::uint8_t* rgb) {
+bool MovieWriter::write(const std::uint8_t* rgb) {
   const int stall = io::pipe_timeout_seconds(120);
-  if (!ffmpeg_->write(rgb, std::size_t(width_) * std::size_t(height_) * 3, stall)) {
+  if (!ffmpeg_->write(rgb, std::size_t(width_) * std::size_t(height_) * 3, stall, cancelled_)) {
+    if (cancelled_ && cancelled_()) {
+      abandon();
+      done_ = true;
+      return false;
+    }
     if (ffmpeg_->stalled())
       fail("ffmpeg stopped reading frames for " + std::to_string(stall) + " s after " + std::to_string(frames_) + " frames");
     ffmpeg_->finish();
@@ -156,6 +161,7 @@ void MovieWriter::write(const std::uint8_t* rgb) {
     fail("ffmpeg stopped after " + std::to_string(frames_) + " frames" + (err.empty() ? std::string() : ": " + err));
   }
   ++frames_;
+  return true;
 }
 
 std::size_t MovieWriter::count_frames(const fs::path& movie) const {
@@ -175,8 +181,15 @@ std::size_t MovieWriter::count_frames(const fs::path& movie) const {
   return n;
 }
 
-void MovieWriter::finish() {
-  const int status = ffmpeg_->finish();
+bool MovieWriter::finish() {
+  const int wait = io::pipe_timeout_seconds(120);
+  const int status = ffmpeg_->finish(wait, cancelled_);
+  if (cancelled_ && cancelled_()) {
+    abandon();
+    done_ = true;
+    return false;
+  }
+  if (status < 0) fail("ffmpeg did not finish within " + std::to_string(wait) + " s of the last frame");
   if (status != 0) {
     const std::string err = ffmpeg_->error_output();
     fail("ffmpeg failed (exit status " + std::to_string(status) + ")" + (err.empty() ? std::string() : ": " + err));
@@ -194,6 +207,11 @@ void MovieWriter::finish() {
     }
     if (ec || found != frames_)
       fail("ffmpeg wrote " + std::to_string(found) + " of " + std::to_string(frames_) + " frames" + why);
+    if (cancelled_ && cancelled_()) {
+      abandon();
+      done_ = true;
+      return false;
+    }
     // Frames replace an earlier run's frames only: checked again now, as the folder may have changed.
     try {
       check_frame_folder(out_);
@@ -235,6 +253,11 @@ void MovieWriter::finish() {
       fail(std::string(e.what()).substr(out_.string().size() + 2));
     }
     if (n != frames_) fail("the movie holds " + std::to_string(n) + " of " + std::to_string(frames_) + " frames" + why);
+    if (cancelled_ && cancelled_()) {
+      abandon();
+      done_ = true;
+      return false;
+    }
     try {
       partial_->commit(out_);
     } catch (const io::FileError& e) {
@@ -242,6 +265,7 @@ void MovieWriter::finish() {
     }
   }
   done_ = true;
+  return true;
 }
 
 }  // namespace csrbf::render

@@ -5,6 +5,7 @@
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <algorithm>
 #include <fcntl.h>
 #include <fstream>
 #include <poll.h>
@@ -142,21 +143,25 @@ Child::~Child() {
   if (out_fd_ >= 0) ::close(out_fd_);
 }
 
-bool Child::write(const void* data, std::size_t bytes, int stall_seconds) {
+bool Child::write(const void* data, std::size_t bytes, int stall_seconds, const std::function<bool()>& stop) {
   const char* p = static_cast<const char*>(data);
   while (bytes > 0) {
     const ssize_t n = ::write(stdin_fd_, p, bytes);
     if (n < 0) {
       if (errno == EINTR) continue;
       if (errno == EAGAIN || errno == EWOULDBLOCK) {
-        // A reader that stops reading but does not exit must not hang us.
-        pollfd q{stdin_fd_, POLLOUT, 0};
-        int r;
-        while ((r = poll(&q, 1, stall_seconds * 1000)) < 0 && errno == EINTR) {
-        }
-        if (r == 0) {
-          stalled_ = true;
-          return false;
+        // A reader that stops reading but does not exit must not hang us, nor delay a Ctrl-C.
+        const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(stall_seconds);
+        int r = 0;
+        while (r <= 0) {
+          if (stop && stop()) return false;
+          if (std::chrono::steady_clock::now() >= deadline) {
+            stalled_ = true;
+            return false;
+          }
+          pollfd q{stdin_fd_, POLLOUT, 0};
+          r = poll(&q, 1, 200);
+          if (r < 0 && errno != EINTR) return false;
         }
         continue;
       }
@@ -168,14 +173,27 @@ bool Child::write(const void* data, std::size_t bytes, int stall_seconds) {
   return true;
 }
 
-int Child::finish() {
+int Child::finish(int timeout_seconds, const std::function<bool()>& stop) {
   if (stdin_fd_ >= 0) {
     ::close(stdin_fd_);
     stdin_fd_ = -1;
   }
   if (status_ >= 0) return status_;
   int st = 0;
-  while (waitpid(pid_, &st, 0) < 0 && errno == EINTR) {
+  if (timeout_seconds < 0 && !stop) {
+    while (waitpid(pid_, &st, 0) < 0 && errno == EINTR) {
+    }
+  } else {
+    const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(std::max(timeout_seconds, 0));
+    for (;;) {
+      const pid_t r = waitpid(pid_, &st, WNOHANG);
+      if (r == pid_) break;
+      if ((stop && stop()) || (timeout_seconds >= 0 && std::chrono::steady_clock::now() >= deadline)) {
+        kill();
+        return -1;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
   }
   status_ = WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
   return status_;

@@ -29,6 +29,7 @@
 #include <vtkUnsignedCharArray.h>
 
 #include <cstring>
+#include <limits>
 
 namespace csrbf::render {
 
@@ -179,6 +180,11 @@ void SceneRenderer::update(const anim::Player& player) {
     vtkPoints* pts = impl_->points[o];
     auto* data = static_cast<float*>(pts->GetVoidPointer(0));
     for (std::size_t i = 0; i < pos.size(); ++i) {
+      // VTK's points are single precision: a vertex beyond it would be drawn as infinity.
+      if (!(pos[i].cwiseAbs().maxCoeff() <= double(std::numeric_limits<float>::max())))
+        throw RenderError("objects[" + std::to_string(o) + "] vertex " + std::to_string(i) +
+                          " is beyond single precision (renderers store float): " + std::to_string(pos[i].x()) + " " +
+                          std::to_string(pos[i].y()) + " " + std::to_string(pos[i].z()));
       data[3 * i] = float(pos[i].x());
       data[3 * i + 1] = float(pos[i].y());
       data[3 * i + 2] = float(pos[i].z());

@@ -108,6 +108,12 @@ TEST(Hostile, BadFilesAndNumbers) {
   write_text(dir / "hugeface.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n18446744073709551615 0 1 2\n");
   // STL and glTF through assimp with NaN.
   write_text(dir / "nan.stl", binary_stl({{0, 0, 0, 1, 0, 0, NAN, 1, 0}}));
+  write_text(dir / "nolist.ply", ply_head + "element face 1\nproperty list uchar int vertex_indexes\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  write_text(dir / "cr.obj", "v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\r");
+  write_text(dir / "a.smd", "version 1\n");
+  write_text(dir / "far.obj", "v 0 0 0\nv 1e300 0 0\nv 0 1 0\nf 1 2 3\n");
+  write_text(dir / "dup.json", "{\"radius\": -1, \"radius\": 1}");
+  write_text(dir / "nul.controls", std::string("0 0 0 1\0" "0 0 0\n", 14));
   // Numbers in controls.
   write_text(dir / "plusminus.controls", "0.5 0.5 0.5 +-0.5 0.5 0.6\n");
   write_text(dir / "longline.controls", std::string(200000, '1') + "\n");
@@ -130,6 +136,14 @@ TEST(Hostile, BadFilesAndNumbers) {
       {"OFF count 2^64-1", mesh("hugecount.off"), "the file has only 3 lines", 1},
       {"OFF face of 2^64-1 vertices", mesh("hugeface.off"), "hugeface.off:6: bad face", 1},
       {"NaN vertex in a binary STL", mesh("nan.stl"), "nan.stl: mesh 0 vertex", 1},
+      {"PLY face element without its vertex list", mesh("nolist.ply"), "has no list property 'vertex_indices'", 1},
+      {"old Mac line endings", mesh("cr.obj"), "cr.obj:1: a carriage return inside the line", 1},
+      {"a format only assimp reads", mesh("a.smd"), "unknown mesh format '.smd'", 1},
+      {"a vertex beyond float for STL",
+       "deform --mesh {dir}/far.obj --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.stl", "beyond the single precision", 1},
+      {"a key twice", "deform --mesh " + kFish + " --deformation {dir}/dup.json -o {dir}/out.obj", "the key \"radius\" appears twice", 1},
+      {"a NUL in controls", deform + "{dir}/nul.controls", "nul.controls:1: '1\\x000' is not a number", 1},
+      {"unknown output format", "deform --mesh " + kFish + " --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.foo", "unknown output format '.foo'", 2},
       {"+-0.5 in controls", deform + "{dir}/plusminus.controls", "plusminus.controls:1: '+-0.5' is not a number", 1},
       {"a 200 kB line", deform + "{dir}/longline.controls", "longline.controls:1: line longer than 65536 bytes", 1},
       {"deformation nested 70000 deep", "deform --mesh " + kFish + " --deformation {dir}/deep.json -o {dir}/out.obj",
@@ -301,6 +315,19 @@ TEST(Hostile, HangsAreBounded) {
   for (const auto& e : fs::directory_iterator(dir.path))
     EXPECT_EQ(e.path().filename().string().find(".csrbf-partial-"), std::string::npos) << e.path();
   EXPECT_EQ(run_shell("pgrep -f 'slee[p] 600'").code, 1) << "the stalled child is still running";
+  // An ffmpeg that reads every frame but never exits: an error after the timeout, not a hang; and
+  // a Ctrl-C while it is awaited stops the run (exit 130) with the old movie kept.
+  write_text(dir / "bin" / "ffmpeg", "#!/bin/sh\ncat > /dev/null\nexec sleep 601\n");
+  write_text(dir / "keep.mp4", "old movie");
+  const std::string env = "PATH=" + (dir / "bin").string() + ":$PATH env -u DISPLAY ";
+  const std::string run = kCli + " animate " + kExamples + "fish.scene.json --size 64x48 --to 0.2 -o " + (dir / "keep.mp4").string();
+  const auto n = run_shell(env + "CSRBF_PIPE_TIMEOUT=2 timeout 120 " + run);
+  EXPECT_EQ(n.code, 1) << n.out;
+  EXPECT_NE(n.out.find("ffmpeg did not finish within 2 s of the last frame"), std::string::npos) << n.out;
+  const auto c = run_shell("(" + env + run + " > /dev/null 2>&1 & p=$!; sleep 4; kill -INT $p; wait $p; echo status=$?)");
+  EXPECT_NE(c.out.find("status=130"), std::string::npos) << c.out;
+  EXPECT_EQ(read_text(dir / "keep.mp4"), "old movie");
+  EXPECT_EQ(run_shell("pgrep -f 'slee[p] 601'").code, 1) << "the child is still running";
 }
 
 TEST(Hostile, TexturesAreCheckedBeforeDecoding) {

@@ -58,7 +58,8 @@ class Partial {
   bool committed_ = false;
 };
 
-/// Installs handlers for SIGINT, SIGTERM, SIGHUP, SIGPIPE and SIGQUIT that remove this process's
+/// Installs handlers for SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT, SIGUSR1/2, SIGALRM, SIGVTALRM,
+/// SIGPROF and SIGXCPU that remove this process's
 /// partial files, then die of the signal as before. (Partial folders, and partials of a process
 /// killed by SIGKILL, are removed by the next run.) For programs, not libraries.
 void remove_partials_on_signals() noexcept;

@@ -14,6 +14,8 @@ struct MovieOptions {
   int width = 640, height = 480;
   double from = 0.0;
   double to = -1.0;  ///< < from: the scene's duration
+  /// Asked between frames and while the encoder finishes: true stops, and nothing is written.
+  std::function<bool()> cancelled;
 };
 
 struct MovieStats {

@@ -9,6 +9,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <memory>
 
 namespace csrbf::render {
@@ -34,11 +35,16 @@ class MovieWriter {
   MovieWriter(const MovieWriter&) = delete;
   MovieWriter& operator=(const MovieWriter&) = delete;
 
-  /// One frame, RGB, 8 bits a channel, rows top to bottom (width * height * 3 bytes).
-  void write(const std::uint8_t* rgb);
-  /// Waits for ffmpeg and moves the result over the target. Throws RenderError with ffmpeg's
-  /// message on failure (the target is then untouched).
-  void finish();
+  /// Asked while ffmpeg is slow to read or to finish: true gives up (write() and finish() return
+  /// false, nothing is written).
+  void set_cancel(std::function<bool()> cancelled) { cancelled_ = std::move(cancelled); }
+  /// One frame, RGB, 8 bits a channel, rows top to bottom (width * height * 3 bytes). False when
+  /// cancelled.
+  bool write(const std::uint8_t* rgb);
+  /// Waits for ffmpeg (at most CSRBF_PIPE_TIMEOUT, default 120 s) and moves the verified result
+  /// over the target; false when cancelled first (the partial is removed). Throws RenderError with
+  /// ffmpeg's message on failure (the target is then untouched).
+  bool finish();
   MovieFormat format() const noexcept { return format_; }
   std::size_t frames() const noexcept { return frames_; }
 
@@ -52,6 +58,7 @@ class MovieWriter {
   int width_, height_;
   std::size_t frames_ = 0;
   std::unique_ptr<Child> ffmpeg_;
+  std::function<bool()> cancelled_;
   bool done_ = false;
 };
 

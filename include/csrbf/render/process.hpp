@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -31,10 +32,13 @@ class Child {
 
   /// Writes all bytes to its standard input; false if it has exited, or has not read anything for
   /// stall_seconds (then stalled() is true).
-  bool write(const void* data, std::size_t bytes, int stall_seconds = 120);
+  /// stop: asked every 0.2 s while the child does not read; true abandons the write (false back).
+  bool write(const void* data, std::size_t bytes, int stall_seconds = 120, const std::function<bool()>& stop = {});
   bool stalled() const noexcept { return stalled_; }
-  /// Closes its standard input and waits; returns its exit status (128 + signal if killed).
-  int finish();
+  /// Closes its standard input and waits; returns its exit status (128 + signal if killed). With
+  /// timeout_seconds >= 0 (or when stop() turns true), a child still running then is killed and
+  /// -1 returned.
+  int finish(int timeout_seconds = -1, const std::function<bool()>& stop = {});
   /// Kills it (SIGTERM, then SIGKILL after a grace period) and waits.
   void kill();
   /// What it wrote to standard error so far (the last 2000 characters).
