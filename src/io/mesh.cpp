@@ -748,7 +748,15 @@ void MeshDocument::Impl::save_same(const fs::path& out) const {
   for (std::size_t i = 0; i < normal_slots.size(); ++i) put(normal_slots[i], vn[i]);
   write_atomically(out, [&](std::ostream& os) {
     if (format == MeshFormat::Ply) os << ply_header;
-    for (std::size_t li = 0; li < lines.size(); ++li) os << (repl[li].empty() ? lines[li] : rewrite_line(lines[li], repl[li])) << '\n';
+    for (std::size_t li = 0; li < lines.size(); ++li) {
+      if (repl[li].empty()) {
+        os << lines[li] << '\n';
+        continue;
+      }
+      // The first line's byte order mark is not a token: its numbers were counted without it.
+      const std::string_view line = li == 0 && format != MeshFormat::Ply ? detail::skip_bom(lines[li]) : std::string_view(lines[li]);
+      os << lines[li].substr(0, lines[li].size() - line.size()) << rewrite_line(std::string(line), repl[li]) << '\n';
+    }
   });
 }
 

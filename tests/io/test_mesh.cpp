@@ -252,6 +252,17 @@ TEST(Mesh, OffAndObjEdgeCases) {
   m.positions()[0] = Vec3(0, 0, 2);
   m.save(dir / "bom2.obj");
   EXPECT_EQ(test::read_text(dir / "bom2.obj").substr(0, 10), "\xEF\xBB\xBFv 0 0 2");
+  // A mark followed by blanks (fuzz_mesh_obj): the rewritten numbers are still the right ones.
+  test::write_text(dir / "bom3.obj", "\xEF\xBB\xBF \t v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+  auto m3 = MeshDocument::load(dir / "bom3.obj");
+  m3.positions()[0] = Vec3(0, 0, 3);
+  m3.save(dir / "bom4.obj");
+  const auto back = MeshDocument::load(dir / "bom4.obj");
+  ASSERT_EQ(back.positions().size(), 3u);
+  EXPECT_EQ(back.positions()[0], Vec3(0, 0, 3));
+  // Faces under 3 vertices and CR-only line endings are refused with the line.
+  test::write_text(dir / "cr.xyz", "0 0 0\r1 0 0\r");
+  EXPECT_NE(error_of(dir / "cr.xyz").find("cr.xyz:1: a carriage return inside the line"), std::string::npos);
   // A 50 MB token is cut in the message.
   test::write_text(dir / "wide.xyz", "0 0 " + std::string(1000000, 'x') + "\n");
   const std::string e = error_of(dir / "wide.xyz");
