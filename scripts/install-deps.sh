@@ -17,6 +17,7 @@ packages=(
   libvtk9-dev            # render (csrbf animate), the `peers` benchmark, tests against vtkKochanekSpline
   libvtk9-qt-dev qtbase5-dev   # csrbf-picker (Qt 5 widgets + VTK's QVTKOpenGLNativeWidget)
   xvfb xauth             # csrbf animate without a display starts a private Xvfb; tests use xvfb-run
+  libx11-dev             # render: checks that a DISPLAY opens before VTK uses it (XOpenDisplay)
   ffmpeg                 # csrbf animate writes movies through the ffmpeg program; tests read them with ffprobe
   pybind11-dev python3-dev python3-numpy   # the Python module (Debian's /usr/bin/python3)
   python3-vtk9           # vtkCSRBFTransform wrapped for VTK's Python (VTK's wrapping tools and runtime)
