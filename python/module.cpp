@@ -321,7 +321,33 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
         py::gil_scoped_release release;
         return d.fit();
       },
-      py::arg("path"), "The SpaceMap of a deformation JSON file");
+      py::arg("path"), "The SpaceMap of a deformation JSON file (without its active area: see apply_deformation)");
+  m.def(
+      "read_active_area",
+      [](const std::filesystem::path& path) -> py::object {
+        const auto d = csrbf::io::read_deformation(path);
+        if (!d.area) return py::none();
+        py::array_t<std::uint32_t> out(py::ssize_t(d.area->vertices.size()));
+        std::copy(d.area->vertices.begin(), d.area->vertices.end(), out.mutable_data());
+        return out;
+      },
+      py::arg("path"),
+      "The active area of a deformation JSON file: the sorted vertex indices it moves, or None for every vertex");
+  m.def(
+      "apply_deformation",
+      [](const std::filesystem::path& path, const py::array& positions, double phase) {
+        csrbf::check_phase(phase);
+        const auto d = csrbf::io::read_deformation(path);
+        auto p = to_vec3(positions, "positions", true);
+        {
+          py::gil_scoped_release release;
+          csrbf::io::apply_deformation(d.fit(), d.area, p, phase, path.string());
+        }
+        return from_vec3(p);
+      },
+      py::arg("path"), py::arg("positions"), py::arg("phase") = 1.0,
+      "The (n, 3) positions of a mesh's vertices moved as `csrbf deform --deformation` moves them: by the "
+      "deformation file at `phase`, inside its active area only (the mesh must have the area's vertex count)");
   m.def(
       "write_deformation",
       [](const std::filesystem::path& path, const csrbf::SpaceMap& map) {

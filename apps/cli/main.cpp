@@ -93,13 +93,16 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
 struct Fitted {
   csrbf::io::Controls controls;
   csrbf::SpaceMap map;
+  std::optional<csrbf::io::ActiveArea> area;  // the deformation file's active area, if any
 };
 
 Fitted fit(const FitArgs& a) {
   csrbf::io::Controls controls;
   csrbf::FitOptions o;
+  std::optional<csrbf::io::ActiveArea> area;
   if (!a.deformation.empty()) {
-    const auto spec = csrbf::io::read_deformation(a.deformation);
+    auto spec = csrbf::io::read_deformation(a.deformation);
+    area = std::move(spec.area);
     controls.sources = spec.sources;
     controls.destinations = spec.destinations;
     controls.name = a.deformation;
@@ -124,7 +127,7 @@ Fitted fit(const FitArgs& a) {
     return json_file ? "sources[" + std::to_string(i) + "]" : "line " + std::to_string(controls.lines[i]);
   };
   try {
-    return {controls, csrbf::SpaceMap::fit(controls.sources, controls.destinations, o)};
+    return {controls, csrbf::SpaceMap::fit(controls.sources, controls.destinations, o), std::move(area)};
   } catch (const csrbf::DuplicateSource& e) {
     throw csrbf::io::FileError(where(e.second()) + ": source is the same as on " + which(e.first()));
   } catch (const csrbf::NotPositiveDefinite& e) {
@@ -226,15 +229,16 @@ int main(int argc, char** argv) {
       auto mesh = csrbf::io::MeshDocument::load(mesh_in, deform_args.memory_limit_gib * double(1ull << 30));
       auto& p = mesh.positions();
       const std::vector<csrbf::Vec3> before = p;
-      f.map.apply(p, p, phase);
+      csrbf::io::apply_deformation(f.map, f.area, p, phase, deform_args.deformation);
       const auto t1 = std::chrono::steady_clock::now();
       mesh.save(mesh_out);
       std::size_t moved = 0;
       for (std::size_t i = 0; i < p.size(); ++i) moved += p[i] != before[i];
       std::cout << "csrbf deform: " << p.size() << " vertices (" << moved << " moved) of " << mesh_in << " by "
                 << f.map.size() << " controls, R = " << f.map.radius() << ", kernel " << csrbf::kernel_name(f.map.kernel())
-                << ", polynomial " << csrbf::polynomial_name(f.map.polynomial()) << ", phase " << phase << " -> "
-                << mesh_out << " (" << std::chrono::duration<double, std::milli>(t1 - t0).count() << " ms)\n";
+                << ", polynomial " << csrbf::polynomial_name(f.map.polynomial()) << ", phase " << phase
+                << (f.area ? ", active area of " + std::to_string(f.area->vertices.size()) + " vertices" : std::string())
+                << " -> " << mesh_out << " (" << std::chrono::duration<double, std::milli>(t1 - t0).count() << " ms)\n";
     } else if (*animate) {
       return csrbf::cli::run_animate(anim_opts);
     } else if (*bench) {
@@ -244,7 +248,14 @@ int main(int argc, char** argv) {
       std::optional<csrbf::FoldReport> folds;
       if (check_folds) {
         const auto mesh = csrbf::io::MeshDocument::load(info_mesh, info_args.memory_limit_gib * double(1ull << 30));
-        folds = csrbf::check_folds(f.map, mesh.positions(), mesh.faces(), info_phase);
+        if (f.area) {  // the vertices the deformation moves, as the Picker counts them
+          csrbf::io::check_active_area(*f.area, mesh.positions().size(), info_args.deformation);
+          std::vector<csrbf::Vec3> part;
+          for (const auto v : f.area->vertices) part.push_back(mesh.positions()[v]);
+          folds = csrbf::check_folds(f.map, part, {}, info_phase);
+        } else {
+          folds = csrbf::check_folds(f.map, mesh.positions(), mesh.faces(), info_phase);
+        }
       }
       if (json) {
         auto j = csrbf::cli::stats_json(f.map);

@@ -87,11 +87,43 @@ void Document::reset(const fs::path& base) {
            {"objects", Json::array()}};
 }
 
+namespace {
+
+/// Relative paths of `j` from folder `from` rewritten for folder `to` (absolute ones where no
+/// relative path leads there).
+void rebase(Json& j, const fs::path& from, const fs::path& to) {
+  const fs::path old_base = fs::absolute(from), new_base = fs::absolute(to);
+  if (old_base == new_base) return;
+  for_each_path(j, [&](Json& p) {
+    if (!p.is_string()) return;
+    const fs::path abs = fs::path(p.get<std::string>()).is_absolute() ? fs::path(p.get<std::string>())
+                                                                         : old_base / p.get<std::string>();
+    const fs::path rel = abs.lexically_normal().lexically_relative(new_base);
+    p = rel.empty() ? abs.lexically_normal().string() : rel.string();
+  });
+}
+
+}  // namespace
+
+void Document::set_json(Json j, const fs::path& from_base) {
+  rebase(j, from_base, base_);
+  json_ = std::move(j);
+}
+
 void Document::open(const fs::path& file) {
   std::ifstream in(file, std::ios::binary);
   if (!in) throw io::FileError(file.string() + ": cannot open for reading");
   std::ostringstream text;
   text << in.rdbuf();
+  {
+    // A deformation file is the usual wrong pick here: say what it is and where it goes.
+    const Json peek = Json::parse(text.str(), nullptr, false);
+    if (peek.is_object() && !peek.contains("objects") &&
+        (peek.value("format", "") == "csrbf-deformation" || peek.contains("sources") || peek.contains("controls")))
+      throw io::FileError(file.string() +
+                          ": this is a deformation file, not a scene. Open or build a scene, select an object and "
+                          "attach it with Object > Attach deformation... (Ctrl+D)");
+  }
   io::read_scene_text(text.str(), file.string(), file.parent_path());  // the whole check
   json_ = Json::parse(text.str());
   if (!json_.contains("objects")) json_["objects"] = Json::array();
@@ -102,13 +134,7 @@ void Document::open(const fs::path& file) {
 void Document::save(const fs::path& file) {
   const fs::path new_base = fs::absolute(file).parent_path();
   Json out = json_;
-  const fs::path old_base = fs::absolute(base_);
-  for_each_path(out, [&](Json& p) {
-    const fs::path abs = fs::path(p.get<std::string>()).is_absolute() ? fs::path(p.get<std::string>())
-                                                                         : old_base / p.get<std::string>();
-    const fs::path rel = abs.lexically_normal().lexically_relative(new_base);
-    p = rel.empty() ? abs.lexically_normal().string() : rel.string();
-  });
+  rebase(out, base_, new_base);
   io::write_atomically(file, [&](std::ostream& o) { o << out.dump(1) << '\n'; });
   json_ = std::move(out);
   base_ = new_base;
@@ -145,6 +171,153 @@ std::size_t Document::object_count() const { return json_["objects"].size(); }
 std::string Document::object_name(std::size_t i) const { return object(i).value("name", "object " + std::to_string(i)); }
 double Document::duration() const { return json_["duration"].get<double>(); }
 double Document::fps() const { return json_.value("fps", 25.0); }
+
+double Document::snap(double t) const { return std::round(t * fps()) / fps(); }
+
+Json& Document::deformation_entry(std::size_t o, std::size_t d) {
+  if (d >= deformation_count(o)) throw EditError("no deformation " + std::to_string(d));
+  return object(o)["parts"][0]["deformations"][d];
+}
+const Json& Document::deformation_entry(std::size_t o, std::size_t d) const {
+  if (d >= deformation_count(o)) throw EditError("no deformation " + std::to_string(d));
+  return object(o)["parts"][0]["deformations"][d];
+}
+
+std::string Document::deformation_name(std::size_t o, std::size_t d) const {
+  return deformation_entry(o, d).value("name", "deformation " + std::to_string(d + 1));
+}
+
+void Document::set_deformation_name(std::size_t o, std::size_t d, const std::string& name) {
+  if (name.empty()) throw EditError("a deformation needs a name");
+  deformation_entry(o, d)["name"] = name;
+}
+
+void Document::remove_deformation(std::size_t o, std::size_t d) {
+  deformation_entry(o, d);
+  Json& ds = object(o)["parts"][0]["deformations"];
+  ds.erase(d);
+}
+
+std::string Document::combine(std::size_t o) const {
+  const Json& obj = object(o);
+  if (!obj.contains("parts") || obj["parts"].empty()) return "compose";
+  return obj["parts"][0].value("combine", "compose");
+}
+
+void Document::set_combine(std::size_t o, const std::string& c) {
+  if (c != "sum" && c != "compose") throw EditError("combine must be \"sum\" or \"compose\", got '" + c + "'");
+  Json& obj = object(o);
+  if (!obj.contains("parts") || obj["parts"].empty()) throw EditError("the object has no deformations to combine");
+  obj["parts"][0]["combine"] = c;
+}
+
+std::string Document::easing(std::size_t o, std::size_t d) const {
+  const Json& e = deformation_entry(o, d);
+  if (!e.contains("phase") || !e["phase"].is_object()) return "smooth";
+  return e["phase"].value("easing", "smooth");
+}
+
+void Document::set_easing(std::size_t o, std::size_t d, const std::string& easing) {
+  if (easing != "smooth" && easing != "linear") throw EditError("easing must be \"smooth\" or \"linear\", got '" + easing + "'");
+  keys(o, Track::Phase, d);  // makes the schedule keyed
+  deformation_entry(o, d)["phase"]["easing"] = easing;
+}
+
+double Document::phase_value(std::size_t o, std::size_t d, std::size_t key) const {
+  const Json& e = deformation_entry(o, d);
+  if (!e.contains("phase")) return 1.0;
+  if (e["phase"].is_number()) return e["phase"].get<double>();
+  const Json& k = e["phase"]["keys"];
+  if (key >= k.size()) throw EditError("no phase key " + std::to_string(key));
+  return k[key]["phase"].get<double>();
+}
+
+void Document::set_phase_value(std::size_t o, std::size_t d, std::size_t key, double phase) {
+  if (!std::isfinite(phase) || std::abs(phase) > 1e6) throw EditError("the phase must be a number within +-1e6");
+  Json& k = keys(o, Track::Phase, d);
+  if (key >= k.size()) throw EditError("no phase key " + std::to_string(key));
+  k[key]["phase"] = phase;
+}
+
+void Document::remove_phase_key(std::size_t o, std::size_t d, std::size_t key) {
+  Json& k = keys(o, Track::Phase, d);
+  if (key >= k.size()) throw EditError("no phase key " + std::to_string(key));
+  if (k.size() == 1) throw EditError("a schedule keeps at least one key (remove the deformation instead)");
+  k.erase(key);
+}
+
+void Document::set_camera(const Vec3& position, const Vec3& focal, const Vec3& up, double angle) {
+  if (!position.allFinite() || !focal.allFinite() || !up.allFinite() || (position - focal).norm() == 0 || up.norm() == 0)
+    throw EditError("the camera needs a position apart from its focal point and a view-up direction");
+  if (!(angle > 0 && angle < 180)) throw EditError("the view angle must be in (0, 180) degrees");
+  json_["camera"] = {{"position", vec(position)}, {"focal_point", vec(focal)}, {"view_up", vec(up)}, {"view_angle", angle}};
+}
+
+namespace {
+void check_rgb(const Vec3& c) {
+  for (int k = 0; k < 3; ++k)
+    if (!(c[k] >= 0 && c[k] <= 1)) throw EditError("colour components must be in [0, 1]");
+}
+Vec3 rgb_of(const Json& j, const Vec3& fallback) {
+  if (!j.is_array() || j.size() != 3) return fallback;
+  return Vec3(j[0].get<double>(), j[1].get<double>(), j[2].get<double>());
+}
+}  // namespace
+
+void Document::set_background(const Vec3& rgb) {
+  check_rgb(rgb);
+  json_["background"] = vec(rgb);
+}
+
+Vec3 Document::background() const { return rgb_of(json_.value("background", Json()), Vec3(0.1, 0.1, 0.14)); }
+
+void Document::set_object_color(std::size_t o, const Vec3& rgb) {
+  check_rgb(rgb);
+  Json& obj = object(o);
+  obj["color"] = vec(rgb);
+  if (obj.contains("parts"))  // the parts' own colours would hide it: the object is one colour now
+    for (auto& p : obj["parts"]) p.erase("color");
+}
+
+Vec3 Document::object_color(std::size_t o) const { return rgb_of(object(o).value("color", Json()), Vec3(0.8, 0.8, 0.8)); }
+
+std::size_t Document::light_count() const { return json_.contains("lights") ? json_["lights"].size() : 0; }
+
+std::size_t Document::add_light(const Vec3& position, double intensity, bool headlight) {
+  if (!(intensity >= 0 && intensity <= 10)) throw EditError("a light's intensity must be in [0, 10]");
+  if (light_count() >= 16) throw EditError("a scene has at most 16 lights");
+  if (!json_.contains("lights")) json_["lights"] = Json::array();
+  Json l = headlight ? Json{{"headlight", true}, {"intensity", intensity}}
+                     : Json{{"position", vec(position)}, {"intensity", intensity}};
+  json_["lights"].push_back(l);
+  return json_["lights"].size() - 1;
+}
+
+void Document::set_light(std::size_t i, double intensity, const Vec3& rgb) {
+  if (i >= light_count()) throw EditError("no light " + std::to_string(i));
+  if (!(intensity >= 0 && intensity <= 10)) throw EditError("a light's intensity must be in [0, 10]");
+  check_rgb(rgb);
+  json_["lights"][i]["intensity"] = intensity;
+  json_["lights"][i]["color"] = vec(rgb);
+}
+
+void Document::remove_light(std::size_t i) {
+  if (i >= light_count()) throw EditError("no light " + std::to_string(i));
+  json_["lights"].erase(i);
+  if (json_["lights"].empty()) json_.erase("lights");
+}
+
+std::string Document::light_label(std::size_t i) const {
+  if (i >= light_count()) return {};
+  const Json& l = json_["lights"][i];
+  std::ostringstream o;
+  if (l.value("headlight", false)) o << "headlight";
+  else if (l.contains("position"))
+    o << "from (" << l["position"][0].get<double>() << ", " << l["position"][1].get<double>() << ", "
+      << l["position"][2].get<double>() << ")";
+  o << ", intensity " << l.value("intensity", 1.0);
+  return o.str();
+}
 
 void Document::set_duration(double s) {
   if (!(s > 0) || !std::isfinite(s)) throw EditError("the duration must be > 0 s");

@@ -23,8 +23,10 @@ class Document {
   Document();
 
   const nlohmann::json& json() const noexcept { return json_; }
-  /// Replaces the JSON (undo, redo); the caller keeps the old one.
-  void set_json(nlohmann::json j) { json_ = std::move(j); }
+  /// Replaces the JSON (undo, redo) whose relative paths are relative to `from_base`: they are
+  /// rewritten for this document's folder, so that a state from before a Save As into another folder
+  /// still names the same files.
+  void set_json(nlohmann::json j, const std::filesystem::path& from_base);
   /// Folder that relative paths in the JSON are relative to (the scene file's folder).
   const std::filesystem::path& base() const noexcept { return base_; }
   const std::filesystem::path& path() const noexcept { return path_; }
@@ -32,6 +34,7 @@ class Document {
   /// A new empty scene (4 s at 25 fps), paths relative to `base`.
   void reset(const std::filesystem::path& base);
   /// Throws io::FileError (the scene is read whole, meshes and deformations included, to check it).
+  /// A deformation file opened as a scene is named as such, with where to attach it instead.
   void open(const std::filesystem::path& file);
   /// Writes atomically; relative paths are rewritten for the new folder.
   void save(const std::filesystem::path& file);
@@ -65,6 +68,35 @@ class Document {
   /// Moves a key in time, keeping the track in order (error if it would pass a neighbour).
   void set_key_time(std::size_t object, Track track, std::size_t deformation, std::size_t key, double t);
 
+  /// Deformations of the object's first deformed part: name, combine ("sum" or "compose"), phase
+  /// keys (time, value) and easing ("smooth" or "linear"), removal.
+  std::string deformation_name(std::size_t object, std::size_t deformation) const;
+  void set_deformation_name(std::size_t object, std::size_t deformation, const std::string& name);
+  void remove_deformation(std::size_t object, std::size_t deformation);
+  std::string combine(std::size_t object) const;
+  void set_combine(std::size_t object, const std::string& combine);
+  std::string easing(std::size_t object, std::size_t deformation) const;
+  void set_easing(std::size_t object, std::size_t deformation, const std::string& easing);
+  double phase_value(std::size_t object, std::size_t deformation, std::size_t key) const;
+  void set_phase_value(std::size_t object, std::size_t deformation, std::size_t key, double phase);
+  void remove_phase_key(std::size_t object, std::size_t deformation, std::size_t key);
+
+  /// Look: the scene camera, background, the object's colour, lights (docs/scene-format.md).
+  void set_camera(const Vec3& position, const Vec3& focal_point, const Vec3& view_up, double view_angle);
+  void set_background(const Vec3& rgb);
+  Vec3 background() const;
+  void set_object_color(std::size_t object, const Vec3& rgb);
+  Vec3 object_color(std::size_t object) const;
+  std::size_t light_count() const;
+  /// A light at infinity shining from `position` towards the focal point (or a headlight).
+  std::size_t add_light(const Vec3& position, double intensity, bool headlight);
+  void set_light(std::size_t light, double intensity, const Vec3& rgb);
+  void remove_light(std::size_t light);
+  std::string light_label(std::size_t light) const;
+
+  /// t rounded to the nearest frame (1 / fps): keys sit on frames.
+  double snap(double t) const;
+
   void set_duration(double seconds);
   void set_fps(double fps);
   double duration() const;
@@ -77,6 +109,8 @@ class Document {
   const nlohmann::json& object(std::size_t i) const;
   nlohmann::json& keys(std::size_t object, Track track, std::size_t deformation);
   std::string relative(const std::filesystem::path& file) const;
+  nlohmann::json& deformation_entry(std::size_t object, std::size_t deformation);
+  const nlohmann::json& deformation_entry(std::size_t object, std::size_t deformation) const;
 
   nlohmann::json json_;
   std::filesystem::path base_, path_;

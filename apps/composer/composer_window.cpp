@@ -7,6 +7,10 @@
 #include <QAction>
 #include <QApplication>
 #include <QCheckBox>
+#include <QColorDialog>
+#include <QComboBox>
+#include <QLineEdit>
+#include <QScrollArea>
 #include <QCloseEvent>
 #include <QDockWidget>
 #include <QDoubleSpinBox>
@@ -33,6 +37,8 @@
 
 #include <vtkActor.h>
 #include <vtkCamera.h>
+#include <vtkCameraActor.h>
+#include <vtkActorCollection.h>
 #include <vtkCellData.h>
 #include <vtkCellArray.h>
 #include <vtkGenericOpenGLRenderWindow.h>
@@ -70,12 +76,15 @@ class ComposerStyle : public vtkInteractorStyleTrackballCamera {
   vtkTypeMacro(ComposerStyle, vtkInteractorStyleTrackballCamera)
   ComposerWindow* window = nullptr;
 
+  // VTK's own keys (w wireframe, 3 stereo, e/q quit, ...) are off: the menus hold every key.
+  void OnChar() override {}
+
   void OnLeftButtonDown() override {
     const int* p = GetInteractor()->GetEventPosition();
     last_[0] = press_[0] = p[0];
     last_[1] = press_[1] = p[1];
     moved_ = false;
-    rotating_ = GetInteractor()->GetControlKey() != 0 && window->selected_object() >= 0;
+    rotating_ = GetInteractor()->GetControlKey() != 0 && window->has_object();
     shift_ = GetInteractor()->GetShiftKey() != 0;
     if (rotating_) {
       window->drag_start_ = window->doc_.json();
@@ -94,7 +103,7 @@ class ComposerStyle : public vtkInteractorStyleTrackballCamera {
     const int* p = GetInteractor()->GetEventPosition();
     if (std::abs(p[0] - press_[0]) + std::abs(p[1] - press_[1]) > 3) moved_ = true;
     if (window->dragging_ >= 0) {
-      window->drag_key_to(p[0], p[1]);
+      if (moved_) window->drag_key_to(p[0], p[1]);  // a click that stays put does not move the key
       return;
     }
     if (rotating_) {
@@ -108,7 +117,7 @@ class ComposerStyle : public vtkInteractorStyleTrackballCamera {
   void OnLeftButtonUp() override {
     const int* p = GetInteractor()->GetEventPosition();
     if (window->dragging_ >= 0) {
-      window->drag_key_to(p[0], p[1]);
+      if (moved_) window->drag_key_to(p[0], p[1]);
       window->end_key_drag();
     } else if (rotating_) {
       window->end_key_drag();
@@ -128,42 +137,64 @@ vtkStandardNewMacro(ComposerStyle);
 /// One edit: the scene JSON before and after; the first redo() is the edit itself.
 class JsonCommand : public QUndoCommand {
  public:
-  JsonCommand(ComposerWindow* w, json before, json after, const QString& text)
-      : QUndoCommand(text), w_(w), before_(std::move(before)), after_(std::move(after)) {}
-  void undo() override { restore_(before_); }
+  /// `base`: the folder the two states' relative paths were written for (the document's then).
+  JsonCommand(ComposerWindow* w, json before, json after, std::filesystem::path base, const QString& text)
+      : QUndoCommand(text), w_(w), before_(std::move(before)), after_(std::move(after)), base_(std::move(base)) {}
+  void undo() override { w_->restore(before_, base_); }
   void redo() override {
     if (first_) {
       first_ = false;
       return;
     }
-    restore_(after_);
+    w_->restore(after_, base_);
   }
 
  private:
-  void restore_(const json& j);
   ComposerWindow* w_;
   json before_, after_;
+  std::filesystem::path base_;
   bool first_ = true;
 };
-
-void JsonCommand::restore_(const json& j) { w_->restore(j); }
 
 // ---------------------------------------------------------------------------------------------------
 
 Timeline::Timeline(ComposerWindow* w) : QWidget(w), w_(w) {
   setObjectName("timeline");
-  setMinimumHeight(110);
+  setMinimumHeight(needed_height());
   setMouseTracking(false);
 }
 
+namespace {
+constexpr double kLeft = 96.0, kRight = 22.0;  // room for row names, and for the last second's label
+
+Document::Track track_of(int row) {
+  return row == 0 ? Document::Track::Position : row == 1 ? Document::Track::Orientation : Document::Track::Phase;
+}
+}  // namespace
+
 double Timeline::x_of(double t) const {
   const double d = w_->doc_.duration();
-  return 60.0 + (width() - 75.0) * (d > 0 ? t / d : 0.0);
+  return kLeft + (width() - kLeft - kRight) * (d > 0 ? t / d : 0.0);
 }
 
 double Timeline::t_of(double x) const {
   const double d = w_->doc_.duration();
-  return std::clamp((x - 60.0) / std::max(1.0, width() - 75.0) * d, 0.0, d);
+  return std::clamp((x - kLeft) / std::max(1.0, width() - kLeft - kRight) * d, 0.0, d);
+}
+
+int Timeline::needed_height() const {
+  const int o = w_->object_;
+  const std::size_t defs = o >= 0 && o < int(w_->doc_.object_count()) ? w_->doc_.deformation_count(std::size_t(o)) : 0;
+  return y_of(int(2 + defs)) + 4;
+}
+
+double Timeline::drag_limit(int row, int key, double x) const {
+  const auto times = w_->doc_.key_times(std::size_t(w_->object_), track_of(row), std::size_t(std::max(0, row - 2)));
+  const double frame = 1.0 / w_->doc_.fps();
+  double t = w_->doc_.snap(t_of(x));
+  if (key > 0) t = std::max(t, w_->doc_.snap(times[std::size_t(key) - 1]) + frame);
+  if (key + 1 < int(times.size())) t = std::min(t, w_->doc_.snap(times[std::size_t(key) + 1]) - frame);
+  return std::max(t, 0.0);
 }
 
 void Timeline::paintEvent(QPaintEvent*) {
@@ -171,12 +202,14 @@ void Timeline::paintEvent(QPaintEvent*) {
   p.fillRect(rect(), QColor(45, 47, 52));
   p.setRenderHint(QPainter::Antialiasing);
   const double d = w_->doc_.duration();
-  // Seconds ruler.
+  // Seconds ruler: a line a second, its label centred above it (seen whatever the rows scroll to).
   p.setPen(QColor(120, 120, 130));
-  for (int s = 0; s <= int(d); ++s) {
+  const QFontMetrics fm(font());
+  for (int s = 0; s <= int(d + 1e-9); ++s) {
     const double x = x_of(s);
-    p.drawLine(QPointF(x, 4), QPointF(x, height() - 4));
-    p.drawText(QPointF(x + 2, height() - 4), QString::number(s) + "s");
+    p.drawLine(QPointF(x, 16), QPointF(x, height()));
+    const QString label = QString::number(s) + "s";
+    p.drawText(QPointF(x - fm.horizontalAdvance(label) / 2.0, 13), label);
   }
   const int o = w_->object_;
   if (o >= 0 && o < int(w_->doc_.object_count())) {
@@ -184,15 +217,16 @@ void Timeline::paintEvent(QPaintEvent*) {
     rows.push_back({"position", w_->doc_.key_times(std::size_t(o), Document::Track::Position)});
     rows.push_back({"rotation", w_->doc_.key_times(std::size_t(o), Document::Track::Orientation)});
     for (std::size_t k = 0; k < w_->doc_.deformation_count(std::size_t(o)); ++k)
-      rows.push_back({"phase " + QString::number(k + 1), w_->doc_.key_times(std::size_t(o), Document::Track::Phase, k)});
+      rows.push_back({QString::fromStdString(w_->doc_.deformation_name(std::size_t(o), k)),
+                      w_->doc_.key_times(std::size_t(o), Document::Track::Phase, k)});
     for (int r = 0; r < int(rows.size()); ++r) {
       const int y = y_of(r);
-      p.setPen(QColor(200, 200, 210));
-      p.drawText(QPointF(4, y + 4), rows[std::size_t(r)].first);
+      p.setPen(r >= 2 && r - 2 == w_->deformation_ ? QColor(255, 240, 120) : QColor(200, 200, 210));
+      p.drawText(QPointF(4, y + 4), fm.elidedText(rows[std::size_t(r)].first, Qt::ElideRight, int(kLeft) - 10));
       const QColor colour = r == 0 ? QColor(255, 170, 60) : r == 1 ? QColor(90, 170, 255) : QColor(120, 220, 120);
       for (int k = 0; k < int(rows[std::size_t(r)].second.size()); ++k) {
         const double t = (r == drag_row_ && k == drag_key_) ? drag_time_ : rows[std::size_t(r)].second[std::size_t(k)];
-        const bool sel = r == 0 && k == w_->key_;
+        const bool sel = (r == 0 && k == w_->key_) || (r >= 2 && r - 2 == w_->deformation_ && k == w_->phase_key_);
         const double x = x_of(t);
         QPolygonF diamond({QPointF(x, y - 6), QPointF(x + 6, y), QPointF(x, y + 6), QPointF(x - 6, y)});
         p.setBrush(sel ? QColor(255, 240, 60) : colour);
@@ -209,42 +243,42 @@ void Timeline::paintEvent(QPaintEvent*) {
 void Timeline::mousePressEvent(QMouseEvent* e) {
   const int o = w_->object_;
   drag_row_ = drag_key_ = -1;
-  if (o >= 0) {
+  if (o >= 0 && o < int(w_->doc_.object_count())) {
     const std::size_t defs = w_->doc_.deformation_count(std::size_t(o));
     for (int r = 0; r < int(2 + defs) && drag_key_ < 0; ++r) {
       if (std::abs(e->pos().y() - y_of(r)) > 7) continue;
-      const auto track = r == 0 ? Document::Track::Position : r == 1 ? Document::Track::Orientation : Document::Track::Phase;
-      const auto times = w_->doc_.key_times(std::size_t(o), track, std::size_t(std::max(0, r - 2)));
+      const auto times = w_->doc_.key_times(std::size_t(o), track_of(r), std::size_t(std::max(0, r - 2)));
       for (int k = 0; k < int(times.size()); ++k)
         if (std::abs(e->pos().x() - x_of(times[std::size_t(k)])) <= 7) {
           drag_row_ = r;
           drag_key_ = k;
           drag_time_ = times[std::size_t(k)];
           if (r == 0) w_->select_key(k);
+          if (r >= 2) w_->select_phase_key(r - 2, k);
           break;
         }
+      if (drag_key_ < 0 && r >= 2 && e->pos().x() < kLeft) w_->select_phase_key(r - 2, -1);  // the row's name
     }
   }
-  if (drag_key_ < 0) w_->set_time(t_of(e->pos().x()));  // scrub
+  if (drag_key_ < 0 && e->pos().x() >= kLeft) w_->set_time(t_of(e->pos().x()));  // scrub
   update();
 }
 
 void Timeline::mouseMoveEvent(QMouseEvent* e) {
-  if (drag_key_ >= 0) drag_time_ = t_of(e->pos().x());
-  else w_->set_time(t_of(e->pos().x()));
+  if (drag_key_ >= 0) drag_time_ = drag_limit(drag_row_, drag_key_, e->pos().x());
+  else if (e->pos().x() >= kLeft) w_->set_time(t_of(e->pos().x()));
   update();
 }
 
 void Timeline::mouseReleaseEvent(QMouseEvent* e) {
   if (drag_key_ >= 0) {
-    const double t = std::round(t_of(e->pos().x()) * 100.0) / 100.0;  // timing marks snap to 0.01 s
     const int r = drag_row_, k = drag_key_;
+    const double t = drag_limit(r, k, e->pos().x());
     drag_row_ = drag_key_ = -1;
-    const auto track = r == 0 ? Document::Track::Position : r == 1 ? Document::Track::Orientation : Document::Track::Phase;
     const std::size_t o = std::size_t(w_->object_);
-    w_->edit("Move key in time", [&](Document& d) {
-      d.set_key_time(o, track, std::size_t(std::max(0, r - 2)), std::size_t(k), t);
-    });
+    const auto times = w_->doc_.key_times(o, track_of(r), std::size_t(std::max(0, r - 2)));
+    if (std::abs(times[std::size_t(k)] - t) > 1e-12)
+      w_->edit("Move key in time", [&](Document& d) { d.set_key_time(o, track_of(r), std::size_t(std::max(0, r - 2)), std::size_t(k), t); });
   }
   update();
 }
@@ -252,9 +286,11 @@ void Timeline::mouseReleaseEvent(QMouseEvent* e) {
 // ---------------------------------------------------------------------------------------------------
 
 ComposerWindow::ComposerWindow(QWidget* parent) : QMainWindow(parent) {
-  setWindowTitle("csrbf Animation Composer");
+  setWindowTitle("untitled[*] - csrbf Animation Composer");
+  connect(&undo_, &QUndoStack::cleanChanged, this, [this](bool clean) { setWindowModified(!clean); });
   build_ui();
   build_menus();
+  statusBar()->showMessage("Open a scene (Ctrl+O), or add an object (Ctrl+Shift+A)");  // made now: a message later never resizes the view
   timer_ = new QTimer(this);
   connect(timer_, &QTimer::timeout, this, [this] { tick(); });
   rebuild();
@@ -311,8 +347,15 @@ void ComposerWindow::build_ui() {
   auto* cl = new QVBoxLayout(centre);
   cl->setContentsMargins(0, 0, 0, 0);
   cl->addWidget(view_, 1);
+  // The timeline scrolls inside a box of fixed height: a new deformation row never shrinks the view.
   timeline_ = new Timeline(this);
-  cl->addWidget(timeline_);
+  timeline_scroll_ = new QScrollArea(centre);
+  timeline_scroll_->setObjectName("timelineScroll");
+  timeline_scroll_->setWidget(timeline_);
+  timeline_scroll_->setWidgetResizable(true);
+  timeline_scroll_->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  timeline_scroll_->setFixedHeight(timeline_->y_of(5) + 16);
+  cl->addWidget(timeline_scroll_);
   auto* transport = new QHBoxLayout;
   play_ = new QPushButton("Play", centre);
   play_->setObjectName("play");
@@ -338,10 +381,24 @@ void ComposerWindow::build_ui() {
   cl->addLayout(transport);
   setCentralWidget(centre);
 
+  // The scene camera's frame: its frustum from the camera to the focal plane, where the movie's
+  // picture is (4:3, the default movie size).
+  camera_actor_ = vtkSmartPointer<vtkCameraActor>::New();
+  camera_actor_->SetWidthByHeightRatio(4.0 / 3.0);
+  camera_actor_->GetProperty()->SetColor(0.3, 1.0, 0.8);
+  camera_actor_->GetProperty()->SetAmbient(1.0);  // lines lit as surfaces turn black
+  camera_actor_->GetProperty()->SetDiffuse(0.0);
+  camera_actor_->GetProperty()->LightingOff();
+  camera_actor_->GetProperty()->SetLineWidth(2);
+  camera_actor_->PickableOff();
+
   auto* dock = new QDockWidget("Scene", this);
   dock->setObjectName("scene");
   dock->setFeatures(QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
-  auto* panel = new QWidget(dock);
+  auto* dock_scroll = new QScrollArea(dock);
+  dock_scroll->setWidgetResizable(true);
+  dock_scroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  auto* panel = new QWidget(dock_scroll);
   panel->setMinimumWidth(330);
   auto* layout = new QVBoxLayout(panel);
   objects_ = new QListWidget(panel);
@@ -355,13 +412,22 @@ void ComposerWindow::build_ui() {
   auto* add_obj = new QPushButton("Add object...", panel);
   add_obj->setObjectName("addObject");
   connect(add_obj, &QPushButton::clicked, this, [this] {
-    const QString f = QFileDialog::getOpenFileName(this, "Add object", {}, "Meshes (*.obj *.ply *.off *.stl *.glb *.gltf)");
+    const QString f = QFileDialog::getOpenFileName(this, "Add object", gui::dialog_folder(QString::fromStdString(doc_.path().string())),
+                                                   "Meshes (*.obj *.ply *.off *.stl *.glb *.gltf)");
+    gui::remember_folder(f);
     if (!f.isEmpty()) add_object(f);
   });
   auto* attach = new QPushButton("Attach deformation...", panel);
   attach->setObjectName("attach");
   connect(attach, &QPushButton::clicked, this, [this] {
-    const QString f = QFileDialog::getOpenFileName(this, "Attach deformation", {}, "Deformation (*.json)");
+    if (!has_object()) {
+      show_error("Select an object first (Object > Add object... makes one)");
+      return;
+    }
+    const QString f = QFileDialog::getOpenFileName(this, "Attach deformation",
+                                                   gui::dialog_folder(QString::fromStdString(doc_.path().string())),
+                                                   "Deformation (*.json)");
+    gui::remember_folder(f);
     if (!f.isEmpty()) attach_deformation(f);
   });
   obj_buttons->addWidget(add_obj);
@@ -383,7 +449,9 @@ void ComposerWindow::build_ui() {
   kf->addRow("time (s)", key_time_);
   connect(key_time_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double t) {
     if (updating_ || object_ < 0 || key_ < 0) return;
-    edit("Key time", [&](Document& d) { d.set_key_time(std::size_t(object_), Document::Track::Position, 0, std::size_t(key_), t); });
+    edit("Key time", [&](Document& d) {
+      d.set_key_time(std::size_t(object_), Document::Track::Position, 0, std::size_t(key_), d.snap(t));
+    });
   });
   auto* pos_row = new QHBoxLayout;
   for (int c = 0; c < 3; ++c) {
@@ -412,10 +480,11 @@ void ComposerWindow::build_ui() {
   add_key->setObjectName("addKey");
   add_key->setToolTip("A trajectory key at the current time, where the object is now");
   connect(add_key, &QPushButton::clicked, this, [this] {
-    if (object_ < 0) return;
-    const Vec3 at = player_ ? anim::pose_at(scene_->objects[std::size_t(object_)], time_).position : Vec3::Zero();
+    if (!has_object()) return;
+    const double t = doc_.snap(time_);
+    const Vec3 at = anim::pose_at(scene_->objects[std::size_t(object_)], t).position;
     std::size_t k = 0;
-    if (edit("Add trajectory key", [&](Document& d) { k = d.add_position_key(std::size_t(object_), time_, at); }))
+    if (edit("Add trajectory key", [&](Document& d) { k = d.add_position_key(std::size_t(object_), t, at); }))
       select_key(int(k));
   });
   auto* del_key = new QPushButton("Delete key", keybox);
@@ -441,9 +510,9 @@ void ComposerWindow::build_ui() {
   auto* set_rot = new QPushButton("Set orientation key", rotbox);
   set_rot->setObjectName("setOrientation");
   connect(set_rot, &QPushButton::clicked, this, [this] {
-    if (object_ < 0) return;
+    if (!has_object()) return;
     edit("Orientation key", [&](Document& d) {
-      d.set_orientation_key(std::size_t(object_), time_, angles_[0]->value(), angles_[1]->value(), angles_[2]->value());
+      d.set_orientation_key(std::size_t(object_), d.snap(time_), angles_[0]->value(), angles_[1]->value(), angles_[2]->value());
     });
   });
   rf->addRow(set_rot);
@@ -463,10 +532,201 @@ void ComposerWindow::build_ui() {
   });
   layout->addWidget(scenebox);
 
-  error_ = gui::make_error_label(panel);
-  layout->addWidget(error_);
+  // Deformations of the selected object: name, schedule, how they combine.
+  auto* defbox = new QGroupBox("Deformations", panel);
+  auto* df = new QFormLayout(defbox);
+  deformations_ = new QListWidget(defbox);
+  deformations_->setObjectName("deformations");
+  deformations_->setMaximumHeight(80);
+  connect(deformations_, &QListWidget::currentRowChanged, this, [this](int r) {
+    if (!updating_) select_phase_key(r, -1);
+  });
+  df->addRow(deformations_);
+  def_name_ = new QLineEdit(defbox);
+  def_name_->setObjectName("deformationName");
+  connect(def_name_, &QLineEdit::editingFinished, this, [this] {
+    if (updating_ || !has_object() || deformation_ < 0) return;
+    const std::string name = def_name_->text().toStdString();
+    if (name == doc_.deformation_name(std::size_t(object_), std::size_t(deformation_))) return;
+    edit("Rename deformation", [&](Document& d) { d.set_deformation_name(std::size_t(object_), std::size_t(deformation_), name); });
+  });
+  df->addRow("name", def_name_);
+  combine_ = new QComboBox(defbox);
+  combine_->setObjectName("combine");
+  combine_->addItems({"compose", "sum"});
+  combine_->setToolTip("compose: each on the result of the one before; sum: displacements added (blend shapes)");
+  connect(combine_, &QComboBox::currentTextChanged, this, [this](const QString& c) {
+    if (updating_ || !has_object()) return;
+    edit("Combine", [&](Document& d) { d.set_combine(std::size_t(object_), c.toStdString()); });
+  });
+  df->addRow("combine", combine_);
+  easing_ = new QComboBox(defbox);
+  easing_->setObjectName("easing");
+  easing_->addItems({"smooth", "linear"});
+  connect(easing_, &QComboBox::currentTextChanged, this, [this](const QString& e) {
+    if (updating_ || !has_object() || deformation_ < 0) return;
+    edit("Easing", [&](Document& d) { d.set_easing(std::size_t(object_), std::size_t(deformation_), e.toStdString()); });
+  });
+  df->addRow("easing", easing_);
+  phase_time_ = spin("phaseTime", 0, 1e6, 0.04, 3);
+  phase_value_ = spin("phaseValue", -1e6, 1e6, 0.1, 3);
+  auto* phase_row = new QHBoxLayout;
+  phase_row->addWidget(phase_time_);
+  phase_row->addWidget(new QLabel("s  phase", defbox));
+  phase_row->addWidget(phase_value_);
+  df->addRow("key", phase_row);
+  connect(phase_time_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double t) {
+    if (updating_ || !has_object() || deformation_ < 0 || phase_key_ < 0) return;
+    edit("Phase key time", [&](Document& d) {
+      d.set_key_time(std::size_t(object_), Document::Track::Phase, std::size_t(deformation_), std::size_t(phase_key_), d.snap(t));
+    });
+  });
+  connect(phase_value_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double v) {
+    if (updating_ || !has_object() || deformation_ < 0 || phase_key_ < 0) return;
+    edit("Phase value", [&](Document& d) {
+      d.set_phase_value(std::size_t(object_), std::size_t(deformation_), std::size_t(phase_key_), v);
+    });
+  });
+  auto* def_buttons = new QHBoxLayout;
+  auto* add_phase = new QPushButton("Add phase key", defbox);
+  add_phase->setObjectName("addPhaseKey");
+  add_phase->setToolTip("A key of the selected deformation at the current time, with its current phase");
+  connect(add_phase, &QPushButton::clicked, this, [this] {
+    if (!has_object() || deformation_ < 0) return;
+    const double t = doc_.snap(time_);
+    const double v = scene_->objects[std::size_t(object_)].parts[0].deformations[std::size_t(deformation_)].schedule.phase(t);
+    std::size_t k = 0;
+    if (edit("Add phase key", [&](Document& d) { k = d.add_phase_key(std::size_t(object_), std::size_t(deformation_), t, v); }))
+      select_phase_key(deformation_, int(k));
+  });
+  auto* del_phase = new QPushButton("Delete key", defbox);
+  del_phase->setObjectName("deletePhaseKey");
+  connect(del_phase, &QPushButton::clicked, this, [this] {
+    if (!has_object() || deformation_ < 0 || phase_key_ < 0) return;
+    const int k = phase_key_;
+    if (edit("Delete phase key", [&](Document& d) { d.remove_phase_key(std::size_t(object_), std::size_t(deformation_), std::size_t(k)); }))
+      select_phase_key(deformation_, -1);
+  });
+  auto* del_def = new QPushButton("Remove", defbox);
+  del_def->setObjectName("removeDeformation");
+  connect(del_def, &QPushButton::clicked, this, [this] {
+    if (!has_object() || deformation_ < 0) return;
+    const int k = deformation_;
+    if (edit("Remove deformation", [&](Document& d) { d.remove_deformation(std::size_t(object_), std::size_t(k)); }))
+      select_phase_key(-1, -1);
+  });
+  def_buttons->addWidget(add_phase);
+  def_buttons->addWidget(del_phase);
+  def_buttons->addWidget(del_def);
+  df->addRow(def_buttons);
+  layout->addWidget(defbox);
+
+  // Look: what the movie shows (saved in the scene).
+  auto* lookbox = new QGroupBox("Look (camera, lights, colours)", panel);
+  auto* lf = new QFormLayout(lookbox);
+  auto* cam_row = new QHBoxLayout;
+  auto* cam_from_view = new QPushButton("Set from view", lookbox);
+  cam_from_view->setObjectName("cameraFromView");
+  cam_from_view->setToolTip("The movie's camera becomes the view's (Ctrl+Shift+C)");
+  connect(cam_from_view, &QPushButton::clicked, this, [this] { set_scene_camera_from_view(); });
+  auto* look_through = new QPushButton("Look through", lookbox);
+  look_through->setObjectName("lookThrough");
+  look_through->setToolTip("The view shows what the movie will (C)");
+  connect(look_through, &QPushButton::clicked, this, [this] { look_through_scene_camera(); });
+  cam_row->addWidget(cam_from_view);
+  cam_row->addWidget(look_through);
+  lf->addRow("camera", cam_row);
+  view_angle_ = spin("viewAngle", 1, 179, 5, 1);
+  connect(view_angle_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double a) {
+    if (updating_ || !scene_) return;
+    const auto& c = scene_->camera;
+    edit("View angle", [&](Document& d) { d.set_camera(c.position, c.focal_point, c.view_up, a); });
+  });
+  lf->addRow("view angle (deg)", view_angle_);
+  const auto pick_colour = [this](const Vec3& now, const QString& title) -> std::optional<Vec3> {
+    const QColor c = QColorDialog::getColor(QColor::fromRgbF(now.x(), now.y(), now.z()), this, title);
+    if (!c.isValid()) return std::nullopt;
+    return Vec3(c.redF(), c.greenF(), c.blueF());
+  };
+  auto* colours = new QHBoxLayout;
+  auto* background = new QPushButton("Background...", lookbox);
+  background->setObjectName("background");
+  connect(background, &QPushButton::clicked, this, [this, pick_colour] {
+    if (const auto c = pick_colour(doc_.background(), "Background colour"))
+      edit("Background", [&](Document& d) { d.set_background(*c); });
+  });
+  auto* object_colour = new QPushButton("Object colour...", lookbox);
+  object_colour->setObjectName("objectColour");
+  connect(object_colour, &QPushButton::clicked, this, [this, pick_colour] {
+    if (!has_object()) return;
+    if (const auto c = pick_colour(doc_.object_color(std::size_t(object_)), "Object colour"))
+      edit("Object colour", [&](Document& d) { d.set_object_color(std::size_t(object_), *c); });
+  });
+  colours->addWidget(background);
+  colours->addWidget(object_colour);
+  lf->addRow("colours", colours);
+  lights_ = new QListWidget(lookbox);
+  lights_->setObjectName("lights");
+  lights_->setMaximumHeight(70);
+  connect(lights_, &QListWidget::currentRowChanged, this, [this] { refresh_look_panel(); });
+  lf->addRow("lights", lights_);
+  light_intensity_ = spin("lightIntensity", 0, 10, 0.1, 2);
+  connect(light_intensity_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double v) {
+    const int l = lights_->currentRow();
+    if (updating_ || l < 0) return;
+    edit("Light intensity", [&](Document& d) {
+      const json& light = d.json()["lights"][std::size_t(l)];
+      const Vec3 rgb = light.contains("color") ? Vec3(light["color"][0].get<double>(), light["color"][1].get<double>(),
+                                                      light["color"][2].get<double>())
+                                               : Vec3(1, 1, 1);
+      d.set_light(std::size_t(l), v, rgb);
+    });
+  });
+  lf->addRow("intensity", light_intensity_);
+  auto* light_buttons = new QHBoxLayout;
+  auto* add_light = new QPushButton("Add from view", lookbox);
+  add_light->setObjectName("addLight");
+  add_light->setToolTip("A light shining from where the view's camera is, towards the scene camera's focal point");
+  connect(add_light, &QPushButton::clicked, this, [this] {
+    if (!scene_renderer_) return;
+    const double* p = scene_renderer_->renderer()->GetActiveCamera()->GetPosition();
+    edit("Add light", [&](Document& d) { d.add_light(Vec3(p[0], p[1], p[2]), 0.8, false); });
+  });
+  auto* del_light = new QPushButton("Remove", lookbox);
+  del_light->setObjectName("removeLight");
+  connect(del_light, &QPushButton::clicked, this, [this] {
+    const int l = lights_->currentRow();
+    if (l >= 0) edit("Remove light", [&](Document& d) { d.remove_light(std::size_t(l)); });
+  });
+  light_buttons->addWidget(add_light);
+  light_buttons->addWidget(del_light);
+  lf->addRow(light_buttons);
+  layout->addWidget(lookbox);
+
+  // Messages in a box of fixed height: one coming or going never moves the panel.
+  auto* messages = new QWidget;
+  auto* ml = new QVBoxLayout(messages);
+  ml->setContentsMargins(0, 0, 0, 0);
+  error_ = gui::make_error_label(messages);
+  ml->addWidget(error_);
+  info_ = new QLabel(messages);
+  info_->setObjectName("info");
+  info_->setWordWrap(true);
+  info_->setStyleSheet("QLabel { color: black; background: #9fd89f; padding: 6px; border-radius: 4px; }");
+  info_->hide();
+  ml->addWidget(info_);
+  ml->addStretch(1);
+  auto* mscroll = new QScrollArea(panel);
+  mscroll->setObjectName("messages");
+  mscroll->setWidget(messages);
+  mscroll->setWidgetResizable(true);
+  mscroll->setFrameShape(QFrame::NoFrame);
+  mscroll->setFixedHeight(110);
+  layout->addWidget(mscroll);
   layout->addStretch(1);
-  dock->setWidget(panel);
+  dock_scroll->setWidget(panel);
+  dock->setWidget(dock_scroll);
+  dock_scroll->setMinimumWidth(panel->minimumWidth() + 24);
   addDockWidget(Qt::RightDockWidgetArea, dock);
 }
 
@@ -477,26 +737,31 @@ void ComposerWindow::build_menus() {
     connect(a, &QAction::triggered, this, fn);
     return a;
   };
+  const auto folder = [this] { return gui::dialog_folder(QString::fromStdString(doc_.path().string())); };
+  const auto save_as = [this, folder] {
+    const QString start = doc_.path().empty() ? folder() + "/scene.json" : QString::fromStdString(doc_.path().string());
+    const QString f = QFileDialog::getSaveFileName(this, "Save scene", start, "Scenes (*.json)");
+    gui::remember_folder(f);
+    return !f.isEmpty() && save_scene(f);
+  };
   auto* file = menuBar()->addMenu("&File");
   add(file, "&New scene", QKeySequence::New, [this] {
     if (maybe_save()) new_scene();
   });
-  add(file, "&Open scene...", QKeySequence::Open, [this] {
+  add(file, "&Open scene...", QKeySequence::Open, [this, folder] {
     if (!maybe_save()) return;
-    const QString f = QFileDialog::getOpenFileName(this, "Open scene", {}, "Scenes (*.json)");
+    const QString f = QFileDialog::getOpenFileName(this, "Open scene", folder(), "Scenes (*.json)");
+    gui::remember_folder(f);
     if (!f.isEmpty()) open_scene(f);
   });
-  add(file, "&Save scene", QKeySequence::Save, [this] {
-    QString f = QString::fromStdString(doc_.path().string());
-    if (f.isEmpty()) f = QFileDialog::getSaveFileName(this, "Save scene", "scene.json", "Scenes (*.json)");
-    if (!f.isEmpty()) save_scene(f);
+  add(file, "&Save scene", QKeySequence::Save, [this, save_as] {
+    if (doc_.path().empty()) save_as();
+    else save_scene(QString::fromStdString(doc_.path().string()));
   });
-  add(file, "Save scene &as...", QKeySequence::SaveAs, [this] {
-    const QString f = QFileDialog::getSaveFileName(this, "Save scene", "scene.json", "Scenes (*.json)");
-    if (!f.isEmpty()) save_scene(f);
-  });
-  add(file, "&Export movie...", QKeySequence("Ctrl+E"), [this] {
-    const QString f = QFileDialog::getSaveFileName(this, "Export movie", "movie.mp4", "Movies (*.mp4 *.avi)");
+  add(file, "Save scene &as...", QKeySequence::SaveAs, save_as);
+  add(file, "&Export movie...", QKeySequence("Ctrl+E"), [this, folder] {
+    const QString f = QFileDialog::getSaveFileName(this, "Export movie", folder() + "/movie.mp4", "Movies (*.mp4 *.avi)");
+    gui::remember_folder(f);
     if (f.isEmpty()) return;
     bool ok = false;
     const QString size = QInputDialog::getText(this, "Export movie", "Frame size (WIDTHxHEIGHT):", QLineEdit::Normal,
@@ -516,14 +781,82 @@ void ComposerWindow::build_menus() {
   gui::add_undo_actions(editm, undo_, this);
   editm->addSeparator();
   add(editm, "Add trajectory &key", QKeySequence("K"), [this] { findChild<QPushButton*>("addKey")->click(); });
-  add(editm, "&Delete trajectory key", QKeySequence::Delete, [this] { findChild<QPushButton*>("deleteKey")->click(); });
+  add(editm, "&Delete selected key", QKeySequence::Delete, [this] {
+    if (phase_key_ >= 0) findChild<QPushButton*>("deletePhaseKey")->click();
+    else findChild<QPushButton*>("deleteKey")->click();
+  });
+  add(editm, "Set &orientation key", QKeySequence("O"), [this] { findChild<QPushButton*>("setOrientation")->click(); });
+  add(editm, "Add &phase key", QKeySequence("P"), [this] { findChild<QPushButton*>("addPhaseKey")->click(); });
+
+  auto* objm = menuBar()->addMenu("&Object");
+  add(objm, "&Add object...", QKeySequence("Ctrl+Shift+A"), [this] { findChild<QPushButton*>("addObject")->click(); });
+  add(objm, "Attach &deformation...", QKeySequence("Ctrl+D"), [this] { findChild<QPushButton*>("attach")->click(); });
+  add(objm, "&Remove object", QKeySequence("Ctrl+Shift+Del"), [this] {
+    if (!has_object()) return;
+    const int o = object_;
+    if (edit("Remove object", [&](Document& d) { d.remove_object(std::size_t(o)); }))
+      select_object(std::min(o, int(doc_.object_count()) - 1));
+  });
+  add(objm, "&Background colour...", QKeySequence(), [this] { findChild<QPushButton*>("background")->click(); });
+  add(objm, "Object &colour...", QKeySequence(), [this] { findChild<QPushButton*>("objectColour")->click(); });
+  add(objm, "Add &light from view", QKeySequence(), [this] { findChild<QPushButton*>("addLight")->click(); });
+
+  auto* viewm = menuBar()->addMenu("&View");
+  add(viewm, "&Reset camera (front, fit)", QKeySequence("R"), [this] { reset_camera(); });
+  gui::add_view_actions(viewm, this, [this](gui::View v) { reset_camera(v); });
+  viewm->addSeparator();
+  add(viewm, "Set scene &camera from view", QKeySequence("Ctrl+Shift+C"), [this] { set_scene_camera_from_view(); });
+  add(viewm, "&Look through scene camera", QKeySequence("C"), [this] { look_through_scene_camera(); });
+  QAction* frame = add(viewm, "Show scene camera's &frame", QKeySequence("F"), [this](bool on) {
+    camera_actor_->SetVisibility(on);
+    view_->renderWindow()->Render();
+  });
+  frame->setCheckable(true);
+  frame->setChecked(true);
+  wireframe_ = add(viewm, "&Wireframe", QKeySequence("W"), [this] {
+    apply_wireframe();
+    view_->renderWindow()->Render();
+  });
+  wireframe_->setObjectName("wireframe");
+  wireframe_->setCheckable(true);
 
   auto* playm = menuBar()->addMenu("&Animation");
   add(playm, "&Play / pause", QKeySequence("Space"), [this] { play_->toggle(); });
   add(playm, "To the &start", QKeySequence("Home"), [this] { set_time(0); });
-  add(playm, "&Reset camera", QKeySequence("R"), [this] {
-    if (scene_renderer_) scene_renderer_->renderer()->ResetCamera();
-    view_->renderWindow()->Render();
+  add(playm, "&Next frame", QKeySequence("Right"), [this] { set_time(time_ + 1.0 / doc_.fps()); });
+  add(playm, "P&revious frame", QKeySequence("Left"), [this] { set_time(time_ - 1.0 / doc_.fps()); });
+
+  auto* help = menuBar()->addMenu("&Help");
+  add(help, "&Mouse and keys", QKeySequence::HelpContents, [this] {
+    gui::show_reference(this, "csrbf Animation Composer: mouse and keys", R"(
+<h3>Mouse in the 3D view</h3>
+<table cellpadding=3>
+<tr><td><b>Left click</b> on a key (orange ball)</td><td>select it</td></tr>
+<tr><td><b>Left drag</b> on a key</td><td>move it, in the plane facing you</td></tr>
+<tr><td><b>Shift + left click</b></td><td>add a trajectory key at the current time under the cursor</td></tr>
+<tr><td><b>Ctrl + left drag</b></td><td>turn the selected object (an orientation key at the current time)</td></tr>
+<tr><td><b>Left drag</b> elsewhere / <b>middle drag</b> / <b>wheel</b></td><td>orbit / pan / zoom</td></tr>
+</table>
+<h3>Timeline</h3>
+<p>Click or drag on the ruler to scrub. Drag a mark to move its key in time: keys sit on frames and
+stop one frame short of their neighbours. Click a phase mark (green) to select it; the Deformations
+box then edits its time and value. Rows are named after the deformations.</p>
+<h3>Keys</h3>
+<table cellpadding=3>
+<tr><td>Ctrl+N / Ctrl+O / Ctrl+S / Ctrl+Shift+S</td><td>new / open / save / save as</td></tr>
+<tr><td>Ctrl+E</td><td>export a movie (MP4, AVI)</td></tr>
+<tr><td>Ctrl+Z / Ctrl+Shift+Z, Ctrl+Y</td><td>undo / redo</td></tr>
+<tr><td>Ctrl+Shift+A / Ctrl+D / Ctrl+Shift+Del</td><td>add an object / attach a deformation / remove the object</td></tr>
+<tr><td>K / O / P</td><td>trajectory key / orientation key / phase key at the current time</td></tr>
+<tr><td>Delete</td><td>delete the selected key</td></tr>
+<tr><td>Space / Home / Left / Right</td><td>play or pause / to the start / previous / next frame</td></tr>
+<tr><td>R / 1 / 3 / 7</td><td>reset the camera (front, fitted) / front / side / top view</td></tr>
+<tr><td>C / Ctrl+Shift+C / F</td><td>look through the scene camera / set it from the view / show its frame</td></tr>
+<tr><td>W</td><td>wireframe</td></tr>
+<tr><td>F1</td><td>this reference</td></tr>
+</table>
+<p>The movie is rendered through the <b>scene camera</b> (its frame is drawn in cyan), not through the
+view: frame a shot in the view, then Set scene camera from view.</p>)");
   });
 }
 
@@ -533,11 +866,16 @@ bool ComposerWindow::new_scene() {
   play(false);
   doc_.reset(std::filesystem::current_path());
   undo_.clear();
-  object_ = key_ = -1;
+  object_ = key_ = deformation_ = phase_key_ = -1;
   time_ = 0;
+  clear_error();
+  info_->hide();
   scene_.reset();
   rebuild();
+  look_through_scene_camera();
   undo_.setClean();
+  setWindowTitle("untitled[*] - csrbf Animation Composer");
+  setWindowModified(false);
   return true;
 }
 
@@ -553,22 +891,16 @@ bool ComposerWindow::open_scene(const QString& path) {
   doc_ = std::move(next);
   undo_.clear();
   object_ = doc_.object_count() > 0 ? 0 : -1;
-  key_ = -1;
+  key_ = deformation_ = phase_key_ = -1;
   time_ = 0;
   clear_error();
+  info_->hide();
   scene_.reset();
   rebuild();
-  if (scene_renderer_) {
-    const auto& c = scene_->camera;
-    vtkCamera* cam = scene_renderer_->renderer()->GetActiveCamera();
-    cam->SetPosition(c.position.data());
-    cam->SetFocalPoint(c.focal_point.data());
-    cam->SetViewUp(c.view_up.data());
-    cam->SetViewAngle(c.view_angle);
-  }
-  show_frame();
+  look_through_scene_camera();
   undo_.setClean();
-  setWindowTitle("csrbf Animation Composer - " + QFileInfo(path).fileName());
+  setWindowTitle(QFileInfo(path).fileName() + "[*] - csrbf Animation Composer");
+  setWindowModified(false);
   return true;
 }
 
@@ -580,7 +912,9 @@ bool ComposerWindow::save_scene(const QString& path) {
     return false;
   }
   undo_.setClean();
-  setWindowTitle("csrbf Animation Composer - " + QFileInfo(path).fileName());
+  clear_error();
+  setWindowTitle(QFileInfo(path).fileName() + "[*] - csrbf Animation Composer");
+  setWindowModified(false);
   statusBar()->showMessage("Saved " + path, 5000);
   return true;
 }
@@ -618,22 +952,31 @@ bool ComposerWindow::edit(const QString& what, const std::function<void(Document
   const json before = doc_.json();
   doc_ = std::move(next);
   clear_error();
-  undo_.push(new JsonCommand(this, before, doc_.json(), what));
+  info_->hide();
+  undo_.push(new JsonCommand(this, before, doc_.json(), doc_.base(), what));
   scene_ = std::move(scene);
   rebuild();
   return true;
 }
 
-void ComposerWindow::restore(const json& j) {
-  doc_.set_json(j);
+void ComposerWindow::restore(const json& j, const std::filesystem::path& base) {
+  doc_.set_json(j, base);
   if (object_ >= int(doc_.object_count())) object_ = int(doc_.object_count()) - 1;
-  key_ = -1;
+  key_ = deformation_ = phase_key_ = -1;
   clear_error();
   scene_.reset();
   rebuild();
 }
 
 QString ComposerWindow::error_text() const { return error_->isHidden() ? QString() : error_->text(); }
+
+QString ComposerWindow::info_text() const { return info_->isHidden() ? QString() : info_->text(); }
+
+void ComposerWindow::show_info(const QString& m) {
+  info_->setText(m);
+  info_->show();
+  statusBar()->showMessage(m, 10000);
+}
 
 void ComposerWindow::show_error(const QString& m) {
   error_->setText(m);
@@ -655,7 +998,8 @@ void ComposerWindow::rebuild() {
       scene_ = std::make_unique<anim::Scene>();
     }
   }
-  timeline_->setMinimumHeight(timeline_->y_of(int(2 + (object_ >= 0 ? doc_.deformation_count(std::size_t(object_)) : 0))) + 14);
+  if (object_ >= int(doc_.object_count())) object_ = int(doc_.object_count()) - 1;
+  timeline_->setMinimumHeight(timeline_->needed_height());
   // Keep the camera across rebuilds (the scene file's camera is used when a scene is opened).
   vtkNew<vtkCamera> camera;
   const bool had = scene_renderer_ != nullptr;
@@ -671,7 +1015,21 @@ void ComposerWindow::rebuild() {
   r->AddActor(curve_actor_);
   r->AddActor(handle_actor_);
   r->AddActor(frame_actor_);
+  r->AddActor(camera_actor_);
   if (had) r->GetActiveCamera()->DeepCopy(camera);
+  {
+    // The scene camera's frame, ending at its focal point.
+    const auto& c = scene_->camera;
+    vtkNew<vtkCamera> sc;
+    sc->SetPosition(c.position.data());
+    sc->SetFocalPoint(c.focal_point.data());
+    sc->SetViewUp(c.view_up.data());
+    sc->SetViewAngle(c.view_angle);
+    const double d = (c.position - c.focal_point).norm();
+    sc->SetClippingRange(0.05 * d, d);
+    camera_actor_->SetCamera(sc);
+  }
+  apply_wireframe();
   window_->AddRenderer(r);
   updating_ = true;
   objects_->clear();
@@ -679,6 +1037,7 @@ void ComposerWindow::rebuild() {
   if (object_ >= 0) objects_->setCurrentRow(object_);
   updating_ = false;
   time_ = std::clamp(time_, 0.0, doc_.duration());
+  if (!has_object() || deformation_ >= int(doc_.deformation_count(std::size_t(object_)))) deformation_ = phase_key_ = -1;
   refresh_panel();
   refresh_overlays();
   show_frame();
@@ -709,7 +1068,10 @@ void ComposerWindow::refresh_panel() {
   const bool has_key = object_ >= 0 && key_ >= 0 && scene_ && std::size_t(object_) < scene_->objects.size() &&
                        scene_->objects[std::size_t(object_)].trajectory &&
                        std::size_t(key_) < scene_->objects[std::size_t(object_)].trajectory->keys().size();
-  for (QDoubleSpinBox* s : {key_time_, key_pos_[0], key_pos_[1], key_pos_[2], tcb_[0], tcb_[1], tcb_[2]}) s->setEnabled(has_key);
+  for (QDoubleSpinBox* s : {key_time_, key_pos_[0], key_pos_[1], key_pos_[2], tcb_[0], tcb_[1], tcb_[2]}) {
+    s->setEnabled(has_key);
+    if (!has_key) s->setValue(0);  // no stale values of a key that is gone (File > New, undo)
+  }
   if (has_key) {
     const auto& k = scene_->objects[std::size_t(object_)].trajectory->keys()[std::size_t(key_)];
     key_time_->setValue(k.time);
@@ -718,12 +1080,119 @@ void ComposerWindow::refresh_panel() {
     tcb_[1]->setValue(k.continuity);
     tcb_[2]->setValue(k.bias);
   }
-  if (object_ >= 0 && scene_ && std::size_t(object_) < scene_->objects.size()) {
-    const Vec3 a = angles_from_quaternion(scene_->objects[std::size_t(object_)].orientation.rotation(time_));
-    for (int c = 0; c < 3; ++c) angles_[c]->setValue(a[c]);
+  const Vec3 a = has_object() ? angles_from_quaternion(scene_->objects[std::size_t(object_)].orientation.rotation(time_))
+                              : Vec3::Zero();
+  for (int c = 0; c < 3; ++c) {
+    angles_[c]->setValue(a[c]);
+    angles_[c]->setEnabled(has_object());
   }
   updating_ = false;
+  refresh_deformation_panel();
+  refresh_look_panel();
   timeline_->update();
+}
+
+void ComposerWindow::refresh_deformation_panel() {
+  updating_ = true;
+  const std::size_t n = has_object() ? doc_.deformation_count(std::size_t(object_)) : 0;
+  if (deformations_->count() != int(n)) deformations_->clear();
+  for (std::size_t d = 0; d < n; ++d) {
+    const QString name = QString::fromStdString(doc_.deformation_name(std::size_t(object_), d));
+    if (int(d) < deformations_->count()) deformations_->item(int(d))->setText(name);
+    else deformations_->addItem(name);
+  }
+  deformations_->setCurrentRow(deformation_);
+  const bool has_def = deformation_ >= 0 && std::size_t(deformation_) < n;
+  const bool has_key = has_def && phase_key_ >= 0;
+  def_name_->setEnabled(has_def);
+  easing_->setEnabled(has_def);
+  combine_->setEnabled(n > 0);
+  phase_time_->setEnabled(has_key);
+  phase_value_->setEnabled(has_key);
+  def_name_->setText(has_def ? QString::fromStdString(doc_.deformation_name(std::size_t(object_), std::size_t(deformation_))) : QString());
+  combine_->setCurrentText(n > 0 ? QString::fromStdString(doc_.combine(std::size_t(object_))) : "compose");
+  easing_->setCurrentText(has_def ? QString::fromStdString(doc_.easing(std::size_t(object_), std::size_t(deformation_))) : "smooth");
+  if (has_key) {
+    const auto times = doc_.key_times(std::size_t(object_), Document::Track::Phase, std::size_t(deformation_));
+    phase_time_->setValue(std::size_t(phase_key_) < times.size() ? times[std::size_t(phase_key_)] : 0.0);
+    phase_value_->setValue(doc_.phase_value(std::size_t(object_), std::size_t(deformation_), std::size_t(phase_key_)));
+  } else {
+    phase_time_->setValue(0);
+    phase_value_->setValue(0);
+  }
+  updating_ = false;
+}
+
+void ComposerWindow::refresh_look_panel() {
+  updating_ = true;
+  const int row = lights_->currentRow();
+  lights_->clear();
+  for (std::size_t l = 0; l < doc_.light_count(); ++l) lights_->addItem(QString::fromStdString(doc_.light_label(l)));
+  if (lights_->count() == 0) lights_->addItem("(none: one headlight)");
+  const bool has_light = row >= 0 && std::size_t(row) < doc_.light_count();
+  lights_->setCurrentRow(has_light ? row : -1);
+  light_intensity_->setEnabled(has_light);
+  light_intensity_->setValue(has_light ? doc_.json()["lights"][std::size_t(row)].value("intensity", 1.0) : 0.0);
+  if (scene_) view_angle_->setValue(scene_->camera.view_angle);
+  updating_ = false;
+}
+
+void ComposerWindow::select_phase_key(int deformation, int key) {
+  const int n = has_object() ? int(doc_.deformation_count(std::size_t(object_))) : 0;
+  deformation_ = deformation >= 0 && deformation < n ? deformation : -1;
+  phase_key_ = deformation_ >= 0 ? key : -1;
+  if (phase_key_ >= 0) key_ = -1;  // one selected key at a time: Delete removes it
+  refresh_panel();
+  refresh_overlays();
+  view_->renderWindow()->Render();
+}
+
+void ComposerWindow::apply_wireframe() {
+  if (!scene_renderer_ || !wireframe_) return;
+  vtkActorCollection* actors = scene_renderer_->renderer()->GetActors();
+  actors->InitTraversal();
+  while (vtkActor* a = actors->GetNextActor())
+    if (a != curve_actor_ && a != handle_actor_ && a != frame_actor_ &&
+        static_cast<vtkProp*>(a) != static_cast<vtkProp*>(camera_actor_.Get()))
+      a->GetProperty()->SetRepresentation(wireframe_->isChecked() ? VTK_WIREFRAME : VTK_SURFACE);
+}
+
+void ComposerWindow::reset_camera(gui::View view) {
+  if (!scene_renderer_ || !player_) return;
+  double b[6] = {0, 1, 0, 1, 0, 1};
+  bool any = false;
+  for (std::size_t o = 0; scene_ && o < scene_->objects.size(); ++o)
+    for (const auto& p : player_->positions(o)) {
+      for (int k = 0; k < 3; ++k) {
+        b[2 * k] = any ? std::min(b[2 * k], p[k]) : p[k];
+        b[2 * k + 1] = any ? std::max(b[2 * k + 1], p[k]) : p[k];
+      }
+      any = true;
+    }
+  gui::set_view(scene_renderer_->renderer(), b, view);
+  view_->renderWindow()->Render();
+}
+
+bool ComposerWindow::set_scene_camera_from_view() {
+  if (!scene_renderer_) return false;
+  vtkCamera* c = scene_renderer_->renderer()->GetActiveCamera();
+  const Vec3 pos(c->GetPosition()), focal(c->GetFocalPoint()), up(c->GetViewUp());
+  const double angle = c->GetViewAngle();
+  if (!edit("Set scene camera from view", [&](Document& d) { d.set_camera(pos, focal, up, angle); })) return false;
+  show_info("The movie's camera is now the view's");
+  return true;
+}
+
+void ComposerWindow::look_through_scene_camera() {
+  if (!scene_renderer_ || !scene_) return;
+  const auto& c = scene_->camera;
+  vtkCamera* cam = scene_renderer_->renderer()->GetActiveCamera();
+  cam->SetPosition(c.position.data());
+  cam->SetFocalPoint(c.focal_point.data());
+  cam->SetViewUp(c.view_up.data());
+  cam->SetViewAngle(c.view_angle);
+  scene_renderer_->renderer()->ResetCameraClippingRange();
+  show_frame();
 }
 
 void ComposerWindow::refresh_overlays() {
@@ -787,7 +1256,8 @@ void ComposerWindow::refresh_overlays() {
 
 void ComposerWindow::select_object(int i) {
   object_ = i >= 0 && i < int(doc_.object_count()) ? i : -1;
-  key_ = -1;
+  key_ = deformation_ = phase_key_ = -1;
+  timeline_->setMinimumHeight(timeline_->needed_height());
   updating_ = true;
   objects_->setCurrentRow(object_);
   updating_ = false;
@@ -798,13 +1268,15 @@ void ComposerWindow::select_object(int i) {
 
 void ComposerWindow::select_key(int key) {
   key_ = key;
+  if (key_ >= 0) phase_key_ = -1;
   refresh_panel();
   refresh_overlays();
   view_->renderWindow()->Render();
 }
 
 void ComposerWindow::set_time(double t) {
-  time_ = std::clamp(t, 0.0, doc_.duration());
+  time_ = doc_.snap(std::clamp(t, 0.0, doc_.duration()));  // scrubbing stops on frames, as keys do
+  time_ = std::min(time_, doc_.duration());
   show_frame();
   refresh_panel();
 }
@@ -841,6 +1313,12 @@ void ComposerWindow::tick() {
   }
   time_ = t;
   show_frame();
+  if (has_object()) {  // the orientation box follows the animation
+    updating_ = true;
+    const Vec3 a = angles_from_quaternion(scene_->objects[std::size_t(object_)].orientation.rotation(time_));
+    for (int c = 0; c < 3; ++c) angles_[c]->setValue(a[c]);
+    updating_ = false;
+  }
   if (rate_frames_ > 0 && compute_s_ > 0 && render_s_ > 0)
     rates_->setText(QString("computed %1 fps, rendered %2 fps")
                         .arg(double(rate_frames_) / compute_s_, 0, 'f', 0)
@@ -855,6 +1333,8 @@ bool ComposerWindow::export_movie(const QString& path, int width, int height) {
   }
   QProgressDialog progress("Rendering " + QFileInfo(path).fileName() + "...", "Cancel", 0,
                            int(scene_->frame_count(0, scene_->duration)), this);
+  progress.setWindowTitle("Export movie");
+  progress.setMinimumWidth(420);
   progress.setWindowModality(Qt::WindowModal);
   progress.setMinimumDuration(0);
   try {
@@ -867,15 +1347,15 @@ bool ComposerWindow::export_movie(const QString& path, int width, int height) {
       return !progress.wasCanceled();
     });
     if (stats.cancelled) {
-      statusBar()->showMessage("Export cancelled; nothing was written", 5000);
+      show_info("Export cancelled; nothing was written");
       return false;
     }
-    statusBar()->showMessage(QString("Wrote %1: %2 frames, computation %3 ms, rendering %4 ms a frame")
-                                 .arg(path)
-                                 .arg(stats.frames)
-                                 .arg(1e3 * stats.compute_seconds / double(stats.frames), 0, 'f', 3)
-                                 .arg(1e3 * stats.render_seconds / double(stats.frames), 0, 'f', 1),
-                             10000);
+    clear_error();
+    show_info(QString("Wrote %1: %2 frames, computation %3 ms, rendering %4 ms a frame")
+                  .arg(path)
+                  .arg(stats.frames)
+                  .arg(1e3 * stats.compute_seconds / double(stats.frames), 0, 'f', 3)
+                  .arg(1e3 * stats.render_seconds / double(stats.frames), 0, 'f', 1));
   } catch (const std::exception& e) {
     show_error(QString("Export: ") + e.what());
     return false;
@@ -894,8 +1374,14 @@ Vec3 ComposerWindow::key_position(int k) const {
   return scene_->objects.at(std::size_t(object_)).trajectory->keys().at(std::size_t(k)).position;
 }
 
+vtkCameraActor* ComposerWindow::scene_camera_actor() const { return camera_actor_; }
+
+bool ComposerWindow::has_object() const {
+  return object_ >= 0 && scene_ && std::size_t(object_) < scene_->objects.size();
+}
+
 int ComposerWindow::key_at(int x, int y) const {
-  if (object_ < 0 || !scene_ || !scene_->objects[std::size_t(object_)].trajectory) return -1;
+  if (!has_object() || !scene_->objects[std::size_t(object_)].trajectory) return -1;
   const auto& keys = scene_->objects[std::size_t(object_)].trajectory->keys();
   int best = -1;
   double best_d = 10.0;
@@ -940,38 +1426,40 @@ void ComposerWindow::live_edit(const std::function<void(Document&)>& change) {
 void ComposerWindow::end_key_drag() {
   dragging_ = -1;
   if (doc_.json() == drag_start_) return;
-  undo_.push(new JsonCommand(this, drag_start_, doc_.json(), "Move trajectory key"));
+  undo_.push(new JsonCommand(this, drag_start_, doc_.json(), doc_.base(), "Move trajectory key"));
 }
 
 void ComposerWindow::add_key_at_display(int x, int y) {
-  if (object_ < 0) return;
+  if (!has_object()) return;
   // On the plane through the object's current position, facing the screen.
   const Vec3 here = anim::pose_at(scene_->objects[std::size_t(object_)], time_).position;
   vtkRenderer* r = scene_renderer_->renderer();
   const auto p = gui::display_to_world(r, x, y, gui::world_to_display(r, here).z());
   if (!p) return;
   std::size_t k = 0;
-  if (edit("Add trajectory key", [&](Document& d) { k = d.add_position_key(std::size_t(object_), time_, *p); }))
+  if (edit("Add trajectory key", [&](Document& d) { k = d.add_position_key(std::size_t(object_), d.snap(time_), *p); }))
     select_key(int(k));
 }
 
 void ComposerWindow::rotate_by(double dyaw, double dpitch) {
-  if (object_ < 0) return;
-  const Vec3 a = angles_from_quaternion(scene_->objects[std::size_t(object_)].orientation.rotation(time_));
-  live_edit([&](Document& d) { d.set_orientation_key(std::size_t(object_), time_, a[0] + dyaw, a[1] + dpitch, a[2]); });
+  if (!has_object()) return;
+  const double t = doc_.snap(time_);
+  const Vec3 a = angles_from_quaternion(scene_->objects[std::size_t(object_)].orientation.rotation(t));
+  live_edit([&](Document& d) { d.set_orientation_key(std::size_t(object_), t, a[0] + dyaw, a[1] + dpitch, a[2]); });
 }
 
 bool ComposerWindow::save_screenshot(const QString& path) { return gui::save_window_png(this, view_, path); }
 
 bool ComposerWindow::maybe_save() {
   if (undo_.isClean() || property("noPrompt").toBool()) return true;
-  const auto answer = QMessageBox::question(this, "csrbf Animation Composer", "The scene has unsaved changes. Save them?",
-                                            QMessageBox::Save | QMessageBox::Discard | QMessageBox::Cancel,
-                                            QMessageBox::Save);
+  const auto answer = gui::ask_unsaved(this, "The scene has unsaved changes.");
   if (answer == QMessageBox::Cancel) return false;
   if (answer == QMessageBox::Discard) return true;
   QString f = QString::fromStdString(doc_.path().string());
-  if (f.isEmpty()) f = QFileDialog::getSaveFileName(this, "Save scene", "scene.json", "Scenes (*.json)");
+  if (f.isEmpty()) {
+    f = QFileDialog::getSaveFileName(this, "Save scene", gui::dialog_folder({}) + "/scene.json", "Scenes (*.json)");
+    gui::remember_folder(f);
+  }
   return !f.isEmpty() && save_scene(f);
 }
 

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "composer_document.hpp"
+#include "gui_common.hpp"
 
 #include <QMainWindow>
 #include <QUndoStack>
@@ -15,7 +16,11 @@
 #include <memory>
 #include <optional>
 
+class QAction;
 class QCheckBox;
+class QComboBox;
+class QLineEdit;
+class QScrollArea;
 class QDoubleSpinBox;
 class QLabel;
 class QListWidget;
@@ -24,6 +29,7 @@ class QSlider;
 class QTimer;
 class QVTKOpenGLNativeWidget;
 class vtkActor;
+class vtkCameraActor;
 class vtkGenericOpenGLRenderWindow;
 class vtkPolyData;
 class vtkRenderer;
@@ -52,7 +58,12 @@ class Timeline : public QWidget {
   double x_of(double t) const;
   double t_of(double x) const;
   /// Row y centre of a track row (0: position, 1: orientation, 2 + d: deformation d).
-  int y_of(int row) const { return 18 + 20 * row; }
+  int y_of(int row) const { return 30 + 20 * row; }
+  /// Height that shows every row of the selected object and the seconds ruler.
+  int needed_height() const;
+  /// The time a dragged mark of `row`, key `key`, may take at x: on a frame, and stopped one frame
+  /// short of its neighbours (a mark never jumps over another).
+  double drag_limit(int row, int key, double x) const;
 
  protected:
   void paintEvent(QPaintEvent*) override;
@@ -77,6 +88,8 @@ class ComposerWindow : public QMainWindow {
   bool new_scene();
   bool open_scene(const QString& path);
   bool save_scene(const QString& path);
+  /// Save, Discard or Cancel when the scene has unsaved edits: true to go on.
+  bool maybe_save();
   bool add_object(const QString& mesh);
   bool attach_deformation(const QString& file);
   /// Renders the scene to a movie with a progress dialog, through the renderer `csrbf animate` uses.
@@ -105,6 +118,20 @@ class ComposerWindow : public QMainWindow {
   /// World position of the selected object's trajectory key k.
   Vec3 key_position(int k) const;
   bool save_screenshot(const QString& path);
+  /// The last message of a finished action (an export), or empty.
+  QString info_text() const;
+  /// The selected deformation of the selected object and its selected phase key (-1: none).
+  int selected_deformation() const { return deformation_; }
+  int selected_phase_key() const { return phase_key_; }
+  void select_phase_key(int deformation, int key);
+  /// R: front view fitted to the scene at the current time; 1 / 3 / 7 side and top.
+  void reset_camera(gui::View view = gui::View::Front);
+  /// "Set scene camera from view": the movie's camera becomes the view's (one undoable edit).
+  bool set_scene_camera_from_view();
+  /// "Look through scene camera": the view's camera becomes the movie's.
+  void look_through_scene_camera();
+  /// The scene camera's frame (its frustum up to the focal point) as drawn in the view.
+  vtkCameraActor* scene_camera_actor() const;
 
  protected:
   void closeEvent(QCloseEvent* e) override;
@@ -115,14 +142,18 @@ class ComposerWindow : public QMainWindow {
   friend class JsonCommand;
   void build_ui();
   void build_menus();
-  bool maybe_save();
   void rebuild();      // scene from the document: renderer, player, overlays
   void show_frame();   // evaluate at time_, draw
   void refresh_panel();
   void refresh_overlays();
   void show_error(const QString& m);
   void clear_error();
-  void restore(const nlohmann::json& j);
+  void restore(const nlohmann::json& j, const std::filesystem::path& base);
+  bool has_object() const;  ///< object_ names an object of the built scene
+  void refresh_deformation_panel();
+  void refresh_look_panel();
+  void apply_wireframe();
+  void show_info(const QString& m);
   void tick();
 
   // 3D interaction
@@ -146,6 +177,7 @@ class ComposerWindow : public QMainWindow {
   vtkSmartPointer<vtkPolyData> curve_, handles_, frames_;
   vtkSmartPointer<vtkActor> curve_actor_, handle_actor_, frame_actor_;
   vtkSmartPointer<ComposerStyle> style_;
+  vtkSmartPointer<vtkCameraActor> camera_actor_;
 
   QListWidget* objects_ = nullptr;
   QDoubleSpinBox* key_time_ = nullptr;
@@ -160,10 +192,22 @@ class ComposerWindow : public QMainWindow {
   QCheckBox* loop_ = nullptr;
   QLabel* rates_ = nullptr;
   QLabel* error_ = nullptr;
+  QLabel* info_ = nullptr;
   Timeline* timeline_ = nullptr;
+  QScrollArea* timeline_scroll_ = nullptr;
+  QListWidget* deformations_ = nullptr;
+  QLineEdit* def_name_ = nullptr;
+  QComboBox* combine_ = nullptr;
+  QComboBox* easing_ = nullptr;
+  QDoubleSpinBox* phase_time_ = nullptr;
+  QDoubleSpinBox* phase_value_ = nullptr;
+  QListWidget* lights_ = nullptr;
+  QDoubleSpinBox* light_intensity_ = nullptr;
+  QDoubleSpinBox* view_angle_ = nullptr;
+  QAction* wireframe_ = nullptr;
   QTimer* timer_ = nullptr;
 
-  int object_ = -1, key_ = -1;
+  int object_ = -1, key_ = -1, deformation_ = -1, phase_key_ = -1;
   double time_ = 0;
   bool updating_ = false;
   int dragging_ = -1;

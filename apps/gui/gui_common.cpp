@@ -1,6 +1,11 @@
 #include "gui_common.hpp"
 
 #include <QAction>
+#include <QDialog>
+#include <QDir>
+#include <QFileInfo>
+#include <QTextBrowser>
+#include <QVBoxLayout>
 #include <QApplication>
 #include <QLabel>
 #include <QMenu>
@@ -8,12 +13,15 @@
 #include <QUndoStack>
 #include <QVTKOpenGLNativeWidget.h>
 
+#include <vtkCamera.h>
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <iostream>
+#include <limits>
 
 namespace csrbf::gui {
 
@@ -52,6 +60,91 @@ bool save_window_png(QWidget* window, QVTKOpenGLNativeWidget* view, const QStrin
   view->renderWindow()->Render();
   QApplication::processEvents();
   return window->grab().save(path, "PNG");
+}
+
+void set_view(vtkRenderer* r, const double b[6], View v) {
+  vtkCamera* c = r->GetActiveCamera();
+  const double centre[3] = {(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2};
+  const double dir[3][3] = {{0, 0, 1}, {1, 0, 0}, {0, 1, 0}};  // from the focal point to the camera
+  const double up[3][3] = {{0, 1, 0}, {0, 1, 0}, {0, 0, -1}};
+  const int k = int(v);
+  c->SetFocalPoint(centre);
+  c->SetPosition(centre[0] + dir[k][0], centre[1] + dir[k][1], centre[2] + dir[k][2]);
+  c->SetViewUp(up[k]);
+  r->ResetCamera(b);  // keeps the direction, sets the distance that fits the bounds
+}
+
+void add_view_actions(QMenu* menu, QWidget* owner, const std::function<void(View)>& show) {
+  const struct {
+    const char* text;
+    Qt::Key key;
+    View view;
+  } views[] = {{"&Front view", Qt::Key_1, View::Front}, {"&Side view (right)", Qt::Key_3, View::Side},
+               {"&Top view", Qt::Key_7, View::Top}};
+  for (const auto& v : views) {
+    QAction* a = menu->addAction(v.text);
+    a->setShortcuts({QKeySequence(v.key), QKeySequence(int(Qt::KeypadModifier) | int(v.key))});
+    const View view = v.view;
+    QObject::connect(a, &QAction::triggered, owner, [show, view] { show(view); });
+  }
+}
+
+NumberBox::NumberBox(QWidget* parent) : QDoubleSpinBox(parent) { setDecimals(12); }
+
+QValidator::State NumberBox::validate(QString& text, int&) const {
+  const QString t = text.trimmed();
+  if (t.isEmpty() || t == "-" || t == "+" || t.endsWith('e', Qt::CaseInsensitive) || t.endsWith("e-") ||
+      t.endsWith("e+") || t == ".")
+    return QValidator::Intermediate;
+  bool ok = false;
+  const double v = t.toDouble(&ok);
+  if (!ok || !std::isfinite(v)) return QValidator::Invalid;
+  return v >= minimum() && v <= maximum() ? QValidator::Acceptable : QValidator::Intermediate;
+}
+
+double NumberBox::valueFromText(const QString& text) const { return text.trimmed().toDouble(); }
+
+QString NumberBox::textFromValue(double value) const { return QString::number(value, 'g', 6); }
+
+void NumberBox::fixup(QString& text) const {
+  bool ok = false;
+  const double v = text.trimmed().toDouble(&ok);
+  if (ok && std::isfinite(v)) text = textFromValue(std::clamp(v, minimum(), maximum()));
+}
+
+QMessageBox::StandardButton ask_unsaved(QWidget* parent, const QString& what) {
+  return QMessageBox::question(parent, QApplication::applicationName(), what + " Save, Discard or Cancel?",
+                               QMessageBox::Save | QMessageBox::Discard | QMessageBox::Cancel, QMessageBox::Save);
+}
+
+namespace {
+QString& last_folder() {
+  static QString folder;
+  return folder;
+}
+}  // namespace
+
+QString dialog_folder(const QString& current) {
+  if (!current.isEmpty()) return QFileInfo(current).absolutePath();
+  if (!last_folder().isEmpty()) return last_folder();
+  return QDir::currentPath();
+}
+
+void remember_folder(const QString& file) {
+  if (!file.isEmpty()) last_folder() = QFileInfo(file).absolutePath();
+}
+
+void show_reference(QWidget* parent, const QString& title, const QString& html) {
+  auto* d = new QDialog(parent);
+  d->setObjectName("reference");
+  d->setAttribute(Qt::WA_DeleteOnClose);
+  d->setWindowTitle(title);
+  auto* l = new QVBoxLayout(d);
+  auto* text = new QTextBrowser(d);
+  text->setHtml(html);
+  l->addWidget(text);
+  d->resize(620, 560);
+  d->show();
 }
 
 Vec3 world_to_display(vtkRenderer* r, const Vec3& w) {

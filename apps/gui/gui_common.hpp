@@ -5,9 +5,12 @@
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/render/process.hpp"
 
+#include <QDoubleSpinBox>
+#include <QMessageBox>
 #include <QPoint>
 #include <QString>
 
+#include <functional>
 #include <memory>
 #include <optional>
 
@@ -31,6 +34,37 @@ QLabel* make_error_label(QWidget* parent);
 void add_undo_actions(QMenu* menu, QUndoStack& stack, QWidget* owner);
 /// Renders the VTK view and saves the whole window as a PNG.
 bool save_window_png(QWidget* window, QVTKOpenGLNativeWidget* view, const QString& path);
+
+/// Standard views, as Blender's numpad 1 / 3 / 7 (y is up, as in OBJ and glTF): front looks down
+/// -z, side (from the right) down -x, top down -y.
+enum class View { Front, Side, Top };
+/// Points the renderer's camera along `v` at the centre of `bounds` (xmin, xmax, ymin, ...) and zooms
+/// to fit them. Bounds are passed in, not taken from the props: a pipeline not yet re-run would give
+/// the previous mesh's.
+void set_view(vtkRenderer* r, const double bounds[6], View v);
+/// Adds "Front / Side / Top view" with the keys 1 / 3 / 7, on the number row and the keypad.
+void add_view_actions(QMenu* menu, QWidget* owner, const std::function<void(View)>& show);
+
+/// A spin box that also reads and writes scientific notation ("1e9", "2.5e-3"), for values over many
+/// decades (a radius). Qt's own box drops the 'e' and turns "1e9" into 19.
+class NumberBox : public QDoubleSpinBox {
+ public:
+  explicit NumberBox(QWidget* parent = nullptr);
+  QValidator::State validate(QString& text, int& pos) const override;
+  double valueFromText(const QString& text) const override;
+  QString textFromValue(double value) const override;
+  void fixup(QString& text) const override;
+};
+
+/// Asks "<what> Save, Discard or Cancel?": the button pressed.
+QMessageBox::StandardButton ask_unsaved(QWidget* parent, const QString& what);
+/// The folder a file dialog starts in: that of `current` (the open document) when it has one, else
+/// the folder last used in this program, else the working folder.
+QString dialog_folder(const QString& current);
+/// Remembers the folder of a file chosen in a dialog.
+void remember_folder(const QString& file);
+/// A window of text (the mouse and key reference), not modal.
+void show_reference(QWidget* parent, const QString& title, const QString& html);
 
 /// VTK display coordinates (pixels from the bottom left, z the depth) of a world point.
 Vec3 world_to_display(vtkRenderer* r, const Vec3& world);

@@ -9,7 +9,9 @@
 #include <QTimer>
 #include <QVTKOpenGLNativeWidget.h>
 
+#include <cmath>
 #include <iostream>
+#include <optional>
 #include <memory>
 
 int main(int argc, char** argv) {
@@ -26,7 +28,7 @@ int main(int argc, char** argv) {
   parser.addHelpOption();
   parser.addPositionalArgument("mesh", "Mesh to open (OBJ, PLY, OFF, STL, glTF, ...)", "[mesh]");
   const QCommandLineOption deformation("deformation", "Deformation JSON to load", "file");
-  const QCommandLineOption controls("controls", "Controls file to load (with --radius)", "file");
+  const QCommandLineOption controls("controls", "Controls file to load (with --radius, or a radius is proposed)", "file");
   const QCommandLineOption radius("radius", "Radius of support for --controls", "R");
   const QCommandLineOption screenshot("screenshot", "Render the window once to this PNG and exit", "file");
   const QCommandLineOption size("size", "Window size WIDTHxHEIGHT (default 1280x800)", "WxH", "1280x800");
@@ -52,19 +54,17 @@ int main(int argc, char** argv) {
   if (!args.isEmpty()) ok = w.open_mesh(args.front());
   if (ok && parser.isSet(deformation)) ok = w.load_deformation(parser.value(deformation));
   if (ok && parser.isSet(controls)) {
+    std::optional<double> r;  // without --radius, the Picker proposes one and says so
     if (parser.isSet(radius)) {
       bool number = false;
-      const double r = parser.value(radius).toDouble(&number);
-      if (!number || !(r > 0)) {
+      r = parser.value(radius).toDouble(&number);
+      if (!number || !(*r > 0) || !std::isfinite(*r)) {
         std::cerr << "csrbf-picker: error: --radius must be a positive number, got '" << parser.value(radius).toStdString()
                   << "'\n";
         return 2;
       }
-      csrbf::picker::State s = w.document().state();
-      s.radius = r;
-      w.edit(s, "Radius");
     }
-    ok = w.load_controls(parser.value(controls));
+    ok = w.load_controls(parser.value(controls), r);
   }
   if (parser.isSet(screenshot)) {
     if (!ok) {

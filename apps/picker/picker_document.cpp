@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <limits>
 
 namespace csrbf::picker {
@@ -31,6 +32,9 @@ Outcome Document::apply(const State& s) {
   std::optional<SpaceMap> fitted;
   try {
     if (!(s.radius > 0) || !std::isfinite(s.radius)) throw InvalidInput("the radius must be a positive number");
+    for (std::size_t i = 0; i < s.region.size(); ++i)
+      if (s.region[i] >= rest_.size() || (i > 0 && s.region[i] <= s.region[i - 1]))
+        throw InvalidInput("the active area must hold sorted, unique vertex indices of the mesh");
     check_phase(s.phase);
     if (!s.controls.empty()) {
       std::vector<Vec3> src, dst;
@@ -41,15 +45,8 @@ Outcome Document::apply(const State& s) {
       const auto t0 = Clock::now();
       const SpaceMap& map = fitted.emplace(SpaceMap::fit(src, dst, FitOptions{s.radius, s.kernel, s.polynomial}));
       const auto t1 = Clock::now();
-      if (s.region.empty()) {
-        map.apply(rest_, moved, s.phase);
-      } else {
-        std::vector<Vec3> part;
-        part.reserve(s.region.size());
-        for (const auto v : s.region) part.push_back(rest_.at(v));
-        map.apply(part, part, s.phase);
-        for (std::size_t i = 0; i < part.size(); ++i) moved[s.region[i]] = part[i];
-      }
+      // The same call as `csrbf deform --deformation` makes on the saved file: the same vertices.
+      io::apply_deformation(map, area(s), moved, s.phase, mesh_path_.string());
       out.fit_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
       out.eval_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
     }
@@ -87,7 +84,13 @@ io::DeformationSpec Document::deformation() const {
     d.sources.push_back(c.source);
     d.destinations.push_back(c.destination);
   }
+  d.area = area(state_);
   return d;
+}
+
+std::optional<io::ActiveArea> Document::area(const State& s) const {
+  if (s.region.empty()) return std::nullopt;
+  return io::ActiveArea{rest_.size(), s.region};
 }
 
 State Document::state_from(const io::DeformationSpec& spec) const {
@@ -98,7 +101,51 @@ State Document::state_from(const io::DeformationSpec& spec) const {
   s.radius = spec.options.radius;
   s.kernel = spec.options.kernel;
   s.polynomial = spec.options.polynomial;
+  s.region.clear();
+  if (spec.area) {
+    io::check_active_area(*spec.area, rest_.size(), mesh_path_.filename().string());
+    s.region = spec.area->vertices;
+  }
   return s;
+}
+
+double Document::propose_radius(const State& s) const {
+  const std::size_t n = s.controls.size();
+  if (n == 0) return s.radius;
+  // Median nearest-neighbour spacing, brute force over at most 2000 sources (evenly taken).
+  const std::size_t step = std::max<std::size_t>(1, n / 2000);
+  std::vector<double> nearest;
+  double longest = 0;
+  for (std::size_t i = 0; i < n; ++i) longest = std::max(longest, (s.controls[i].destination - s.controls[i].source).norm());
+  for (std::size_t i = 0; i < n; i += step) {
+    double best = std::numeric_limits<double>::infinity();
+    for (std::size_t j = 0; j < n; ++j)
+      if (j != i) {
+        const double d = (s.controls[j].source - s.controls[i].source).norm();
+        if (d > 0) best = std::min(best, d);
+      }
+    if (std::isfinite(best)) nearest.push_back(best);
+  }
+  double spacing = 0;
+  if (!nearest.empty()) {
+    std::nth_element(nearest.begin(), nearest.begin() + std::ptrdiff_t(nearest.size() / 2), nearest.end());
+    spacing = nearest[nearest.size() / 2];
+  }
+  double r = 3.0 * std::max(spacing, longest);
+  if (!(r > 0)) r = 0.05 * diagonal_;
+  std::vector<Vec3> src, dst, part;
+  for (const auto& c : s.controls) {
+    src.push_back(c.source);
+    dst.push_back(c.destination);
+  }
+  if (s.region.empty()) part = rest_;
+  else
+    for (const auto v : s.region) part.push_back(rest_[v]);
+  for (; r < diagonal_; r *= 1.25) {
+    const SpaceMap map = SpaceMap::fit(src, dst, FitOptions{r, s.kernel, s.polynomial});
+    if (check_folds(map, part, {}, 1.0).folded == 0) break;
+  }
+  return r;
 }
 
 void Document::export_mesh(const std::filesystem::path& path) const {

@@ -64,10 +64,18 @@ class Document {
   /// folded_vertices are indices into rest(). Empty report without controls.
   FoldReport folds() const;
 
-  /// The deformation file (docs/scene-format.md) of the current state, and reading one back (as a
-  /// state with the current phase and active area).
+  /// The deformation file (docs/scene-format.md) of the current state, its active area included, and
+  /// reading one back (as a state with the current phase; the file's active area, or the whole mesh).
+  /// state_from throws io::FileError when the file's area was picked on a mesh of another vertex count.
   io::DeformationSpec deformation() const;
   State state_from(const io::DeformationSpec& spec) const;
+  /// The active area of a state as the deformation file holds it; empty for the whole mesh.
+  std::optional<io::ActiveArea> area(const State& s) const;
+  /// A radius for controls that come without one: three times the larger of the sources' median
+  /// nearest-neighbour spacing and the longest control vector, then raised by 25% steps while the
+  /// map folds the mesh (the active area of `s`) at phase 1, up to the mesh's diagonal. Throws what
+  /// the fit throws.
+  double propose_radius(const State& s) const;
   /// Writes the deformed mesh (the current phase) in the format of path's extension, atomically.
   void export_mesh(const std::filesystem::path& path) const;
 

@@ -22,6 +22,7 @@
 #include <QMessageBox>
 #include <QMimeData>
 #include <QPushButton>
+#include <QScrollArea>
 #include <QSlider>
 #include <QStatusBar>
 #include <QTableWidget>
@@ -30,6 +31,13 @@
 #include <QVTKOpenGLNativeWidget.h>
 
 #include <vtkActor.h>
+#include <vtkActor2D.h>
+#include <vtkCoordinate.h>
+#include <vtkLookupTable.h>
+#include <vtkPolyDataMapper2D.h>
+#include <vtkProperty2D.h>
+#include <vtkScalarBarActor.h>
+#include <vtkTextProperty.h>
 #include <vtkCamera.h>
 #include <vtkCellArray.h>
 #include <vtkCellPicker.h>
@@ -50,7 +58,9 @@
 #include <vtkUnsignedCharArray.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <numeric>
 
 namespace csrbf::picker {
 
@@ -91,7 +101,11 @@ class PickerStyle : public vtkInteractorStyleTrackballCamera {
     const int* p = GetInteractor()->GetEventPosition();
     if (std::abs(p[0] - press_[0]) + std::abs(p[1] - press_[1]) > 3) moved_ = true;
     if (window->dragging_ >= 0) {
-      window->drag_to(p[0], p[1]);
+      if (moved_) window->drag_to(p[0], p[1]);  // a click that stays put does not move the handle
+      return;
+    }
+    if (banding_) {
+      window->show_band(press_[0], press_[1], p[0], p[1]);
       return;
     }
     if (shift_ && moved_ && !banding_ && State == VTKIS_NONE && GetInteractor()->GetShiftKey()) {
@@ -104,9 +118,10 @@ class PickerStyle : public vtkInteractorStyleTrackballCamera {
   void OnLeftButtonUp() override {
     const int* p = GetInteractor()->GetEventPosition();
     if (window->dragging_ >= 0) {
-      window->drag_to(p[0], p[1]);  // where the button came up, whatever moves were merged on the way
+      if (moved_) window->drag_to(p[0], p[1]);  // where the button came up, whatever moves were merged on the way
       window->end_drag();
     } else if (banding_) {
+      window->hide_band();
       if (moved_) window->select_region(press_[0], press_[1], p[0], p[1]);
     } else if (!moved_ && window->handle_at(p[0], p[1]) < 0) {
       Vec3 hit;
@@ -116,6 +131,9 @@ class PickerStyle : public vtkInteractorStyleTrackballCamera {
     if (State == VTKIS_PAN) EndPan();
     vtkInteractorStyleTrackballCamera::OnLeftButtonUp();
   }
+
+  // VTK's own keys (w wireframe, 3 stereo, e/q quit, p pick, ...) are off: the menus hold every key.
+  void OnChar() override {}
 
  private:
   int press_[2] = {0, 0};
@@ -165,8 +183,9 @@ double fraction_from_slider(int v) { return std::pow(10.0, 3.0 * double(v) / 100
 }  // namespace
 
 PickerWindow::PickerWindow(QWidget* parent) : QMainWindow(parent) {
-  setWindowTitle("csrbf Picker");
+  setWindowTitle("csrbf Picker[*]");
   setAcceptDrops(true);
+  connect(&undo_, &QUndoStack::cleanChanged, this, [this](bool clean) { setWindowModified(!clean); });
   build_scene();
   build_ui();
   build_menus();
@@ -257,6 +276,45 @@ void PickerWindow::build_scene() {
   support_actor_->VisibilityOff();
   renderer_->AddActor(support_actor_);
 
+  // The ctrl + drag rectangle, in display pixels over everything.
+  band_ = vtkSmartPointer<vtkPolyData>::New();
+  band_->SetPoints(vtkNew<vtkPoints>());
+  vtkNew<vtkCellArray> band_line;
+  const vtkIdType loop[5] = {0, 1, 2, 3, 0};
+  band_line->InsertNextCell(5, loop);
+  band_->SetLines(band_line);
+  band_->GetPoints()->SetNumberOfPoints(4);
+  vtkNew<vtkPolyDataMapper2D> band_mapper;
+  band_mapper->SetInputData(band_);
+  band_actor_ = vtkSmartPointer<vtkActor2D>::New();
+  band_actor_->SetMapper(band_mapper);
+  band_actor_->GetProperty()->SetColor(1.0, 0.9, 0.3);
+  band_actor_->GetProperty()->SetLineWidth(2);
+  band_actor_->VisibilityOff();
+  renderer_->AddActor2D(band_actor_);
+
+  // The legend of "colour by displacement": the same map as the vertex colours, 0 .. the largest.
+  legend_lut_ = vtkSmartPointer<vtkLookupTable>::New();
+  legend_lut_->SetNumberOfTableValues(256);
+  for (int i = 0; i < 256; ++i) {
+    const double t = i / 255.0;
+    legend_lut_->SetTableValue(i, 0.2 + 0.8 * t, 0.3 + 0.5 * (1 - std::abs(2 * t - 1)), 1.0 - 0.8 * t, 1.0);
+  }
+  legend_lut_->Build();
+  legend_ = vtkSmartPointer<vtkScalarBarActor>::New();
+  legend_->SetLookupTable(legend_lut_);
+  legend_->SetTitle("|displacement|");
+  legend_->SetNumberOfLabels(5);
+  legend_->SetLabelFormat("%.3g");
+  legend_->SetMaximumWidthInPixels(90);
+  legend_->SetPosition(0.02, 0.1);
+  legend_->SetWidth(0.1);
+  legend_->SetHeight(0.6);
+  legend_->GetTitleTextProperty()->SetFontSize(14);
+  legend_->GetLabelTextProperty()->SetFontSize(12);
+  legend_->VisibilityOff();
+  renderer_->AddActor2D(legend_);
+
   setCentralWidget(view_);
 }
 
@@ -335,15 +393,14 @@ void PickerWindow::build_ui() {
   layout->addWidget(region_label_);
 
   auto* form = new QFormLayout;
-  radius_ = new QDoubleSpinBox(panel);
+  radius_ = new gui::NumberBox(panel);
   radius_->setObjectName("radius");
-  radius_->setDecimals(5);
-  radius_->setRange(1e-9, 1e9);
+  radius_->setRange(1e-9, 1e12);
   radius_->setKeyboardTracking(false);
   radius_fraction_ = new QDoubleSpinBox(panel);
   radius_fraction_->setObjectName("radiusFraction");
   radius_fraction_->setDecimals(2);
-  radius_fraction_->setRange(0.01, 1000.0);
+  radius_fraction_->setRange(0.01, 1e12);
   radius_fraction_->setSuffix(" % of size");
   radius_fraction_->setKeyboardTracking(false);
   radius_slider_ = new QSlider(Qt::Horizontal, panel);
@@ -402,14 +459,33 @@ void PickerWindow::build_ui() {
   layout->addWidget(show_supports_);
   layout->addWidget(colour_displacement_);
 
-  error_ = gui::make_error_label(panel);
-  layout->addWidget(error_);
-  fold_warning_ = new QLabel(panel);
+  // Messages live in a box of fixed height (scrolling when long), so that a message coming or going
+  // never moves the panel or resizes the view under the mouse.
+  auto* messages = new QWidget;
+  auto* ml = new QVBoxLayout(messages);
+  ml->setContentsMargins(0, 0, 0, 0);
+  error_ = gui::make_error_label(messages);
+  ml->addWidget(error_);
+  fold_warning_ = new QLabel(messages);
   fold_warning_->setObjectName("foldWarning");
   fold_warning_->setWordWrap(true);
   fold_warning_->setStyleSheet("QLabel { color: black; background: #f0c040; padding: 6px; border-radius: 4px; }");
   fold_warning_->hide();
-  layout->addWidget(fold_warning_);
+  ml->addWidget(fold_warning_);
+  hint_ = new QLabel(messages);
+  hint_->setObjectName("hint");
+  hint_->setWordWrap(true);
+  hint_->setStyleSheet("QLabel { color: black; background: #a8d0f0; padding: 6px; border-radius: 4px; }");
+  hint_->hide();
+  ml->addWidget(hint_);
+  ml->addStretch(1);
+  auto* scroll = new QScrollArea(panel);
+  scroll->setObjectName("messages");
+  scroll->setWidget(messages);
+  scroll->setWidgetResizable(true);
+  scroll->setFrameShape(QFrame::NoFrame);
+  scroll->setFixedHeight(170);
+  layout->addWidget(scroll);
 
   dock->setWidget(panel);
   addDockWidget(Qt::RightDockWidgetArea, dock);
@@ -426,30 +502,48 @@ void PickerWindow::build_menus() {
     connect(a, &QAction::triggered, this, fn);
     return a;
   };
-  add(file, "&Open mesh...", QKeySequence::Open, [this] {
-    const QString f = QFileDialog::getOpenFileName(this, "Open mesh", {}, "Meshes (*.obj *.ply *.off *.stl *.gltf *.glb *.xyz);;All files (*)");
+  const auto folder = [this] {
+    return gui::dialog_folder(!deformation_path_.isEmpty() ? deformation_path_
+                                                           : QString::fromStdString(doc_.mesh_path().string()));
+  };
+  add(file, "&Open mesh...", QKeySequence::Open, [this, folder] {
+    if (!maybe_save()) return;
+    const QString f = QFileDialog::getOpenFileName(this, "Open mesh", folder(),
+                                                   "Meshes (*.obj *.ply *.off *.stl *.gltf *.glb *.xyz);;All files (*)");
+    gui::remember_folder(f);
     if (!f.isEmpty()) open_mesh(f);
   });
-  add(file, "&Load deformation...", QKeySequence("Ctrl+L"), [this] {
-    const QString f = QFileDialog::getOpenFileName(this, "Load deformation", {}, "Deformation (*.json)");
+  add(file, "&Load deformation...", QKeySequence("Ctrl+L"), [this, folder] {
+    const QString f = QFileDialog::getOpenFileName(this, "Load deformation", folder(), "Deformation (*.json)");
+    gui::remember_folder(f);
     if (!f.isEmpty()) load_deformation(f);
   });
-  add(file, "Load &controls...", QKeySequence("Ctrl+Shift+L"), [this] {
-    const QString f = QFileDialog::getOpenFileName(this, "Load controls", {}, "Controls (*.controls *.txt);;All files (*)");
+  add(file, "Load &controls...", QKeySequence("Ctrl+Shift+L"), [this, folder] {
+    const QString f = QFileDialog::getOpenFileName(this, "Load controls", folder(), "Controls (*.controls *.txt);;All files (*)");
+    gui::remember_folder(f);
     if (!f.isEmpty()) load_controls(f);
   });
   file->addSeparator();
-  add(file, "&Save deformation...", QKeySequence::Save, [this] {
-    const QString f = QFileDialog::getSaveFileName(this, "Save deformation", "deformation.json", "Deformation (*.json)");
-    if (!f.isEmpty()) save_deformation(f);
+  const auto save_as = [this, folder] {
+    const QString start = deformation_path_.isEmpty() ? folder() + "/deformation.json" : deformation_path_;
+    const QString f = QFileDialog::getSaveFileName(this, "Save deformation", start, "Deformation (*.json)");
+    gui::remember_folder(f);
+    return !f.isEmpty() && save_deformation(f);
+  };
+  add(file, "&Save deformation", QKeySequence::Save, [this, save_as] {
+    if (deformation_path_.isEmpty()) save_as();
+    else save_deformation(deformation_path_);
   });
-  add(file, "Save con&trols...", QKeySequence("Ctrl+Shift+S"), [this] {
-    const QString f = QFileDialog::getSaveFileName(this, "Save controls", "deformation.controls", "Controls (*.controls)");
+  add(file, "Save deformation &as...", QKeySequence("Ctrl+Shift+S"), save_as);
+  add(file, "Save con&trols...", QKeySequence("Ctrl+Alt+S"), [this, folder] {
+    const QString f = QFileDialog::getSaveFileName(this, "Save controls", folder() + "/deformation.controls", "Controls (*.controls)");
+    gui::remember_folder(f);
     if (!f.isEmpty()) save_controls(f);
   });
-  add(file, "&Export deformed mesh...", QKeySequence("Ctrl+E"), [this] {
-    const QString f = QFileDialog::getSaveFileName(this, "Export deformed mesh", "deformed.obj",
+  add(file, "&Export deformed mesh...", QKeySequence("Ctrl+E"), [this, folder] {
+    const QString f = QFileDialog::getSaveFileName(this, "Export deformed mesh", folder() + "/deformed.obj",
                                                    "Meshes (*.obj *.ply *.off *.stl *.glb *.gltf *.xyz)");
+    gui::remember_folder(f);
     if (!f.isEmpty()) export_mesh(f);
   });
   file->addSeparator();
@@ -467,9 +561,48 @@ void PickerWindow::build_menus() {
   });
 
   auto* viewm = menuBar()->addMenu("&View");
-  add(viewm, "&Reset camera", QKeySequence("R"), [this] { reset_camera(); });
-  add(viewm, "&Support spheres", QKeySequence("S"), [this] { show_supports_->toggle(); });
-  add(viewm, "Colour by &displacement", QKeySequence("D"), [this] { colour_displacement_->toggle(); });
+  add(viewm, "&Reset camera (front, fit)", QKeySequence("R"), [this] { reset_camera(); });
+  gui::add_view_actions(viewm, this, [this](gui::View v) { reset_camera(v); });
+  viewm->addSeparator();
+  QAction* supports = add(viewm, "&Support spheres", QKeySequence("S"), [this](bool on) { show_supports_->setChecked(on); });
+  supports->setCheckable(true);
+  connect(show_supports_, &QCheckBox::toggled, supports, &QAction::setChecked);
+  QAction* colours = add(viewm, "Colour by &displacement", QKeySequence("D"), [this](bool on) { colour_displacement_->setChecked(on); });
+  colours->setCheckable(true);
+  connect(colour_displacement_, &QCheckBox::toggled, colours, &QAction::setChecked);
+  wireframe_ = add(viewm, "&Wireframe", QKeySequence("W"), [this] { refresh_view(); });
+  wireframe_->setObjectName("wireframe");
+  wireframe_->setCheckable(true);
+
+  auto* help = menuBar()->addMenu("&Help");
+  add(help, "&Mouse and keys", QKeySequence::HelpContents, [this] {
+    gui::show_reference(this, "csrbf Picker: mouse and keys", R"(
+<h3>Mouse in the 3D view</h3>
+<table cellpadding=3>
+<tr><td><b>Left click</b> on the mesh</td><td>add a control vector there</td></tr>
+<tr><td><b>Shift + left click</b></td><td>add a pinned point (holds the mesh in place; black)</td></tr>
+<tr><td><b>Left drag</b> on a handle</td><td>move the control's destination (orange), in the plane facing you</td></tr>
+<tr><td><b>Ctrl + left drag</b></td><td>select the active area: only the vertices in the rectangle move</td></tr>
+<tr><td><b>Left drag</b> elsewhere</td><td>orbit</td></tr>
+<tr><td><b>Middle drag</b> or <b>shift + left drag</b></td><td>pan</td></tr>
+<tr><td><b>Wheel</b> or <b>right drag</b></td><td>zoom</td></tr>
+</table>
+<h3>Keys</h3>
+<table cellpadding=3>
+<tr><td>Ctrl+O / Ctrl+L / Ctrl+Shift+L</td><td>open a mesh / load a deformation / load controls</td></tr>
+<tr><td>Ctrl+S / Ctrl+Shift+S</td><td>save the deformation / save it as</td></tr>
+<tr><td>Ctrl+Alt+S / Ctrl+E</td><td>save controls / export the deformed mesh</td></tr>
+<tr><td>Ctrl+Z / Ctrl+Shift+Z, Ctrl+Y</td><td>undo / redo</td></tr>
+<tr><td>Delete / Esc</td><td>delete the selected control / select none</td></tr>
+<tr><td>Ctrl+Shift+A</td><td>whole mesh (clear the active area)</td></tr>
+<tr><td>R</td><td>reset the camera: front view, mesh fitted</td></tr>
+<tr><td>1 / 3 / 7 (number row or keypad)</td><td>front / side / top view</td></tr>
+<tr><td>S / D / W</td><td>support spheres / colour by displacement / wireframe</td></tr>
+<tr><td>F1</td><td>this reference</td></tr>
+</table>
+<p>Colours: sources green, destinations orange, pinned points black, the selected control yellow,
+folded places magenta, vertices outside the active area grey.</p>)");
+  });
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -490,7 +623,10 @@ bool PickerWindow::open_mesh(const QString& path) {
   }
   mesh_->SetPolys(polys);
   clear_error();
-  setWindowTitle("csrbf Picker - " + QFileInfo(path).fileName());
+  proposal_.clear();
+  deformation_path_.clear();
+  setWindowTitle(QFileInfo(path).fileName() + "[*] - csrbf Picker");
+  setWindowModified(false);
   statusBar()->showMessage(QString("%1: %2 vertices, %3 polygons")
                                .arg(QFileInfo(path).fileName())
                                .arg(doc_.rest().size())
@@ -507,28 +643,48 @@ bool PickerWindow::load_deformation(const QString& path) {
   }
   try {
     const auto spec = io::read_deformation(path.toStdString());
-    return edit(doc_.state_from(spec), "Load deformation");
+    if (!edit(doc_.state_from(spec), "Load deformation")) return false;
   } catch (const std::exception& e) {
     show_error(e.what());
     return false;
   }
+  deformation_path_ = path;
+  statusBar()->showMessage("Loaded " + path, 5000);
+  return true;
 }
 
-bool PickerWindow::load_controls(const QString& path) {
+bool PickerWindow::load_controls(const QString& path, std::optional<double> radius) {
   if (!doc_.has_mesh()) {
     show_error("Open a mesh before loading controls");
     return false;
   }
+  QString proposal;
   try {
     const auto c = io::read_controls(path.toStdString());
     io::DeformationSpec spec = doc_.deformation();
     spec.sources = c.sources;
     spec.destinations = c.destinations;
-    return edit(doc_.state_from(spec), "Load controls");
+    State next = doc_.state_from(spec);
+    if (radius) {
+      next.radius = *radius;
+    } else {
+      // A controls file carries no radius: the current one may fold the mesh or move nothing.
+      next.radius = doc_.propose_radius(next);
+      proposal = QString("Radius R = %1 (%2 % of the mesh's size) proposed for %3 controls from their spacing and "
+                         "length, the smallest that does not fold the mesh. Change it in the panel.")
+                     .arg(next.radius, 0, 'g', 4)
+                     .arg(100.0 * next.radius / doc_.diagonal(), 0, 'g', 3)
+                     .arg(next.controls.size());
+    }
+    if (!edit(next, "Load controls")) return false;
   } catch (const std::exception& e) {
     show_error(e.what());
     return false;
   }
+  proposal_ = proposal;
+  refresh_hints();
+  statusBar()->showMessage(proposal.isEmpty() ? "Loaded " + path : proposal, 10000);
+  return true;
 }
 
 bool PickerWindow::save_deformation(const QString& path) {
@@ -539,6 +695,8 @@ bool PickerWindow::save_deformation(const QString& path) {
     return false;
   }
   undo_.setClean();
+  deformation_path_ = path;
+  clear_error();
   statusBar()->showMessage("Saved " + path, 5000);
   return true;
 }
@@ -551,6 +709,7 @@ bool PickerWindow::save_controls(const QString& path) {
     show_error(e.what());
     return false;
   }
+  clear_error();
   statusBar()->showMessage("Saved " + path, 5000);
   return true;
 }
@@ -566,6 +725,7 @@ bool PickerWindow::export_mesh(const QString& path) {
     show_error(e.what());
     return false;
   }
+  clear_error();
   statusBar()->showMessage("Exported " + path, 5000);
   return true;
 }
@@ -581,6 +741,7 @@ bool PickerWindow::edit(const State& next, const QString& what, int merge_id) {
     return false;
   }
   clear_error();
+  proposal_.clear();
   undo_.push(new StateCommand(this, before, next, what, merge_id));
   refresh(&o);
   return true;
@@ -630,6 +791,7 @@ void PickerWindow::refresh(const Outcome* outcome) {
   if (outcome) {
     timing_->setText(QString("fit %1 ms, evaluation %2 ms").arg(outcome->fit_ms, 0, 'f', 3).arg(outcome->eval_ms, 0, 'f', 3));
   }
+  refresh_hints();
   region_label_->setText(s.region.empty() ? "Active area: whole mesh (ctrl + drag to select one)"
                                           : QString("Active area: %1 of %2 vertices").arg(s.region.size()).arg(doc_.rest().size()));
 }
@@ -693,6 +855,7 @@ void PickerWindow::refresh_view() {
     mag = doc_.displacement_magnitudes();
     for (const double m : mag) top = std::max(top, m);
   }
+  legend_lut_->SetTableRange(0, top > 0 ? top : 1);
   // Folded places (det dT/dx <= 0: space turned inside out) in magenta, with a warning.
   const FoldReport folds = doc_.folds();
   std::vector<char> folded(pos.size(), 0);
@@ -709,18 +872,15 @@ void PickerWindow::refresh_view() {
   }
   for (std::size_t i = 0; i < pos.size(); ++i) {
     double c[3] = {0.85, 0.8, 0.72};
-    if (by_displacement) {
-      const double t = top > 0 ? mag[i] / top : 0.0;
-      c[0] = 0.2 + 0.8 * t;
-      c[1] = 0.3 + 0.5 * (1 - std::abs(2 * t - 1));
-      c[2] = 1.0 - 0.8 * t;
-    }
+    if (by_displacement) legend_lut_->GetColor(mag[i], c);
     if (!active[i]) c[0] = c[1] = c[2] = 0.45;
     if (folded[i]) c[0] = 1.0, c[1] = 0.1, c[2] = 0.9;
     rgb->SetTuple3(vtkIdType(i), 255 * c[0], 255 * c[1], 255 * c[2]);
   }
   mesh_->GetPointData()->SetScalars(rgb);
   mesh_->Modified();
+  legend_->SetVisibility(by_displacement);
+  mesh_actor_->GetProperty()->SetRepresentation(wireframe_ && wireframe_->isChecked() ? VTK_WIREFRAME : VTK_SURFACE);
 
   // Handles: source (green, or blue when pinned), destination (orange), the selected one yellow.
   const double size = 0.012 * doc_.diagonal();
@@ -736,7 +896,7 @@ void PickerWindow::refresh_view() {
     const bool sel = int(i) == selected_;
     hp->InsertNextPoint(c.source.data());
     if (sel) hc->InsertNextTuple3(255, 240, 60);
-    else if (c.pinned) hc->InsertNextTuple3(70, 130, 255);
+    else if (c.pinned) hc->InsertNextTuple3(20, 20, 20);  // black: seen on the mesh and on every displacement colour
     else hc->InsertNextTuple3(60, 200, 90);
     sp->InsertNextPoint(c.source.data());
     if (!c.pinned && c.destination != c.source) {
@@ -761,9 +921,71 @@ void PickerWindow::refresh_view() {
   view_->renderWindow()->Render();
 }
 
-void PickerWindow::reset_camera() {
-  renderer_->ResetCamera();
+void PickerWindow::reset_camera(gui::View view) {
+  double b[6] = {-1, 1, -1, 1, -1, 1};
+  const auto& pos = doc_.deformed();
+  if (!pos.empty()) {
+    for (int k = 0; k < 3; ++k) b[2 * k] = b[2 * k + 1] = pos.front()[k];
+    for (const auto& p : pos)
+      for (int k = 0; k < 3; ++k) {
+        b[2 * k] = std::min(b[2 * k], p[k]);
+        b[2 * k + 1] = std::max(b[2 * k + 1], p[k]);
+      }
+  }
+  gui::set_view(renderer_, b, view);
   view_->renderWindow()->Render();
+}
+
+void PickerWindow::show_band(int x0, int y0, int x1, int y1) {
+  vtkPoints* p = band_->GetPoints();
+  p->SetPoint(0, x0, y0, 0);
+  p->SetPoint(1, x1, y0, 0);
+  p->SetPoint(2, x1, y1, 0);
+  p->SetPoint(3, x0, y1, 0);
+  p->Modified();
+  band_->Modified();
+  band_actor_->VisibilityOn();
+  view_->renderWindow()->Render();
+}
+
+void PickerWindow::hide_band() {
+  band_actor_->VisibilityOff();
+  view_->renderWindow()->Render();
+}
+
+bool PickerWindow::band_visible() const { return band_actor_->GetVisibility() != 0; }
+
+QString PickerWindow::hint() const { return hint_->isHidden() ? QString() : hint_->text(); }
+
+void PickerWindow::refresh_hints() {
+  // What the numbers cannot show by themselves: a map that moves nothing, or moves the mesh far more
+  // than any control asks (a polynomial extrapolating from too few controls).
+  QStringList hints;
+  if (!proposal_.isEmpty()) hints << proposal_;
+  const auto& s = doc_.state();
+  double longest = 0;
+  for (const auto& c : s.controls) longest = std::max(longest, (c.destination - c.source).norm());
+  if (longest > 0 && doc_.has_mesh()) {
+    const auto mag = doc_.displacement_magnitudes();
+    const double most = mag.empty() ? 0.0 : *std::max_element(mag.begin(), mag.end());
+    if (most == 0) {
+      hints << QString("No vertex moves: none lies within R = %1 of a moved control%2. Raise the radius.")
+                   .arg(s.radius, 0, 'g', 4)
+                   .arg(s.region.empty() ? QString() : QString(" inside the active area"));
+    } else if (most > 2.0 * longest) {
+      hints << QString("The mesh moves up to %1, %2 times the longest control vector (%3)%4. Check the result, or use "
+                       "more controls%5.")
+                   .arg(most, 0, 'g', 3)
+                   .arg(most / longest, 0, 'f', 1)
+                   .arg(longest, 0, 'g', 3)
+                   .arg(s.polynomial == Polynomial::None ? QString()
+                                                          : QString(": the %1 polynomial extrapolates from the controls")
+                                                                .arg(s.polynomial == Polynomial::Linear ? "linear" : "constant"))
+                   .arg(s.polynomial == Polynomial::None ? QString() : QString(" or polynomial 'none'"));
+    }
+  }
+  hint_->setText(hints.join("\n"));
+  hint_->setVisible(!hints.isEmpty());
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -817,11 +1039,13 @@ void PickerWindow::add_control(const Vec3& at, bool pinned) {
 
 void PickerWindow::begin_drag(int control) {
   dragging_ = control;
+  frame_ms_.clear();
   drag_start_ = doc_.state();
   drag_depth_ = gui::world_to_display(renderer_, doc_.state().controls[std::size_t(control)].destination).z();
 }
 
 void PickerWindow::drag_to(int x, int y) {
+  const auto start = std::chrono::steady_clock::now();
   // The destination follows the cursor in the plane through it parallel to the screen.
   const auto w = gui::display_to_world(renderer_, x, y, drag_depth_);
   if (!w) return;
@@ -835,7 +1059,14 @@ void PickerWindow::drag_to(int x, int y) {
   clear_error();
   refresh_view();
   refresh_table();
-  timing_->setText(QString("fit %1 ms, evaluation %2 ms").arg(o.fit_ms, 0, 'f', 3).arg(o.eval_ms, 0, 'f', 3));
+  // The interactive frame rate: whole frames (fit, evaluation, colours, drawing) over the last 10 moves.
+  frame_ms_.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  if (frame_ms_.size() > 10) frame_ms_.erase(frame_ms_.begin());
+  drag_fps_ = 1000.0 * double(frame_ms_.size()) / std::accumulate(frame_ms_.begin(), frame_ms_.end(), 0.0);
+  timing_->setText(QString("fit %1 ms, evaluation %2 ms, %3 fps while dragging")
+                       .arg(o.fit_ms, 0, 'f', 3)
+                       .arg(o.eval_ms, 0, 'f', 3)
+                       .arg(drag_fps_, 0, 'f', 0));
 }
 
 void PickerWindow::end_drag() {
@@ -885,18 +1116,29 @@ void PickerWindow::dropEvent(QDropEvent* e) {
     const QString f = url.toLocalFile();
     if (f.endsWith(".json", Qt::CaseInsensitive)) load_deformation(f);
     else if (f.endsWith(".controls", Qt::CaseInsensitive)) load_controls(f);
-    else open_mesh(f);
+    else if (maybe_save()) open_mesh(f);
   }
 }
 
+bool PickerWindow::maybe_save() {
+  if (undo_.isClean() || property("noPrompt").toBool()) return true;
+  const auto answer = gui::ask_unsaved(this, "The deformation has unsaved changes.");
+  if (answer == QMessageBox::Cancel) return false;
+  if (answer == QMessageBox::Discard) return true;
+  QString f = deformation_path_;
+  if (f.isEmpty()) {
+    f = QFileDialog::getSaveFileName(this, "Save deformation", gui::dialog_folder(QString::fromStdString(doc_.mesh_path().string())) +
+                                                                   "/deformation.json",
+                                     "Deformation (*.json)");
+    gui::remember_folder(f);
+  }
+  return !f.isEmpty() && save_deformation(f);
+}
+
 void PickerWindow::closeEvent(QCloseEvent* e) {
-  if (!undo_.isClean() && isVisible() && !property("noPrompt").toBool()) {
-    const auto answer = QMessageBox::question(this, "csrbf Picker", "Quit without saving the deformation?",
-                                              QMessageBox::Discard | QMessageBox::Cancel, QMessageBox::Cancel);
-    if (answer != QMessageBox::Discard) {
-      e->ignore();
-      return;
-    }
+  if (isVisible() && !maybe_save()) {
+    e->ignore();
+    return;
   }
   e->accept();
 }

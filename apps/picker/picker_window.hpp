@@ -2,12 +2,16 @@
 // see the deformation live. Mouse and keyboard reference: README, "Picker".
 #pragma once
 
+#include "gui_common.hpp"
 #include "picker_document.hpp"
 
 #include <QMainWindow>
 #include <QUndoStack>
 
 #include <vtkSmartPointer.h>
+
+#include <optional>
+#include <vector>
 
 class QCheckBox;
 class QComboBox;
@@ -16,7 +20,11 @@ class QLabel;
 class QSlider;
 class QTableWidget;
 class QVTKOpenGLNativeWidget;
+class QAction;
 class vtkActor;
+class vtkActor2D;
+class vtkLookupTable;
+class vtkScalarBarActor;
 class vtkGenericOpenGLRenderWindow;
 class vtkPolyData;
 class vtkRenderer;
@@ -33,10 +41,12 @@ class PickerWindow : public QMainWindow {
   explicit PickerWindow(QWidget* parent = nullptr);
   ~PickerWindow() override;
 
-  /// Opens a mesh; false (with the error shown) if it cannot be read.
+  /// Opens a mesh; false (with the error shown) if it cannot be read. Frames it (front view).
   bool open_mesh(const QString& path);
   bool load_deformation(const QString& path);
-  bool load_controls(const QString& path);
+  /// Loads a controls text file. Without a radius, proposes one from the controls (see
+  /// Document::propose_radius) and says so in the status bar and the hint box.
+  bool load_controls(const QString& path, std::optional<double> radius = std::nullopt);
   bool save_deformation(const QString& path);
   bool save_controls(const QString& path);
   bool export_mesh(const QString& path);
@@ -60,8 +70,19 @@ class PickerWindow : public QMainWindow {
   QPointF to_display(const Vec3& world) const;
   /// Renders and saves the whole window as a PNG; false on failure.
   bool save_screenshot(const QString& path);
-  void reset_camera();
-
+  /// R: the front view, zoomed to fit the mesh; also the side and top views (numpad 3, 7).
+  void reset_camera(gui::View view = gui::View::Front);
+  /// The deformation file Ctrl+S writes to; empty until one was saved or loaded.
+  const QString& deformation_path() const { return deformation_path_; }
+  /// Save, Discard or Cancel when the deformation has unsaved edits: true to go on.
+  bool maybe_save();
+  /// The hint shown below the panel (an extrapolating polynomial, a radius that moves nothing, a
+  /// proposed radius), or empty.
+  QString hint() const;
+  /// Frames a second, measured over the last drag moves (fit, evaluation and drawing); 0 before any.
+  double drag_fps() const { return drag_fps_; }
+  /// True while a ctrl + drag draws the active-area rectangle.
+  bool band_visible() const;
  protected:
   void dragEnterEvent(QDragEnterEvent* e) override;
   void dropEvent(QDropEvent* e) override;
@@ -93,6 +114,9 @@ class PickerWindow : public QMainWindow {
   void drag_to(int x, int y);
   void end_drag();
   void select_region(int x0, int y0, int x1, int y1);
+  void show_band(int x0, int y0, int x1, int y1);  ///< the rectangle of a ctrl + drag, in display pixels
+  void hide_band();
+  void refresh_hints();
   void delete_selected();
 
   Document doc_;
@@ -104,6 +128,10 @@ class PickerWindow : public QMainWindow {
   vtkSmartPointer<vtkActor> mesh_actor_, handle_actor_, line_actor_, support_actor_;
   vtkSmartPointer<vtkGlyph3D> handle_glyph_, support_glyph_;
   vtkSmartPointer<PickerStyle> style_;
+  vtkSmartPointer<vtkPolyData> band_;
+  vtkSmartPointer<vtkActor2D> band_actor_;
+  vtkSmartPointer<vtkScalarBarActor> legend_;
+  vtkSmartPointer<vtkLookupTable> legend_lut_;
 
   QTableWidget* table_ = nullptr;
   QDoubleSpinBox* radius_ = nullptr;
@@ -119,6 +147,12 @@ class PickerWindow : public QMainWindow {
   QLabel* fold_warning_ = nullptr;
   QLabel* timing_ = nullptr;
   QLabel* region_label_ = nullptr;
+  QLabel* hint_ = nullptr;
+  QAction* wireframe_ = nullptr;
+  QString deformation_path_;
+  QString proposal_;  // the last proposed radius, said in the hint until the next edit
+  double drag_fps_ = 0;
+  std::vector<double> frame_ms_;  // the last drag frames' times
 
   int selected_ = -1;
   bool updating_ = false;  // widgets being set from the state: their signals are not edits

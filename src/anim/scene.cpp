@@ -87,6 +87,7 @@ namespace {
 struct PartState {
   std::vector<double> rest;                               // the part's rest vertices, interleaved
   std::vector<std::optional<DisplacementField<double>>> fields;  // per deformation, where kept
+  std::vector<std::vector<char>> inside;  // per deformation with an active area: 1 for a part vertex in it
   std::vector<double> a, b;                               // work buffers
   Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();              // bounding box of the rest vertices
 };
@@ -126,8 +127,14 @@ Player::Player(const Scene& scene) : scene_(&scene), impl_(std::make_unique<Impl
       ps.a.resize(ps.rest.size());
       ps.b.resize(ps.rest.size());
       ps.fields.resize(part.deformations.size());
+      ps.inside.resize(part.deformations.size());
       for (std::size_t k = 0; k < part.deformations.size(); ++k) {
         const Deformation& def = part.deformations[k];
+        if (!def.area.empty()) {
+          ps.inside[k].resize(part.vertices.size());
+          for (std::size_t i = 0; i < part.vertices.size(); ++i)
+            ps.inside[k][i] = std::binary_search(def.area.begin(), def.area.end(), part.vertices[i]);
+        }
         // Sum: every fixed deformation acts on the rest shape; Compose: only the first does.
         if (def.map && (part.combine == Combine::Sum || k == 0))
           ps.fields[k].emplace(*def.map, ps.rest.data(), part.vertices.size());
@@ -184,11 +191,17 @@ void Player::evaluate(double t) {
           }
         } else if (part.combine == Combine::Sum) {
           const auto disp = ps.fields[k]->displacements();
-          for (std::size_t i = 0; i < 3 * n; ++i) ps.a[i] += phase * disp[i];
-        } else if (ps.fields[k]) {
-          ps.fields[k]->apply(phase, ps.a.data());  // the first: rest + phase d(rest)
+          const auto& inside = ps.inside[k];
+          for (std::size_t i = 0; i < 3 * n; ++i)
+            if (inside.empty() || inside[i / 3]) ps.a[i] += phase * disp[i];
         } else {
-          def.map->apply(ps.a.data(), ps.a.data(), n, phase);
+          // Vertices outside the active area keep where they were before this deformation.
+          const auto& inside = ps.inside[k];
+          if (!inside.empty()) std::copy(ps.a.begin(), ps.a.end(), ps.b.begin());
+          if (ps.fields[k]) ps.fields[k]->apply(phase, ps.a.data());  // the first: rest + phase d(rest)
+          else def.map->apply(ps.a.data(), ps.a.data(), n, phase);
+          for (std::size_t i = 0; i < inside.size(); ++i)
+            if (!inside[i]) std::copy_n(ps.b.begin() + std::ptrdiff_t(3 * i), 3, ps.a.begin() + std::ptrdiff_t(3 * i));
         }
       }
       for (std::size_t i = 0; i < n; ++i) st.model[part.vertices[i]] = Vec3(ps.a[3 * i], ps.a[3 * i + 1], ps.a[3 * i + 2]);

@@ -4,6 +4,8 @@
 #include "csrbf/io/controls.hpp"
 #include "json_reader.hpp"
 
+#include <limits>
+
 namespace csrbf::io {
 namespace detail {
 
@@ -44,6 +46,27 @@ DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::p
     spec.sources = std::move(controls.sources);
     spec.destinations = std::move(controls.destinations);
   }
+  if (node.has("active_area")) {
+    const JsonNode a = node["active_area"];
+    a.only({"vertex_count", "vertices"});
+    ActiveArea area;
+    area.vertex_count = a["vertex_count"].index();
+    if (area.vertex_count == 0 || area.vertex_count > std::numeric_limits<std::uint32_t>::max())
+      a["vertex_count"].expected("a vertex count from 1 to 4294967295");
+    const JsonNode v = a["vertices"];
+    if (v.size() == 0) v.fail("an active area needs at least one vertex (leave \"active_area\" out for the whole mesh)");
+    area.vertices.reserve(v.size());
+    for (std::size_t i = 0; i < v.size(); ++i) {
+      const std::size_t k = v[i].index();
+      if (k >= area.vertex_count)
+        v[i].fail("vertex " + std::to_string(k) + " is not below vertex_count " + std::to_string(area.vertex_count));
+      if (!area.vertices.empty() && k <= area.vertices.back())
+        v[i].fail("vertices must be sorted and unique (" + std::to_string(k) + " follows " +
+                  std::to_string(area.vertices.back()) + ")");
+      area.vertices.push_back(std::uint32_t(k));
+    }
+    spec.area = std::move(area);
+  }
   return spec;
 }
 
@@ -52,7 +75,8 @@ DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::p
 namespace {
 DeformationSpec from_json(const nlohmann::json& j, const std::string& name, const std::filesystem::path& base) {
   const detail::JsonNode root(j, name);
-  root.only({"format", "version", "kernel", "radius", "polynomial", "sources", "destinations", "controls"});
+  root.only({"format", "version", "kernel", "radius", "polynomial", "sources", "destinations", "controls",
+             "active_area"});
   if (root.has("format") && root["format"].string() != "csrbf-deformation")
     root["format"].expected("\"csrbf-deformation\"");
   if (root.has("version") && root["version"].number() != 1) root["version"].expected("1");
@@ -91,10 +115,36 @@ void write_deformation(const std::filesystem::path& path, const DeformationSpec&
       const auto& pts = which == 0 ? spec.sources : spec.destinations;
       out << "  \"" << (which == 0 ? "sources" : "destinations") << "\": [";
       for (std::size_t i = 0; i < pts.size(); ++i) out << (i ? ",\n    " : "\n    ") << point(pts[i]);
-      out << "\n  ]" << (which == 0 ? ",\n" : "\n");
+      out << "\n  ]" << (which == 0 || spec.area ? ",\n" : "\n");
+    }
+    if (spec.area) {
+      out << "  \"active_area\": {\"vertex_count\": " << spec.area->vertex_count << ", \"vertices\": [";
+      for (std::size_t i = 0; i < spec.area->vertices.size(); ++i)
+        out << (i == 0 ? "" : i % 16 == 0 ? ",\n    " : ", ") << spec.area->vertices[i];
+      out << "]}\n";
     }
     out << "}\n";
   });
+}
+
+void check_active_area(const ActiveArea& area, std::size_t vertices, const std::string& where) {
+  if (vertices != area.vertex_count)
+    throw FileError(where + ": active_area: the deformation was picked on a mesh of " +
+                    std::to_string(area.vertex_count) + " vertices, this one has " + std::to_string(vertices));
+}
+
+void apply_deformation(const SpaceMap& map, const std::optional<ActiveArea>& area, std::vector<Vec3>& positions,
+                       double phase, const std::string& where) {
+  if (!area) {
+    map.apply(positions, positions, phase);
+    return;
+  }
+  check_active_area(*area, positions.size(), where);
+  std::vector<Vec3> part;
+  part.reserve(area->vertices.size());
+  for (const auto v : area->vertices) part.push_back(positions[v]);
+  map.apply(part, part, phase);
+  for (std::size_t i = 0; i < part.size(); ++i) positions[area->vertices[i]] = part[i];
 }
 
 }  // namespace csrbf::io

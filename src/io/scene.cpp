@@ -195,9 +195,10 @@ struct PendingContact {
 };
 
 anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base, std::vector<PendingContact>& contacts,
-                                         std::size_t object, std::size_t part, std::size_t index) {
+                                         std::size_t object, std::size_t part, std::size_t index,
+                                         std::size_t vertex_count) {
   n.only({"name", "deformation", "controls", "sources", "destinations", "radius", "kernel", "polynomial", "phase",
-          "contact"});
+          "contact", "active_area"});
   anim::Deformation def;
   def.name = n.has("name") ? n["name"].string() : "deformation " + std::to_string(index);
   if (n.has("phase")) def.schedule = read_phase(n["phase"]);
@@ -220,6 +221,7 @@ anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base
       def.options.kernel = *k;
     }
     if (n.has("polynomial")) n["polynomial"].fail("a contact deformation has no polynomial (it must stay local)");
+    if (n.has("active_area")) n["active_area"].fail("a contact deformation acts on its whole part");
     contacts.push_back({object, part, index, c["collider"], c["collider"].string()});
     return def;
   }
@@ -235,6 +237,13 @@ anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base
     }
   } else {
     spec = detail::parse_deformation(n, base);
+  }
+  if (spec.area) {
+    const JsonNode where = n.has("active_area") ? n["active_area"] : n["deformation"];
+    if (spec.area->vertex_count != vertex_count)
+      where.fail("the active area was picked on a mesh of " + std::to_string(spec.area->vertex_count) +
+                 " vertices, this object's mesh has " + std::to_string(vertex_count));
+    def.area = std::move(spec.area->vertices);
   }
   try {
     def.map = spec.fit();
@@ -380,7 +389,7 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
           if (ds.size() > kMaxDeformations)
             ds.fail("at most " + std::to_string(kMaxDeformations) + " deformations a part, got " + std::to_string(ds.size()));
           for (std::size_t d = 0; d < ds.size(); ++d)
-            part.deformations.push_back(read_deformation_entry(ds[d], base, contacts, o, p, d));
+            part.deformations.push_back(read_deformation_entry(ds[d], base, contacts, o, p, d, mesh->positions().size()));
         }
         obj.parts.push_back(std::move(part));
       }

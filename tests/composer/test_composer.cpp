@@ -1,5 +1,6 @@
 // The Animation Composer's real window, driven with QTest (run under xvfb-run).
 #include "composer_window.hpp"
+#include "csrbf/io/controls.hpp"
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/scene.hpp"
 #include "gui_common.hpp"
@@ -8,15 +9,29 @@
 
 #include <gtest/gtest.h>
 
+#include <QAction>
 #include <QApplication>
 #include <QDoubleSpinBox>
 #include <QLabel>
+#include <QLineEdit>
+#include <QListWidget>
+#include <QScrollArea>
 #include <QPushButton>
 #include <QSurfaceFormat>
 #include <QTest>
 #include <QVTKOpenGLNativeWidget.h>
 
 #include <nlohmann/json.hpp>
+#include <vtkActor.h>
+#include <vtkActorCollection.h>
+#include <vtkCamera.h>
+#include <vtkCameraActor.h>
+#include <vtkProperty.h>
+#include <vtkRenderWindow.h>
+#include <vtkRenderer.h>
+#include <vtkRendererCollection.h>
+
+#include <fstream>
 
 namespace fs = std::filesystem;
 using csrbf::Vec3;
@@ -34,10 +49,10 @@ struct Fixture : ::testing::Test {
   void SetUp() override {
     ASSERT_TRUE(csrbf::test::show_for_test(w, 1280, 820));
   }
-  /// Clicks the timeline's ruler (below the key rows) at time t: scrubbing.
+  /// Clicks the timeline's ruler (above the key rows) at time t: scrubbing.
   void scrub_to(double t) {
     QTest::mouseClick(w.timeline(), Qt::LeftButton, Qt::NoModifier,
-                      QPoint(int(std::lround(w.timeline()->x_of(t))), w.timeline()->height() - 3));
+                      QPoint(int(std::lround(w.timeline()->x_of(t))), 8));
   }
 };
 
@@ -136,12 +151,12 @@ TEST_F(Fixture, RefusesBadEditsAndKeepsTheScene) {
   w.set_time(2.0);
   QTest::mouseClick(w.findChild<QPushButton*>("addKey"), Qt::LeftButton);
   EXPECT_NE(w.error_text().toStdString().find("a key is already at t = 2 s"), std::string::npos) << w.error_text().toStdString();
-  // A timing mark dragged past its neighbour.
-  const int y = w.timeline()->y_of(0);
-  csrbf::test::drag(w.timeline(), QPoint(int(std::lround(w.timeline()->x_of(2.0))), y),
-       QPoint(int(std::lround(w.timeline()->x_of(5.0))), y));
+  // A key time typed past its neighbour is refused.
+  w.select_key(1);
+  w.findChild<QDoubleSpinBox*>("keyTime")->setValue(5.0);
   EXPECT_NE(w.error_text().toStdString().find("would pass a neighbouring key"), std::string::npos)
       << w.error_text().toStdString();
+  EXPECT_EQ(w.document().json(), before);
   EXPECT_FALSE(w.attach_deformation("/nonexistent/d.json"));
   EXPECT_NE(w.error_text().toStdString().find("/nonexistent/d.json"), std::string::npos);
   EXPECT_FALSE(w.open_scene("/nonexistent/scene.json"));
@@ -169,6 +184,7 @@ TEST_F(Fixture, PlaysAndExportsTheSameMovieAsTheCommandLine) {
   const auto probe = csrbf::test::run_shell("ffprobe -v error -count_frames -show_entries stream=nb_read_frames,width,height "
                                             "-of csv=p=0 " + (dir / "gui.mp4").string());
   EXPECT_EQ(probe.out, "160,120,101\n");
+  EXPECT_NE(w.info_text().toStdString().find("Wrote"), std::string::npos) << "an export says when it is done";
   // The command line makes the same movie: the same frames, decoded.
   const auto cli = csrbf::test::run_shell(std::string(CSRBF_CLI) + " animate " + kExamples + "ball.scene.json -o " +
                                           (dir / "cli.mp4").string() + " --size 160x120");
@@ -180,6 +196,198 @@ TEST_F(Fixture, PlaysAndExportsTheSameMovieAsTheCommandLine) {
   double diff = 0;
   for (std::size_t i = 0; i < a.out.size(); ++i) diff += std::abs(int((unsigned char)a.out[i]) - int((unsigned char)b.out[i]));
   EXPECT_LT(diff / double(a.out.size()), 0.5);
+}
+
+namespace {
+
+/// A deformation file of the fish's mouth controls (R = 0.3) in `dir`.
+QString mouth_deformation(const fs::path& dir) {
+  const auto c = csrbf::io::read_controls(kExamples + "fish-mouth.controls");
+  csrbf::io::DeformationSpec spec;
+  spec.options.radius = 0.3;
+  spec.sources = c.sources;
+  spec.destinations = c.destinations;
+  csrbf::io::write_deformation(dir / "fish-mouth.json", spec);
+  return QString::fromStdString((dir / "fish-mouth.json").string());
+}
+
+/// The first renderer of the view (the scene's, with the overlays).
+vtkRenderer* view_renderer(ComposerWindow& w) { return w.view()->renderWindow()->GetRenderers()->GetFirstRenderer(); }
+
+}  // namespace
+
+TEST_F(Fixture, UndoAfterSaveAsIntoAnotherFolderKeepsTheFilesAndNeverCrashes) {
+  // The reported sequence: open the fish, drag a trajectory key, Save As into another folder, Ctrl+Z,
+  // click in the view, save again.
+  csrbf::test::TempDir dir;
+  ASSERT_TRUE(w.open_scene(QString::fromStdString(kExamples + "fish.scene.json")));
+  const auto opened = w.document().json();
+  w.select_key(1);
+  const QPoint key = csrbf::test::widget_point(w, w.key_position(1));
+  csrbf::test::drag(w.view(), key, key + QPoint(40, -30));
+  ASSERT_NE(w.document().json(), opened) << "the drag moved the key";
+  ASSERT_TRUE(w.attach_deformation(mouth_deformation(dir.path))) << w.error_text().toStdString();
+  fs::create_directories(dir / "elsewhere");
+  ASSERT_TRUE(w.save_scene(QString::fromStdString((dir / "elsewhere" / "fish.scene.json").string())));
+  EXPECT_FALSE(w.isWindowModified());
+  QTest::keyClick(&w, Qt::Key_Z, Qt::ControlModifier);  // the attachment
+  QTest::keyClick(&w, Qt::Key_Z, Qt::ControlModifier);  // the drag
+  EXPECT_TRUE(w.error_text().isEmpty()) << w.error_text().toStdString();
+  EXPECT_TRUE(w.isWindowModified());
+  ASSERT_EQ(w.selected_object(), 0);
+  // The view still shows the fish, and clicks in it (on a key, then elsewhere) are safe.
+  const QPoint k1 = csrbf::test::widget_point(w, w.key_position(1));
+  QTest::mouseClick(w.view(), Qt::LeftButton, Qt::NoModifier, k1);
+  QTest::mouseClick(w.view(), Qt::LeftButton, Qt::NoModifier, QPoint(20, 20));
+  EXPECT_EQ(w.selected_key(), 1);
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "composer-undo-after-save-as.png").string())));
+  // The state undone to names the same files from the new folder: it saves and reads back whole.
+  ASSERT_TRUE(w.save_scene(QString::fromStdString((dir / "elsewhere" / "fish.scene.json").string())));
+  const auto scene = csrbf::io::read_scene(dir / "elsewhere" / "fish.scene.json");
+  ASSERT_EQ(scene.objects.size(), 1u);
+  EXPECT_EQ(scene.objects[0].rest.size(), 977u);
+  std::ifstream in(dir / "elsewhere" / "fish.scene.json");
+  const auto saved = nlohmann::json::parse(in);
+  const fs::path mesh = saved["objects"][0]["mesh"].get<std::string>();
+  EXPECT_TRUE(fs::exists(dir / "elsewhere" / mesh)) << mesh;
+  EXPECT_EQ(saved["objects"][0]["trajectory"], opened["objects"][0]["trajectory"]) << "the drag is undone";
+  // Redo brings both edits back, with the files still found.
+  QTest::keyClick(&w, Qt::Key_Z, Qt::ControlModifier | Qt::ShiftModifier);
+  QTest::keyClick(&w, Qt::Key_Z, Qt::ControlModifier | Qt::ShiftModifier);
+  EXPECT_TRUE(w.error_text().isEmpty()) << w.error_text().toStdString();
+  EXPECT_EQ(w.document().deformation_count(0), 5u);
+}
+
+TEST_F(Fixture, KeysSitOnFramesStopAtNeighboursAndPhaseMarksAreEditable) {
+  csrbf::test::TempDir dir;
+  ASSERT_TRUE(w.open_scene(QString::fromStdString(kExamples + "fish.scene.json")));
+  // Scrubbing stops on frames, so a key added there is on one (25 fps: multiples of 0.04 s).
+  w.set_time(0.5056);
+  EXPECT_DOUBLE_EQ(w.time(), 0.52);
+  // Dragging the key at 2 s towards 5 s stops one frame short of the key at 4 s.
+  const int y = w.timeline()->y_of(0);
+  csrbf::test::drag(w.timeline(), QPoint(int(std::lround(w.timeline()->x_of(2.0))), y),
+                    QPoint(int(std::lround(w.timeline()->x_of(5.0))), y));
+  EXPECT_TRUE(w.error_text().isEmpty()) << w.error_text().toStdString();
+  auto times = w.document().key_times(0, Track::Position);
+  EXPECT_DOUBLE_EQ(times[1], 3.96);
+  // A drag to an odd place lands on a frame.
+  csrbf::test::drag(w.timeline(), QPoint(int(std::lround(w.timeline()->x_of(3.96))), y),
+                    QPoint(int(std::lround(w.timeline()->x_of(3.0))) + 1, y));
+  times = w.document().key_times(0, Track::Position);
+  EXPECT_NEAR(times[1] * 25, std::round(times[1] * 25), 1e-9) << times[1];
+
+  // Rows are named after the deformations; clicking a phase mark selects it for the panel.
+  EXPECT_EQ(w.document().deformation_name(0, 3), "fin");
+  const auto fin = w.document().key_times(0, Track::Phase, 3);
+  QTest::mouseClick(w.timeline(), Qt::LeftButton, Qt::NoModifier,
+                    QPoint(int(std::lround(w.timeline()->x_of(fin[2]))), w.timeline()->y_of(2 + 3)));
+  EXPECT_EQ(w.selected_deformation(), 3);
+  EXPECT_EQ(w.selected_phase_key(), 2);
+  EXPECT_EQ(w.findChild<QLineEdit*>("deformationName")->text(), "fin");
+  EXPECT_DOUBLE_EQ(w.findChild<QDoubleSpinBox*>("phaseTime")->value(), fin[2]);
+  // The panel edits it: value, name, easing; Delete removes the selected phase key.
+  w.findChild<QDoubleSpinBox*>("phaseValue")->setValue(0.5);
+  EXPECT_DOUBLE_EQ(w.document().phase_value(0, 3, 2), 0.5);
+  auto* name = w.findChild<QLineEdit*>("deformationName");
+  name->setText("dorsal fin");
+  emit name->editingFinished();
+  EXPECT_EQ(w.document().deformation_name(0, 3), "dorsal fin");
+  const std::size_t before = w.document().key_times(0, Track::Phase, 3).size();
+  QTest::keyClick(&w, Qt::Key_Delete);
+  EXPECT_EQ(w.document().key_times(0, Track::Phase, 3).size(), before - 1);
+  EXPECT_EQ(w.document().key_times(0, Track::Position).size(), 5u) << "the trajectory key stays";
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "composer-timeline.png").string())));
+
+  // During playback the orientation boxes follow the animation.
+  w.set_time(0);
+  const double yaw0 = w.findChild<QDoubleSpinBox*>("yaw")->value();
+  w.play(true);
+  QTest::qWait(700);
+  w.play(false);
+  EXPECT_GT(w.time(), 0.3);
+  EXPECT_GT(std::abs(w.findChild<QDoubleSpinBox*>("yaw")->value() - yaw0), 1.0);
+  // Remove the deformation: the row goes, and the view keeps its size (the timeline scrolls).
+  const QSize view = w.view()->size();
+  w.select_phase_key(0, -1);
+  QTest::mouseClick(w.findChild<QPushButton*>("removeDeformation"), Qt::LeftButton);
+  EXPECT_EQ(w.document().deformation_count(0), 3u);
+  ASSERT_TRUE(w.attach_deformation(mouth_deformation(dir.path)));
+  ASSERT_TRUE(w.attach_deformation(mouth_deformation(dir.path)));
+  QApplication::processEvents();
+  EXPECT_EQ(w.view()->size(), view);
+  EXPECT_FALSE(w.attach_deformation("/nonexistent/d.json"));
+  QApplication::processEvents();
+  EXPECT_EQ(w.view()->size(), view) << "an error box does not move the view";
+}
+
+TEST_F(Fixture, SceneCameraLightsColoursAndViewsAreEditedInTheComposer) {
+  csrbf::test::TempDir dir;
+  ASSERT_TRUE(w.open_scene(QString::fromStdString(kExamples + "fish.scene.json")));
+  // The scene's renderer is rebuilt with every edit: look it up each time.
+  const auto r = [&] { return view_renderer(w); };
+  // VTK's own keys are off: 3 (stereo), e and q (quit) do nothing; W is the documented wireframe toggle.
+  QTest::keyClick(w.view(), Qt::Key_3);
+  EXPECT_FALSE(w.view()->renderWindow()->GetStereoRender());
+  QTest::keyClick(w.view(), Qt::Key_E);
+  QTest::keyClick(w.view(), Qt::Key_Q);
+  EXPECT_TRUE(w.isVisible());
+  const auto representation = [&] {
+    vtkActorCollection* actors = r()->GetActors();
+    actors->InitTraversal();
+    return actors->GetNextActor()->GetProperty()->GetRepresentation();
+  };
+  QTest::keyClick(&w, Qt::Key_W);
+  EXPECT_EQ(representation(), VTK_WIREFRAME);
+  QTest::keyClick(&w, Qt::Key_W);
+  EXPECT_EQ(representation(), VTK_SURFACE);
+
+  // R: the front view; 7: from the top.
+  QTest::keyClick(&w, Qt::Key_7);
+  double dir_top[3];
+  r()->GetActiveCamera()->GetDirectionOfProjection(dir_top);
+  EXPECT_NEAR(dir_top[1], -1.0, 1e-9);
+  QTest::keyClick(&w, Qt::Key_R);
+  double dir_front[3];
+  r()->GetActiveCamera()->GetDirectionOfProjection(dir_front);
+  EXPECT_NEAR(dir_front[2], -1.0, 1e-9);
+  // The scene camera's frame is drawn; "Set scene camera from view" makes the view the movie's.
+  EXPECT_TRUE(w.scene_camera_actor()->GetVisibility());
+  QTest::keyClick(&w, Qt::Key_3);  // from the side, zoomed out: the frame reaches from the camera to the fish
+  r()->GetActiveCamera()->Dolly(0.35);
+  r()->ResetCameraClippingRange();
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "composer-camera-frame.png").string())));
+  QTest::keyClick(&w, Qt::Key_R);
+  double pos[3];
+  r()->GetActiveCamera()->GetPosition(pos);
+  ASSERT_TRUE(w.set_scene_camera_from_view());
+  const auto& cam = w.document().json()["camera"];
+  for (int k = 0; k < 3; ++k) EXPECT_DOUBLE_EQ(cam["position"][k].get<double>(), pos[k]);
+  EXPECT_TRUE(w.isWindowModified());
+  EXPECT_NE(w.windowTitle().indexOf("[*]"), -1);
+  // Background, object colour and a light, through the document's edits the panel's buttons make.
+  ASSERT_TRUE(w.edit("Background", [](csrbf::composer::Document& d) { d.set_background(Vec3(0.2, 0.3, 0.4)); }));
+  ASSERT_TRUE(w.edit("Colour", [](csrbf::composer::Document& d) { d.set_object_color(0, Vec3(0.1, 0.8, 0.2)); }));
+  QTest::mouseClick(w.findChild<QPushButton*>("addLight"), Qt::LeftButton);
+  EXPECT_EQ(w.document().light_count(), 3u);
+  ASSERT_TRUE(w.save_scene(QString::fromStdString((dir / "look.scene.json").string())));
+  const auto scene = csrbf::io::read_scene(dir / "look.scene.json");
+  EXPECT_NEAR((scene.camera.position - Vec3(pos[0], pos[1], pos[2])).norm(), 0, 1e-12);
+  EXPECT_EQ(scene.background, Vec3(0.2, 0.3, 0.4));
+  EXPECT_EQ(scene.lights.size(), 3u);
+  EXPECT_EQ(scene.objects[0].material.color, Vec3(0.1, 0.8, 0.2));
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "composer-look.png").string())));
+
+  // A deformation file opened as a scene is named as one; File > New clears the title and fields.
+  EXPECT_FALSE(w.open_scene(mouth_deformation(dir.path)));
+  EXPECT_NE(w.error_text().toStdString().find("this is a deformation file, not a scene"), std::string::npos)
+      << w.error_text().toStdString();
+  w.select_key(1);
+  ASSERT_TRUE(w.new_scene());
+  EXPECT_TRUE(w.error_text().isEmpty());
+  EXPECT_TRUE(w.windowTitle().startsWith("untitled")) << w.windowTitle().toStdString();
+  EXPECT_EQ(w.findChild<QDoubleSpinBox*>("keyTime")->value(), 0.0);
+  EXPECT_FALSE(w.findChild<QDoubleSpinBox*>("keyTime")->isEnabled());
 }
 
 int main(int argc, char** argv) {

@@ -44,6 +44,8 @@ struct Deformation {
   std::optional<Contact> contact;   ///< a dynamic one, fitted every frame with `options`
   FitOptions options;               ///< radius, kernel and polynomial of a contact deformation
   PhaseTrack schedule;              ///< phase against time (default: 1 throughout)
+  /// The active area: sorted object vertex indices it moves (the Picker's); empty: the whole part.
+  std::vector<std::uint32_t> area;
 };
 
 /// How the deformations of a part combine.
