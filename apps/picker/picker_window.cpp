@@ -671,12 +671,15 @@ bool PickerWindow::load_controls(const QString& path, std::optional<double> radi
       // A controls file carries no radius: the current one may fold the mesh or move nothing.
       next.radius = doc_.propose_radius(next);
       proposal = QString("Radius R = %1 (%2 % of the mesh's size) proposed for %3 controls from their spacing and "
-                         "length, the smallest that does not fold the mesh. Change it in the panel.")
+                         "length. Change it in the panel.")
                      .arg(next.radius, 0, 'g', 4)
                      .arg(100.0 * next.radius / doc_.diagonal(), 0, 'g', 3)
                      .arg(next.controls.size());
     }
     if (!edit(next, "Load controls")) return false;
+    if (!radius)
+      proposal.replace(" Change it", doc_.folds().folded == 0 ? QString("; the mesh does not fold at phase 1. Change it")
+                                                              : QString("; the mesh still folds even at the mesh's size. Change it"));
   } catch (const std::exception& e) {
     show_error(e.what());
     return false;

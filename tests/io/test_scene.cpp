@@ -200,6 +200,106 @@ TEST(DeformationFile, WritesAndReadsBackExactly) {
   EXPECT_EQ(csrbf::test::read_text(dir / "d.json"), before);
 }
 
+TEST(DeformationFile, ActiveAreaRoundTripsAndLimitsTheVerticesMoved) {
+  TempDir dir;
+  csrbf::io::DeformationSpec spec;
+  spec.options.radius = 2.0;
+  spec.sources = {Vec3(0.5, 0.5, 0)};
+  spec.destinations = {Vec3(0.5, 0.5, 0.2)};
+  spec.area = csrbf::io::ActiveArea{6, {1, 2}};
+  csrbf::io::write_deformation(dir / "d.json", spec);
+  const auto back = csrbf::io::read_deformation(dir / "d.json");
+  ASSERT_TRUE(back.area.has_value());
+  EXPECT_EQ(*back.area, *spec.area);
+  // Applied to 6 points: only 1 and 2 move, by the map; the others stay bit for bit.
+  std::vector<Vec3> pts = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0), Vec3(2, 0, 0), Vec3(2, 1, 0)};
+  const auto rest = pts;
+  const auto map = back.fit();
+  csrbf::io::apply_deformation(map, back.area, pts, 0.5, "d.json");
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (i == 1 || i == 2) {
+      std::vector<Vec3> one = {rest[i]};
+      map.apply(one, one, 0.5);
+      EXPECT_EQ(pts[i], one[0]) << i;
+      EXPECT_NE(pts[i], rest[i]) << i;
+    } else {
+      EXPECT_EQ(pts[i], rest[i]) << i;
+    }
+  }
+  // A mesh of another vertex count is refused, naming both counts.
+  std::vector<Vec3> five(rest.begin(), rest.begin() + 5);
+  try {
+    csrbf::io::apply_deformation(map, back.area, five, 1.0, "d.json");
+    FAIL();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("d.json: active_area: the deformation was picked on a mesh of 6 vertices, this one has 5"),
+              std::string::npos)
+        << e.what();
+  }
+  // Bad areas name the JSON path and the value.
+  const std::string head = R"({"radius": 1, "sources": [[0,0,0]], "destinations": [[0,0,1]], "active_area": )";
+  const std::pair<std::string, std::string> bad[] = {
+      {R"({"vertex_count": 4, "vertices": [1, 1]})", "active_area.vertices[1]: vertices must be sorted and unique (1 follows 1)"},
+      {R"({"vertex_count": 4, "vertices": [4]})", "active_area.vertices[0]: vertex 4 is not below vertex_count 4"},
+      {R"({"vertex_count": 0, "vertices": [0]})", "active_area.vertex_count: expected a vertex count from 1"},
+      {R"({"vertex_count": 4, "vertices": []})", "active_area.vertices: an active area needs at least one vertex"},
+      {R"({"vertex_count": 4, "vertices": [-1]})", "active_area.vertices[0]: expected an integer >= 0"},
+      {R"({"vertex_count": 4, "vertices": [0], "extra": 1})", "active_area.extra: unknown key 'extra' (allowed here: vertex_count, vertices)"},
+  };
+  for (const auto& [area, message] : bad) {
+    write_text(dir / "bad.json", head + area + "}");
+    try {
+      csrbf::io::read_deformation(dir / "bad.json");
+      ADD_FAILURE() << area;
+    } catch (const FileError& e) {
+      EXPECT_NE(std::string(e.what()).find(message), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(Scene, ADeformationsActiveAreaMovesOnlyItsVerticesInComposeAndSum) {
+  TempDir dir;
+  json j = minimal_scene(dir);
+  csrbf::io::DeformationSpec spec;
+  spec.options.radius = 3.0;
+  spec.sources = {Vec3(0.5, 0.5, 0), Vec3(1.5, 0.5, 0)};
+  spec.destinations = {Vec3(0.5, 0.5, 0.3), Vec3(1.5, 0.6, 0)};
+  spec.area = csrbf::io::ActiveArea{6, {1, 2, 4}};
+  csrbf::io::write_deformation(dir / "area.json", spec);
+  const auto map = spec.fit();
+  for (const char* combine : {"compose", "sum"}) {
+    json scene = j;
+    scene["objects"][0]["parts"] = json::array({json{{"combine", combine},
+                                                     {"deformations", json::array({json{{"deformation", "area.json"}, {"phase", 0.5}}})}}});
+    write_text(dir / "s.json", scene.dump());
+    const auto sc = csrbf::io::read_scene(dir / "s.json");
+    csrbf::anim::Player player(sc);
+    player.evaluate(0.25);
+    const auto& rest = sc.objects[0].rest;
+    const auto& got = player.deformed(0);
+    for (std::size_t i = 0; i < rest.size(); ++i) {
+      std::vector<Vec3> one = {rest[i]};
+      if (i == 1 || i == 2 || i == 4) map.apply(one, one, 0.5);
+      EXPECT_LT((got[i] - one[0]).norm(), 1e-14) << combine << " vertex " << i;
+    }
+  }
+  // The area must fit the object's mesh.
+  spec.area = csrbf::io::ActiveArea{7, {1}};
+  csrbf::io::write_deformation(dir / "area.json", spec);
+  json scene = j;
+  scene["objects"][0]["parts"] = json::array({json{{"deformations", json::array({json{{"deformation", "area.json"}}})}}});
+  write_text(dir / "s.json", scene.dump());
+  try {
+    csrbf::io::read_scene(dir / "s.json");
+    FAIL();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("objects[0].parts[0].deformations[0].deformation: the active area was picked on a mesh "
+                                         "of 7 vertices, this object's mesh has 6"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(DeformationFile, NumbersTooLargeForADoubleAreAnError) {
   // Found by fuzz_deformation: nlohmann reports this as out_of_range, not as a parse error.
   TempDir dir;

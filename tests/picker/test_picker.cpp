@@ -1,5 +1,7 @@
 // The Picker's real window, driven with QTest mouse and key events (run under xvfb-run).
+#include "csrbf/anim/scene.hpp"
 #include "csrbf/io/deformation.hpp"
+#include "csrbf/io/scene.hpp"
 #include "gui_common.hpp"
 #include "gui_test_helpers.hpp"
 #include "io/test_helpers.hpp"
@@ -7,7 +9,12 @@
 
 #include <gtest/gtest.h>
 
+#include <QAction>
 #include <QApplication>
+#include <QLabel>
+#include <QLineEdit>
+#include <QMessageBox>
+#include <QTimer>
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDoubleSpinBox>
@@ -20,7 +27,16 @@
 #include <QTest>
 #include <QVTKOpenGLNativeWidget.h>
 
+#include <vtkActor.h>
+#include <vtkActor2DCollection.h>
+#include <vtkCamera.h>
+#include <vtkProperty.h>
+#include <vtkRenderWindow.h>
+#include <vtkRenderer.h>
+#include <vtkScalarBarActor.h>
+
 #include <filesystem>
+#include <fstream>
 
 namespace fs = std::filesystem;
 using csrbf::Vec3;
@@ -224,6 +240,268 @@ TEST_F(Fixture, FoldedRegionsAreColouredAndWarned) {
   // Below the first fold nothing folds.
   w.findChild<QSlider*>("phase")->setValue(50);
   EXPECT_TRUE(w.fold_warning().isEmpty()) << w.fold_warning().toStdString();
+}
+
+namespace {
+
+std::string statusBar_text(PickerWindow& w) {
+  std::string all;
+  for (auto* l : w.findChildren<QLabel*>()) all += l->text().toStdString() + "\n";
+  return all;
+}
+
+/// Display-pixel box (xmin, xmax, ymin, ymax) of the deformed mesh's vertices in the view.
+std::array<double, 4> screen_box(PickerWindow& w) {
+  std::array<double, 4> b = {1e300, -1e300, 1e300, -1e300};
+  for (const auto& p : w.document().deformed()) {
+    const QPointF d = w.to_display(p);
+    b[0] = std::min(b[0], d.x());
+    b[1] = std::max(b[1], d.x());
+    b[2] = std::min(b[2], d.y());
+    b[3] = std::max(b[3], d.y());
+  }
+  return b;
+}
+
+/// The direction the view's camera looks in.
+Vec3 looking(PickerWindow& w) {
+  double d[3];
+  w.renderer()->GetActiveCamera()->GetDirectionOfProjection(d);
+  return Vec3(d[0], d[1], d[2]);
+}
+
+/// Answers the next message box with `button` and returns the buttons it offered.
+std::shared_ptr<QMessageBox::StandardButtons> answer_next_box(QMessageBox::StandardButton button) {
+  auto offered = std::make_shared<QMessageBox::StandardButtons>();
+  QTimer::singleShot(300, [offered, button] {
+    auto* box = qobject_cast<QMessageBox*>(QApplication::activeModalWidget());
+    if (!box) return;
+    *offered = box->standardButtons();
+    box->button(button)->click();
+  });
+  return offered;
+}
+
+}  // namespace
+
+TEST_F(Fixture, ActiveAreaIsSavedAndThePickerTheCliAndTheComposerMoveTheSameVertices) {
+  const auto& doc = w.document();
+  csrbf::test::TempDir dir;
+  // A ctrl + drag over the right part of the fish (its tail): the rectangle is drawn while dragging.
+  const int wv = w.view()->width(), hv = w.view()->height();
+  const QPoint from(wv * 62 / 100, 5), to(wv - 5, hv - 5);
+  QTest::mousePress(w.view(), Qt::LeftButton, Qt::ControlModifier, from);
+  for (int k = 1; k <= 6; ++k) QTest::mouseMove(w.view(), from + (to - from) * k / 6, 5);
+  EXPECT_TRUE(w.band_visible());
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-band.png").string())));
+  QTest::mouseRelease(w.view(), Qt::LeftButton, Qt::ControlModifier, to);
+  QApplication::processEvents();
+  EXPECT_FALSE(w.band_visible());
+  ASSERT_FALSE(doc.state().region.empty());
+  ASSERT_LT(doc.state().region.size(), doc.rest().size());
+  // The whole fish's controls with R = 0.3 act only inside the area.
+  ASSERT_TRUE(w.load_controls(QString::fromStdString(kExamples + "fish.controls"), 0.3));
+  const auto region = doc.state().region;
+  ASSERT_FALSE(region.empty()) << "loading controls keeps the area";
+  std::size_t moved = 0;
+  for (std::size_t i = 0; i < doc.rest().size(); ++i) moved += doc.deformed()[i] != doc.rest()[i];
+  EXPECT_GT(moved, 10u);
+  EXPECT_LE(moved, region.size());
+  ASSERT_TRUE(w.save_deformation(QString::fromStdString((dir / "tail.json").string())));
+  ASSERT_TRUE(w.export_mesh(QString::fromStdString((dir / "picker.obj").string())));
+  w.findChild<QCheckBox*>("colourDisplacement")->setChecked(true);
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-active-area.png").string())));
+
+  // The file carries the area.
+  const auto spec = csrbf::io::read_deformation(dir / "tail.json");
+  ASSERT_TRUE(spec.area.has_value());
+  EXPECT_EQ(spec.area->vertex_count, 977u);
+  EXPECT_EQ(spec.area->vertices, region);
+
+  // csrbf deform --deformation writes the same file, byte for byte.
+  const auto cli = csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "fish.obj --deformation " +
+                                          (dir / "tail.json").string() + " -o " + (dir / "cli.obj").string());
+  ASSERT_EQ(cli.code, 0) << cli.out;
+  EXPECT_NE(cli.out.find("active area of " + std::to_string(region.size()) + " vertices"), std::string::npos) << cli.out;
+  const auto read = [](const fs::path& f) {
+    std::ifstream in(f, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  };
+  EXPECT_EQ(read(dir / "cli.obj"), read(dir / "picker.obj"));
+  const auto out = csrbf::io::MeshDocument::load(dir / "cli.obj");
+  for (std::size_t i = 0; i < doc.rest().size(); ++i) {
+    if (!std::binary_search(region.begin(), region.end(), std::uint32_t(i))) {
+      ASSERT_EQ(doc.deformed()[i], doc.rest()[i]) << i;
+    }
+    ASSERT_LT((out.positions()[i] - doc.deformed()[i]).norm(), 1e-6) << i;
+  }
+
+  // The Composer's scene (the animate renderer's input) moves the same vertices by the same amounts.
+  csrbf::test::write_text(dir / "tail.scene.json",
+                          R"({"duration": 1, "objects": [{"mesh": ")" + kExamples + R"(fish.obj", "parts": [{"deformations": [{"deformation": "tail.json"}]}]}]})");
+  const auto scene = csrbf::io::read_scene(dir / "tail.scene.json");
+  csrbf::anim::Player player(scene);
+  player.evaluate(0.0);
+  const auto& composed = player.deformed(0);
+  ASSERT_EQ(composed.size(), doc.rest().size());
+  double worst = 0;
+  for (std::size_t i = 0; i < composed.size(); ++i) worst = std::max(worst, (composed[i] - doc.deformed()[i]).norm());
+  EXPECT_LT(worst, 1e-12);
+  for (std::size_t i = 0; i < composed.size(); ++i)
+    if (!std::binary_search(region.begin(), region.end(), std::uint32_t(i))) ASSERT_EQ(composed[i], doc.rest()[i]) << i;
+
+  // A mesh of another vertex count is refused by name, by the CLI and the Picker alike.
+  const auto other = csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "bunny.obj --deformation " +
+                                            (dir / "tail.json").string() + " -o " + (dir / "b.obj").string());
+  EXPECT_EQ(other.code, 1);
+  EXPECT_NE(other.out.find("picked on a mesh of 977 vertices"), std::string::npos) << other.out;
+  ASSERT_TRUE(w.open_mesh(QString::fromStdString(kExamples + "bunny.obj")));
+  EXPECT_FALSE(w.load_deformation(QString::fromStdString((dir / "tail.json").string())));
+  EXPECT_NE(w.error_text().toStdString().find("picked on a mesh of 977 vertices"), std::string::npos)
+      << w.error_text().toStdString();
+}
+
+TEST_F(Fixture, UnsavedWorkIsMarkedAndAskedForAndCtrlSSavesInPlace) {
+  const auto& doc = w.document();
+  csrbf::test::TempDir dir;
+  EXPECT_FALSE(w.isWindowModified());
+  EXPECT_TRUE(w.windowTitle().startsWith("fish.obj[*]")) << w.windowTitle().toStdString();
+  QTest::mouseClick(w.view(), Qt::LeftButton, Qt::NoModifier, centre());
+  ASSERT_EQ(doc.state().controls.size(), 1u);
+  EXPECT_TRUE(w.isWindowModified());
+  // Opening another mesh asks Save / Discard / Cancel; Cancel keeps everything.
+  w.setProperty("noPrompt", false);
+  auto offered = answer_next_box(QMessageBox::Cancel);
+  QTest::keyClick(&w, Qt::Key_O, Qt::ControlModifier);
+  EXPECT_EQ(*offered, QMessageBox::Save | QMessageBox::Discard | QMessageBox::Cancel);
+  EXPECT_EQ(doc.state().controls.size(), 1u);
+  EXPECT_EQ(doc.rest().size(), 977u);
+  EXPECT_EQ(w.undo_stack().count(), 1);
+  // Quitting asks too; Cancel keeps the window open.
+  offered = answer_next_box(QMessageBox::Cancel);
+  w.close();
+  EXPECT_TRUE(w.isVisible());
+  EXPECT_EQ(*offered, QMessageBox::Save | QMessageBox::Discard | QMessageBox::Cancel);
+  w.setProperty("noPrompt", true);
+  w.activateWindow();
+  ASSERT_TRUE(QTest::qWaitForWindowActive(&w));
+  // Saved once, Ctrl+S writes to the same file without asking.
+  ASSERT_TRUE(w.save_deformation(QString::fromStdString((dir / "d.json").string())));
+  EXPECT_FALSE(w.isWindowModified());
+  QTest::mouseClick(w.view(), Qt::LeftButton, Qt::NoModifier, centre() + QPoint(50, 0));
+  ASSERT_EQ(doc.state().controls.size(), 2u);
+  EXPECT_TRUE(w.isWindowModified());
+  QTest::keyClick(&w, Qt::Key_S, Qt::ControlModifier);
+  EXPECT_FALSE(w.isWindowModified());
+  EXPECT_EQ(csrbf::io::read_deformation(dir / "d.json").sources.size(), 2u);
+}
+
+TEST_F(Fixture, VtkKeysAreOffNewMeshesAreFramedAndViewsReset) {
+  // 3 (stereo), e and q (quit), f (fly to) are VTK's; none acts. W is the documented wireframe toggle.
+  QTest::keyClick(w.view(), Qt::Key_3);
+  QTest::keyClick(w.view(), Qt::Key_E);
+  QTest::keyClick(w.view(), Qt::Key_Q);
+  EXPECT_FALSE(w.view()->renderWindow()->GetStereoRender());
+  EXPECT_TRUE(w.isVisible());
+  vtkActorCollection* actors = w.renderer()->GetActors();
+  actors->InitTraversal();
+  vtkActor* mesh = actors->GetNextActor();
+  QTest::keyClick(&w, Qt::Key_W);
+  EXPECT_EQ(mesh->GetProperty()->GetRepresentation(), VTK_WIREFRAME);
+  QTest::keyClick(&w, Qt::Key_W);
+  EXPECT_EQ(mesh->GetProperty()->GetRepresentation(), VTK_SURFACE);
+
+  // A second, larger mesh opens framed: centred and filling the view.
+  ASSERT_TRUE(w.open_mesh(QString::fromStdString(kExamples + "bunny.obj")));
+  QApplication::processEvents();
+  const double vw = w.view()->width() * w.view()->devicePixelRatioF(), vh = w.view()->height() * w.view()->devicePixelRatioF();
+  auto b = screen_box(w);
+  EXPECT_GE(b[0], 0);
+  EXPECT_LE(b[1], vw);
+  EXPECT_GE(b[2], 0);
+  EXPECT_LE(b[3], vh);
+  EXPECT_GT(std::max((b[1] - b[0]) / vw, (b[3] - b[2]) / vh), 0.5);
+  EXPECT_NEAR((b[0] + b[1]) / 2, vw / 2, 0.1 * vw);
+  EXPECT_NEAR((b[2] + b[3]) / 2, vh / 2, 0.1 * vh);
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-framed-bunny.png").string())));
+  // Orbit away, then R: the front view again (looking down -z), fitted.
+  csrbf::test::drag(w.view(), QPoint(50, 50), QPoint(250, 150));
+  EXPECT_GT((looking(w) - Vec3(0, 0, -1)).norm(), 0.1);
+  QTest::keyClick(&w, Qt::Key_R);
+  EXPECT_LT((looking(w) - Vec3(0, 0, -1)).norm(), 1e-9);
+  b = screen_box(w);
+  EXPECT_GT(std::max((b[1] - b[0]) / vw, (b[3] - b[2]) / vh), 0.5);
+  // 3: from the right side (looking down -x); 7 on the keypad: from the top (down -y); 1: front.
+  QTest::keyClick(&w, Qt::Key_3);
+  EXPECT_LT((looking(w) - Vec3(-1, 0, 0)).norm(), 1e-9);
+  QTest::keyClick(&w, Qt::Key_7, Qt::KeypadModifier);
+  EXPECT_LT((looking(w) - Vec3(0, -1, 0)).norm(), 1e-9);
+  QTest::keyClick(&w, Qt::Key_1);
+  EXPECT_LT((looking(w) - Vec3(0, 0, -1)).norm(), 1e-9);
+}
+
+TEST_F(Fixture, HintsLegendRadiusBoxAndFrameRate) {
+  const auto& doc = w.document();
+  // Colour by displacement shows its legend.
+  QTest::mouseClick(w.view(), Qt::LeftButton, Qt::NoModifier, centre());
+  ASSERT_EQ(doc.state().controls.size(), 1u);
+  const QPoint handle = csrbf::test::widget_point(w, doc.state().controls[0].destination);
+  csrbf::test::drag(w.view(), handle, handle + QPoint(40, -40));
+  EXPECT_GT(w.drag_fps(), 0.0);
+  EXPECT_NE(statusBar_text(w).find("fps while dragging"), std::string::npos) << statusBar_text(w);
+  QTest::keyClick(&w, Qt::Key_D);
+  vtkActor2DCollection* overlays = w.renderer()->GetActors2D();
+  overlays->InitTraversal();
+  bool legend = false;
+  while (vtkActor2D* a = overlays->GetNextActor2D())
+    legend = legend || (vtkScalarBarActor::SafeDownCast(a) && a->GetVisibility());
+  EXPECT_TRUE(legend);
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-legend.png").string())));
+
+  // The radius box reads scientific notation; its percentage goes past 1000 %.
+  auto* radius = w.findChild<QDoubleSpinBox*>("radius");
+  radius->findChild<QLineEdit*>()->selectAll();
+  QTest::keyClicks(radius->findChild<QLineEdit*>(), "2.5e-1");
+  QTest::keyClick(radius->findChild<QLineEdit*>(), Qt::Key_Return);
+  EXPECT_DOUBLE_EQ(doc.state().radius, 0.25);
+  radius->findChild<QLineEdit*>()->selectAll();
+  QTest::keyClicks(radius->findChild<QLineEdit*>(), "1e2");
+  QTest::keyClick(radius->findChild<QLineEdit*>(), Qt::Key_Return);
+  EXPECT_DOUBLE_EQ(doc.state().radius, 100.0);
+  EXPECT_GT(w.findChild<QDoubleSpinBox*>("radiusFraction")->value(), 1000.0);
+  // A radius that reaches no vertex says so.
+  radius->setValue(1e-5);
+  EXPECT_NE(w.hint().toStdString().find("No vertex moves"), std::string::npos) << w.hint().toStdString();
+  radius->setValue(0.3);
+  EXPECT_TRUE(w.hint().isEmpty()) << w.hint().toStdString();
+
+  // An error box goes with the next successful action, and never moves the view.
+  const QSize view = w.view()->size();
+  w.findChild<QComboBox*>("polynomial")->setCurrentIndex(2);  // linear with one control: refused
+  ASSERT_FALSE(w.error_text().isEmpty());
+  QApplication::processEvents();
+  EXPECT_EQ(w.view()->size(), view);
+  csrbf::test::TempDir dir;
+  ASSERT_TRUE(w.save_deformation(QString::fromStdString((dir / "d.json").string())));
+  EXPECT_TRUE(w.error_text().isEmpty());
+
+  // Controls without a radius get a proposed one that does not fold the fish, and the hint says so.
+  ASSERT_TRUE(w.load_controls(QString::fromStdString(kExamples + "fish.controls")));
+  EXPECT_NE(w.hint().toStdString().find("proposed"), std::string::npos) << w.hint().toStdString();
+  EXPECT_TRUE(w.fold_warning().isEmpty()) << w.fold_warning().toStdString();
+  EXPECT_EQ(doc.folds().folded, 0u);
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-proposed-radius.png").string())));
+
+  // "linear" with exactly 4 controls extrapolates: the bunny grows far past its controls, and the hint says so.
+  ASSERT_TRUE(w.open_mesh(QString::fromStdString(kExamples + "bunny.obj")));
+  auto s = doc.state();
+  const auto& r = doc.rest();
+  s.controls = {{r[0], r[0], false}, {r[1], r[1], false}, {r[2], r[2], false}, {r[3], r[3], false}};
+  s.controls[0].destination += 0.3 * (r[1] - r[0]).norm() * Vec3(0, 1, 0);
+  s.polynomial = csrbf::Polynomial::Linear;
+  ASSERT_TRUE(w.edit(s, "Four controls")) << w.error_text().toStdString();
+  EXPECT_NE(w.hint().toStdString().find("the linear polynomial extrapolates"), std::string::npos) << w.hint().toStdString();
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-linear-hint.png").string())));
 }
 
 int main(int argc, char** argv) {

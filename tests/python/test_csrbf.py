@@ -3,6 +3,7 @@
 Run by CTest with Debian's /usr/bin/python3; PYTHONPATH points at the built module, CSRBF_CLI at the
 csrbf program and CSRBF_SOURCE_DIR at the repository.
 """
+import json
 import os
 import subprocess
 import tempfile
@@ -62,6 +63,34 @@ class SameAsTheCommandLine(unittest.TestCase):
         np.testing.assert_array_equal(back.sources, m.sources)
         x = np.random.default_rng(0).random((100, 3))
         np.testing.assert_array_equal(back(x), m(x))
+
+
+    def test_active_area_as_the_command_line(self):
+        # A deformation file with an active area (the Picker's ctrl + drag): apply_deformation moves
+        # exactly the vertices `csrbf deform --deformation` moves, bit for bit; the others stay.
+        rest, faces = csrbf.read_mesh(os.path.join(EXAMPLES, "fish.obj"))
+        area = [int(i) for i in np.flatnonzero(rest[:, 0] > 0.62)]
+        sources, destinations = csrbf.read_controls(os.path.join(EXAMPLES, "fish.controls"))
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "tail.json")
+            with open(path, "w") as f:
+                json.dump({"format": "csrbf-deformation", "version": 1, "kernel": "c2", "radius": 0.3,
+                           "polynomial": "none", "sources": sources.tolist(), "destinations": destinations.tolist(),
+                           "active_area": {"vertex_count": len(rest), "vertices": area}}, f)
+            np.testing.assert_array_equal(csrbf.read_active_area(path), area)
+            py = csrbf.apply_deformation(path, rest, phase=0.75)
+            out = os.path.join(tmp, "out.obj")
+            subprocess.run([CLI, "deform", "--mesh", os.path.join(EXAMPLES, "fish.obj"), "--deformation", path,
+                            "--phase", "0.75", "-o", out], check=True, capture_output=True)
+            np.testing.assert_array_equal(py, obj_vertices(out))
+            outside = np.setdiff1d(np.arange(len(rest)), area)
+            np.testing.assert_array_equal(py[outside], rest[outside])
+            self.assertGreater(np.abs(py[area] - rest[area]).max(), 0.01)
+            with self.assertRaisesRegex(csrbf.FileError, "picked on a mesh of 977 vertices, this one has 976"):
+                csrbf.apply_deformation(path, rest[:-1])
+            whole = os.path.join(tmp, "whole.json")
+            csrbf.write_deformation(whole, csrbf.SpaceMap(sources, destinations, 0.3))
+            self.assertIsNone(csrbf.read_active_area(whole))
 
 
 class AgainstScipy(unittest.TestCase):
