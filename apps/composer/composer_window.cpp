@@ -703,26 +703,10 @@ void ComposerWindow::build_ui() {
   lf->addRow(light_buttons);
   layout->addWidget(lookbox);
 
-  // Messages in a box of fixed height: one coming or going never moves the panel.
-  auto* messages = new QWidget;
-  auto* ml = new QVBoxLayout(messages);
-  ml->setContentsMargins(0, 0, 0, 0);
-  error_ = gui::make_error_label(messages);
-  ml->addWidget(error_);
-  info_ = new QLabel(messages);
-  info_->setObjectName("info");
-  info_->setWordWrap(true);
-  info_->setStyleSheet("QLabel { color: black; background: #9fd89f; padding: 6px; border-radius: 4px; }");
-  info_->hide();
-  ml->addWidget(info_);
-  ml->addStretch(1);
-  auto* mscroll = new QScrollArea(panel);
-  mscroll->setObjectName("messages");
-  mscroll->setWidget(messages);
-  mscroll->setWidgetResizable(true);
-  mscroll->setFrameShape(QFrame::NoFrame);
-  mscroll->setFixedHeight(110);
-  layout->addWidget(mscroll);
+  auto* messages = gui::make_message_box(panel, 110);
+  error_ = gui::add_message(messages, "error", "#b03030");
+  info_ = gui::add_message(messages, "info", "#9fd89f");
+  layout->addWidget(messages);
   layout->addStretch(1);
   dock_scroll->setWidget(panel);
   dock->setWidget(dock_scroll);

@@ -10,6 +10,7 @@
 #include <QLabel>
 #include <QMenu>
 #include <QPixmap>
+#include <QScrollArea>
 #include <QUndoStack>
 #include <QVTKOpenGLNativeWidget.h>
 
@@ -38,12 +39,29 @@ std::unique_ptr<render::Display> ensure_display(const char* program, bool& ok) {
   }
 }
 
-QLabel* make_error_label(QWidget* parent) {
-  auto* l = new QLabel(parent);
-  l->setObjectName("error");
+QScrollArea* make_message_box(QWidget* parent, int height) {
+  auto* messages = new QWidget;
+  auto* layout = new QVBoxLayout(messages);
+  layout->setContentsMargins(0, 0, 0, 0);
+  layout->addStretch(1);
+  auto* box = new QScrollArea(parent);
+  box->setObjectName("messages");
+  box->setWidget(messages);
+  box->setWidgetResizable(true);
+  box->setFrameShape(QFrame::NoFrame);
+  box->setFixedHeight(height);
+  return box;
+}
+
+QLabel* add_message(QScrollArea* box, const char* name, const char* background) {
+  auto* l = new QLabel(box->widget());
+  l->setObjectName(name);
   l->setWordWrap(true);
-  l->setStyleSheet("QLabel { color: white; background: #b03030; padding: 6px; border-radius: 4px; }");
+  const QString text = QString(name) == "error" ? "white" : "black";
+  l->setStyleSheet(QString("QLabel { color: %1; background: %2; padding: 6px; border-radius: 4px; }").arg(text, background));
   l->hide();
+  auto* layout = static_cast<QVBoxLayout*>(box->widget()->layout());
+  layout->insertWidget(layout->count() - 1, l);  // above the stretch
   return l;
 }
 

@@ -16,6 +16,7 @@
 
 class QLabel;
 class QMenu;
+class QScrollArea;
 class QUndoStack;
 class QWidget;
 class QVTKOpenGLNativeWidget;
@@ -28,8 +29,12 @@ namespace csrbf::gui {
 /// when no display can be had.
 std::unique_ptr<render::Display> ensure_display(const char* program, bool& ok);
 
-/// A red box for messages, hidden until shown.
-QLabel* make_error_label(QWidget* parent);
+/// A box of fixed height for message labels, one above another, scrolling when they are long: a
+/// message coming or going never moves the panel or resizes the view under the mouse.
+QScrollArea* make_message_box(QWidget* parent, int height);
+/// A word-wrapped label in such a box, hidden until shown: black text on `background` ("#f0c040"),
+/// or white on red for the error box (name "error").
+QLabel* add_message(QScrollArea* box, const char* name, const char* background);
 /// Undo (Ctrl+Z) and redo (Ctrl+Shift+Z, Ctrl+Y) of a stack, added to a menu.
 void add_undo_actions(QMenu* menu, QUndoStack& stack, QWidget* owner);
 /// Renders the VTK view and saves the whole window as a PNG.

@@ -459,33 +459,11 @@ void PickerWindow::build_ui() {
   layout->addWidget(show_supports_);
   layout->addWidget(colour_displacement_);
 
-  // Messages live in a box of fixed height (scrolling when long), so that a message coming or going
-  // never moves the panel or resizes the view under the mouse.
-  auto* messages = new QWidget;
-  auto* ml = new QVBoxLayout(messages);
-  ml->setContentsMargins(0, 0, 0, 0);
-  error_ = gui::make_error_label(messages);
-  ml->addWidget(error_);
-  fold_warning_ = new QLabel(messages);
-  fold_warning_->setObjectName("foldWarning");
-  fold_warning_->setWordWrap(true);
-  fold_warning_->setStyleSheet("QLabel { color: black; background: #f0c040; padding: 6px; border-radius: 4px; }");
-  fold_warning_->hide();
-  ml->addWidget(fold_warning_);
-  hint_ = new QLabel(messages);
-  hint_->setObjectName("hint");
-  hint_->setWordWrap(true);
-  hint_->setStyleSheet("QLabel { color: black; background: #a8d0f0; padding: 6px; border-radius: 4px; }");
-  hint_->hide();
-  ml->addWidget(hint_);
-  ml->addStretch(1);
-  auto* scroll = new QScrollArea(panel);
-  scroll->setObjectName("messages");
-  scroll->setWidget(messages);
-  scroll->setWidgetResizable(true);
-  scroll->setFrameShape(QFrame::NoFrame);
-  scroll->setFixedHeight(170);
-  layout->addWidget(scroll);
+  auto* messages = gui::make_message_box(panel, 170);
+  error_ = gui::add_message(messages, "error", "#b03030");
+  fold_warning_ = gui::add_message(messages, "foldWarning", "#f0c040");
+  hint_ = gui::add_message(messages, "hint", "#a8d0f0");
+  layout->addWidget(messages);
 
   dock->setWidget(panel);
   addDockWidget(Qt::RightDockWidgetArea, dock);
