@@ -698,7 +698,21 @@ void ComposerWindow::build_ui() {
     const int l = lights_->currentRow();
     if (l >= 0) edit("Remove light", [&](Document& d) { d.remove_light(std::size_t(l)); });
   });
+  auto* light_colour = new QPushButton("Colour...", lookbox);
+  light_colour->setObjectName("lightColour");
+  connect(light_colour, &QPushButton::clicked, this, [this, pick_colour] {
+    const int l = lights_->currentRow();
+    if (l < 0 || std::size_t(l) >= doc_.light_count()) return;
+    const json& light = doc_.json()["lights"][std::size_t(l)];
+    const Vec3 now = light.contains("color") ? Vec3(light["color"][0].get<double>(), light["color"][1].get<double>(),
+                                                    light["color"][2].get<double>())
+                                             : Vec3(1, 1, 1);
+    const double intensity = light.value("intensity", 1.0);
+    if (const auto c = pick_colour(now, "Light colour"))
+      edit("Light colour", [&](Document& d) { d.set_light(std::size_t(l), intensity, *c); });
+  });
   light_buttons->addWidget(add_light);
+  light_buttons->addWidget(light_colour);
   light_buttons->addWidget(del_light);
   lf->addRow(light_buttons);
   layout->addWidget(lookbox);
