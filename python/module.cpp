@@ -339,9 +339,10 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
         csrbf::check_phase(phase);
         const auto d = csrbf::io::read_deformation(path);
         auto p = to_vec3(positions, "positions", true);
+        if (d.area) csrbf::io::check_active_area(*d.area, p, path.string(), "positions");  // before the fit
         {
           py::gil_scoped_release release;
-          csrbf::io::apply_deformation(d.fit(), d.area, p, phase, path.string());
+          csrbf::io::apply_deformation(d.fit(), d.area, p, phase);
         }
         return from_vec3(p);
       },

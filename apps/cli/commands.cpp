@@ -90,6 +90,10 @@ nlohmann::json folds_json(const FoldReport& r) {
   j["folded_vertices"] = r.folded_vertices.size();
   // JSON has no infinity: null when no checked point ever folds.
   j["fold_free_phase"] = std::isfinite(r.fold_free_phase) ? nlohmann::json(r.fold_free_phase) : nlohmann::json();
+  if (r.edge_triangles > 0) {
+    j["area_edge_triangles"] = r.edge_triangles;
+    j["area_edge_flipped"] = r.edge_flipped;
+  }
   return j;
 }
 
@@ -100,6 +104,8 @@ std::string folds_text(const FoldReport& r) {
   o << "  minimum det              " << r.min_det << " at (" << r.min_at.x() << ", " << r.min_at.y() << ", "
     << r.min_at.z() << ")\n";
   o << "  points with det <= 0     " << r.folded << " (" << r.folded_vertices.size() << " vertices)\n";
+  if (r.edge_triangles > 0)
+    o << "  active area's edge       " << r.edge_flipped << " of " << r.edge_triangles << " triangles across it turned over\n";
   if (std::isfinite(r.fold_free_phase))
     o << "  fold-free up to phase    " << r.fold_free_phase
       << (r.fold_free_phase < r.phase ? "  (FOLDS at the phase checked: lower the phase or raise the radius)" : "")

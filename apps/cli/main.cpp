@@ -96,13 +96,16 @@ struct Fitted {
   std::optional<csrbf::io::ActiveArea> area;  // the deformation file's active area, if any
 };
 
-Fitted fit(const FitArgs& a) {
+/// The fit of the controls or deformation file; a deformation's active area is checked against
+/// `mesh` (when given) before the fit, which may take long.
+Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, const std::string& mesh_name = {}) {
   csrbf::io::Controls controls;
   csrbf::FitOptions o;
   std::optional<csrbf::io::ActiveArea> area;
   if (!a.deformation.empty()) {
     auto spec = csrbf::io::read_deformation(a.deformation);
     area = std::move(spec.area);
+    if (area && mesh) csrbf::io::check_active_area(*area, mesh->positions(), a.deformation, mesh_name);
     controls.sources = spec.sources;
     controls.destinations = spec.destinations;
     controls.name = a.deformation;
@@ -225,11 +228,11 @@ int main(int argc, char** argv) {
         throw csrbf::cli::UsageError("-o: unknown output format '" + std::filesystem::path(mesh_out).extension().string() +
                                      "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
       const auto t0 = std::chrono::steady_clock::now();
-      Fitted f = fit(deform_args);
       auto mesh = csrbf::io::MeshDocument::load(mesh_in, deform_args.memory_limit_gib * double(1ull << 30));
+      Fitted f = fit(deform_args, &mesh, mesh_in);
       auto& p = mesh.positions();
       const std::vector<csrbf::Vec3> before = p;
-      csrbf::io::apply_deformation(f.map, f.area, p, phase, deform_args.deformation);
+      csrbf::io::apply_deformation(f.map, f.area, p, phase);
       const auto t1 = std::chrono::steady_clock::now();
       mesh.save(mesh_out);
       std::size_t moved = 0;
@@ -244,17 +247,15 @@ int main(int argc, char** argv) {
     } else if (*bench) {
       csrbf::cli::run_bench(bench_opts);
     } else if (*info) {
-      Fitted f = fit(info_args);
+      std::optional<csrbf::io::MeshDocument> mesh;
+      if (check_folds) mesh.emplace(csrbf::io::MeshDocument::load(info_mesh, info_args.memory_limit_gib * double(1ull << 30)));
+      Fitted f = fit(info_args, mesh ? &*mesh : nullptr, info_mesh);
       std::optional<csrbf::FoldReport> folds;
       if (check_folds) {
-        const auto mesh = csrbf::io::MeshDocument::load(info_mesh, info_args.memory_limit_gib * double(1ull << 30));
-        if (f.area) {  // the vertices the deformation moves, as the Picker counts them
-          csrbf::io::check_active_area(*f.area, mesh.positions().size(), info_args.deformation);
-          std::vector<csrbf::Vec3> part;
-          for (const auto v : f.area->vertices) part.push_back(mesh.positions()[v]);
-          folds = csrbf::check_folds(f.map, part, {}, info_phase);
+        if (f.area) {  // the vertices the deformation moves, and the triangles across the area's edge
+          folds = csrbf::check_folds_in_area(f.map, mesh->positions(), mesh->faces(), f.area->vertices, info_phase);
         } else {
-          folds = csrbf::check_folds(f.map, mesh.positions(), mesh.faces(), info_phase);
+          folds = csrbf::check_folds(f.map, mesh->positions(), mesh->faces(), info_phase);
         }
       }
       if (json) {

@@ -11,6 +11,7 @@
 #include <QComboBox>
 #include <QLineEdit>
 #include <QScrollArea>
+#include <QScrollBar>
 #include <QCloseEvent>
 #include <QDockWidget>
 #include <QDoubleSpinBox>
@@ -202,14 +203,12 @@ void Timeline::paintEvent(QPaintEvent*) {
   p.fillRect(rect(), QColor(45, 47, 52));
   p.setRenderHint(QPainter::Antialiasing);
   const double d = w_->doc_.duration();
-  // Seconds ruler: a line a second, its label centred above it (seen whatever the rows scroll to).
+  // Seconds ruler: a line a second, its label centred above it.
   p.setPen(QColor(120, 120, 130));
   const QFontMetrics fm(font());
   for (int s = 0; s <= int(d + 1e-9); ++s) {
     const double x = x_of(s);
     p.drawLine(QPointF(x, 16), QPointF(x, height()));
-    const QString label = QString::number(s) + "s";
-    p.drawText(QPointF(x - fm.horizontalAdvance(label) / 2.0, 13), label);
   }
   const int o = w_->object_;
   if (o >= 0 && o < int(w_->doc_.object_count())) {
@@ -234,6 +233,14 @@ void Timeline::paintEvent(QPaintEvent*) {
         p.drawPolygon(diamond);
       }
     }
+  }
+  // The labels in a band at the top of what the scroll area shows: in sight however the rows scroll.
+  const int top = visibleRegion().boundingRect().top();
+  p.fillRect(QRect(0, top, width(), 17), QColor(45, 47, 52));
+  p.setPen(QColor(150, 150, 160));
+  for (int s = 0; s <= int(d + 1e-9); ++s) {
+    const QString label = QString::number(s) + "s";
+    p.drawText(QPointF(x_of(s) - fm.horizontalAdvance(label) / 2.0, top + 13), label);
   }
   p.setPen(QPen(QColor(255, 80, 80), 2));
   const double x = x_of(w_->time_);
@@ -260,7 +267,7 @@ void Timeline::mousePressEvent(QMouseEvent* e) {
       if (drag_key_ < 0 && r >= 2 && e->pos().x() < kLeft) w_->select_phase_key(r - 2, -1);  // the row's name
     }
   }
-  if (drag_key_ < 0 && e->pos().x() >= kLeft) w_->set_time(t_of(e->pos().x()));  // scrub
+  if (drag_key_ < 0 && e->pos().x() >= kLeft) w_->set_time(t_of(e->pos().x()));  // scrub, on the ruler or between marks
   update();
 }
 
@@ -354,7 +361,9 @@ void ComposerWindow::build_ui() {
   timeline_scroll_->setWidget(timeline_);
   timeline_scroll_->setWidgetResizable(true);
   timeline_scroll_->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
-  timeline_scroll_->setFixedHeight(timeline_->y_of(5) + 16);
+  timeline_scroll_->setFixedHeight(timeline_->y_of(6) + 8);  // 4 deformation rows without scrolling
+  // The ruler's band follows the scrolling (Qt would only repaint the newly shown strip).
+  connect(timeline_scroll_->verticalScrollBar(), &QScrollBar::valueChanged, timeline_, [this] { timeline_->update(); });
   cl->addWidget(timeline_scroll_);
   auto* transport = new QHBoxLayout;
   play_ = new QPushButton("Play", centre);
@@ -717,14 +726,19 @@ void ComposerWindow::build_ui() {
   lf->addRow(light_buttons);
   layout->addWidget(lookbox);
 
-  auto* messages = gui::make_message_box(panel, 110);
+  // Messages above the scrolling panel, always in sight.
+  auto* messages = gui::make_message_box(dock, 96);
   error_ = gui::add_message(messages, "error", "#b03030");
   info_ = gui::add_message(messages, "info", "#9fd89f");
-  layout->addWidget(messages);
   layout->addStretch(1);
   dock_scroll->setWidget(panel);
-  dock->setWidget(dock_scroll);
   dock_scroll->setMinimumWidth(panel->minimumWidth() + 24);
+  auto* dock_body = new QWidget(dock);
+  auto* dock_layout = new QVBoxLayout(dock_body);
+  dock_layout->setContentsMargins(0, 0, 0, 0);
+  dock_layout->addWidget(messages);
+  dock_layout->addWidget(dock_scroll, 1);
+  dock->setWidget(dock_body);
   addDockWidget(Qt::RightDockWidgetArea, dock);
 }
 
@@ -756,7 +770,7 @@ void ComposerWindow::build_menus() {
     if (doc_.path().empty()) save_as();
     else save_scene(QString::fromStdString(doc_.path().string()));
   });
-  add(file, "Save scene &as...", QKeySequence::SaveAs, save_as);
+  add(file, "Save scene &as...", QKeySequence("Ctrl+Shift+S"), save_as);  // QKeySequence::SaveAs is empty on X11
   add(file, "&Export movie...", QKeySequence("Ctrl+E"), [this, folder] {
     const QString f = QFileDialog::getSaveFileName(this, "Export movie", folder() + "/movie.mp4", "Movies (*.mp4 *.avi)");
     gui::remember_folder(f);
@@ -899,6 +913,11 @@ bool ComposerWindow::open_scene(const QString& path) {
   undo_.setClean();
   setWindowTitle(QFileInfo(path).fileName() + "[*] - csrbf Animation Composer");
   setWindowModified(false);
+  statusBar()->showMessage(QString("Opened %1: %2 objects, %3 s at %4 fps")
+                               .arg(path)
+                               .arg(doc_.object_count())
+                               .arg(doc_.duration())
+                               .arg(doc_.fps()));
   return true;
 }
 

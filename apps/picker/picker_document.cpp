@@ -46,7 +46,7 @@ Outcome Document::apply(const State& s) {
       const SpaceMap& map = fitted.emplace(SpaceMap::fit(src, dst, FitOptions{s.radius, s.kernel, s.polynomial}));
       const auto t1 = Clock::now();
       // The same call as `csrbf deform --deformation` makes on the saved file: the same vertices.
-      io::apply_deformation(map, area(s), moved, s.phase, mesh_path_.string());
+      io::apply_deformation(map, area(s), moved, s.phase);
       out.fit_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
       out.eval_ms = std::chrono::duration<double, std::milli>(Clock::now() - t1).count();
     }
@@ -64,11 +64,9 @@ Outcome Document::apply(const State& s) {
 FoldReport Document::folds() const {
   if (!map_) return FoldReport{};
   if (state_.region.empty()) return check_folds(*map_, rest_, {}, state_.phase);
-  std::vector<Vec3> part;
-  for (const auto v : state_.region) part.push_back(rest_[v]);
-  FoldReport r = check_folds(*map_, part, {}, state_.phase);
-  for (auto& v : r.folded_vertices) v = state_.region[v];
-  return r;
+  // As `csrbf info --check-folds` counts them for the saved file: the area's vertices, triangles
+  // inside it and those across its edge.
+  return check_folds_in_area(*map_, rest_, mesh_->faces(), state_.region, state_.phase);
 }
 
 std::vector<double> Document::displacement_magnitudes() const {
@@ -90,10 +88,10 @@ io::DeformationSpec Document::deformation() const {
 
 std::optional<io::ActiveArea> Document::area(const State& s) const {
   if (s.region.empty()) return std::nullopt;
-  return io::ActiveArea{rest_.size(), s.region};
+  return io::ActiveArea::of(rest_, s.region);
 }
 
-State Document::state_from(const io::DeformationSpec& spec) const {
+State Document::state_from(const io::DeformationSpec& spec, const std::string& where) const {
   State s = state_;
   s.controls.clear();
   for (std::size_t i = 0; i < spec.sources.size(); ++i)
@@ -103,7 +101,7 @@ State Document::state_from(const io::DeformationSpec& spec) const {
   s.polynomial = spec.options.polynomial;
   s.region.clear();
   if (spec.area) {
-    io::check_active_area(*spec.area, rest_.size(), mesh_path_.filename().string());
+    io::check_active_area(*spec.area, rest_, where, mesh_path_.filename().string());
     s.region = spec.area->vertices;
   }
   return s;
@@ -133,17 +131,21 @@ double Document::propose_radius(const State& s) const {
   }
   double r = 3.0 * std::max(spacing, longest);
   if (!(r > 0)) r = 0.05 * diagonal_;
-  std::vector<Vec3> src, dst, part;
+  std::vector<Vec3> src, dst;
   for (const auto& c : s.controls) {
     src.push_back(c.source);
     dst.push_back(c.destination);
   }
-  if (s.region.empty()) part = rest_;
-  else
-    for (const auto v : s.region) part.push_back(rest_[v]);
-  for (; r < diagonal_; r *= 1.25) {
+  // Three significant digits, rounded up (a short number in the file, never below the fold-free one).
+  const auto round_up = [](double x) {
+    const int e = int(std::floor(std::log10(x))) - 2;
+    return e < 0 ? std::ceil(x * std::pow(10.0, -e)) / std::pow(10.0, -e) : std::ceil(x / std::pow(10.0, e)) * std::pow(10.0, e);
+  };
+  for (r = round_up(r); r < diagonal_; r = round_up(1.25 * r)) {
     const SpaceMap map = SpaceMap::fit(src, dst, FitOptions{r, s.kernel, s.polynomial});
-    if (check_folds(map, part, {}, 1.0).folded == 0) break;
+    const FoldReport f = s.region.empty() ? check_folds(map, rest_, {}, 1.0)
+                                          : check_folds_in_area(map, rest_, mesh_->faces(), s.region, 1.0);
+    if (f.folded == 0 && f.edge_flipped == 0) break;
   }
   return r;
 }

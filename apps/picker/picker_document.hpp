@@ -68,7 +68,7 @@ class Document {
   /// reading one back (as a state with the current phase; the file's active area, or the whole mesh).
   /// state_from throws io::FileError when the file's area was picked on a mesh of another vertex count.
   io::DeformationSpec deformation() const;
-  State state_from(const io::DeformationSpec& spec) const;
+  State state_from(const io::DeformationSpec& spec, const std::string& where = "the deformation") const;
   /// The active area of a state as the deformation file holds it; empty for the whole mesh.
   std::optional<io::ActiveArea> area(const State& s) const;
   /// A radius for controls that come without one: three times the larger of the sources' median

@@ -605,6 +605,7 @@ bool PickerWindow::open_mesh(const QString& path) {
   deformation_path_.clear();
   setWindowTitle(QFileInfo(path).fileName() + "[*] - csrbf Picker");
   setWindowModified(false);
+  timing_->clear();  // the last mesh's
   statusBar()->showMessage(QString("%1: %2 vertices, %3 polygons")
                                .arg(QFileInfo(path).fileName())
                                .arg(doc_.rest().size())
@@ -621,7 +622,7 @@ bool PickerWindow::load_deformation(const QString& path) {
   }
   try {
     const auto spec = io::read_deformation(path.toStdString());
-    if (!edit(doc_.state_from(spec), "Load deformation")) return false;
+    if (!edit(doc_.state_from(spec, path.toStdString()), "Load deformation")) return false;
   } catch (const std::exception& e) {
     show_error(e.what());
     return false;
@@ -655,16 +656,20 @@ bool PickerWindow::load_controls(const QString& path, std::optional<double> radi
                      .arg(next.controls.size());
     }
     if (!edit(next, "Load controls")) return false;
+    const FoldReport folds = radius ? FoldReport{} : doc_.folds();
     if (!radius)
-      proposal.replace(" Change it", doc_.folds().folded == 0 ? QString("; the mesh does not fold at phase 1. Change it")
-                                                              : QString("; the mesh still folds even at the mesh's size. Change it"));
+      proposal.replace(". Change it", folds.folded == 0 && folds.edge_flipped == 0
+                                          ? QString("; the mesh does not fold at phase 1. Change it")
+                                          : QString("; the mesh still folds even at the mesh's size. Change it"));
   } catch (const std::exception& e) {
     show_error(e.what());
     return false;
   }
   proposal_ = proposal;
   refresh_hints();
-  statusBar()->showMessage(proposal.isEmpty() ? "Loaded " + path : proposal, 10000);
+  statusBar()->showMessage(proposal.isEmpty() ? "Loaded " + path
+                                              : QString("Radius R = %1 proposed (see the blue box)").arg(doc_.state().radius),
+                           10000);
   return true;
 }
 
@@ -841,11 +846,15 @@ void PickerWindow::refresh_view() {
   const FoldReport folds = doc_.folds();
   std::vector<char> folded(pos.size(), 0);
   for (const auto v : folds.folded_vertices) folded[v] = 1;
-  if (folds.folded > 0) {
-    fold_warning_->setText(QString("%1 %2 over (det dT/dx <= 0, shown in magenta). The map is fold-free up "
-                                   "to phase %3: lower the phase or the displacements, or raise the radius.")
+  if (folds.folded > 0 || folds.edge_flipped > 0) {
+    const QString edge = folds.edge_flipped == 0 ? QString()
+                                                 : QString(" %1 of the triangles across the active area's edge turn over.")
+                                                       .arg(folds.edge_flipped);
+    fold_warning_->setText(QString("%1 %2 over (det dT/dx <= 0, shown in magenta).%3 The map is fold-free up "
+                                   "to phase %4: lower the phase or the displacements, or raise the radius.")
                                .arg(folds.folded)
-                               .arg(folds.folded == 1 ? "vertex folds" : "vertices fold")
+                               .arg(folds.folded == 1 ? "point folds" : "points fold")
+                               .arg(edge)
                                .arg(folds.fold_free_phase, 0, 'f', 3));
     fold_warning_->show();
   } else {

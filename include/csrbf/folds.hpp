@@ -25,6 +25,9 @@ struct FoldReport {
   /// The largest t such that every point checked has det > 0 for all phases in [0, t): the first
   /// fold over the samples. Infinity if none of them ever folds.
   double fold_free_phase = std::numeric_limits<double>::infinity();
+  /// With an active area (check_folds_in_area): triangles across its edge, and those of them turned
+  /// over at `phase` (the displacement stops at the edge, so these can flip without det <= 0).
+  std::size_t edge_triangles = 0, edge_flipped = 0;
 };
 
 /// The cubic's smallest positive root for one point: the first phase at which it folds (infinity
@@ -35,5 +38,13 @@ double first_fold_phase(const Eigen::Matrix3d& jacobian_at_1);
 /// (the centroid and the points halfway between it and each corner). Runs in parallel.
 FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices,
                        const std::vector<std::vector<std::uint32_t>>& faces, double phase = 1.0);
+
+/// The same for a map that moves only the `area` vertices (sorted indices; the Picker's active area):
+/// the area's vertices, 4 points inside each triangle wholly inside it, and every triangle across its
+/// edge, which folds when it turns over (its normal against the rest normal). fold_free_phase covers
+/// all three; folded_vertices are indices into `vertices`.
+FoldReport check_folds_in_area(const SpaceMap& map, std::span<const Vec3> vertices,
+                               const std::vector<std::vector<std::uint32_t>>& faces,
+                               const std::vector<std::uint32_t>& area, double phase = 1.0);
 
 }  // namespace csrbf

@@ -75,4 +75,66 @@ FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices,
   return r;
 }
 
+FoldReport check_folds_in_area(const SpaceMap& map, std::span<const Vec3> vertices,
+                               const std::vector<std::vector<std::uint32_t>>& faces,
+                               const std::vector<std::uint32_t>& area, double phase) {
+  check_phase(phase);
+  constexpr std::uint32_t kOut = std::numeric_limits<std::uint32_t>::max();
+  std::vector<std::uint32_t> local(vertices.size(), kOut);  // index in the area, or kOut
+  std::vector<Vec3> part;
+  part.reserve(area.size());
+  for (const auto v : area) {
+    local.at(v) = std::uint32_t(part.size());
+    part.push_back(vertices[v]);
+  }
+  std::vector<Vec3> moved(part.size());
+  map.apply(part, moved, 1.0);  // displacement at phase 1: moved - part
+  std::vector<std::vector<std::uint32_t>> inside;
+  std::size_t edge = 0, flipped = 0;
+  double first_flip = std::numeric_limits<double>::infinity();
+  const auto disp = [&](std::uint32_t v) -> Vec3 { return local[v] == kOut ? Vec3::Zero() : Vec3(moved[local[v]] - part[local[v]]); };
+  for (const auto& f : faces) {
+    std::size_t in = 0;
+    for (const auto v : f) in += local.at(v) != kOut;
+    if (in == f.size()) {
+      std::vector<std::uint32_t> g;
+      for (const auto v : f) g.push_back(local[v]);
+      inside.push_back(std::move(g));
+      continue;
+    }
+    if (in == 0) continue;
+    for (std::size_t k = 1; k + 1 < f.size(); ++k) {
+      const std::uint32_t a = f[0], b = f[k], c = f[k + 1];
+      if (local[a] == kOut && local[b] == kOut && local[c] == kOut) continue;
+      ++edge;
+      // n(t) = (e1 + t g1) x (e2 + t g2); n(t) . n(0) = |n0|^2 + t n0.(e1 x g2 + g1 x e2) + t^2 n0.(g1 x g2).
+      const Vec3 e1 = vertices[b] - vertices[a], e2 = vertices[c] - vertices[a];
+      const Vec3 g1 = disp(b) - disp(a), g2 = disp(c) - disp(a);
+      const Vec3 n0 = e1.cross(e2);
+      const double c0 = n0.squaredNorm(), c1 = n0.dot(e1.cross(g2) + g1.cross(e2)), c2 = n0.dot(g1.cross(g2));
+      if (!(c0 > 0)) continue;  // a degenerate triangle has no side to turn over
+      if (c0 + phase * c1 + phase * phase * c2 <= 0) ++flipped;
+      // The smallest positive root of c2 t^2 + c1 t + c0: the first phase at which it turns over.
+      double root = std::numeric_limits<double>::infinity();
+      if (c2 == 0) {
+        if (c1 < 0) root = -c0 / c1;
+      } else {
+        const double disc = c1 * c1 - 4 * c2 * c0;
+        if (disc >= 0) {
+          const double s = std::sqrt(disc);
+          for (const double t : {(-c1 - s) / (2 * c2), (-c1 + s) / (2 * c2)})
+            if (t > 0) root = std::min(root, t);
+        }
+      }
+      first_flip = std::min(first_flip, root);
+    }
+  }
+  FoldReport r = check_folds(map, part, inside, phase);
+  for (auto& v : r.folded_vertices) v = area[v];
+  r.edge_triangles = edge;
+  r.edge_flipped = flipped;
+  r.fold_free_phase = std::min(r.fold_free_phase, first_flip);
+  return r;
+}
+
 }  // namespace csrbf

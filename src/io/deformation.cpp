@@ -4,6 +4,7 @@
 #include "csrbf/io/controls.hpp"
 #include "json_reader.hpp"
 
+#include <algorithm>
 #include <limits>
 
 namespace csrbf::io {
@@ -48,7 +49,7 @@ DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::p
   }
   if (node.has("active_area")) {
     const JsonNode a = node["active_area"];
-    a.only({"vertex_count", "vertices"});
+    a.only({"vertex_count", "vertices", "bounds"});
     ActiveArea area;
     area.vertex_count = a["vertex_count"].index();
     if (area.vertex_count == 0 || area.vertex_count > std::numeric_limits<std::uint32_t>::max())
@@ -64,6 +65,13 @@ DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::p
         v[i].fail("vertices must be sorted and unique (" + std::to_string(k) + " follows " +
                   std::to_string(area.vertices.back()) + ")");
       area.vertices.push_back(std::uint32_t(k));
+    }
+    if (a.has("bounds")) {
+      const JsonNode b = a["bounds"];
+      if (b.size() != 2) b.expected("[[xmin, ymin, zmin], [xmax, ymax, zmax]]");
+      const std::array<Vec3, 2> box = {b[std::size_t(0)].vec3(), b[std::size_t(1)].vec3()};
+      if (!(box[0].array() <= box[1].array()).all()) b.fail("the first corner must not exceed the second");
+      area.bounds = box;
     }
     spec.area = std::move(area);
   }
@@ -121,28 +129,55 @@ void write_deformation(const std::filesystem::path& path, const DeformationSpec&
       out << "  \"active_area\": {\"vertex_count\": " << spec.area->vertex_count << ", \"vertices\": [";
       for (std::size_t i = 0; i < spec.area->vertices.size(); ++i)
         out << (i == 0 ? "" : i % 16 == 0 ? ",\n    " : ", ") << spec.area->vertices[i];
-      out << "]}\n";
+      out << "]";
+      if (spec.area->bounds)
+        out << ",\n    \"bounds\": [" << point((*spec.area->bounds)[0]) << ", " << point((*spec.area->bounds)[1]) << "]";
+      out << "}\n";
     }
     out << "}\n";
   });
 }
 
-void check_active_area(const ActiveArea& area, std::size_t vertices, const std::string& where) {
-  if (vertices != area.vertex_count)
+ActiveArea ActiveArea::of(const std::vector<Vec3>& rest, std::vector<std::uint32_t> vertices) {
+  ActiveArea a;
+  a.vertex_count = rest.size();
+  if (!vertices.empty()) {
+    std::array<Vec3, 2> box = {rest.at(vertices.front()), rest.at(vertices.front())};
+    for (const auto v : vertices) {
+      box[0] = box[0].cwiseMin(rest.at(v));
+      box[1] = box[1].cwiseMax(rest.at(v));
+    }
+    a.bounds = box;
+  }
+  a.vertices = std::move(vertices);
+  return a;
+}
+
+void check_active_area(const ActiveArea& area, const std::vector<Vec3>& rest, const std::string& where,
+                       const std::string& mesh) {
+  if (rest.size() != area.vertex_count)
     throw FileError(where + ": active_area: the deformation was picked on a mesh of " +
-                    std::to_string(area.vertex_count) + " vertices, this one has " + std::to_string(vertices));
+                    std::to_string(area.vertex_count) + " vertices, " + mesh + " has " + std::to_string(rest.size()));
+  if (!area.bounds || area.vertices.empty()) return;
+  const ActiveArea here = ActiveArea::of(rest, area.vertices);
+  const auto& want = *area.bounds;
+  const double scale = std::max({(want[1] - want[0]).norm(), want[0].cwiseAbs().maxCoeff(), want[1].cwiseAbs().maxCoeff()});
+  const double off = std::max(((*here.bounds)[0] - want[0]).cwiseAbs().maxCoeff(), ((*here.bounds)[1] - want[1]).cwiseAbs().maxCoeff());
+  if (!(off <= 1e-6 * scale))
+    throw FileError(where + ": active_area: its vertices of " + mesh + " are not where they were picked (their bounds "
+                    "differ by " + format_number(off) + "): the mesh's vertices are in another order, as an STL or a "
+                    "re-exported file may have them; use the mesh the deformation was made on");
 }
 
 void apply_deformation(const SpaceMap& map, const std::optional<ActiveArea>& area, std::vector<Vec3>& positions,
-                       double phase, const std::string& where) {
+                       double phase) {
   if (!area) {
     map.apply(positions, positions, phase);
     return;
   }
-  check_active_area(*area, positions.size(), where);
   std::vector<Vec3> part;
   part.reserve(area->vertices.size());
-  for (const auto v : area->vertices) part.push_back(positions[v]);
+  for (const auto v : area->vertices) part.push_back(positions.at(v));
   map.apply(part, part, phase);
   for (std::size_t i = 0; i < part.size(); ++i) positions[area->vertices[i]] = part[i];
 }

@@ -196,7 +196,7 @@ struct PendingContact {
 
 anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base, std::vector<PendingContact>& contacts,
                                          std::size_t object, std::size_t part, std::size_t index,
-                                         std::size_t vertex_count) {
+                                         const std::vector<Vec3>& rest) {
   n.only({"name", "deformation", "controls", "sources", "destinations", "radius", "kernel", "polynomial", "phase",
           "contact", "active_area"});
   anim::Deformation def;
@@ -227,7 +227,7 @@ anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base
   }
   DeformationSpec spec;
   if (n.has("deformation")) {
-    for (const char* k : {"radius", "kernel", "polynomial"})
+    for (const char* k : {"radius", "kernel", "polynomial", "active_area"})
       if (n.has(k)) n[k].fail("set in the deformation file; remove it here");
     const JsonNode f = n["deformation"];
     try {
@@ -240,9 +240,11 @@ anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base
   }
   if (spec.area) {
     const JsonNode where = n.has("active_area") ? n["active_area"] : n["deformation"];
-    if (spec.area->vertex_count != vertex_count)
-      where.fail("the active area was picked on a mesh of " + std::to_string(spec.area->vertex_count) +
-                 " vertices, this object's mesh has " + std::to_string(vertex_count));
+    try {
+      check_active_area(*spec.area, rest, "this deformation", "this object's mesh");
+    } catch (const FileError& e) {
+      where.fail(e.what());
+    }
     def.area = std::move(spec.area->vertices);
   }
   try {
@@ -389,7 +391,7 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
           if (ds.size() > kMaxDeformations)
             ds.fail("at most " + std::to_string(kMaxDeformations) + " deformations a part, got " + std::to_string(ds.size()));
           for (std::size_t d = 0; d < ds.size(); ++d)
-            part.deformations.push_back(read_deformation_entry(ds[d], base, contacts, o, p, d, mesh->positions().size()));
+            part.deformations.push_back(read_deformation_entry(ds[d], base, contacts, o, p, d, mesh->positions()));
         }
         obj.parts.push_back(std::move(part));
       }

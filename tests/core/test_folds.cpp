@@ -2,6 +2,8 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+
 #include <cmath>
 #include <limits>
 
@@ -66,4 +68,59 @@ TEST(Folds, AMapKnownNotToFold) {
   const auto t = csrbf::check_folds(map, tri, {{0, 1, 2}});
   EXPECT_EQ(t.samples, 3u + 4u);
   EXPECT_THROW(csrbf::check_folds(map, tri, {{0, 1, 7}}), csrbf::InvalidInput);
+}
+
+TEST(Folds, TrianglesAcrossAnActiveAreasEdgeTurnOverAsABruteForceFinds) {
+  // A flat 11 x 11 grid in z = 0, two triangles a cell. The area is the left half; one control in it
+  // pushes +x towards the edge, so the displacement stops dead at the edge and the triangles across
+  // it are squashed and turned over (det dT/dx stays positive inside the area).
+  std::vector<Vec3> grid;
+  std::vector<std::vector<std::uint32_t>> faces;
+  const int n = 11;
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) grid.emplace_back(i / 10.0, j / 10.0, 0.0);
+  for (int j = 0; j + 1 < n; ++j)
+    for (int i = 0; i + 1 < n; ++i) {
+      const std::uint32_t a = std::uint32_t(j * n + i), b = a + 1, c = a + std::uint32_t(n), d = c + 1;
+      faces.push_back({a, b, d});
+      faces.push_back({a, d, c});
+    }
+  std::vector<std::uint32_t> area;
+  for (std::uint32_t v = 0; v < grid.size(); ++v)
+    if (grid[v].x() < 0.45) area.push_back(v);
+  const std::vector<Vec3> s{Vec3(0.38, 0.5, 0)}, d{Vec3(0.56, 0.5, 0)};
+  const auto map = csrbf::SpaceMap::fit(s, d, csrbf::FitOptions{0.5, csrbf::Kernel::C2});
+  // Brute force: move the area's vertices at phase t and count triangles whose normal turned over.
+  const auto flipped_at = [&](double t) {
+    std::vector<Vec3> moved = grid, part;
+    for (const auto v : area) part.push_back(grid[v]);
+    map.apply(part, part, t);
+    for (std::size_t k = 0; k < area.size(); ++k) moved[area[k]] = part[k];
+    std::size_t count = 0;
+    for (const auto& f : faces) {
+      const Vec3 n0 = (grid[f[1]] - grid[f[0]]).cross(grid[f[2]] - grid[f[0]]);
+      const Vec3 n1 = (moved[f[1]] - moved[f[0]]).cross(moved[f[2]] - moved[f[0]]);
+      count += n0.dot(n1) <= 0;
+    }
+    return count;
+  };
+  const auto r = csrbf::check_folds_in_area(map, grid, faces, area, 1.0);
+  EXPECT_EQ(r.edge_triangles, 20u);  // one column of cells across x = 0.4 .. 0.5
+  EXPECT_EQ(r.edge_flipped, flipped_at(1.0));
+  EXPECT_GT(r.edge_flipped, 0u);
+  EXPECT_EQ(r.folded, 0u) << "inside the area nothing folds: the edge is what turns over";
+  // The first turning over, from the quadratics, against the brute force on either side of it.
+  ASSERT_TRUE(std::isfinite(r.fold_free_phase));
+  ASSERT_LT(r.fold_free_phase, 1.0);
+  EXPECT_EQ(flipped_at(r.fold_free_phase * (1 - 1e-9)), 0u);
+  EXPECT_GT(flipped_at(r.fold_free_phase * (1 + 1e-6) + 1e-12), 0u);
+  // Folded vertices are given as the mesh's indices; an area of every vertex is the plain check.
+  std::vector<std::uint32_t> all(grid.size());
+  for (std::uint32_t v = 0; v < all.size(); ++v) all[v] = v;
+  const auto whole = csrbf::check_folds_in_area(map, grid, faces, all, 1.0);
+  const auto plain = csrbf::check_folds(map, grid, faces, 1.0);
+  EXPECT_EQ(whole.edge_triangles, 0u);
+  EXPECT_EQ(whole.samples, plain.samples);
+  EXPECT_EQ(whole.fold_free_phase, plain.fold_free_phase);
+  EXPECT_EQ(whole.folded_vertices, plain.folded_vertices);
 }

@@ -206,7 +206,7 @@ TEST(DeformationFile, ActiveAreaRoundTripsAndLimitsTheVerticesMoved) {
   spec.options.radius = 2.0;
   spec.sources = {Vec3(0.5, 0.5, 0)};
   spec.destinations = {Vec3(0.5, 0.5, 0.2)};
-  spec.area = csrbf::io::ActiveArea{6, {1, 2}};
+  spec.area = csrbf::io::ActiveArea{6, {1, 2}, std::nullopt};
   csrbf::io::write_deformation(dir / "d.json", spec);
   const auto back = csrbf::io::read_deformation(dir / "d.json");
   ASSERT_TRUE(back.area.has_value());
@@ -215,7 +215,8 @@ TEST(DeformationFile, ActiveAreaRoundTripsAndLimitsTheVerticesMoved) {
   std::vector<Vec3> pts = {Vec3(0, 0, 0), Vec3(1, 0, 0), Vec3(1, 1, 0), Vec3(0, 1, 0), Vec3(2, 0, 0), Vec3(2, 1, 0)};
   const auto rest = pts;
   const auto map = back.fit();
-  csrbf::io::apply_deformation(map, back.area, pts, 0.5, "d.json");
+  csrbf::io::check_active_area(*back.area, pts, "d.json", "the points");
+  csrbf::io::apply_deformation(map, back.area, pts, 0.5);
   for (std::size_t i = 0; i < pts.size(); ++i) {
     if (i == 1 || i == 2) {
       std::vector<Vec3> one = {rest[i]};
@@ -229,13 +230,36 @@ TEST(DeformationFile, ActiveAreaRoundTripsAndLimitsTheVerticesMoved) {
   // A mesh of another vertex count is refused, naming both counts.
   std::vector<Vec3> five(rest.begin(), rest.begin() + 5);
   try {
-    csrbf::io::apply_deformation(map, back.area, five, 1.0, "d.json");
+    csrbf::io::check_active_area(*back.area, five, "d.json", "five.obj");
     FAIL();
   } catch (const FileError& e) {
-    EXPECT_NE(std::string(e.what()).find("d.json: active_area: the deformation was picked on a mesh of 6 vertices, this one has 5"),
+    EXPECT_NE(std::string(e.what()).find("d.json: active_area: the deformation was picked on a mesh of 6 vertices, five.obj has 5"),
               std::string::npos)
         << e.what();
   }
+  // The same count in another vertex order (an STL round trip, a re-export) is refused by the bounds.
+  const auto bounded = csrbf::io::ActiveArea::of(rest, {1, 2});
+  ASSERT_TRUE(bounded.bounds.has_value());
+  EXPECT_EQ((*bounded.bounds)[0], Vec3(1, 0, 0));
+  EXPECT_EQ((*bounded.bounds)[1], Vec3(1, 1, 0));
+  auto reordered = rest;
+  std::swap(reordered[1], reordered[4]);
+  EXPECT_NO_THROW(csrbf::io::check_active_area(bounded, rest, "d.json", "quad.obj"));
+  try {
+    csrbf::io::check_active_area(bounded, reordered, "d.json", "quad.stl");
+    FAIL();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("d.json: active_area: its vertices of quad.stl are not where they were picked"),
+              std::string::npos)
+        << e.what();
+  }
+  spec.area = bounded;
+  csrbf::io::write_deformation(dir / "b.json", spec);
+  EXPECT_EQ(csrbf::io::read_deformation(dir / "b.json").area, bounded);
+  // Rounding through a float format (glTF, 6e-8 relative) is not a reorder.
+  auto rounded = rest;
+  for (auto& p : rounded) p = p.cast<float>().cast<double>() + Vec3::Constant(1e-8);
+  EXPECT_NO_THROW(csrbf::io::check_active_area(bounded, rounded, "d.json", "quad.glb"));
   // Bad areas name the JSON path and the value.
   const std::string head = R"({"radius": 1, "sources": [[0,0,0]], "destinations": [[0,0,1]], "active_area": )";
   const std::pair<std::string, std::string> bad[] = {
@@ -244,7 +268,9 @@ TEST(DeformationFile, ActiveAreaRoundTripsAndLimitsTheVerticesMoved) {
       {R"({"vertex_count": 0, "vertices": [0]})", "active_area.vertex_count: expected a vertex count from 1"},
       {R"({"vertex_count": 4, "vertices": []})", "active_area.vertices: an active area needs at least one vertex"},
       {R"({"vertex_count": 4, "vertices": [-1]})", "active_area.vertices[0]: expected an integer >= 0"},
-      {R"({"vertex_count": 4, "vertices": [0], "extra": 1})", "active_area.extra: unknown key 'extra' (allowed here: vertex_count, vertices)"},
+      {R"({"vertex_count": 4, "vertices": [0], "extra": 1})", "active_area.extra: unknown key 'extra' (allowed here: vertex_count, vertices, bounds)"},
+      {R"({"vertex_count": 4, "vertices": [0], "bounds": [[1, 0, 0], [0, 0, 0]]})", "active_area.bounds: the first corner must not exceed the second"},
+      {R"({"vertex_count": 4, "vertices": [0], "bounds": [[0, 0, 0]]})", "active_area.bounds: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]]"},
   };
   for (const auto& [area, message] : bad) {
     write_text(dir / "bad.json", head + area + "}");
@@ -264,7 +290,7 @@ TEST(Scene, ADeformationsActiveAreaMovesOnlyItsVerticesInComposeAndSum) {
   spec.options.radius = 3.0;
   spec.sources = {Vec3(0.5, 0.5, 0), Vec3(1.5, 0.5, 0)};
   spec.destinations = {Vec3(0.5, 0.5, 0.3), Vec3(1.5, 0.6, 0)};
-  spec.area = csrbf::io::ActiveArea{6, {1, 2, 4}};
+  spec.area = csrbf::io::ActiveArea{6, {1, 2, 4}, std::nullopt};
   csrbf::io::write_deformation(dir / "area.json", spec);
   const auto map = spec.fit();
   for (const char* combine : {"compose", "sum"}) {
@@ -283,8 +309,21 @@ TEST(Scene, ADeformationsActiveAreaMovesOnlyItsVerticesInComposeAndSum) {
       EXPECT_LT((got[i] - one[0]).norm(), 1e-14) << combine << " vertex " << i;
     }
   }
+  // An entry naming a file cannot give another area beside it (it would be ignored).
+  json both = j;
+  both["objects"][0]["parts"] = json::array({json{{"deformations", json::array({json{
+      {"deformation", "area.json"}, {"active_area", {{"vertex_count", 6}, {"vertices", {0}}}}}})}}});
+  write_text(dir / "s.json", both.dump());
+  try {
+    csrbf::io::read_scene(dir / "s.json");
+    FAIL();
+  } catch (const FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("deformations[0].active_area: set in the deformation file; remove it here"),
+              std::string::npos)
+        << e.what();
+  }
   // The area must fit the object's mesh.
-  spec.area = csrbf::io::ActiveArea{7, {1}};
+  spec.area = csrbf::io::ActiveArea{7, {1}, std::nullopt};
   csrbf::io::write_deformation(dir / "area.json", spec);
   json scene = j;
   scene["objects"][0]["parts"] = json::array({json{{"deformations", json::array({json{{"deformation", "area.json"}}})}}});
@@ -293,8 +332,8 @@ TEST(Scene, ADeformationsActiveAreaMovesOnlyItsVerticesInComposeAndSum) {
     csrbf::io::read_scene(dir / "s.json");
     FAIL();
   } catch (const FileError& e) {
-    EXPECT_NE(std::string(e.what()).find("objects[0].parts[0].deformations[0].deformation: the active area was picked on a mesh "
-                                         "of 7 vertices, this object's mesh has 6"),
+    EXPECT_NE(std::string(e.what()).find("objects[0].parts[0].deformations[0].deformation: this deformation: active_area: the "
+                                         "deformation was picked on a mesh of 7 vertices, this object's mesh has 6"),
               std::string::npos)
         << e.what();
   }

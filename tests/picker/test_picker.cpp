@@ -317,6 +317,7 @@ TEST_F(Fixture, ActiveAreaIsSavedAndThePickerTheCliAndTheComposerMoveTheSameVert
   ASSERT_TRUE(spec.area.has_value());
   EXPECT_EQ(spec.area->vertex_count, 977u);
   EXPECT_EQ(spec.area->vertices, region);
+  ASSERT_TRUE(spec.area->bounds.has_value()) << "the Picker writes the area's bounds";
 
   // csrbf deform --deformation writes the same file, byte for byte.
   const auto cli = csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "fish.obj --deformation " +
@@ -347,8 +348,11 @@ TEST_F(Fixture, ActiveAreaIsSavedAndThePickerTheCliAndTheComposerMoveTheSameVert
   double worst = 0;
   for (std::size_t i = 0; i < composed.size(); ++i) worst = std::max(worst, (composed[i] - doc.deformed()[i]).norm());
   EXPECT_LT(worst, 1e-12);
-  for (std::size_t i = 0; i < composed.size(); ++i)
-    if (!std::binary_search(region.begin(), region.end(), std::uint32_t(i))) ASSERT_EQ(composed[i], doc.rest()[i]) << i;
+  for (std::size_t i = 0; i < composed.size(); ++i) {
+    if (!std::binary_search(region.begin(), region.end(), std::uint32_t(i))) {
+      ASSERT_EQ(composed[i], doc.rest()[i]) << i;
+    }
+  }
 
   // A mesh of another vertex count is refused by name, by the CLI and the Picker alike.
   const auto other = csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "bunny.obj --deformation " +

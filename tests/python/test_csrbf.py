@@ -86,7 +86,7 @@ class SameAsTheCommandLine(unittest.TestCase):
             outside = np.setdiff1d(np.arange(len(rest)), area)
             np.testing.assert_array_equal(py[outside], rest[outside])
             self.assertGreater(np.abs(py[area] - rest[area]).max(), 0.01)
-            with self.assertRaisesRegex(csrbf.FileError, "picked on a mesh of 977 vertices, this one has 976"):
+            with self.assertRaisesRegex(csrbf.FileError, "picked on a mesh of 977 vertices, positions has 976"):
                 csrbf.apply_deformation(path, rest[:-1])
             whole = os.path.join(tmp, "whole.json")
             csrbf.write_deformation(whole, csrbf.SpaceMap(sources, destinations, 0.3))

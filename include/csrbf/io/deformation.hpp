@@ -11,6 +11,7 @@
 #include "csrbf/io/error.hpp"
 #include "csrbf/space_map.hpp"
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -23,7 +24,12 @@ namespace csrbf::io {
 struct ActiveArea {
   std::size_t vertex_count = 0;          ///< vertices of the mesh it was picked on
   std::vector<std::uint32_t> vertices;   ///< sorted, unique, each < vertex_count
+  /// Bounding box (min, max corners) of those vertices' rest positions, when written: a mesh of the
+  /// same count but in another vertex order (an STL, a re-export) is refused, not deformed wrongly.
+  std::optional<std::array<Vec3, 2>> bounds;
   bool operator==(const ActiveArea&) const = default;
+  /// The area of `vertices` of a mesh with rest positions `rest`, its bounds included.
+  static ActiveArea of(const std::vector<Vec3>& rest, std::vector<std::uint32_t> vertices);
 };
 
 struct DeformationSpec {
@@ -33,12 +39,15 @@ struct DeformationSpec {
   SpaceMap fit() const { return SpaceMap::fit(sources, destinations, options); }
 };
 
-/// Throws FileError naming `where` when a mesh of `vertices` vertices is not the one the area was picked on.
-void check_active_area(const ActiveArea& area, std::size_t vertices, const std::string& where);
+/// Throws FileError naming `where` (the deformation file) and `mesh` when a mesh with rest positions
+/// `rest` is not the one the area was picked on: another vertex count, or the area's vertices
+/// outside its bounds by more than 1e-6 of their size (another vertex order).
+void check_active_area(const ActiveArea& area, const std::vector<Vec3>& rest, const std::string& where,
+                       const std::string& mesh);
 /// Moves `positions` (a mesh's rest vertices, in place) by `map` at `phase`, only inside `area` when
-/// one is given. Throws FileError naming `where` when the mesh's vertex count is not the area's.
+/// one is given. The area must have been checked against the mesh (check_active_area).
 void apply_deformation(const SpaceMap& map, const std::optional<ActiveArea>& area, std::vector<Vec3>& positions,
-                       double phase, const std::string& where);
+                       double phase);
 
 /// Throws FileError naming the file and the JSON path of a bad or unknown value.
 DeformationSpec read_deformation(const std::filesystem::path& path);
