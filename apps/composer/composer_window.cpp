@@ -677,7 +677,9 @@ void ComposerWindow::build_ui() {
   lights_ = new QListWidget(lookbox);
   lights_->setObjectName("lights");
   lights_->setMaximumHeight(70);
-  connect(lights_, &QListWidget::currentRowChanged, this, [this] { refresh_look_panel(); });
+  connect(lights_, &QListWidget::currentRowChanged, this, [this] {
+    if (!updating_) refresh_look_panel();  // not while the panel itself refills the list
+  });
   lf->addRow("lights", lights_);
   light_intensity_ = spin("lightIntensity", 0, 10, 0.1, 2);
   connect(light_intensity_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double v) {

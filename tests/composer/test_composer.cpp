@@ -370,6 +370,10 @@ TEST_F(Fixture, SceneCameraLightsColoursAndViewsAreEditedInTheComposer) {
   ASSERT_TRUE(w.edit("Colour", [](csrbf::composer::Document& d) { d.set_object_color(0, Vec3(0.1, 0.8, 0.2)); }));
   QTest::mouseClick(w.findChild<QPushButton*>("addLight"), Qt::LeftButton);
   EXPECT_EQ(w.document().light_count(), 3u);
+  w.findChild<QListWidget*>("lights")->setCurrentRow(2);
+  w.findChild<QDoubleSpinBox*>("lightIntensity")->setValue(0.3);
+  EXPECT_DOUBLE_EQ(w.document().json()["lights"][2]["intensity"].get<double>(), 0.3);
+  EXPECT_EQ(w.findChild<QListWidget*>("lights")->currentRow(), 2) << "the edited light stays selected";
   ASSERT_TRUE(w.save_scene(QString::fromStdString((dir / "look.scene.json").string())));
   const auto scene = csrbf::io::read_scene(dir / "look.scene.json");
   EXPECT_NEAR((scene.camera.position - Vec3(pos[0], pos[1], pos[2])).norm(), 0, 1e-12);
