@@ -48,7 +48,7 @@ QScrollArea* make_message_box(QWidget* parent, int height) {
   box->setObjectName("messages");
   box->setWidget(messages);
   box->setWidgetResizable(true);
-  box->setFrameShape(QFrame::NoFrame);
+  box->setFrameShape(QFrame::StyledPanel);  // seen as the place where messages appear, also when empty
   box->setFixedHeight(height);
   return box;
 }
