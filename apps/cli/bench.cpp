@@ -21,6 +21,7 @@
 #endif
 
 #include <algorithm>
+#include <random>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -364,8 +365,24 @@ void scale_row(const BenchOptions& o, const Printer& out, const SweepPoint& p) {
     eval_1t = median_us([&] { map->apply(xyz.data(), outd.data(), p.m, 0.5); }, seconds, reps);
   }
   ThreadLimit limit(threads);
-  eval_nt = median_us([&] { map->apply(xyz.data(), outd.data(), p.m, 0.5); }, seconds, reps);
+  // The same points in a random order (a point cloud, a renumbered mesh), timed in the same run.
+  std::vector<double> shuffled(xyz.size());
+  {
+    std::vector<std::size_t> perm(p.m);
+    for (std::size_t i = 0; i < p.m; ++i) perm[i] = i;
+    std::shuffle(perm.begin(), perm.end(), std::mt19937_64(20261201));
+    for (std::size_t i = 0; i < p.m; ++i)
+      for (int c = 0; c < 3; ++c) shuffled[3 * i + c] = xyz[3 * perm[i] + c];
+  }
+  const std::vector<float> shuffledf(shuffled.begin(), shuffled.end());
+  double eval_random = 0, eval_random_float = 0;
+  // Interleaved, so that a noisy spell of the shared machine hits both orders alike.
+  for (int round = 0; round < 2; ++round) {
+    eval_nt = median_us([&] { map->apply(xyz.data(), outd.data(), p.m, 0.5); }, seconds, reps);
+    eval_random = median_us([&] { map->apply(shuffled.data(), outd.data(), p.m, 0.5); }, seconds, reps);
+  }
   eval_float_nt = median_us([&] { map->apply(xyzf.data(), outf.data(), p.m, 0.5); }, seconds, reps);
+  eval_random_float = median_us([&] { map->apply(shuffledf.data(), outf.data(), p.m, 0.5); }, seconds, reps);
   const DisplacementField<float> field(*map, xyzf.data(), p.m);
   double t = 0.25;
   playback = median_us(
@@ -399,6 +416,10 @@ void scale_row(const BenchOptions& o, const Printer& out, const SweepPoint& p) {
            {"eval_us", eval_nt},
            {"eval_1thread_us", eval_1t},
            {"eval_float_us", eval_float_nt},
+           {"eval_random_us", eval_random},
+           {"eval_random_float_us", eval_random_float},
+           {"random_ratio", eval_random / eval_nt},
+           {"random_float_ratio", eval_random_float / eval_float_nt},
            {"playback_us", playback},
            {"memcpy_us", memcpy_us},
            {"playback_memcpy_ratio", playback / memcpy_us}};

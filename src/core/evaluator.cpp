@@ -194,6 +194,58 @@ template struct EvalData<float>;
 template struct EvalData<double>;
 
 namespace {
+/// The cell of a point, or the grid's cell count for a point outside it (or NaN).
+template <class T>
+std::size_t cell_index(const EvalGrid& g, const T* p) noexcept {
+  const double fx = std::floor((double(p[0]) - g.origin.x()) * g.inv_h), fy = std::floor((double(p[1]) - g.origin.y()) * g.inv_h),
+               fz = std::floor((double(p[2]) - g.origin.z()) * g.inv_h);
+  if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(g.nx) && fy < double(g.ny) && fz < double(g.nz))
+    return std::size_t((std::int64_t(fz) * g.ny + std::int64_t(fy)) * g.nx + std::int64_t(fx));
+  return std::size_t(g.nx * g.ny * g.nz);
+}
+}  // namespace
+
+template <class T>
+bool incoherent(const EvalGrid& g, const T* in, std::size_t n) {
+  constexpr std::size_t kWindows = 64, kPairs = 64;
+  if (n < 2 * kWindows * (kPairs + 1)) return false;
+  std::size_t breaks = 0;
+  for (std::size_t w = 0; w < kWindows; ++w) {
+    const std::size_t start = w * (n - kPairs - 1) / (kWindows - 1);
+    std::size_t last = cell_index(g, in + 3 * start);
+    for (std::size_t i = start + 1; i <= start + kPairs; ++i) {
+      const std::size_t c = cell_index(g, in + 3 * i);
+      breaks += c != last;
+      last = c;
+    }
+  }
+  // Coherent meshes change cell every 4 to 20 points (a vertex ring crosses a cell of side R/2); a
+  // random order changes at nearly every point.
+  return breaks * 2 > kWindows * kPairs;
+}
+
+template <class T>
+void order_by_cell(const EvalGrid& g, const T* in, std::size_t n, CellOrder<T>& o) {
+  const std::size_t ncell = std::size_t(g.nx * g.ny * g.nz) + 1;  // the last: outside
+  auto& cell = o.cell;
+  auto& start = o.start;
+  cell.resize(n);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i < r.end(); ++i) cell[i] = std::uint32_t(cell_index(g, in + 3 * i));
+  });
+  start.assign(ncell + 1, 0);
+  for (const auto c : cell) ++start[c + 1];
+  for (std::size_t c = 0; c < ncell; ++c) start[c + 1] += start[c];
+  o.order.resize(n);
+  for (std::size_t i = 0; i < n; ++i) o.order[start[cell[i]]++] = std::uint32_t(i);
+}
+
+template bool incoherent<double>(const EvalGrid&, const double*, std::size_t);
+template bool incoherent<float>(const EvalGrid&, const float*, std::size_t);
+template void order_by_cell<double>(const EvalGrid&, const double*, std::size_t, CellOrder<double>&);
+template void order_by_cell<float>(const EvalGrid&, const float*, std::size_t, CellOrder<float>&);
+
+namespace {
 
 #define CSRBF_EVAL_CLONE(K, T)                                                                                 \
   CSRBF_CLONES void eval_##K##_##T(const EvalGrid& g, const EvalData<T>& a, const PolynomialPart* poly, \

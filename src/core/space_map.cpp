@@ -674,6 +674,26 @@ void SpaceMap::apply_direct(const T* in, T* out, std::size_t n, double phase, bo
       detail::evaluate(grid, data, k, poly, in, out, 0, n, phase, add_point);
       return;
     }
+    if (n < (std::size_t(1) << 32) && detail::incoherent(grid, in, n)) {
+      // Points in no spatial order: gathered by cell, evaluated in place, and written back in the
+      // caller's order (in may be out: every point is read before any is written). The buffers stay
+      // with the calling thread for its next batch.
+      thread_local detail::CellOrder<T> scratch;
+      detail::order_by_cell(grid, in, n, scratch);
+      const std::uint32_t* order = scratch.order.data();
+      scratch.points.resize(3 * n);
+      T* points = scratch.points.data();
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t j = r.begin(); j < r.end(); ++j)
+          for (int c = 0; c < 3; ++c) points[3 * j + c] = in[3 * std::size_t(order[j]) + c];
+        detail::evaluate(grid, data, k, poly, points, points, r.begin(), r.end(), phase, add_point);
+      });
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
+        for (std::size_t j = r.begin(); j < r.end(); ++j)
+          for (int c = 0; c < 3; ++c) out[3 * std::size_t(order[j]) + c] = points[3 * j + c];
+      });
+      return;
+    }
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
       detail::evaluate(grid, data, k, poly, in, out, r.begin(), r.end(), phase, add_point);
     });

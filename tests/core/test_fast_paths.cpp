@@ -160,6 +160,84 @@ TEST(FastPaths, GroupedApplyWithPhaseAndPolynomial) {
   });
 }
 
+TEST(FastPaths, RandomOrderIsGatheredByCellAndWrittenBackInTheCallersOrder) {
+  // 40^3 = 64000 points of a lattice, in lattice order (coherent: runs of points in one cell) and
+  // shuffled (every point a new cell), some outside the grid.
+  std::mt19937 rng(2026);
+  const auto s = random_points(1500, rng);
+  const auto d = displaced(s, rng);
+  std::vector<Vec3> lattice;
+  for (int k = 0; k < 40; ++k)
+    for (int j = 0; j < 40; ++j)
+      for (int i = 0; i < 40; ++i) lattice.emplace_back(-0.3 + 1.6 * i / 39.0, -0.3 + 1.6 * j / 39.0, -0.3 + 1.6 * k / 39.0);
+  std::vector<std::size_t> perm(lattice.size());
+  for (std::size_t i = 0; i < perm.size(); ++i) perm[i] = i;
+  std::shuffle(perm.begin(), perm.end(), std::mt19937_64(7));
+  std::vector<Vec3> shuffled(lattice.size());
+  for (std::size_t i = 0; i < perm.size(); ++i) shuffled[i] = lattice[perm[i]];
+  const auto xyz = flat(lattice), xyz_shuffled = flat(shuffled);
+
+  // Detection and the counting sort, against a brute-force cell of each point.
+  const auto g = detail::EvalGrid::build(s, 0.17, std::size_t(1) << 30);
+  ASSERT_TRUE(g.usable);
+  EXPECT_FALSE(detail::incoherent(g, xyz.data(), lattice.size()));
+  EXPECT_TRUE(detail::incoherent(g, xyz_shuffled.data(), shuffled.size()));
+  EXPECT_FALSE(detail::incoherent(g, xyz_shuffled.data(), 8000)) << "small batches are never sorted";
+  detail::CellOrder<double> sorted;
+  detail::order_by_cell(g, xyz_shuffled.data(), shuffled.size(), sorted);
+  const auto& order = sorted.order;
+  ASSERT_EQ(order.size(), shuffled.size());
+  const std::size_t outside = std::size_t(g.nx * g.ny * g.nz);
+  const auto cell_of = [&](const Vec3& q) {
+    Vec3 corner;
+    const Vec3 u = (q - g.origin) * g.inv_h;
+    if ((u.array() < 0).any() || u.x() >= double(g.nx) || u.y() >= double(g.ny) || u.z() >= double(g.nz)) return outside;
+    return grid_cell(g, q, corner);
+  };
+  std::vector<char> seen(order.size(), 0);
+  for (std::size_t k = 0; k < order.size(); ++k) {
+    ASSERT_LT(order[k], order.size());
+    ASSERT_FALSE(seen[order[k]]) << "a permutation";
+    seen[order[k]] = 1;
+    if (k > 0) {
+      const std::size_t a = cell_of(shuffled[order[k - 1]]), b = cell_of(shuffled[order[k]]);
+      ASSERT_LE(a, b) << k;
+      if (a == b) ASSERT_LT(order[k - 1], order[k]) << "stable";
+    }
+  }
+
+  for_each_loop([&] {
+    for (Polynomial p : {Polynomial::None, Polynomial::Linear}) {
+      const SpaceMap map = SpaceMap::fit(s, d, {0.17, Kernel::C2, p});
+      // Double: the shuffled batch equals the lattice's results, shuffled, and the simple path.
+      std::vector<double> out(xyz.size()), out_shuffled(xyz.size());
+      map.apply(xyz.data(), out.data(), lattice.size(), 0.7);
+      map.apply(xyz_shuffled.data(), out_shuffled.data(), shuffled.size(), 0.7);
+      double worst = 0;
+      for (std::size_t i = 0; i < perm.size(); ++i)
+        for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(out_shuffled[3 * i + c] - out[3 * perm[i] + c]));
+      EXPECT_LT(worst, 1e-14);
+      for (std::size_t i = 0; i < shuffled.size(); i += 97) {
+        const Vec3 ref = shuffled[i] + 0.7 * map.displacement(shuffled[i]);
+        ASSERT_LT((Vec3(out_shuffled[3 * i], out_shuffled[3 * i + 1], out_shuffled[3 * i + 2]) - ref).norm(), 1e-13) << i;
+      }
+      // In place (the caller's buffer is both): the same.
+      std::vector<double> inplace = xyz_shuffled;
+      map.apply(inplace.data(), inplace.data(), shuffled.size(), 0.7);
+      EXPECT_EQ(inplace, out_shuffled);
+      // Float: the same within float's rounding.
+      const std::vector<float> f(xyz.begin(), xyz.end()), f_shuffled(xyz_shuffled.begin(), xyz_shuffled.end());
+      std::vector<float> fo(f.size()), fo_shuffled(f.size());
+      map.apply(f.data(), fo.data(), lattice.size(), 0.7);
+      map.apply(f_shuffled.data(), fo_shuffled.data(), shuffled.size(), 0.7);
+      double worst_f = 0;
+      for (std::size_t i = 0; i < perm.size(); ++i)
+        for (int c = 0; c < 3; ++c) worst_f = std::max(worst_f, double(std::abs(fo_shuffled[3 * i + c] - fo[3 * perm[i] + c])));
+      EXPECT_LT(worst_f, 1e-6);
+    }
+  });
+}
+
 TEST(FastPaths, FloatPathAccuracy) {
   // The float path computes distances and kernel values in float, relative to the grid's corner, and
   // sums in float: its error against double is a few float ulps of the terms' magnitudes.
