@@ -4,6 +4,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <atomic>
@@ -227,17 +228,38 @@ bool incoherent(const EvalGrid& g, const T* in, std::size_t n) {
 template <class T>
 void order_by_cell(const EvalGrid& g, const T* in, std::size_t n, CellOrder<T>& o) {
   const std::size_t ncell = std::size_t(g.nx * g.ny * g.nz) + 1;  // the last: outside
+  // A counting sort in parallel: each chunk of points counts its cells, one scan over (cell, chunk)
+  // gives every chunk its place in every cell, and the chunks place their points. Chunks only while
+  // their counts take less memory than the points (a grid of many cells keeps one).
+  const std::size_t threads = std::size_t(std::max(1, tbb::this_task_arena::max_concurrency()));
+  std::size_t chunks = std::min<std::size_t>(2 * threads, (n + 65535) / 65536);
+  while (chunks > 1 && chunks * ncell > n) --chunks;
+  chunks = std::max<std::size_t>(chunks, 1);
+  const std::size_t per = (n + chunks - 1) / chunks;
   auto& cell = o.cell;
-  auto& start = o.start;
+  auto& start = o.start;  // chunks x ncell counts, then offsets, cell-major
   cell.resize(n);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1 << 14), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t i = r.begin(); i < r.end(); ++i) cell[i] = std::uint32_t(cell_index(g, in + 3 * i));
+  start.assign(chunks * ncell, 0);
+  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
+    std::uint32_t* count = start.data() + k * ncell;
+    for (std::size_t i = k * per; i < std::min(n, (k + 1) * per); ++i) {
+      const auto c = std::uint32_t(cell_index(g, in + 3 * i));
+      cell[i] = c;
+      ++count[c];
+    }
   });
-  start.assign(ncell + 1, 0);
-  for (const auto c : cell) ++start[c + 1];
-  for (std::size_t c = 0; c < ncell; ++c) start[c + 1] += start[c];
+  std::uint32_t sum = 0;
+  for (std::size_t c = 0; c < ncell; ++c)
+    for (std::size_t k = 0; k < chunks; ++k) {
+      const std::uint32_t here = start[k * ncell + c];
+      start[k * ncell + c] = sum;
+      sum += here;
+    }
   o.order.resize(n);
-  for (std::size_t i = 0; i < n; ++i) o.order[start[cell[i]]++] = std::uint32_t(i);
+  tbb::parallel_for(std::size_t(0), chunks, [&](std::size_t k) {
+    std::uint32_t* place = start.data() + k * ncell;
+    for (std::size_t i = k * per; i < std::min(n, (k + 1) * per); ++i) o.order[place[cell[i]]++] = std::uint32_t(i);
+  });
 }
 
 template bool incoherent<double>(const EvalGrid&, const double*, std::size_t);

@@ -683,14 +683,21 @@ void SpaceMap::apply_direct(const T* in, T* out, std::size_t n, double phase, bo
       const std::uint32_t* order = scratch.order.data();
       scratch.points.resize(3 * n);
       T* points = scratch.points.data();
+      // The gather and the scatter touch the caller's arrays at random: prefetched a few points
+      // ahead, so that several misses are in flight at once.
+      constexpr std::size_t ahead = 16;
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t j = r.begin(); j < r.end(); ++j)
+        for (std::size_t j = r.begin(); j < r.end(); ++j) {
+          if (j + ahead < n) __builtin_prefetch(in + 3 * std::size_t(order[j + ahead]));
           for (int c = 0; c < 3; ++c) points[3 * j + c] = in[3 * std::size_t(order[j]) + c];
+        }
         detail::evaluate(grid, data, k, poly, points, points, r.begin(), r.end(), phase, add_point);
       });
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
-        for (std::size_t j = r.begin(); j < r.end(); ++j)
+        for (std::size_t j = r.begin(); j < r.end(); ++j) {
+          if (j + ahead < n) __builtin_prefetch(out + 3 * std::size_t(order[j + ahead]), 1);
           for (int c = 0; c < 3; ++c) out[3 * std::size_t(order[j]) + c] = points[3 * j + c];
+        }
       });
       return;
     }
