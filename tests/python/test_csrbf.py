@@ -142,6 +142,44 @@ class Arrays(unittest.TestCase):
         np.testing.assert_array_equal(self.m(x.T.copy().T), y64)
         self.assertEqual(self.m(np.zeros((2, 3), dtype=np.int64)).dtype, np.float64)
 
+    def test_any_order_and_out(self):
+        # 50 000 points in lattice order and shuffled (the shuffled batch is gathered by cell inside):
+        # the same results in the caller's order; `out=` receives them, the input itself allowed.
+        g = np.linspace(-0.2, 1.2, 37)
+        x = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).reshape(-1, 3)
+        perm = np.random.default_rng(5).permutation(len(x))
+        y = self.m(x, phase=0.6)
+        ys = self.m(x[perm], phase=0.6)
+        np.testing.assert_allclose(ys, y[perm], rtol=0, atol=1e-14)
+        out = np.empty_like(x)
+        self.assertIs(self.m(x[perm], phase=0.6, out=out), out)
+        np.testing.assert_array_equal(out, ys)
+        inplace = x[perm].copy()
+        self.m(inplace, phase=0.6, out=inplace)
+        np.testing.assert_array_equal(inplace, ys)
+        d = np.empty_like(x)
+        self.m.displacement(x, out=d)
+        np.testing.assert_allclose(x + 0.6 * d, y, rtol=0, atol=1e-14)
+        f = x.astype(np.float32)
+        outf = np.empty_like(f)
+        self.m(f, out=outf)
+        np.testing.assert_allclose(outf, self.m(x), atol=1e-5)
+        # A wrong out is refused by name, before anything is written.
+        for bad, why in ((np.empty((len(x), 3), dtype=np.float32), "float64"), (np.empty((len(x), 2)), "3"),
+                         (np.empty((3, len(x))).T, "C-contiguous"), ([0.0] * 3, "numpy array")):
+            with self.assertRaisesRegex((ValueError, TypeError), why):
+                self.m(x, out=bad)
+        ro = np.empty_like(x)
+        ro.setflags(write=False)
+        with self.assertRaisesRegex(ValueError, "writeable"):
+            self.m(x, out=ro)
+        # A NaN anywhere is named by row and column, whichever thread finds it.
+        xn = x.copy()
+        xn[31337, 2] = np.nan
+        xn[40000, 0] = np.inf
+        with self.assertRaisesRegex(ValueError, r"points\[31337, 2\] is nan"):
+            self.m(xn)
+
     def test_jacobian_and_field(self):
         x = np.random.default_rng(3).random((20, 3))
         j = self.m.jacobian(x, phase=0.5)
