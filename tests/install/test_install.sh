@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # cmake --install into a temporary prefix, then: the programs, config files and Python module are in
-# place; a tiny consumer project builds against the installed tree with find_package(csrbf REQUIRED)
-# and runs; the offline wheel installs and imports.
+# place; a consumer project per component builds against the installed tree and runs (the core's
+# with VTK, MPI and assimp disabled: find_package(csrbf) must not look for them); the offline wheel
+# installs and imports.
 #   test_install.sh BUILD_DIR SOURCE_DIR PYTHON
 set -euo pipefail
 build=$1 src=$2 python=$3
@@ -11,7 +12,10 @@ cmake --install "$build" --prefix "$tmp/prefix" > "$tmp/install.log"
 for f in bin/csrbf bin/csrbf-picker bin/csrbf-composer; do
   test -x "$tmp/prefix/$f" || { echo "missing $f"; exit 1; }
 done
-for f in lib/cmake/csrbf/csrbfConfig.cmake lib/cmake/csrbf/csrbfConfigVersion.cmake lib/cmake/csrbf/csrbfTargets.cmake \
+for f in lib/cmake/csrbf/csrbfConfig.cmake lib/cmake/csrbf/csrbfConfigVersion.cmake lib/cmake/csrbf/FindCHOLMOD.cmake \
+         lib/cmake/csrbf/csrbf-core-targets.cmake lib/cmake/csrbf/csrbf-anim-targets.cmake \
+         lib/cmake/csrbf/csrbf-io-targets.cmake lib/cmake/csrbf/csrbf-render-targets.cmake \
+         lib/cmake/csrbf/csrbf-vtk-targets.cmake \
          include/csrbf/space_map.hpp include/csrbf/vtk/vtkCSRBFTransform.h include/csrbf/anim/scene.hpp \
          lib/libcsrbf_core.a lib/libcsrbf_vtk.a; do
   test -f "$tmp/prefix/$f" || { echo "missing $f"; exit 1; }
@@ -26,13 +30,26 @@ if [ -f "$vtkpkg/__init__.py" ]; then
 fi
 echo "installed: programs, headers, libraries, CMake config and version, Python module ($module)"
 
-cmake -S "$src/tests/install/consumer" -B "$tmp/consumer" -G Ninja -DCMAKE_BUILD_TYPE=Release \
-  -DCMAKE_PREFIX_PATH="$tmp/prefix" > "$tmp/consumer.log" || { cat "$tmp/consumer.log"; exit 1; }
-cmake --build "$tmp/consumer" > "$tmp/consumer-build.log" || { cat "$tmp/consumer-build.log"; exit 1; }
-"$tmp/consumer/consumer"
+# The core consumer's configure must not reach VTK, MPI or assimp; nor may the exported core name a
+# library by its absolute path (CHOLMOD comes through the installed FindCHOLMOD.cmake).
+if grep -q '/libcholmod' "$tmp/prefix/lib/cmake/csrbf/csrbf-core-targets.cmake"; then
+  echo "csrbf-core-targets.cmake names CHOLMOD by path"; exit 1
+fi
+for c in core anim io render vtk; do
+  extra=()
+  if [ "$c" = core ]; then
+    extra=(-DCMAKE_DISABLE_FIND_PACKAGE_VTK=ON -DCMAKE_DISABLE_FIND_PACKAGE_MPI=ON -DCMAKE_DISABLE_FIND_PACKAGE_assimp=ON)
+  fi
+  cmake -S "$src/tests/install/consumers" -B "$tmp/consumer-$c" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+    -DCSRBF_COMPONENT=$c "${extra[@]}" -DCMAKE_PREFIX_PATH="$tmp/prefix" > "$tmp/consumer-$c.log" 2>&1 ||
+    { cat "$tmp/consumer-$c.log"; exit 1; }
+  cmake --build "$tmp/consumer-$c" > "$tmp/consumer-$c-build.log" 2>&1 || { cat "$tmp/consumer-$c-build.log"; exit 1; }
+  echo -n "consumer of csrbf::$c: "
+  "$tmp/consumer-$c/consumer"
+done
 
 cmake --build "$build" --target python_wheel > /dev/null
 wheel=$(ls "$build"/dist/csrbf-*.whl | head -n1)
 PIP_ROOT_USER_ACTION=ignore "$python" -m pip install --disable-pip-version-check --no-index --no-deps --quiet --target "$tmp/site" "$wheel"
 PYTHONPATH="$tmp/site" "$python" -c "import csrbf; print('wheel', csrbf.__version__)"
-echo "consumer built with find_package(csrbf REQUIRED); wheel installs offline"
+echo "a consumer per component built with find_package(csrbf); wheel installs offline"
