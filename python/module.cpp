@@ -181,6 +181,9 @@ py::dict stats_dict(const csrbf::SpaceMap& m) {
   d["dense_bytes"] = s.dense_bytes;
   d["envelope_work"] = s.envelope_work;
   d["solver"] = std::string(csrbf::solver_name(s.solver));
+  d["iterations"] = s.iterations;
+  d["solver_residual"] = s.solver_residual;
+  d["fell_back"] = s.fell_back;
   d["factor_nonzeros"] = s.factor_nonzeros;
   d["residual_max"] = s.residual_max;
   d["residual_relative"] = s.residual_relative;

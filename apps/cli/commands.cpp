@@ -32,6 +32,9 @@ nlohmann::json stats_json(const SpaceMap& map) {
   j["solver"] = std::string(solver_name(s.solver));
   j["envelope_work"] = s.envelope_work;
   j["factor_nonzeros"] = s.factor_nonzeros;
+  j["iterations"] = s.iterations;
+  j["solver_residual"] = s.solver_residual;
+  j["fell_back"] = s.fell_back;
   j["residual_max"] = s.residual_max;
   j["residual_relative"] = s.residual_relative;
   j["time_us"] = {{"index", us(s.seconds_index)},           {"graph", us(s.seconds_graph)},
@@ -68,8 +71,13 @@ std::string stats_text(const SpaceMap& map) {
                                s.reverse_breadth_first.envelope, s.reverse_cuthill_mckee.envelope));
   line("envelope bytes", fmt("%zu  (dense %zu, %.1f%%; 4-byte floats as in the paper)", s.envelope_bytes, s.dense_bytes,
                              100.0 * double(s.envelope_bytes) / double(s.dense_bytes)));
-  line("solver", fmt("%s  (factor %zu entries; envelope work %.3g multiply-adds)",
-                     std::string(solver_name(s.solver)).c_str(), s.factor_nonzeros, s.envelope_work));
+  if (s.iterations > 0 && !s.fell_back)
+    line("solver", fmt("%s  (%zu iterations to a relative residual of %.3g; matrix %zu entries)",
+                       std::string(solver_name(s.solver)).c_str(), s.iterations, s.solver_residual, s.factor_nonzeros));
+  else
+    line("solver", fmt("%s  (factor %zu entries; envelope work %.3g multiply-adds)%s",
+                       std::string(solver_name(s.solver)).c_str(), s.factor_nonzeros, s.envelope_work,
+                       s.fell_back ? "; conjugate gradients stagnated, this direct solver took over" : ""));
   line("residual", fmt("%.3g max, %.3g relative", s.residual_max, s.residual_relative));
   line("condition", fmt("%.3g (estimate of the matrix's 2-norm condition number)", map.condition_estimate()));
   line("time (us)", fmt("index %.1f, graph %.1f, ordering %.1f, assembly %.1f, factorization %.1f, solve %.1f, "

@@ -85,8 +85,9 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
       ->check(CLI::IsMember({"auto", "breadth-first", "reverse-breadth-first", "rcm", "identity"}))
       ->capture_default_str();
   cmd->add_option("--solver", a.solver,
-                  "Factorisation: auto (envelope while small, then CHOLMOD), envelope (paper), eigen, cholmod")
-      ->check(CLI::IsMember({"auto", "envelope", "eigen", "cholmod"}))
+                  "Solver: auto (envelope while small, then by size), envelope (paper), eigen, cholmod, cg "
+                  "(conjugate gradients; a direct solver takes over where it stagnates)")
+      ->check(CLI::IsMember({"auto", "envelope", "eigen", "cholmod", "cg"}))
       ->capture_default_str();
 }
 

@@ -34,7 +34,8 @@ enum class Solver {
   Envelope,  ///< the paper's: ordering + Jennings envelope Cholesky (envelope_cholesky.hpp)
   Eigen,     ///< Eigen's SimplicialLLT with AMD ordering
   Cholmod,   ///< SuiteSparse CHOLMOD, supernodal, in nested_dissection_order (only when csrbf was built with it)
-  Auto,      ///< Envelope while its estimated work is small, then CHOLMOD (or Eigen without it)
+  Auto,      ///< Envelope while its estimated work is small, then CG, CHOLMOD where CG stagnates
+  Cg,        ///< conjugate gradients, the right-hand sides together, parallel products; no factor
 };
 std::string_view solver_name(Solver s) noexcept;
 std::optional<Solver> parse_solver(std::string_view name) noexcept;
@@ -46,11 +47,21 @@ inline constexpr double kResidualLimit = 1e-6;
 /// fraction of the largest control displacement, measured once per map on (up to 4096 of) its
 /// sources; otherwise float inputs are evaluated in double and rounded once.
 inline constexpr double kFloatTolerance = 1e-4;
-/// Auto's rule: the envelope solver is used while the multiply-adds of its factorisation,
-/// sum over rows of (row length)^2 / 2, stay at or below this (measured: docs/PERFORMANCE.md).
+/// Solver::Cg stops at this relative residual ||b - A x|| / ||b|| for each right-hand side, and
+/// gives up (a direct solver takes over) after kCgMaxIterations steps.
+inline constexpr double kCgTolerance = 1e-12;
+inline constexpr std::size_t kCgMaxIterations = 3000;
+/// Auto's rule, by estimated cost: the envelope solver while the multiply-adds of its factorisation
+/// (sum over rows of (row length)^2 / 2) stay below those of kCgStepsEstimate conjugate-gradient
+/// steps on 3 right-hand sides (each step a product with A: 2 * neighbour pairs + N entries) and at
+/// most kEnvelopeWorkLimit; else CG, with CHOLMOD (or Eigen) taking over where CG stagnates. CG took
+/// 28 to 230 steps on the sphere sweep; the crossover measured between N = 300 and 600
+/// (docs/PERFORMANCE.md).
 inline constexpr double kEnvelopeWorkLimit = 1.0e8;
+inline constexpr double kCgStepsEstimate = 50.0;
 /// The solver a fit uses: `requested`, or for Solver::Auto the rule above.
-Solver resolve_solver(Solver requested, double envelope_work) noexcept;
+Solver resolve_solver(Solver requested, double envelope_work, std::size_t controls = 0,
+                      std::size_t neighbor_pairs = 0) noexcept;
 
 /// The inner loop of SpaceMap::apply(): the portable one, compiled for x86-64-v3 (AVX2 + FMA) and for
 /// baseline x86-64 and picked at load time, or hand-written AVX-512 where the CPU and the build have
@@ -97,7 +108,10 @@ struct FitStats {
   std::size_t dense_bytes = 0;           ///< N^2 * 4, the paper's dense float storage
   double envelope_work = 0.0;            ///< multiply-adds of the envelope factorisation (estimate)
   Solver solver = Solver::Envelope;      ///< the solver used
-  std::size_t factor_nonzeros = 0;       ///< entries of the factor L actually stored
+  std::size_t factor_nonzeros = 0;       ///< entries of the factor L actually stored (CG: of A)
+  std::size_t iterations = 0;            ///< CG: steps of the last solve (the slowest right-hand side)
+  double solver_residual = 0.0;          ///< CG: its final relative residual ||b - A x|| / ||b||
+  bool fell_back = false;                ///< CG stagnated; `solver` is the direct solver that took over
   double residual_max = 0.0;             ///< max_i ||s(x_i) - g_i|| at the controls
   double residual_relative = 0.0;        ///< residual_max / max_i ||g_i|| (or residual_max if g = 0);
                                          ///< at most kResidualLimit, or the fit throws IllConditioned

@@ -9,6 +9,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 #include <chrono>
 #include <cmath>
@@ -36,6 +37,7 @@ std::string_view solver_name(Solver s) noexcept {
     case Solver::Eigen: return "eigen";
     case Solver::Cholmod: return "cholmod";
     case Solver::Auto: return "auto";
+    case Solver::Cg: return "cg";
   }
   return "?";
 }
@@ -47,6 +49,7 @@ std::optional<Solver> parse_solver(std::string_view name) noexcept {
   if (s == "eigen") return Solver::Eigen;
   if (s == "cholmod") return Solver::Cholmod;
   if (s == "auto") return Solver::Auto;
+  if (s == "cg") return Solver::Cg;
   return std::nullopt;
 }
 
@@ -58,10 +61,11 @@ bool cholmod_available() noexcept {
 #endif
 }
 
-Solver resolve_solver(Solver requested, double envelope_work) noexcept {
+Solver resolve_solver(Solver requested, double envelope_work, std::size_t controls, std::size_t neighbor_pairs) noexcept {
   if (requested != Solver::Auto) return requested;
-  if (envelope_work <= kEnvelopeWorkLimit) return Solver::Envelope;
-  return cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+  const double cg_work = kCgStepsEstimate * 3.0 * (2.0 * double(neighbor_pairs) + double(controls));
+  if (envelope_work <= kEnvelopeWorkLimit && (controls == 0 || envelope_work <= cg_work)) return Solver::Envelope;
+  return Solver::Cg;
 }
 
 void set_evaluation_loop(EvaluationLoop loop) {
@@ -159,9 +163,31 @@ struct SpaceMap::Structure {
   FitStats stats;                  // the structural part and its times
 
   void solve_in_place(RowMatrix& b) const {
-    if (sparse) sparse->solve_in_place(b);
-    else factor.solve_in_place(b);
+    if (!sparse) {
+      factor.solve_in_place(b);
+      return;
+    }
+    if (!fell_back.load()) {
+      try {
+        sparse->solve_in_place(b);  // CG writes b only when it converged
+        return;
+      } catch (const detail::CgStagnated&) {
+      }
+      // CG stagnated (an ill-conditioned system): a direct factorisation takes over, once, for this
+      // fit and every later solve with these sources.
+      std::call_once(fallback_once, [this] {
+        const Solver direct = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+        fallback = detail::factor_sparse(graph, sources, options.kernel, options.radius, direct, options.memory_limit_bytes);
+        fallback_solver = direct;
+        fell_back = true;
+      });
+    }
+    fallback->solve_in_place(b);
   }
+  mutable std::once_flag fallback_once;
+  mutable std::unique_ptr<detail::SparseFactor> fallback;  // when CG stagnated
+  mutable Solver fallback_solver = Solver::Auto;
+  mutable std::atomic<bool> fell_back{false};
 
   /// A x through the neighbour graph (the sparse rows of A), rows in the input order of the sources.
   Eigen::MatrixXd times_a(const Eigen::MatrixXd& x) const {
@@ -379,7 +405,7 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   // Work of the envelope factorisation in this order: row k costs about (row length)^2 / 2.
   std::vector<std::size_t> first = envelope_first_columns(st->graph, st->order);
   stats.envelope_work = envelope_work(first);
-  const Solver solver = resolve_solver(options.solver, stats.envelope_work);
+  const Solver solver = resolve_solver(options.solver, stats.envelope_work, n, stats.neighbor_pairs);
   if (solver == Solver::Cholmod && !cholmod_available())
     throw InvalidInput("solver 'cholmod': this build of csrbf has no CHOLMOD (SuiteSparse); use 'envelope' or 'eigen'");
   stats.solver = solver;
@@ -426,12 +452,20 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
     stats.envelope_entries = chosen.envelope;
     stats.envelope_bytes = 4 * (n + chosen.envelope) + 4 * n;
     stats.dense_bytes = 4 * n * n;
+    std::vector<std::uint32_t> envelope_order = std::move(st->order);
     st->order = identity_order(n);
     t0 = Clock::now();
-    st->sparse = detail::factor_sparse(st->graph, sources, options.kernel, options.radius, solver,
-                                       options.memory_limit_bytes);
+    if (solver == Solver::Cg) {
+      // Rows in the envelope ordering for locality in the products; nothing to factorise.
+      st->sparse = detail::conjugate_gradients(st->graph, options.kernel, options.radius, std::move(envelope_order),
+                                               kCgTolerance, kCgMaxIterations);
+      stats.seconds_assembly = seconds_since(t0);
+    } else {
+      st->sparse = detail::factor_sparse(st->graph, sources, options.kernel, options.radius, solver,
+                                         options.memory_limit_bytes);
+      stats.seconds_factorization = seconds_since(t0);
+    }
     stats.factor_nonzeros = st->sparse->nonzeros();
-    stats.seconds_factorization = seconds_since(t0);
   }
 
   if (terms > 0) {
@@ -495,6 +529,15 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
   for (int r = 0; r < 4; ++r)
     for (int c = 0; c < 3; ++c) s->poly.b[r][c] = s->beta(r, c);
   stats.seconds_solve += seconds_since(t0);
+  if (st.sparse) {
+    stats.iterations = st.sparse->iterations();
+    stats.solver_residual = st.sparse->residual();
+    if (st.fell_back) {
+      stats.fell_back = true;
+      stats.solver = st.fallback_solver;
+      stats.factor_nonzeros = st.fallback->nonzeros();
+    }
+  }
 
   // Residual at the controls, through the neighbour graph (the sparse rows of A, unpermuted).
   t0 = Clock::now();

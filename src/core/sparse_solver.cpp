@@ -8,6 +8,12 @@
 #include <Eigen/CholmodSupport>
 #endif
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <mutex>
 #include <sstream>
@@ -136,7 +142,155 @@ std::size_t EigenFactor<Supernodal>::count() const {
 }
 #endif
 
+/// A in compressed rows, both triangles, row k the source order[k]: the product runs over rows in
+/// parallel, m right-hand sides at once.
+class BatchedCg final : public SparseFactor {
+ public:
+  BatchedCg(const AdjacencyGraph& g, Kernel kernel, double radius, std::vector<std::uint32_t> order, double tolerance,
+            std::size_t max_iterations)
+      : order_(std::move(order)), tolerance_(tolerance), max_iterations_(max_iterations) {
+    const std::size_t n = g.size();
+    std::vector<std::uint32_t> position(n);
+    for (std::size_t k = 0; k < n; ++k) position[order_[k]] = std::uint32_t(k);
+    const double inv_r = 1.0 / radius;
+    diagonal_ = wendland(kernel, 0.0);
+    row_.assign(n + 1, 0);
+    for (std::size_t k = 0; k < n; ++k) row_[k + 1] = row_[k] + g.neighbors_of(order_[k]).size();
+    col_.resize(row_[n]);
+    val_.resize(row_[n]);
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t k = r.begin(); k < r.end(); ++k) {
+        const auto nb = g.neighbors_of(order_[k]);
+        const auto d2 = g.dist2_of(order_[k]);
+        for (std::size_t e = 0; e < nb.size(); ++e) {
+          col_[row_[k] + e] = position[nb[e]];
+          val_[row_[k] + e] = wendland(kernel, std::sqrt(d2[e]) * inv_r);
+        }
+      }
+    });
+  }
+
+  void solve_in_place(RowMatrix& b) const override {
+    std::lock_guard lock(mutex_);  // iterations_ and residual_ describe one solve
+    // 3 right-hand sides (the displacements), 4 (the polynomial block) or 1 (the condition estimate).
+    if (b.cols() > 8) throw InvalidInput("conjugate gradients: at most 8 right-hand sides at once");
+    solve_columns(b);
+  }
+  std::size_t nonzeros() const override { return order_.size() + val_.size(); }
+  std::size_t iterations() const override { return iterations_; }
+  double residual() const override { return residual_; }
+
+ private:
+  using Sums = std::array<double, 16>;
+  /// b (n x m, m <= 8, input order) becomes A^-1 b.
+  void solve_columns(RowMatrix& b) const {
+    const std::size_t n = order_.size(), m = std::size_t(b.cols());
+    // Work in the solver's row order: x, r, p, q are n x m, row-major (one row's m values together).
+    std::vector<double> x(n * m, 0.0), r(n * m), p(n * m), q(n * m);
+    for (std::size_t k = 0; k < n; ++k)
+      for (std::size_t c = 0; c < m; ++c) r[k * m + c] = b(Eigen::Index(order_[k]), Eigen::Index(c));
+    p = r;
+    const auto reduce = [&](auto&& body) {
+      return tbb::parallel_reduce(
+          tbb::blocked_range<std::size_t>(0, n, 8192), Sums{},
+          [&](const tbb::blocked_range<std::size_t>& range, Sums s) {
+            body(range, s);
+            return s;
+          },
+          [m](Sums a, const Sums& b2) {
+            for (std::size_t c = 0; c < m; ++c) {
+              a[c] += b2[c];
+              a[8 + c] += b2[8 + c];
+            }
+            return a;
+          });
+    };
+    Sums rr = reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
+      for (std::size_t k = range.begin(); k < range.end(); ++k)
+        for (std::size_t c = 0; c < m; ++c) s[c] += r[k * m + c] * r[k * m + c];
+    });
+    std::array<double, 8> target{}, alpha{}, beta{};
+    std::array<bool, 8> done{};
+    for (std::size_t c = 0; c < m; ++c) {
+      target[c] = tolerance_ * tolerance_ * rr[c];
+      done[c] = rr[c] == 0.0;
+    }
+    std::size_t it = 0;
+    const auto all_done = [&] {
+      for (std::size_t c = 0; c < m; ++c)
+        if (!done[c]) return false;
+      return true;
+    };
+    for (; !all_done() && it < max_iterations_; ++it) {
+      // q = A p, and p . q per column, in one pass.
+      const Sums pq = reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
+        for (std::size_t k = range.begin(); k < range.end(); ++k) {
+          double acc[8];
+          for (std::size_t c = 0; c < m; ++c) acc[c] = diagonal_ * p[k * m + c];
+          for (std::size_t e = row_[k]; e < row_[k + 1]; ++e) {
+            const double a = val_[e];
+            const double* pj = &p[std::size_t(col_[e]) * m];
+            for (std::size_t c = 0; c < m; ++c) acc[c] += a * pj[c];
+          }
+          for (std::size_t c = 0; c < m; ++c) {
+            q[k * m + c] = acc[c];
+            s[c] += p[k * m + c] * acc[c];
+          }
+        }
+      });
+      for (std::size_t c = 0; c < m; ++c) alpha[c] = done[c] || !(pq[c] > 0) ? 0.0 : rr[c] / pq[c];
+      // x += alpha p, r -= alpha q, and r . r per column.
+      const Sums rr_new = reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
+        for (std::size_t k = range.begin(); k < range.end(); ++k)
+          for (std::size_t c = 0; c < m; ++c) {
+            x[k * m + c] += alpha[c] * p[k * m + c];
+            r[k * m + c] -= alpha[c] * q[k * m + c];
+            s[c] += r[k * m + c] * r[k * m + c];
+          }
+      });
+      for (std::size_t c = 0; c < m; ++c) {
+        if (done[c]) continue;
+        beta[c] = rr[c] > 0 ? rr_new[c] / rr[c] : 0.0;
+        rr[c] = rr_new[c];
+        if (rr[c] <= target[c] || !std::isfinite(rr[c])) done[c] = true;
+      }
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t k = range.begin(); k < range.end(); ++k)
+          for (std::size_t c = 0; c < m; ++c) p[k * m + c] = r[k * m + c] + beta[c] * p[k * m + c];
+      });
+    }
+    double worst = 0;
+    for (std::size_t c = 0; c < m; ++c)
+      if (target[c] > 0) worst = std::max(worst, std::sqrt(rr[c] / (target[c] / (tolerance_ * tolerance_))));
+    iterations_ = it;
+    residual_ = worst;
+    if (!all_done() || !std::isfinite(worst)) {
+      std::ostringstream os;
+      os << "conjugate gradients stagnated at a relative residual of " << worst << " after " << it << " steps";
+      throw CgStagnated(os.str());
+    }
+    for (std::size_t k = 0; k < n; ++k)
+      for (std::size_t c = 0; c < m; ++c) b(Eigen::Index(order_[k]), Eigen::Index(c)) = x[k * m + c];
+  }
+
+  std::vector<std::uint32_t> order_;
+  std::vector<std::size_t> row_;
+  std::vector<std::uint32_t> col_;
+  std::vector<double> val_;
+  double diagonal_ = 1.0, tolerance_;
+  std::size_t max_iterations_;
+  mutable std::size_t iterations_ = 0;
+  mutable double residual_ = 0;
+  mutable std::mutex mutex_;
+};
+
 }  // namespace
+
+std::unique_ptr<SparseFactor> conjugate_gradients(const AdjacencyGraph& g, Kernel kernel, double radius,
+                                                  std::vector<std::uint32_t> order, double tolerance,
+                                                  std::size_t max_iterations) {
+  return std::make_unique<BatchedCg>(g, kernel, radius, std::move(order), tolerance, max_iterations);
+}
 
 std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, std::span<const Vec3> sources, Kernel kernel,
                                             double radius, Solver which, double memory_limit_bytes) {

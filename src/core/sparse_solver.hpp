@@ -20,7 +20,25 @@ class SparseFactor {
   virtual void solve_in_place(RowMatrix& b) const = 0;
   /// Entries of the factor L.
   virtual std::size_t nonzeros() const = 0;
+  /// Iterative solvers: steps and final relative residual of the last solve (0 for direct ones).
+  virtual std::size_t iterations() const { return 0; }
+  virtual double residual() const { return 0.0; }
 };
+
+/// CG did not reach its tolerance within its step limit (the caller falls back to a direct solver).
+class CgStagnated : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Conjugate gradients on A, the right-hand sides of a solve together: one parallel pass over A a
+/// step serves all of them (a block of independent recurrences, not a block-Krylov method). A's
+/// diagonal is phi(0) everywhere, so Jacobi preconditioning would change nothing. Rows are stored in
+/// `order` (a bandwidth-reducing ordering of the sources) for locality. Stops at a relative residual
+/// of `tolerance` per column; throws CgStagnated after `max_iterations`.
+std::unique_ptr<SparseFactor> conjugate_gradients(const AdjacencyGraph& g, Kernel kernel, double radius,
+                                                  std::vector<std::uint32_t> order, double tolerance,
+                                                  std::size_t max_iterations);
 
 /// Assembles A from the neighbour graph and factorises it with Solver::Eigen (AMD ordering) or
 /// Solver::Cholmod (in nested_dissection_order of the sources). Throws NotPositiveDefinite on

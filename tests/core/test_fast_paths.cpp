@@ -202,7 +202,9 @@ TEST(FastPaths, RandomOrderIsGatheredByCellAndWrittenBackInTheCallersOrder) {
     if (k > 0) {
       const std::size_t a = cell_of(shuffled[order[k - 1]]), b = cell_of(shuffled[order[k]]);
       ASSERT_LE(a, b) << k;
-      if (a == b) ASSERT_LT(order[k - 1], order[k]) << "stable";
+      if (a == b) {
+        ASSERT_LT(order[k - 1], order[k]) << "stable";
+      }
     }
   }
 
@@ -432,6 +434,52 @@ TEST(FastPaths, SparseSolversAgreeWithTheEnvelopeSolver) {
   }
 }
 
+TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyStagnate) {
+  std::mt19937 rng(107);
+  auto cube = random_points(900, rng);
+  std::vector<Vec3> sphere;
+  std::normal_distribution<double> gauss(0.0, 1.0);
+  for (int i = 0; i < 900; ++i) sphere.push_back(Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized() * 0.5);
+  for (const auto& s : {cube, sphere})
+    for (Kernel k : {Kernel::C0, Kernel::C2, Kernel::C6})
+      for (Polynomial p : kPolys) {
+        const auto d = displaced(s, rng);
+        FitOptions o{0.2, k, p};
+        o.solver = Solver::Envelope;
+        const SpaceMap env = SpaceMap::fit(s, d, o);
+        o.solver = Solver::Cg;
+        const SpaceMap cg = SpaceMap::fit(s, d, o);
+        ASSERT_EQ(cg.stats().solver, Solver::Cg) << kernel_name(k);
+        EXPECT_FALSE(cg.stats().fell_back);
+        EXPECT_GT(cg.stats().iterations, 5u);
+        EXPECT_LE(cg.stats().solver_residual, kCgTolerance);
+        const double amax = std::max(1.0, env.coefficients().cwiseAbs().maxCoeff());
+        // CG stops at a relative residual of 1e-12: the coefficients agree to the condition times that.
+        EXPECT_LT((cg.coefficients() - env.coefficients()).cwiseAbs().maxCoeff(), 1e-6 * amax) << kernel_name(k);
+        EXPECT_LT(cg.stats().residual_relative, 1e-8);
+        const auto d2 = displaced(s, rng);
+        const SpaceMap m2 = cg.with_destinations(d2);
+        for (std::size_t i = 0; i < s.size(); i += 37) EXPECT_LT((m2.map(s[i]) - d2[i]).norm(), 1e-8);
+      }
+  // Sources 1e-4 apart on a line, R = 1: thousands of neighbours each and a condition number far
+  // beyond what CG can reach 1e-10 in kCgMaxIterations steps. A direct solver takes over, says so,
+  // and the fit is exact.
+  std::vector<Vec3> line, dline;
+  for (int i = 0; i < 400; ++i) {
+    line.emplace_back(1e-4 * i, 0, 0);
+    dline.emplace_back(1e-4 * i, 1e-3 * std::sin(0.1 * i), 0);
+  }
+  FitOptions o{1.0, Kernel::C2, Polynomial::None};
+  o.solver = Solver::Cg;
+  const SpaceMap stuck = SpaceMap::fit(line, dline, o);
+  EXPECT_TRUE(stuck.stats().fell_back);
+  EXPECT_NE(stuck.stats().solver, Solver::Cg);
+  EXPECT_LE(stuck.stats().residual_relative, kResidualLimit);
+  const SpaceMap again = stuck.with_destinations(line);  // zero displacement: through the direct solver
+  EXPECT_TRUE(again.stats().fell_back);
+  EXPECT_EQ(again.map(line[7]), line[7]);
+}
+
 TEST(FastPaths, AutoSolverChoosesBySize) {
   std::mt19937 rng(106);
   const auto small = random_points(100, rng);
@@ -444,10 +492,14 @@ TEST(FastPaths, AutoSolverChoosesBySize) {
   const SpaceMap b = SpaceMap::fit(small, displaced(small, rng), o);
   EXPECT_EQ(b.stats().envelope_work, a.stats().envelope_work);
   EXPECT_EQ(b.stats().envelope_entries, a.stats().envelope_entries);
-  // Past the limit Auto takes the sparse solver; an explicit choice is kept.
-  const Solver sparse = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+  // Past the limit, or past the estimated cost of conjugate gradients, Auto takes CG; an explicit
+  // choice is kept.
   EXPECT_EQ(resolve_solver(Solver::Auto, kEnvelopeWorkLimit), Solver::Envelope);
-  EXPECT_EQ(resolve_solver(Solver::Auto, 2 * kEnvelopeWorkLimit), sparse);
+  EXPECT_EQ(resolve_solver(Solver::Auto, 2 * kEnvelopeWorkLimit), Solver::Cg);
+  EXPECT_EQ(resolve_solver(Solver::Auto, 1e6, 1000, 12000), Solver::Envelope);  // CG: 50 * 3 * 25000 = 3.75e6
+  EXPECT_EQ(resolve_solver(Solver::Auto, 7e6, 1000, 12000), Solver::Cg);
+  EXPECT_EQ(resolve_solver(Solver::Cg, 1.0, 10, 10), Solver::Cg);
+  EXPECT_EQ(parse_solver("cg"), Solver::Cg);
   EXPECT_EQ(resolve_solver(Solver::Envelope, 1e30), Solver::Envelope);
   EXPECT_EQ(resolve_solver(Solver::Eigen, 1.0), Solver::Eigen);
   EXPECT_EQ(parse_solver("CHOLMOD"), Solver::Cholmod);
