@@ -111,10 +111,10 @@ void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::si
                               std::vector<std::uint32_t>& neighbors, std::vector<double>& dist2) const {
   const std::size_t n = sources.size();
   const double R2 = radius * radius;
-  offsets.assign(n + 1, 0);
-  neighbors.clear();
-  dist2.clear();
-  for (std::size_t i = 0; i < n; ++i) {
+  // Two parallel passes over the sources: count each one's neighbours, then (offsets known, the
+  // arrays allocated once at their exact size) write them. Each source's candidates are its own
+  // cell's run, in the run's order, so the graph is the same as a serial pass would give.
+  const auto for_each_neighbor = [&](std::size_t i, auto&& f) {
     const Vec3& p = sources[i];
     const Vec3 q = (p - origin) * inv_h;
     const std::size_t cell = std::size_t((std::int64_t(q.z()) * ny + std::int64_t(q.y())) * nx + std::int64_t(q.x()));
@@ -122,13 +122,30 @@ void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::si
       const std::uint32_t j = source[e];
       if (j == n || j == i) continue;
       const double d2 = (sources[j] - p).squaredNorm();
-      if (d2 < R2) {
-        neighbors.push_back(j);
-        dist2.push_back(d2);
-      }
+      if (d2 < R2) f(j, d2);
     }
-    offsets[i + 1] = neighbors.size();
-  }
+  };
+  offsets.assign(n + 1, 0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+      std::size_t c = 0;
+      for_each_neighbor(i, [&](std::uint32_t, double) { ++c; });
+      offsets[i + 1] = c;
+    }
+  });
+  for (std::size_t i = 0; i < n; ++i) offsets[i + 1] += offsets[i];
+  neighbors.resize(offsets[n]);
+  dist2.resize(offsets[n]);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+      std::size_t at = offsets[i];
+      for_each_neighbor(i, [&](std::uint32_t j, double d2) {
+        neighbors[at] = j;
+        dist2[at] = d2;
+        ++at;
+      });
+    }
+  });
 }
 
 namespace {

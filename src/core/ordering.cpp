@@ -1,5 +1,8 @@
 #include "csrbf/ordering.hpp"
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
 #include "csrbf/errors.hpp"
 
 #include <algorithm>
@@ -11,22 +14,36 @@
 namespace csrbf {
 
 AdjacencyGraph AdjacencyGraph::from_index(const NeighborIndex& index, std::span<const Vec3> points) {
+  // Two parallel passes (the index's queries are const and thread-safe): count each point's
+  // neighbours, then write each row, sorted by neighbour, into arrays allocated once at their size.
   AdjacencyGraph g;
   const std::size_t n = points.size();
   g.offsets.assign(n + 1, 0);
-  std::vector<std::pair<std::uint32_t, double>> row;
-  for (std::size_t i = 0; i < n; ++i) {
-    row.clear();
-    index.for_each_within(points[i], [&](std::size_t j, double d2) {
-      if (j != i) row.emplace_back(std::uint32_t(j), d2);
-    });
-    std::sort(row.begin(), row.end());
-    for (const auto& [j, d2] : row) {
-      g.neighbors.push_back(j);
-      g.dist2.push_back(d2);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 2048), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+      std::size_t c = 0;
+      index.for_each_within(points[i], [&](std::size_t j, double) { c += j != i; });
+      g.offsets[i + 1] = c;
     }
-    g.offsets[i + 1] = g.neighbors.size();
-  }
+  });
+  for (std::size_t i = 0; i < n; ++i) g.offsets[i + 1] += g.offsets[i];
+  g.neighbors.resize(g.offsets[n]);
+  g.dist2.resize(g.offsets[n]);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 2048), [&](const tbb::blocked_range<std::size_t>& r) {
+    std::vector<std::pair<std::uint32_t, double>> row;
+    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+      row.clear();
+      index.for_each_within(points[i], [&](std::size_t j, double d2) {
+        if (j != i) row.emplace_back(std::uint32_t(j), d2);
+      });
+      std::sort(row.begin(), row.end());
+      std::size_t at = g.offsets[i];
+      for (const auto& [j, d2] : row) {
+        g.neighbors[at] = j;
+        g.dist2[at++] = d2;
+      }
+    }
+  });
   return g;
 }
 

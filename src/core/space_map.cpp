@@ -193,14 +193,16 @@ struct SpaceMap::Structure {
   Eigen::MatrixXd times_a(const Eigen::MatrixXd& x) const {
     const double inv_r = 1.0 / options.radius, phi0 = wendland(options.kernel, 0.0);
     Eigen::MatrixXd y(x.rows(), x.cols());
-    for (std::size_t i = 0; i < sources.size(); ++i) {
-      const auto k = Eigen::Index(i);
-      y.row(k) = phi0 * x.row(k);
-      const auto nb = graph.neighbors_of(i);
-      const auto d2 = graph.dist2_of(i);
-      for (std::size_t e = 0; e < nb.size(); ++e)
-        y.row(k) += wendland(options.kernel, std::sqrt(d2[e]) * inv_r) * x.row(Eigen::Index(nb[e]));
-    }
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, sources.size(), 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t i = r.begin(); i < r.end(); ++i) {
+        const auto k = Eigen::Index(i);
+        y.row(k) = phi0 * x.row(k);
+        const auto nb = graph.neighbors_of(i);
+        const auto d2 = graph.dist2_of(i);
+        for (std::size_t e = 0; e < nb.size(); ++e)
+          y.row(k) += wendland(options.kernel, std::sqrt(d2[e]) * inv_r) * x.row(Eigen::Index(nb[e]));
+      }
+    });
     return y;
   }
 
