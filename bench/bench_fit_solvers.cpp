@@ -1,0 +1,55 @@
+// Whole fits (graph, ordering, factorisation or CG, solve, residual check) by each solver on the
+// Fibonacci sphere, about 23 neighbours a control (R = sqrt(100 / N)), C2, polynomial none: the
+// figures of docs/PERFORMANCE.md, "Conjugate gradients". Run:
+//   build/bin/bench_core --benchmark_filter=Fit/
+// Arguments: N, then the solver (0 envelope, 1 CHOLMOD or Eigen, 2 CG, 3 auto).
+#include "csrbf/space_map.hpp"
+
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <vector>
+
+using namespace csrbf;
+
+namespace {
+
+void fibonacci_sphere(std::size_t n, std::vector<Vec3>& s, std::vector<Vec3>& d) {
+  s.resize(n);
+  d.resize(n);
+  const double turn = M_PI * (3 - std::sqrt(5.0));
+  for (std::size_t i = 0; i < n; ++i) {
+    const double z = 1 - 2 * (double(i) + 0.5) / double(n), r = std::sqrt(1 - z * z);
+    s[i] = Vec3(r * std::cos(turn * double(i)), r * std::sin(turn * double(i)), z);
+    d[i] = s[i] * (1 + 0.02 * std::sin(7 * s[i].x()) * std::cos(5 * s[i].y()));
+  }
+}
+
+void BM_Fit(benchmark::State& state) {
+  const auto n = std::size_t(state.range(0));
+  std::vector<Vec3> s, d;
+  fibonacci_sphere(n, s, d);
+  const Solver solvers[] = {Solver::Envelope, cholmod_available() ? Solver::Cholmod : Solver::Eigen, Solver::Cg,
+                            Solver::Auto};
+  FitOptions o{std::sqrt(100.0 / double(n)), Kernel::C2, Polynomial::None};
+  o.solver = solvers[state.range(1)];
+  FitStats stats;
+  for (auto _ : state) {
+    const SpaceMap m = SpaceMap::fit(s, d, o);
+    stats = m.stats();
+    benchmark::DoNotOptimize(m.coefficients().data());
+  }
+  state.SetLabel(std::string(solver_name(stats.solver)) + (stats.iterations ? ", " + std::to_string(stats.iterations) + " steps" : ""));
+  state.counters["neighbours"] = stats.mean_neighbors;
+}
+
+}  // namespace
+
+BENCHMARK(BM_Fit)
+    ->ArgsProduct({{100, 300, 1000, 10000}, {0, 1, 2, 3}})
+    ->Args({100000, 1})
+    ->Args({100000, 2})
+    ->Args({100000, 3})
+    ->Args({1000000, 3})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
