@@ -111,15 +111,20 @@ py::array_t<T> output_for(const py::object& out, std::size_t n) {
   if (out.is_none()) return py::array_t<T>({py::ssize_t(n), py::ssize_t(3)});
   if (!py::isinstance<py::array>(out)) throw py::type_error("out must be a numpy array");
   const auto a = py::reinterpret_borrow<py::array>(out);
-  const bool ok = a.dtype().is(py::dtype::of<T>()) && a.ndim() == 2 && std::size_t(a.shape(0)) == n && a.shape(1) == 3 &&
-                  (a.flags() & py::array::c_style) && a.writeable();
-  if (!ok) {
-    std::ostringstream m;
-    m << "out must be a writeable C-contiguous (" << n << ", 3) " << (std::is_same_v<T, float> ? "float32" : "float64")
-      << " array, got " << shape_of(a) << " " << std::string(py::str(a.dtype()));
-    throw py::value_error(m.str());
-  }
-  return py::reinterpret_borrow<py::array_t<T>>(a);
+  const char* type = std::is_same_v<T, float> ? "float32" : "float64";
+  std::ostringstream m;
+  m << "out must be a writeable C-contiguous (" << n << ", 3) " << type << " array: ";
+  if (!a.dtype().is(py::dtype::of<T>()))
+    m << "its dtype is " << std::string(py::str(a.dtype())) << " (the result of these points is " << type << ")";
+  else if (a.ndim() != 2 || std::size_t(a.shape(0)) != n || a.shape(1) != 3)
+    m << "its shape is " << shape_of(a);
+  else if (!(a.flags() & py::array::c_style))
+    m << "it is not C-contiguous (a strided view or Fortran order)";
+  else if (!a.writeable())
+    m << "it is read-only";
+  else
+    return py::reinterpret_borrow<py::array_t<T>>(a);
+  throw py::value_error(m.str());
 }
 
 /// out = f(in) over (n, 3) points, float32 in float32 out, anything else in float64. Without the GIL,
@@ -133,6 +138,11 @@ py::array apply_typed(const py::array& points, const char* what, const py::objec
   py::array_t<T> out = output_for<T>(out_arg, n);
   const T* i = in.data();
   T* o = out.mutable_data();
+  // An out that overlaps the points without being them would be written while still being read:
+  // the result goes through a temporary then (out == points itself is evaluated in place).
+  const bool overlap = o != i && o < i + 3 * n && i < o + 3 * n;
+  std::vector<T> staging(overlap ? 3 * n : 0);
+  T* target = overlap ? staging.data() : o;
   std::size_t bad = n;
   {
     py::gil_scoped_release release;
@@ -149,7 +159,10 @@ py::array apply_typed(const py::array& points, const char* what, const py::objec
       if (touch) std::fill(o + 3 * r.begin(), o + 3 * r.end(), T(0));
     });
     bad = first_bad.load();
-    if (bad == n) f(i, o, n);
+    if (bad == n) {
+      f(i, target, n);
+      if (overlap) std::copy(staging.begin(), staging.end(), o);
+    }
   }
   if (bad < n) {
     int c = 0;

@@ -71,7 +71,7 @@ std::string stats_text(const SpaceMap& map) {
                                s.reverse_breadth_first.envelope, s.reverse_cuthill_mckee.envelope));
   line("envelope bytes", fmt("%zu  (dense %zu, %.1f%%; 4-byte floats as in the paper)", s.envelope_bytes, s.dense_bytes,
                              100.0 * double(s.envelope_bytes) / double(s.dense_bytes)));
-  if (s.iterations > 0 && !s.fell_back)
+  if (s.solver == Solver::Cg)
     line("solver", fmt("%s  (%zu iterations to a relative residual of %.3g; matrix %zu entries)",
                        std::string(solver_name(s.solver)).c_str(), s.iterations, s.solver_residual, s.factor_nonzeros));
   else

@@ -54,9 +54,9 @@ inline constexpr std::size_t kCgMaxIterations = 3000;
 /// Auto's rule, by estimated cost: the envelope solver while the multiply-adds of its factorisation
 /// (sum over rows of (row length)^2 / 2) stay below those of kCgStepsEstimate conjugate-gradient
 /// steps on 3 right-hand sides (each step a product with A: 2 * neighbour pairs + N entries) and at
-/// most kEnvelopeWorkLimit; else CG, with CHOLMOD (or Eigen) taking over where CG stagnates. CG took
-/// 28 to 230 steps on the sphere sweep; the crossover measured between N = 300 and 600
-/// (docs/PERFORMANCE.md).
+/// most kEnvelopeWorkLimit; else CG, with CHOLMOD (or Eigen) taking over where CG stagnates or, under
+/// Auto, once CG has spent a tenth of the envelope's work (at least 50 steps). CG took 28 to 230
+/// steps on the sphere sweep; the crossover measured between N = 300 and 600 (docs/PERFORMANCE.md).
 inline constexpr double kEnvelopeWorkLimit = 1.0e8;
 inline constexpr double kCgStepsEstimate = 50.0;
 /// The solver a fit uses: `requested`, or for Solver::Auto the rule above.

@@ -225,7 +225,9 @@ struct SpaceMap::Structure {
       }
       RowMatrix x = RowMatrix::Constant(Eigen::Index(n), 1, 1.0 / std::sqrt(double(n)));
       double lmin_inv = 1.0 / phi0;
-      for (int it = 0; it < 30; ++it) {
+      // Each inverse step is a whole solve: with CG (no factor to reuse) fewer of them, a rougher estimate.
+      const int inverse_steps = stats.solver == Solver::Cg && !fell_back ? 8 : 30;
+      for (int it = 0; it < inverse_steps; ++it) {
         solve_in_place(x);
         const double norm = x.norm();
         if (!(norm > 0) || !std::isfinite(norm)) break;
@@ -459,8 +461,16 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
     t0 = Clock::now();
     if (solver == Solver::Cg) {
       // Rows in the envelope ordering for locality in the products; nothing to factorise.
+      // Chosen by Auto, CG may spend only a tenth of the envelope's work (an upper bound of a direct
+      // factorisation's) before a direct solver takes over: a system it converges on slowly (dense,
+      // ill-conditioned) costs little more than the direct solve would have.
+      std::size_t steps = kCgMaxIterations;
+      if (options.solver == Solver::Auto) {
+        const double step = 3.0 * (2.0 * double(stats.neighbor_pairs) + double(n));
+        steps = std::size_t(std::clamp(stats.envelope_work / (10.0 * step), 50.0, double(kCgMaxIterations)));
+      }
       st->sparse = detail::conjugate_gradients(st->graph, options.kernel, options.radius, std::move(envelope_order),
-                                               kCgTolerance, kCgMaxIterations);
+                                               kCgTolerance, steps);
       stats.seconds_assembly = seconds_since(t0);
     } else {
       st->sparse = detail::factor_sparse(st->graph, sources, options.kernel, options.radius, solver,

@@ -123,6 +123,7 @@ using Supernodal = Eigen::CholmodSupernodalLLT<Sparse, Eigen::Lower>;
 template <>
 void EigenFactor<Supernodal>::init(const Sparse& a) {
   llt_.cholmod().supernodal = CHOLMOD_SUPERNODAL;
+  llt_.cholmod().print = 0;  // csrbf reports a failed factorisation itself; no CHOLMOD lines on stderr
   // The matrix comes in csrbf's geometric nested dissection order (nested_dissection_order); CHOLMOD
   // keeps it (and postorders its elimination tree). Its own choices measured slower on the scale
   // sweep (docs/PERFORMANCE.md, N = 1e5 on the sphere): AMD's factor takes 60% more flops, METIS's

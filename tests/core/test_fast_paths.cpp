@@ -478,6 +478,15 @@ TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyS
   const SpaceMap again = stuck.with_destinations(line);  // zero displacement: through the direct solver
   EXPECT_TRUE(again.stats().fell_back);
   EXPECT_EQ(again.map(line[7]), line[7]);
+
+  // Chosen by Auto, CG gives up early on a system it converges on slowly: 1000 sources in the unit
+  // cube with R = 1 (nearly dense, envelope work past its limit) get at most 50 steps, then CHOLMOD.
+  auto dense = random_points(1000, rng);
+  const SpaceMap auto_dense = SpaceMap::fit(dense, displaced(dense, rng), {1.0, Kernel::C2, Polynomial::None});
+  EXPECT_GT(auto_dense.stats().envelope_work, kEnvelopeWorkLimit);
+  EXPECT_TRUE(auto_dense.stats().fell_back);
+  EXPECT_LE(auto_dense.stats().iterations, 50u);
+  EXPECT_LE(auto_dense.stats().residual_relative, kResidualLimit);
 }
 
 TEST(FastPaths, AutoSolverChoosesBySize) {

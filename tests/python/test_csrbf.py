@@ -164,6 +164,18 @@ class Arrays(unittest.TestCase):
         outf = np.empty_like(f)
         self.m(f, out=outf)
         np.testing.assert_allclose(outf, self.m(x), atol=1e-5)
+        # An out that overlaps the points without being them: the result as if they were apart.
+        buf = np.zeros(3 * (len(x) + 1))
+        pts = buf[:3 * len(x)].reshape(-1, 3)
+        pts[:] = x[perm]
+        shifted = buf[3:].reshape(-1, 3)
+        self.m(pts, phase=0.6, out=shifted)
+        np.testing.assert_array_equal(shifted, ys)
+        pts[:] = x[perm]
+        src = buf[3:].reshape(-1, 3)  # the same memory, one row on
+        expected = self.m.displacement(src.copy())
+        self.m.displacement(src, out=pts)
+        np.testing.assert_array_equal(pts, expected)
         # A wrong out is refused by name, before anything is written.
         for bad, why in ((np.empty((len(x), 3), dtype=np.float32), "float64"), (np.empty((len(x), 2)), "3"),
                          (np.empty((3, len(x))).T, "C-contiguous"), ([0.0] * 3, "numpy array")):
