@@ -11,6 +11,7 @@
 #include "test_points.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -398,14 +399,21 @@ TEST(FastPaths, SmallAndLargeFitsBuildTheSameGraph) {
   }
 }
 
-TEST(FastPaths, SparseSolversAgreeWithTheEnvelopeSolver) {
-  std::mt19937 rng(105);
-  // A volume and a surface (two shapes of nested dissection for CHOLMOD).
-  auto cube = random_points(800, rng);
+namespace {
+/// n points in the unit cube and n on a sphere of radius 0.5: a volume and a surface (two shapes of
+/// nested dissection for CHOLMOD, two spectra for CG).
+std::array<std::vector<Vec3>, 2> volume_and_surface(std::size_t n, std::mt19937& rng) {
+  auto cube = random_points(n, rng);
   std::vector<Vec3> sphere;
   std::normal_distribution<double> gauss(0.0, 1.0);
-  for (int i = 0; i < 800; ++i) sphere.push_back(Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized() * 0.5);
-  for (const auto& s : {cube, sphere}) {
+  for (std::size_t i = 0; i < n; ++i) sphere.push_back(Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized() * 0.5);
+  return {cube, sphere};
+}
+}  // namespace
+
+TEST(FastPaths, SparseSolversAgreeWithTheEnvelopeSolver) {
+  std::mt19937 rng(105);
+  for (const auto& s : volume_and_surface(800, rng)) {
     const auto d = displaced(s, rng);
     for (Polynomial p : kPolys) {
       FitOptions o{0.2, Kernel::C2, p};
@@ -436,11 +444,7 @@ TEST(FastPaths, SparseSolversAgreeWithTheEnvelopeSolver) {
 
 TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyStagnate) {
   std::mt19937 rng(107);
-  auto cube = random_points(900, rng);
-  std::vector<Vec3> sphere;
-  std::normal_distribution<double> gauss(0.0, 1.0);
-  for (int i = 0; i < 900; ++i) sphere.push_back(Vec3(gauss(rng), gauss(rng), gauss(rng)).normalized() * 0.5);
-  for (const auto& s : {cube, sphere})
+  for (const auto& s : volume_and_surface(900, rng))
     for (Kernel k : {Kernel::C0, Kernel::C2, Kernel::C6})
       for (Polynomial p : kPolys) {
         const auto d = displaced(s, rng);
