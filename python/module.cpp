@@ -9,6 +9,7 @@
 #include "csrbf/io/mesh.hpp"
 #include "csrbf/io/scene.hpp"
 #include "csrbf/space_map.hpp"
+#include "csrbf/version.hpp"
 
 #include <pybind11/numpy.h>
 #include <tbb/blocked_range.h>
@@ -214,7 +215,7 @@ struct ScenePlayer {
 
 PYBIND11_MODULE(csrbf, m) {
   m.doc() = "Real-time 3D deformation by compactly supported radial basis functions (Wendland CSRBF)";
-  m.attr("__version__") = "0.1.0";
+  m.attr("__version__") = csrbf::kVersion;
 
   static py::exception<csrbf::io::FileError> file_error(m, "FileError", PyExc_OSError);
   py::register_exception_translator([](std::exception_ptr p) {

@@ -8,6 +8,7 @@
 #include "csrbf/io/mesh.hpp"
 #include "csrbf/folds.hpp"
 #include "csrbf/space_map.hpp"
+#include "csrbf/version.hpp"
 
 #include <CLI/CLI.hpp>
 
@@ -154,7 +155,7 @@ int main(int argc, char** argv) {
   csrbf::io::remove_partials_on_signals();
   CLI::App app{"csrbf: real-time 3D deformation by compactly supported radial basis functions (Wendland CSRBF)"};
   app.require_subcommand(1);
-  app.set_version_flag("--version", "csrbf 0.1.0");
+  app.set_version_flag("--version", std::string("csrbf ") + csrbf::kVersion);
 
   FitArgs deform_args;
   std::string mesh_in, mesh_out;

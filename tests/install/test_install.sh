@@ -16,7 +16,7 @@ for f in lib/cmake/csrbf/csrbfConfig.cmake lib/cmake/csrbf/csrbfConfigVersion.cm
          lib/cmake/csrbf/csrbf-core-targets.cmake lib/cmake/csrbf/csrbf-anim-targets.cmake \
          lib/cmake/csrbf/csrbf-io-targets.cmake lib/cmake/csrbf/csrbf-render-targets.cmake \
          lib/cmake/csrbf/csrbf-vtk-targets.cmake \
-         include/csrbf/space_map.hpp include/csrbf/vtk/vtkCSRBFTransform.h include/csrbf/anim/scene.hpp \
+         include/csrbf/space_map.hpp include/csrbf/version.hpp include/csrbf/vtk/vtkCSRBFTransform.h include/csrbf/anim/scene.hpp \
          lib/libcsrbf_core.a lib/libcsrbf_vtk.a; do
   test -f "$tmp/prefix/$f" || { echo "missing $f"; exit 1; }
 done

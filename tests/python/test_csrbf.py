@@ -51,6 +51,12 @@ class SameAsTheCommandLine(unittest.TestCase):
             # The CLI writes the shortest text that reads back as the same double.
             np.testing.assert_array_equal(py, cli)
 
+    def test_one_version(self):
+        # Both come from project(csrbf VERSION ...) through csrbf/version.hpp.
+        out = subprocess.run([CLI, "--version"], check=True, capture_output=True, text=True).stdout.strip()
+        self.assertEqual(out, "csrbf " + csrbf.__version__)
+        self.assertRegex(csrbf.__version__, r"^\d+\.\d+\.\d+$")
+
     def test_deformation_file_round_trip(self):
         s, d = csrbf.read_controls(os.path.join(EXAMPLES, "face.controls"))
         m = csrbf.SpaceMap(s, d, 0.2, kernel="c6")
