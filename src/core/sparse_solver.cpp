@@ -210,12 +210,10 @@ class BatchedCg final : public SparseFactor {
       for (std::size_t k = range.begin(); k < range.end(); ++k)
         for (std::size_t c = 0; c < m; ++c) s[c] += r[k * m + c] * r[k * m + c];
     });
-    std::array<double, 8> target{}, alpha{}, beta{};
+    const Sums rr0 = rr;  // ||b||^2 per column: the residual is relative to it
+    std::array<double, 8> alpha{}, beta{};
     std::array<bool, 8> done{};
-    for (std::size_t c = 0; c < m; ++c) {
-      target[c] = tolerance_ * tolerance_ * rr[c];
-      done[c] = rr[c] == 0.0;
-    }
+    for (std::size_t c = 0; c < m; ++c) done[c] = rr[c] == 0.0;
     std::size_t it = 0;
     const auto all_done = [&] {
       for (std::size_t c = 0; c < m; ++c)
@@ -253,7 +251,7 @@ class BatchedCg final : public SparseFactor {
         if (done[c]) continue;
         beta[c] = rr[c] > 0 ? rr_new[c] / rr[c] : 0.0;
         rr[c] = rr_new[c];
-        if (rr[c] <= target[c] || !std::isfinite(rr[c])) done[c] = true;
+        if (rr[c] <= tolerance_ * tolerance_ * rr0[c] || !std::isfinite(rr[c])) done[c] = true;
       }
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const tbb::blocked_range<std::size_t>& range) {
         for (std::size_t k = range.begin(); k < range.end(); ++k)
@@ -262,7 +260,7 @@ class BatchedCg final : public SparseFactor {
     }
     double worst = 0;
     for (std::size_t c = 0; c < m; ++c)
-      if (target[c] > 0) worst = std::max(worst, std::sqrt(rr[c] / (target[c] / (tolerance_ * tolerance_))));
+      if (rr0[c] > 0) worst = std::max(worst, std::sqrt(rr[c] / rr0[c]));
     iterations_ = it;
     residual_ = worst;
     if (!all_done() || !std::isfinite(worst)) {

@@ -138,17 +138,22 @@ void write_deformation(const std::filesystem::path& path, const DeformationSpec&
   });
 }
 
+namespace {
+/// The box (min, max corners) of rest[v] over the vertices v (not empty).
+std::array<Vec3, 2> bounds_of(const std::vector<Vec3>& rest, const std::vector<std::uint32_t>& vertices) {
+  std::array<Vec3, 2> box = {rest.at(vertices.front()), rest.at(vertices.front())};
+  for (const auto v : vertices) {
+    box[0] = box[0].cwiseMin(rest.at(v));
+    box[1] = box[1].cwiseMax(rest.at(v));
+  }
+  return box;
+}
+}  // namespace
+
 ActiveArea ActiveArea::of(const std::vector<Vec3>& rest, std::vector<std::uint32_t> vertices) {
   ActiveArea a;
   a.vertex_count = rest.size();
-  if (!vertices.empty()) {
-    std::array<Vec3, 2> box = {rest.at(vertices.front()), rest.at(vertices.front())};
-    for (const auto v : vertices) {
-      box[0] = box[0].cwiseMin(rest.at(v));
-      box[1] = box[1].cwiseMax(rest.at(v));
-    }
-    a.bounds = box;
-  }
+  if (!vertices.empty()) a.bounds = bounds_of(rest, vertices);
   a.vertices = std::move(vertices);
   return a;
 }
@@ -159,10 +164,10 @@ void check_active_area(const ActiveArea& area, const std::vector<Vec3>& rest, co
     throw FileError(where + ": active_area: the deformation was picked on a mesh of " +
                     std::to_string(area.vertex_count) + " vertices, " + mesh + " has " + std::to_string(rest.size()));
   if (!area.bounds || area.vertices.empty()) return;
-  const ActiveArea here = ActiveArea::of(rest, area.vertices);
+  const std::array<Vec3, 2> here = bounds_of(rest, area.vertices);
   const auto& want = *area.bounds;
   const double scale = std::max({(want[1] - want[0]).norm(), want[0].cwiseAbs().maxCoeff(), want[1].cwiseAbs().maxCoeff()});
-  const double off = std::max(((*here.bounds)[0] - want[0]).cwiseAbs().maxCoeff(), ((*here.bounds)[1] - want[1]).cwiseAbs().maxCoeff());
+  const double off = std::max((here[0] - want[0]).cwiseAbs().maxCoeff(), (here[1] - want[1]).cwiseAbs().maxCoeff());
   if (!(off <= 1e-6 * scale))
     throw FileError(where + ": active_area: its vertices of " + mesh + " are not where they were picked (their bounds "
                     "differ by " + format_number(off) + "): the mesh's vertices are in another order, as an STL or a "
