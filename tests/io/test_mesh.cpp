@@ -3,6 +3,7 @@
 #include "io/test_helpers.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <bit>
 #include <cstring>
@@ -284,6 +285,60 @@ TEST(Mesh, NonFiniteVerticesThroughAssimpAreRefused) {
   test::write_text(dir / "b.gltf", g);
   const std::string e = error_of(dir / "b.gltf");
   EXPECT_NE(e.find("is not finite"), std::string::npos) << e;
+}
+
+TEST(Mesh, GltfStructureIsCheckedBeforeAssimpTrustsIt) {
+  // fuzz_mesh_glb: assimp allocated 64 GB for a line strip of 0 elements (2^32 - 1 faces). Each
+  // shape is refused with the glTF path named; the untouched file still loads.
+  test::TempDir dir;
+  test::write_text(dir / "a.obj", kObj);
+  MeshDocument::load(dir / "a.obj").save(dir / "a.gltf");
+  const std::string g = test::read_text(dir / "a.gltf");
+  ASSERT_NO_THROW(MeshDocument::load(dir / "a.gltf"));
+  auto variant = [&](const std::string& from, const std::string& to) {
+    std::string v = g;
+    const auto at = v.find(from);
+    EXPECT_NE(at, std::string::npos) << from << " in " << g;
+    if (at != std::string::npos) v.replace(at, from.size(), to);
+    test::write_text(dir / "b.gltf", v);
+    return error_of(dir / "b.gltf");
+  };
+  std::string e = variant("\"attributes\"", "\"mode\": 3, \"attributes_\"");
+  EXPECT_NE(e.find("b.gltf: glTF meshes[0].primitives[0] has no attributes.POSITION"), std::string::npos) << e;
+  e = variant("\"attributes\"", "\"mode\": 9, \"attributes\"");
+  EXPECT_NE(e.find("meshes[0].primitives[0].mode 9 is not 0..6"), std::string::npos) << e;
+  e = variant("\"POSITION\"", "\"POSITION\": 77, \"X\"");
+  EXPECT_NE(e.find("meshes[0].primitives[0].attributes.POSITION 77 is not an accessor"), std::string::npos) << e;
+  e = variant("\"asset\"", "\"\xff\"");
+  EXPECT_NE(e.find("b.gltf: the glTF's JSON is not valid"), std::string::npos) << e;
+  // A strip whose indices accessor holds 0 elements.
+  std::string v = g;
+  const auto indices = v.find("\"indices\"");
+  ASSERT_NE(indices, std::string::npos) << g;
+  const auto k = std::stoul(v.substr(v.find(':', indices) + 1));
+  nlohmann::json j = nlohmann::json::parse(v);
+  j["accessors"][k]["count"] = 0;
+  j["meshes"][0]["primitives"][0]["mode"] = 5;
+  test::write_text(dir / "c.gltf", j.dump());
+  e = error_of(dir / "c.gltf");
+  EXPECT_NE(e.find("meshes[0].primitives[0] has 0 elements; its mode 5 needs at least 3"), std::string::npos) << e;
+  // A binary glTF whose JSON chunk claims 4 GB (assimp allocated it), whose header lies about the
+  // length, or whose last chunk runs past the end.
+  MeshDocument::load(dir / "a.obj").save(dir / "a.glb");
+  const std::string glb = test::read_text(dir / "a.glb");
+  ASSERT_NO_THROW(MeshDocument::load(dir / "a.glb"));
+  auto patched = [&](std::size_t at, std::uint32_t value, std::size_t keep) {
+    std::string b = glb.substr(0, keep);
+    std::memcpy(b.data() + at, &value, 4);
+    test::write_text(dir / "b.glb", b);
+    return error_of(dir / "b.glb");
+  };
+  e = patched(12, 0xffffff00u, glb.size());
+  EXPECT_NE(e.find("b.glb: the binary glTF's first chunk is not a JSON chunk of 4294967040 bytes"), std::string::npos) << e;
+  e = patched(8, std::uint32_t(glb.size() + 4), glb.size());
+  EXPECT_NE(e.find("the binary glTF header gives a length of"), std::string::npos) << e;
+  e = patched(8, std::uint32_t(glb.size() - 4), glb.size() - 4);
+  EXPECT_NE(e.find("beyond the end of the file"), std::string::npos) << e;
 }
 
 TEST(Mesh, StlAndGltfThroughAssimp) {
