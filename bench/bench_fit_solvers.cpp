@@ -43,8 +43,31 @@ void BM_Fit(benchmark::State& state) {
   state.counters["neighbours"] = stats.mean_neighbors;
 }
 
+// An animation frame: 1% of the destinations move (every hundredth control, by 1% of the radius)
+// and the fitted map re-solves with with_destinations (CG warm-started from the previous solution).
+// Compare with BM_Fit/N/3, a fresh fit of the same system.
+void BM_WithDestinations(benchmark::State& state) {
+  const auto n = std::size_t(state.range(0));
+  std::vector<Vec3> s, d;
+  fibonacci_sphere(n, s, d);
+  FitOptions o{std::sqrt(100.0 / double(n)), Kernel::C2, Polynomial::None};
+  const SpaceMap m = SpaceMap::fit(s, d, o);
+  FitStats stats;
+  int frame = 0;
+  for (auto _ : state) {
+    std::vector<Vec3> moved = d;
+    ++frame;
+    for (std::size_t i = std::size_t(frame) % 100; i < n; i += 100) moved[i] += Vec3(0, 0, 0.01 * o.radius);
+    const SpaceMap next = m.with_destinations(moved);
+    stats = next.stats();
+    benchmark::DoNotOptimize(next.coefficients().data());
+  }
+  state.SetLabel(std::string(solver_name(stats.solver)) + (stats.iterations ? ", " + std::to_string(stats.iterations) + " steps" : ""));
+}
+
 }  // namespace
 
+BENCHMARK(BM_WithDestinations)->Arg(10000)->Arg(100000)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_Fit)
     ->ArgsProduct({{100, 300, 1000, 10000}, {0, 1, 2, 3}})
     ->Args({100000, 1})

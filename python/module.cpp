@@ -4,6 +4,7 @@
 // the GIL. docs/python.md is the tutorial.
 #include "csrbf/anim/scene.hpp"
 #include "csrbf/displacement_field.hpp"
+#include "csrbf/names.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/mesh.hpp"
@@ -96,12 +97,12 @@ py::array_t<double> from_vec3(const std::vector<Vec3>& v) {
 
 csrbf::Kernel kernel_of(const std::string& name) {
   const auto k = csrbf::parse_kernel(name);
-  if (!k) throw py::value_error("kernel must be one of 'c0', 'c2', 'c4', 'c6', got '" + name + "'");
+  if (!k) throw py::value_error("kernel must be one of " + csrbf::names_text<csrbf::Kernel>() + ", got '" + name + "'");
   return *k;
 }
 csrbf::Polynomial polynomial_of(const std::string& name) {
   const auto p = csrbf::parse_polynomial(name);
-  if (!p) throw py::value_error("polynomial must be one of 'none', 'constant', 'linear', got '" + name + "'");
+  if (!p) throw py::value_error("polynomial must be one of " + csrbf::names_text<csrbf::Polynomial>() + ", got '" + name + "'");
   return *p;
 }
 
@@ -198,10 +199,15 @@ py::dict stats_dict(const csrbf::SpaceMap& m) {
   d["iterations"] = s.iterations;
   d["solver_residual"] = s.solver_residual;
   d["fell_back"] = s.fell_back;
+  d["warm_start"] = s.warm_start;
   d["factor_nonzeros"] = s.factor_nonzeros;
   d["residual_max"] = s.residual_max;
   d["residual_relative"] = s.residual_relative;
   d["seconds_total"] = s.seconds_total();
+  d["seconds"] = py::dict(py::arg("index") = s.seconds_index, py::arg("graph") = s.seconds_graph,
+                          py::arg("ordering") = s.seconds_ordering, py::arg("assembly") = s.seconds_assembly,
+                          py::arg("factorization") = s.seconds_factorization, py::arg("solve") = s.seconds_solve,
+                          py::arg("residual") = s.seconds_residual);
   return d;
 }
 
@@ -223,9 +229,9 @@ PYBIND11_MODULE(csrbf, m) {
       if (p) std::rethrow_exception(p);
     } catch (const csrbf::io::FileError& e) {
       file_error(e.what());
-    } catch (const csrbf::InvalidInput& e) {
-      PyErr_SetString(PyExc_ValueError, e.what());
-    } catch (const csrbf::NotPositiveDefinite& e) {
+    } catch (const csrbf::ResourceLimit& e) {
+      PyErr_SetString(PyExc_MemoryError, e.what());
+    } catch (const csrbf::Error& e) {  // bad input, a failed factorisation
       PyErr_SetString(PyExc_ValueError, e.what());
     }
   });

@@ -7,6 +7,7 @@
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/mesh.hpp"
 #include "csrbf/folds.hpp"
+#include "csrbf/names.hpp"
 #include "csrbf/space_map.hpp"
 #include "csrbf/version.hpp"
 
@@ -63,11 +64,11 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
   auto* radius = cmd->add_option("--radius,-r", a.radius, "Radius of support R, in the mesh's units (> 0)")
                      ->check(positive_finite("--radius"));
   auto* kernel = cmd->add_option("--kernel,-k", a.kernel, "Wendland kernel: c0 = psi20, c2 = psi31, c4 = psi42, c6 = psi53")
-                     ->check(CLI::IsMember({"c0", "c2", "c4", "c6"}))
+                     ->check(CLI::IsMember(csrbf::names<csrbf::Kernel>()))
                      ->capture_default_str();
   auto* polynomial = cmd->add_option("--polynomial,-p", a.polynomial,
                                      "Polynomial part: none (strictly local), constant, linear (reproduces affine maps)")
-                         ->check(CLI::IsMember({"none", "constant", "linear"}))
+                         ->check(CLI::IsMember(csrbf::names<csrbf::Polynomial>()))
                          ->capture_default_str();
   cmd->add_option("--memory-limit", a.memory_limit_gib,
                   "Refuse fits whose neighbour graph and factor would need more than this many GiB (a radius near "
@@ -83,12 +84,12 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
   });
   cmd->add_option("--ordering", a.ordering,
                   "Matrix ordering: auto (smallest envelope), breadth-first (paper Fig. 3), reverse-breadth-first, rcm, identity")
-      ->check(CLI::IsMember({"auto", "breadth-first", "reverse-breadth-first", "rcm", "identity"}))
+      ->check(CLI::IsMember(csrbf::names<csrbf::Ordering>()))
       ->capture_default_str();
   cmd->add_option("--solver", a.solver,
                   "Solver: auto (envelope while small, then by size), envelope (paper), eigen, cholmod, cg "
                   "(conjugate gradients; a direct solver takes over where it stagnates)")
-      ->check(CLI::IsMember({"auto", "envelope", "eigen", "cholmod", "cg"}))
+      ->check(CLI::IsMember(csrbf::names<csrbf::Solver>()))
       ->capture_default_str();
 }
 
@@ -140,7 +141,7 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
     throw csrbf::io::FileError(where(e.row()) +
                                ": the interpolation matrix is not numerically positive definite at this control (pivot " +
                                std::to_string(e.pivot()) + "); sources too close together for R = " + std::to_string(o.radius));
-  } catch (const std::invalid_argument& e) {
+  } catch (const csrbf::Error& e) {  // bad input, or the memory limit
     throw csrbf::io::FileError(controls.name + ": " + e.what());
   }
 }

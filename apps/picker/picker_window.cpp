@@ -1,6 +1,7 @@
 #include "picker_window.hpp"
 
 #include "csrbf/io/controls.hpp"
+#include "csrbf/names.hpp"
 #include "gui_common.hpp"
 
 #include <QAction>
@@ -435,7 +436,7 @@ void PickerWindow::build_ui() {
   connect(kernel_, qOverload<int>(&QComboBox::currentIndexChanged), this, [this] { options_changed(-1, "Kernel"); });
   polynomial_ = new QComboBox(panel);
   polynomial_->setObjectName("polynomial");
-  polynomial_->addItems({"none", "constant", "linear"});
+  for (const auto& e : NameTable<Polynomial>::entries) polynomial_->addItem(QString::fromUtf8(e.name.data(), int(e.name.size())));
   form->addRow("Polynomial", polynomial_);
   connect(polynomial_, qOverload<int>(&QComboBox::currentIndexChanged), this,
           [this] { options_changed(-1, "Polynomial"); });
@@ -745,9 +746,8 @@ void PickerWindow::options_changed(int merge_id, const QString& what) {
   if (updating_) return;
   State next = doc_.state();
   next.radius = radius_->value();
-  next.kernel = std::array{Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6}[std::size_t(std::max(0, kernel_->currentIndex()))];
-  next.polynomial = std::array{Polynomial::None, Polynomial::Constant,
-                               Polynomial::Linear}[std::size_t(std::max(0, polynomial_->currentIndex()))];
+  next.kernel = NameTable<Kernel>::entries[std::size_t(std::max(0, kernel_->currentIndex()))].value;
+  next.polynomial = NameTable<Polynomial>::entries[std::size_t(std::max(0, polynomial_->currentIndex()))].value;
   next.phase = phase_->value() / 100.0;
   edit(next, what, merge_id);
 }
@@ -788,8 +788,8 @@ void PickerWindow::refresh_options() {
   radius_->setValue(s.radius);
   radius_fraction_->setValue(100.0 * s.radius / doc_.diagonal());
   radius_slider_->setValue(slider_from_fraction(s.radius / doc_.diagonal()));
-  kernel_->setCurrentIndex(int(s.kernel == Kernel::C0 ? 0 : s.kernel == Kernel::C2 ? 1 : s.kernel == Kernel::C4 ? 2 : 3));
-  polynomial_->setCurrentIndex(s.polynomial == Polynomial::None ? 0 : s.polynomial == Polynomial::Constant ? 1 : 2);
+  kernel_->setCurrentIndex(int(table_index(s.kernel)));
+  polynomial_->setCurrentIndex(int(table_index(s.polynomial)));
   phase_->setValue(int(std::lround(s.phase * 100)));
   phase_label_->setText(QString::number(s.phase, 'f', 2));
   updating_ = false;
@@ -970,7 +970,7 @@ void PickerWindow::refresh_hints() {
                    .arg(longest, 0, 'g', 3)
                    .arg(s.polynomial == Polynomial::None ? QString()
                                                           : QString(": the %1 polynomial extrapolates from the controls")
-                                                                .arg(s.polynomial == Polynomial::Linear ? "linear" : "constant"))
+                                                                .arg(QString::fromUtf8(name_of(s.polynomial).data(), int(name_of(s.polynomial).size()))))
                    .arg(s.polynomial == Polynomial::None ? QString() : QString(" or polynomial 'none'"));
     }
   }

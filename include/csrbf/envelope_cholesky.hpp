@@ -7,6 +7,9 @@
 // of L overwrite the rows of A.
 #pragma once
 
+#include "csrbf/errors.hpp"
+#include "csrbf/types.hpp"
+
 #include <Eigen/Core>
 
 #include <cstddef>
@@ -16,23 +19,6 @@
 #include <vector>
 
 namespace csrbf {
-
-using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-
-/// Thrown when a pivot of the factorisation is not positive: the matrix is not (numerically)
-/// positive definite. row() is the row in the matrix's own order.
-class NotPositiveDefinite : public std::runtime_error {
- public:
-  NotPositiveDefinite(std::size_t row, double pivot);
-  /// When the failing row is not known (sparse solvers): row() is SIZE_MAX, pivot() NaN.
-  explicit NotPositiveDefinite(const std::string& message);
-  std::size_t row() const noexcept { return row_; }
-  double pivot() const noexcept { return pivot_; }
-
- private:
-  std::size_t row_;
-  double pivot_;
-};
 
 class EnvelopeMatrix {
  public:

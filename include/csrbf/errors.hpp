@@ -1,5 +1,14 @@
-// Exceptions for bad input to the core. Each message names the offending value and where it came
+// The exceptions of csrbf, one hierarchy. Each message names the offending value and where it came
 // from (the index of the control point, the option); callers add file names and line numbers.
+//
+//   Error                      every failure csrbf reports
+//   +- InvalidInput            bad input: sizes, non-finite numbers, a radius <= 0, an unknown name
+//   |  +- DuplicateSource      two sources at one position
+//   |  +- DegeneratePolynomial the sources do not determine the polynomial
+//   |  +- IllConditioned       the fit cannot reach its accuracy
+//   +- NotPositiveDefinite     a factorisation met a pivot <= 0
+//   +- ResourceLimit           more memory than allowed would be needed
+//   +- io::FileError           a file cannot be read or written, or is malformed (csrbf/io/error.hpp)
 #pragma once
 
 #include <cstddef>
@@ -8,10 +17,16 @@
 
 namespace csrbf {
 
-/// Bad input: sizes, non-finite numbers, a radius <= 0, an unknown name.
-class InvalidInput : public std::invalid_argument {
+/// The base of every exception csrbf throws on purpose.
+class Error : public std::runtime_error {
  public:
-  using std::invalid_argument::invalid_argument;
+  using std::runtime_error::runtime_error;
+};
+
+/// Bad input: sizes, non-finite numbers, a radius <= 0, an unknown name.
+class InvalidInput : public Error {
+ public:
+  using Error::Error;
 };
 
 /// Two control sources at the same position (the interpolation matrix would be singular).
@@ -42,11 +57,27 @@ class IllConditioned : public InvalidInput {
   using InvalidInput::InvalidInput;
 };
 
-/// A fit or evaluation would need more memory than allowed (FitOptions::memory_limit_bytes); the
-/// message says how much it would take.
-class ResourceLimit : public InvalidInput {
+/// A pivot of a Cholesky factorisation is not positive: the matrix is not (numerically) positive
+/// definite. row() is the row in the matrix's own order where it is known.
+class NotPositiveDefinite : public Error {
  public:
-  using InvalidInput::InvalidInput;
+  NotPositiveDefinite(std::size_t row, double pivot);
+  /// When the failing row is not known (sparse solvers): row() is SIZE_MAX, pivot() NaN.
+  explicit NotPositiveDefinite(const std::string& message);
+  std::size_t row() const noexcept { return row_; }
+  double pivot() const noexcept { return pivot_; }
+
+ private:
+  std::size_t row_;
+  double pivot_;
+};
+
+/// A fit, an evaluation or a read would need more memory than allowed (FitOptions::memory_limit_bytes,
+/// `--memory-limit`); the message says how much it would take. Not bad input: the same input fits
+/// under a larger limit.
+class ResourceLimit : public Error {
+ public:
+  using Error::Error;
 };
 
 /// Throws InvalidInput unless phase is finite and within [-1e6, 1e6].

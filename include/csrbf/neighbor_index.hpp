@@ -5,6 +5,8 @@
 // no tree levels); bench/bench_neighbor_index.cpp measures it against an octree and brute force.
 #pragma once
 
+#include "csrbf/types.hpp"
+
 #include <Eigen/Core>
 
 #include <cmath>
@@ -15,15 +17,13 @@
 
 namespace csrbf {
 
-using Vec3 = Eigen::Vector3d;
-
 /// Hashed uniform grid over a copy of the points. Immutable after construction; queries are const
 /// and thread-safe. The index owns its copy of the points, so the caller's buffer may go away.
 class NeighborIndex {
  public:
   NeighborIndex() = default;
   /// radius: the search radius R (not squared), > 0 and finite; points must be finite.
-  /// Throws InvalidInput (a std::invalid_argument) otherwise, or when R is below 1e-9 of the points'
+  /// Throws InvalidInput otherwise, or when R is below 1e-9 of the points'
   /// extent.
   NeighborIndex(std::span<const Vec3> points, double radius);
   /// The extent rule above on its own: throws InvalidInput when the box [lo, hi] spans more than

@@ -22,8 +22,8 @@ namespace csrbf {
 /// distances alongside in dist2.
 struct AdjacencyGraph {
   std::vector<std::size_t> offsets{0};
-  std::vector<std::uint32_t> neighbors;
-  std::vector<double> dist2;
+  FillVector<std::uint32_t> neighbors;
+  FillVector<double> dist2;
 
   std::size_t size() const noexcept { return offsets.size() - 1; }
   std::size_t degree(std::size_t i) const noexcept { return offsets[i + 1] - offsets[i]; }

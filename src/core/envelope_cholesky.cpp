@@ -30,9 +30,9 @@ double dot(const double* a, const double* b, std::size_t n) noexcept {
 }  // namespace
 
 NotPositiveDefinite::NotPositiveDefinite(std::size_t row, double pivot)
-    : std::runtime_error(pivot_message(row, pivot)), row_(row), pivot_(pivot) {}
+    : Error(pivot_message(row, pivot)), row_(row), pivot_(pivot) {}
 NotPositiveDefinite::NotPositiveDefinite(const std::string& message)
-    : std::runtime_error(message), row_(std::size_t(-1)), pivot_(std::numeric_limits<double>::quiet_NaN()) {}
+    : Error(message), row_(std::size_t(-1)), pivot_(std::numeric_limits<double>::quiet_NaN()) {}
 
 EnvelopeMatrix::EnvelopeMatrix(std::vector<std::size_t> first_column) : first_(std::move(first_column)) {
   start_.resize(first_.size() + 1);

@@ -108,42 +108,68 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
 }
 
 void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::size_t>& offsets,
-                              std::vector<std::uint32_t>& neighbors, std::vector<double>& dist2) const {
+                              FillVector<std::uint32_t>& neighbors, FillVector<double>& dist2) const {
   const std::size_t n = sources.size();
   const double R2 = radius * radius;
-  // Two parallel passes over the sources: count each one's neighbours, then (offsets known, the
-  // arrays allocated once at their exact size) write them. Each source's candidates are its own
-  // cell's run, in the run's order, so the graph is the same as a serial pass would give.
-  const auto for_each_neighbor = [&](std::size_t i, auto&& f) {
-    const Vec3& p = sources[i];
-    const Vec3 q = (p - origin) * inv_h;
-    const std::size_t cell = std::size_t((std::int64_t(q.z()) * ny + std::int64_t(q.y())) * nx + std::int64_t(q.x()));
-    for (std::uint32_t e = begin[cell]; e < begin[cell + 1]; ++e) {
-      const std::uint32_t j = source[e];
-      if (j == n || j == i) continue;
-      const double d2 = (sources[j] - p).squaredNorm();
-      if (d2 < R2) f(j, d2);
-    }
+  // The sources grouped by cell (a counting sort): each cell's run is gathered once into contiguous
+  // coordinates and tested against every source of the cell, where a pass in input order fetched
+  // the run's sources from all over memory for each source. Two parallel passes over the groups:
+  // count each source's neighbours, then (offsets known, the arrays allocated once at their exact
+  // size) write them. A source's neighbours come in its run's order, whatever the order of the pass.
+  CellOrder<double> groups;
+  order_by_cell(*this, sources.data()->data(), n, groups);
+  const std::vector<std::uint32_t>& order = groups.order;
+  const std::vector<std::uint32_t>& cell_of = groups.cell;
+  std::vector<std::uint32_t> first{0};  // first[g] .. first[g + 1]: group g's place in `order`
+  for (std::size_t k = 1; k < n; ++k)
+    if (cell_of[order[k]] != cell_of[order[k - 1]]) first.push_back(std::uint32_t(k));
+  first.push_back(std::uint32_t(n));
+  const std::size_t ngroups = first.size() - 1;
+  struct Run {
+    std::vector<double> x, y, z;
+    std::vector<std::uint32_t> j;
+  };
+  // For each group, its run gathered, then f(i, run) for each of its sources i.
+  const auto for_each_group = [&](auto&& f) {
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, ngroups, 64), [&](const tbb::blocked_range<std::size_t>& r) {
+      Run run;
+      for (std::size_t gi = r.begin(); gi < r.end(); ++gi) {
+        const std::uint32_t c = cell_of[order[first[gi]]];
+        run.x.clear(), run.y.clear(), run.z.clear(), run.j.clear();
+        for (std::uint32_t e = begin[c]; e < begin[c + 1]; ++e) {
+          const std::uint32_t j = source[e];
+          if (j == n) continue;
+          run.x.push_back(sources[j].x()), run.y.push_back(sources[j].y()), run.z.push_back(sources[j].z());
+          run.j.push_back(j);
+        }
+        for (std::uint32_t k = first[gi]; k < first[gi + 1]; ++k) f(order[k], run);
+      }
+    });
   };
   offsets.assign(n + 1, 0);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t i = r.begin(); i < r.end(); ++i) {
-      std::size_t c = 0;
-      for_each_neighbor(i, [&](std::uint32_t, double) { ++c; });
-      offsets[i + 1] = c;
+  for_each_group([&](std::uint32_t i, const Run& run) {
+    const Vec3& p = sources[i];
+    std::size_t c = 0;
+    for (std::size_t t = 0; t < run.j.size(); ++t) {
+      const double dx = run.x[t] - p.x(), dy = run.y[t] - p.y(), dz = run.z[t] - p.z();
+      c += std::size_t(dx * dx + dy * dy + dz * dz < R2);
     }
+    offsets[i + 1] = c - 1;  // not itself
   });
   for (std::size_t i = 0; i < n; ++i) offsets[i + 1] += offsets[i];
   neighbors.resize(offsets[n]);
   dist2.resize(offsets[n]);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t i = r.begin(); i < r.end(); ++i) {
-      std::size_t at = offsets[i];
-      for_each_neighbor(i, [&](std::uint32_t j, double d2) {
-        neighbors[at] = j;
+  for_each_group([&](std::uint32_t i, const Run& run) {
+    const Vec3& p = sources[i];
+    std::size_t at = offsets[i];
+    for (std::size_t t = 0; t < run.j.size(); ++t) {
+      const double dx = run.x[t] - p.x(), dy = run.y[t] - p.y(), dz = run.z[t] - p.z();
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      if (d2 < R2 && run.j[t] != i) {
+        neighbors[at] = run.j[t];
         dist2[at] = d2;
         ++at;
-      });
+      }
     }
   });
 }

@@ -44,7 +44,7 @@ struct EvalGrid {
   /// The neighbour graph of the sources (every pair closer than R), from the cell lists: the
   /// candidates of a source are its own cell's run. Requires usable.
   void neighbor_graph(std::span<const Vec3> sources, std::vector<std::size_t>& offsets,
-                      std::vector<std::uint32_t>& neighbors, std::vector<double>& dist2) const;
+                      FillVector<std::uint32_t>& neighbors, FillVector<double>& dist2) const;
   std::size_t bytes() const noexcept { return source.size() * 4 + begin.size() * 4; }
 };
 

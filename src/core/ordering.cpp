@@ -1,5 +1,7 @@
 #include "csrbf/ordering.hpp"
 
+#include "csrbf/names.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -16,13 +18,18 @@ namespace csrbf {
 AdjacencyGraph AdjacencyGraph::from_index(const NeighborIndex& index, std::span<const Vec3> points) {
   // Two parallel passes (the index's queries are const and thread-safe): count each point's
   // neighbours, then write each row, sorted by neighbour, into arrays allocated once at their size.
+  // Both passes go through the points in the index's order (cell by cell), so that consecutive
+  // queries visit the same cells while they are in cache; in the input order (a point cloud, a
+  // spiral) each query fetched its 27 cells anew.
   AdjacencyGraph g;
   const std::size_t n = points.size();
+  const std::span<const std::uint32_t> ids = index.sorted_ids();
   g.offsets.assign(n + 1, 0);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 2048), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+    for (std::size_t slot = r.begin(); slot < r.end(); ++slot) {
+      const std::size_t i = ids[slot];
       std::size_t c = 0;
-      index.for_each_within(points[i], [&](std::size_t j, double) { c += j != i; });
+      index.for_each_within(index.point(slot), [&](std::size_t j, double) { c += j != i; });
       g.offsets[i + 1] = c;
     }
   });
@@ -31,9 +38,10 @@ AdjacencyGraph AdjacencyGraph::from_index(const NeighborIndex& index, std::span<
   g.dist2.resize(g.offsets[n]);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 2048), [&](const tbb::blocked_range<std::size_t>& r) {
     std::vector<std::pair<std::uint32_t, double>> row;
-    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+    for (std::size_t slot = r.begin(); slot < r.end(); ++slot) {
+      const std::size_t i = ids[slot];
       row.clear();
-      index.for_each_within(points[i], [&](std::size_t j, double d2) {
+      index.for_each_within(index.point(slot), [&](std::size_t j, double d2) {
         if (j != i) row.emplace_back(std::uint32_t(j), d2);
       });
       std::sort(row.begin(), row.end());
@@ -66,27 +74,8 @@ AdjacencyGraph AdjacencyGraph::brute_force(std::span<const Vec3> points, double 
   return g;
 }
 
-std::string_view ordering_name(Ordering o) noexcept {
-  switch (o) {
-    case Ordering::Identity: return "identity";
-    case Ordering::BreadthFirst: return "breadth-first";
-    case Ordering::ReverseBreadthFirst: return "reverse-breadth-first";
-    case Ordering::ReverseCuthillMcKee: return "rcm";
-    case Ordering::Auto: return "auto";
-  }
-  return "?";
-}
-
-std::optional<Ordering> parse_ordering(std::string_view name) noexcept {
-  std::string s(name);
-  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
-  if (s == "identity" || s == "none") return Ordering::Identity;
-  if (s == "breadth-first" || s == "bfs") return Ordering::BreadthFirst;
-  if (s == "reverse-breadth-first" || s == "rbfs") return Ordering::ReverseBreadthFirst;
-  if (s == "rcm" || s == "reverse-cuthill-mckee") return Ordering::ReverseCuthillMcKee;
-  if (s == "auto") return Ordering::Auto;
-  return std::nullopt;
-}
+std::string_view ordering_name(Ordering o) noexcept { return name_of(o); }
+std::optional<Ordering> parse_ordering(std::string_view name) noexcept { return parse_name<Ordering>(name); }
 
 std::vector<std::uint32_t> breadth_first_order(const AdjacencyGraph& g) {
   const std::size_t n = g.size();

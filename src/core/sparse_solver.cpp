@@ -1,6 +1,7 @@
 #include "sparse_solver.hpp"
 
 #include "csrbf/errors.hpp"
+#include "csrbf/names.hpp"
 
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
@@ -29,9 +30,9 @@ using Sparse = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 
 // Lower triangle of A (diagonal included), column-compressed, with row and column k the source
 // order[k] (the identity when order is empty).
-Sparse lower_matrix(const AdjacencyGraph& g, Kernel kernel, double radius, std::span<const std::uint32_t> order = {}) {
-  const std::size_t n = g.size();
-  const double inv_r = 1.0 / radius, phi0 = wendland(kernel, 0.0);
+Sparse lower_matrix(const KernelMatrix& m, std::span<const std::uint32_t> order = {}) {
+  const std::size_t n = m.size();
+  const AdjacencyGraph& g = m.pattern();
   const auto en = Eigen::Index(n);
   std::vector<std::uint32_t> position(n);  // of each source
   for (std::size_t k = 0; k < n; ++k) position[order.empty() ? k : order[k]] = std::uint32_t(k);
@@ -46,12 +47,11 @@ Sparse lower_matrix(const AdjacencyGraph& g, Kernel kernel, double radius, std::
   a.reserve(per_col);
   for (std::size_t k = 0; k < n; ++k) {
     const std::size_t j = source(k);
-    a.insert(Eigen::Index(k), Eigen::Index(k)) = phi0;
+    a.insert(Eigen::Index(k), Eigen::Index(k)) = m.diagonal();
     const auto nb = g.neighbors_of(j);
-    const auto d2 = g.dist2_of(j);
+    const auto v = m.values_of(j);
     for (std::size_t e = 0; e < nb.size(); ++e)
-      if (position[nb[e]] > k)
-        a.insert(Eigen::Index(position[nb[e]]), Eigen::Index(k)) = wendland(kernel, std::sqrt(d2[e]) * inv_r);
+      if (position[nb[e]] > k) a.insert(Eigen::Index(position[nb[e]]), Eigen::Index(k)) = v[e];
   }
   a.makeCompressed();
   return a;
@@ -82,7 +82,7 @@ class EigenFactor final : public SparseFactor {
       throw NotPositiveDefinite(std::string("the interpolation matrix is not numerically positive definite (") +
                                 name + " factorisation failed)");
   }
-  void solve_in_place(RowMatrix& b) const override {
+  void solve_in_place(RowMatrix& b, const RowMatrix* = nullptr) const override {
     std::lock_guard lock(mutex_);  // CHOLMOD's workspace is shared by solves
     if (order_.empty()) {
       const Eigen::MatrixXd x = llt_.solve(Eigen::MatrixXd(b));
@@ -147,50 +147,72 @@ std::size_t EigenFactor<Supernodal>::count() const {
 /// parallel, m right-hand sides at once.
 class BatchedCg final : public SparseFactor {
  public:
-  BatchedCg(const AdjacencyGraph& g, Kernel kernel, double radius, std::vector<std::uint32_t> order, double tolerance,
-            std::size_t max_iterations)
+  BatchedCg(const KernelMatrix& a, std::vector<std::uint32_t> order, double tolerance, std::size_t max_iterations)
       : order_(std::move(order)), tolerance_(tolerance), max_iterations_(max_iterations) {
-    const std::size_t n = g.size();
+    // A's rows copied into `order`, their columns renumbered: the entries are A's, not recomputed.
+    const std::size_t n = a.size();
     std::vector<std::uint32_t> position(n);
     for (std::size_t k = 0; k < n; ++k) position[order_[k]] = std::uint32_t(k);
-    const double inv_r = 1.0 / radius;
-    diagonal_ = wendland(kernel, 0.0);
+    diagonal_ = a.diagonal();
     row_.assign(n + 1, 0);
-    for (std::size_t k = 0; k < n; ++k) row_[k + 1] = row_[k] + g.neighbors_of(order_[k]).size();
+    for (std::size_t k = 0; k < n; ++k) row_[k + 1] = row_[k] + a.pattern().degree(order_[k]);
     col_.resize(row_[n]);
     val_.resize(row_[n]);
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
       for (std::size_t k = r.begin(); k < r.end(); ++k) {
-        const auto nb = g.neighbors_of(order_[k]);
-        const auto d2 = g.dist2_of(order_[k]);
+        const auto nb = a.pattern().neighbors_of(order_[k]);
+        const auto v = a.values_of(order_[k]);
         for (std::size_t e = 0; e < nb.size(); ++e) {
           col_[row_[k] + e] = position[nb[e]];
-          val_[row_[k] + e] = wendland(kernel, std::sqrt(d2[e]) * inv_r);
+          val_[row_[k] + e] = v[e];
         }
       }
     });
   }
 
-  void solve_in_place(RowMatrix& b) const override {
+  void solve_in_place(RowMatrix& b, const RowMatrix* initial = nullptr) const override {
     std::lock_guard lock(mutex_);  // iterations_ and residual_ describe one solve
     // 3 right-hand sides (the displacements), 4 (the polynomial block) or 1 (the condition estimate).
     if (b.cols() > 8) throw InvalidInput("conjugate gradients: at most 8 right-hand sides at once");
-    solve_columns(b);
+    if (initial && (initial->rows() != b.rows() || initial->cols() != b.cols()))
+      throw InvalidInput("conjugate gradients: the initial guess has another shape than the right-hand sides");
+    solve_columns(b, initial);
   }
+  bool iterative() const override { return true; }
   std::size_t nonzeros() const override { return order_.size() + val_.size(); }
   std::size_t iterations() const override { return iterations_; }
   double residual() const override { return residual_; }
 
  private:
   using Sums = std::array<double, 16>;
-  /// b (n x m, m <= 8, input order) becomes A^-1 b.
-  void solve_columns(RowMatrix& b) const {
+  /// q = A p (n x m, solver order), and p . q per column, in one parallel pass.
+  template <class Reduce>
+  Sums times_a(const FillVector<double>& p, FillVector<double>& q, std::size_t m, const Reduce& reduce) const {
+    return reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
+      for (std::size_t k = range.begin(); k < range.end(); ++k) {
+        double acc[8];
+        for (std::size_t c = 0; c < m; ++c) acc[c] = diagonal_ * p[k * m + c];
+        for (std::size_t e = row_[k]; e < row_[k + 1]; ++e) {
+          const double a = val_[e];
+          const double* pj = &p[std::size_t(col_[e]) * m];
+          for (std::size_t c = 0; c < m; ++c) acc[c] += a * pj[c];
+        }
+        for (std::size_t c = 0; c < m; ++c) {
+          q[k * m + c] = acc[c];
+          s[c] += p[k * m + c] * acc[c];
+        }
+      }
+    });
+  }
+
+  /// b (n x m, m <= 8, input order) becomes A^-1 b, starting from `initial` (or 0).
+  void solve_columns(RowMatrix& b, const RowMatrix* initial) const {
     const std::size_t n = order_.size(), m = std::size_t(b.cols());
     // Work in the solver's row order: x, r, p, q are n x m, row-major (one row's m values together).
-    std::vector<double> x(n * m, 0.0), r(n * m), p(n * m), q(n * m);
+    // Every entry is written before it is read: r and x below, p = r, q in the first product.
+    FillVector<double> x(n * m), r(n * m), p(n * m), q(n * m);
     for (std::size_t k = 0; k < n; ++k)
       for (std::size_t c = 0; c < m; ++c) r[k * m + c] = b(Eigen::Index(order_[k]), Eigen::Index(c));
-    p = r;
     const auto reduce = [&](auto&& body) {
       return tbb::parallel_reduce(
           tbb::blocked_range<std::size_t>(0, n, 8192), Sums{},
@@ -206,14 +228,31 @@ class BatchedCg final : public SparseFactor {
             return a;
           });
     };
-    Sums rr = reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
-      for (std::size_t k = range.begin(); k < range.end(); ++k)
-        for (std::size_t c = 0; c < m; ++c) s[c] += r[k * m + c] * r[k * m + c];
-    });
-    const Sums rr0 = rr;  // ||b||^2 per column: the residual is relative to it
+    const auto squares = [&](const FillVector<double>& v) {
+      return reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
+        for (std::size_t k = range.begin(); k < range.end(); ++k)
+          for (std::size_t c = 0; c < m; ++c) s[c] += v[k * m + c] * v[k * m + c];
+      });
+    };
+    const Sums rr0 = squares(r);  // ||b||^2 per column: the residual is relative to it
+    if (initial) {
+      // Warm start: x = the guess, r = b - A x. A guess near the solution leaves a small r, and
+      // the same tolerance relative to ||b|| is reached in fewer steps.
+      for (std::size_t k = 0; k < n; ++k)
+        for (std::size_t c = 0; c < m; ++c)  // a zero right-hand side has the solution 0, whatever the guess
+          x[k * m + c] = rr0[c] > 0 ? (*initial)(Eigen::Index(order_[k]), Eigen::Index(c)) : 0.0;
+      times_a(x, q, m, reduce);
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n * m, 1 << 15), [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t e = range.begin(); e < range.end(); ++e) r[e] -= q[e];
+      });
+    } else {
+      std::fill(x.begin(), x.end(), 0.0);
+    }
+    p = r;
+    Sums rr = initial ? squares(r) : rr0;
     std::array<double, 8> alpha{}, beta{};
     std::array<bool, 8> done{};
-    for (std::size_t c = 0; c < m; ++c) done[c] = rr[c] == 0.0;
+    for (std::size_t c = 0; c < m; ++c) done[c] = rr[c] <= tolerance_ * tolerance_ * rr0[c];
     std::size_t it = 0;
     const auto all_done = [&] {
       for (std::size_t c = 0; c < m; ++c)
@@ -221,22 +260,7 @@ class BatchedCg final : public SparseFactor {
       return true;
     };
     for (; !all_done() && it < max_iterations_; ++it) {
-      // q = A p, and p . q per column, in one pass.
-      const Sums pq = reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
-        for (std::size_t k = range.begin(); k < range.end(); ++k) {
-          double acc[8];
-          for (std::size_t c = 0; c < m; ++c) acc[c] = diagonal_ * p[k * m + c];
-          for (std::size_t e = row_[k]; e < row_[k + 1]; ++e) {
-            const double a = val_[e];
-            const double* pj = &p[std::size_t(col_[e]) * m];
-            for (std::size_t c = 0; c < m; ++c) acc[c] += a * pj[c];
-          }
-          for (std::size_t c = 0; c < m; ++c) {
-            q[k * m + c] = acc[c];
-            s[c] += p[k * m + c] * acc[c];
-          }
-        }
-      });
+      const Sums pq = times_a(p, q, m, reduce);
       for (std::size_t c = 0; c < m; ++c) alpha[c] = done[c] || !(pq[c] > 0) ? 0.0 : rr[c] / pq[c];
       // x += alpha p, r -= alpha q, and r . r per column.
       const Sums rr_new = reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
@@ -274,8 +298,8 @@ class BatchedCg final : public SparseFactor {
 
   std::vector<std::uint32_t> order_;
   std::vector<std::size_t> row_;
-  std::vector<std::uint32_t> col_;
-  std::vector<double> val_;
+  FillVector<std::uint32_t> col_;
+  FillVector<double> val_;
   double diagonal_ = 1.0, tolerance_;
   std::size_t max_iterations_;
   mutable std::size_t iterations_ = 0;
@@ -285,22 +309,20 @@ class BatchedCg final : public SparseFactor {
 
 }  // namespace
 
-std::unique_ptr<SparseFactor> conjugate_gradients(const AdjacencyGraph& g, Kernel kernel, double radius,
-                                                  std::vector<std::uint32_t> order, double tolerance,
+std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order, double tolerance,
                                                   std::size_t max_iterations) {
-  return std::make_unique<BatchedCg>(g, kernel, radius, std::move(order), tolerance, max_iterations);
+  return std::make_unique<BatchedCg>(a, std::move(order), tolerance, max_iterations);
 }
 
-std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, std::span<const Vec3> sources, Kernel kernel,
-                                            double radius, Solver which, double memory_limit_bytes) {
+std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
+                                            double memory_limit_bytes) {
   if (which == Solver::Eigen)
-    return std::make_unique<EigenFactor<Simplicial>>(lower_matrix(g, kernel, radius), "Eigen SimplicialLLT",
+    return std::make_unique<EigenFactor<Simplicial>>(lower_matrix(a), "Eigen SimplicialLLT",
                                                      memory_limit_bytes);
 #ifdef CSRBF_HAVE_CHOLMOD
   if (which == Solver::Cholmod) {
-    std::vector<std::uint32_t> order = nested_dissection_order(g, sources, radius);
-    const Sparse a = lower_matrix(g, kernel, radius, order);
-    return std::make_unique<EigenFactor<Supernodal>>(a, "CHOLMOD", memory_limit_bytes, std::move(order));
+    std::vector<std::uint32_t> order = nested_dissection_order(a.pattern(), sources, a.radius());
+    return std::make_unique<EigenFactor<Supernodal>>(lower_matrix(a, order), "CHOLMOD", memory_limit_bytes, std::move(order));
   }
 #else
   (void)sources;

@@ -4,10 +4,9 @@
 // the sources (they permute internally).
 #pragma once
 
-#include "csrbf/envelope_cholesky.hpp"
-#include "csrbf/kernels.hpp"
-#include "csrbf/ordering.hpp"
-#include "csrbf/space_map.hpp"
+#include "csrbf/fit_options.hpp"
+#include "csrbf/kernel_matrix.hpp"
+#include "csrbf/types.hpp"
 
 #include <memory>
 
@@ -16,8 +15,12 @@ namespace csrbf::detail {
 class SparseFactor {
  public:
   virtual ~SparseFactor() = default;
-  /// Solves A X = B in place; B is N x m in the input order of the sources. Thread-safe.
-  virtual void solve_in_place(RowMatrix& b) const = 0;
+  /// Solves A X = B in place; B is N x m in the input order of the sources. Thread-safe. An
+  /// iterative solver starts from `initial` (N x m, the same order) where one is given; a direct
+  /// one ignores it.
+  virtual void solve_in_place(RowMatrix& b, const RowMatrix* initial = nullptr) const = 0;
+  /// Whether an initial guess helps (iterative solvers).
+  virtual bool iterative() const { return false; }
   /// Entries of the factor L.
   virtual std::size_t nonzeros() const = 0;
   /// Iterative solvers: steps and final relative residual of the last solve (0 for direct ones).
@@ -36,15 +39,14 @@ class CgStagnated : public std::runtime_error {
 /// diagonal is phi(0) everywhere, so Jacobi preconditioning would change nothing. Rows are stored in
 /// `order` (a bandwidth-reducing ordering of the sources) for locality. Stops at a relative residual
 /// of `tolerance` per column; throws CgStagnated after `max_iterations`.
-std::unique_ptr<SparseFactor> conjugate_gradients(const AdjacencyGraph& g, Kernel kernel, double radius,
-                                                  std::vector<std::uint32_t> order, double tolerance,
+std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order, double tolerance,
                                                   std::size_t max_iterations);
 
-/// Assembles A from the neighbour graph and factorises it with Solver::Eigen (AMD ordering) or
+/// Assembles A in compressed columns and factorises it with Solver::Eigen (AMD ordering) or
 /// Solver::Cholmod (in nested_dissection_order of the sources). Throws NotPositiveDefinite on
 /// failure, InvalidInput when CHOLMOD is asked for but not built in, ResourceLimit when the
 /// symbolic analysis predicts a factor beyond memory_limit_bytes (before the numeric factorisation).
-std::unique_ptr<SparseFactor> factor_sparse(const AdjacencyGraph& g, std::span<const Vec3> sources, Kernel kernel,
-                                            double radius, Solver which, double memory_limit_bytes);
+std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
+                                            double memory_limit_bytes);
 
 }  // namespace csrbf::detail

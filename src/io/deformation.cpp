@@ -2,6 +2,7 @@
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/controls.hpp"
+#include "csrbf/names.hpp"
 #include "json_reader.hpp"
 
 #include <algorithm>
@@ -15,12 +16,12 @@ DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::p
   spec.options.radius = node["radius"].positive();
   if (node.has("kernel")) {
     const auto k = parse_kernel(node["kernel"].string());
-    if (!k) node["kernel"].expected("one of \"c0\", \"c2\", \"c4\", \"c6\"");
+    if (!k) node["kernel"].expected("one of " + names_text<Kernel>("\""));
     spec.options.kernel = *k;
   }
   if (node.has("polynomial")) {
     const auto p = parse_polynomial(node["polynomial"].string());
-    if (!p) node["polynomial"].expected("one of \"none\", \"constant\", \"linear\"");
+    if (!p) node["polynomial"].expected("one of " + names_text<Polynomial>("\""));
     spec.options.polynomial = *p;
   }
   const bool inline_points = node.has("sources") || node.has("destinations");

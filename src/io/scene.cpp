@@ -2,6 +2,7 @@
 
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/mesh.hpp"
+#include "csrbf/names.hpp"
 #include "json_reader.hpp"
 
 #include <algorithm>
@@ -217,7 +218,7 @@ anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base
     def.options.radius = n["radius"].positive();
     if (n.has("kernel")) {
       const auto k = parse_kernel(n["kernel"].string());
-      if (!k) n["kernel"].expected("one of \"c0\", \"c2\", \"c4\", \"c6\"");
+      if (!k) n["kernel"].expected("one of " + names_text<Kernel>("\""));
       def.options.kernel = *k;
     }
     if (n.has("polynomial")) n["polynomial"].fail("a contact deformation has no polynomial (it must stay local)");

@@ -1,5 +1,6 @@
 #include "csrbf/vtk/vtkCSRBFTransform.h"
 
+#include "csrbf/names.hpp"
 #include "csrbf/space_map.hpp"
 
 #include <vtkDataArray.h>
@@ -68,20 +69,17 @@ void vtkCSRBFTransform::InternalUpdate() {
     }
     csrbf::FitOptions o;
     o.radius = this->Radius;
-    switch (this->Kernel) {
-      case KERNEL_C0: o.kernel = csrbf::Kernel::C0; break;
-      case KERNEL_C2: o.kernel = csrbf::Kernel::C2; break;
-      case KERNEL_C4: o.kernel = csrbf::Kernel::C4; break;
-      case KERNEL_C6: o.kernel = csrbf::Kernel::C6; break;
-      default: throw csrbf::InvalidInput("Kernel must be KERNEL_C0, _C2, _C4 or _C6, got " + std::to_string(this->Kernel));
-    }
-    switch (this->Polynomial) {
-      case POLYNOMIAL_NONE: o.polynomial = csrbf::Polynomial::None; break;
-      case POLYNOMIAL_CONSTANT: o.polynomial = csrbf::Polynomial::Constant; break;
-      case POLYNOMIAL_LINEAR: o.polynomial = csrbf::Polynomial::Linear; break;
-      default: throw csrbf::InvalidInput("Polynomial must be POLYNOMIAL_NONE, _CONSTANT or _LINEAR, got " +
-                                         std::to_string(this->Polynomial));
-    }
+    // KERNEL_Cn is the kernel's smoothness n; POLYNOMIAL_* its position in the name table.
+    bool known = false;
+    for (const auto& e : csrbf::NameTable<csrbf::Kernel>::entries)
+      if (csrbf::kernel_smoothness(e.value) == this->Kernel) o.kernel = e.value, known = true;
+    if (!known) throw csrbf::InvalidInput("Kernel must be KERNEL_C0, _C2, _C4 or _C6 (" + csrbf::names_text<csrbf::Kernel>() +
+                                          "), got " + std::to_string(this->Kernel));
+    const auto& polynomials = csrbf::NameTable<csrbf::Polynomial>::entries;
+    if (this->Polynomial < 0 || std::size_t(this->Polynomial) >= polynomials.size())
+      throw csrbf::InvalidInput("Polynomial must be POLYNOMIAL_NONE, _CONSTANT or _LINEAR (" +
+                                csrbf::names_text<csrbf::Polynomial>() + "), got " + std::to_string(this->Polynomial));
+    o.polynomial = polynomials[std::size_t(this->Polynomial)].value;
     csrbf::check_phase(this->Phase);
     this->Map = std::make_shared<const Fitted>(Fitted{csrbf::SpaceMap::fit(s, d, o)});
   } catch (const std::exception& e) {

@@ -493,18 +493,65 @@ TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyS
   EXPECT_LE(auto_dense.stats().residual_relative, kResidualLimit);
 }
 
+TEST(FastPaths, WithDestinationsWarmStartsConjugateGradients) {
+  // An animation frame: 1% of the destinations move a little. CG starts from the previous solution
+  // and reaches the same tolerance in fewer steps; the map equals a fresh fit's, and one fitted with
+  // the envelope solver, in every polynomial.
+  std::mt19937 rng(108);
+  const auto s = random_points(3000, rng);
+  for (Polynomial p : kPolys) {
+    const auto d = displaced(s, rng);
+    FitOptions o{0.12, Kernel::C2, p};
+    o.solver = Solver::Cg;
+    const SpaceMap first = SpaceMap::fit(s, d, o);
+    EXPECT_FALSE(first.stats().warm_start);
+    auto moved = d;
+    for (std::size_t i = 0; i < s.size(); i += 100) moved[i] += Vec3(0.001, -0.002, 0.001);
+    const SpaceMap next = first.with_destinations(moved);
+    EXPECT_TRUE(next.stats().warm_start);
+    const SpaceMap fresh = SpaceMap::fit(s, moved, o);
+    EXPECT_LT(next.stats().iterations, fresh.stats().iterations) << polynomial_name(p);
+    EXPECT_LE(next.stats().solver_residual, kCgTolerance);
+    o.solver = Solver::Envelope;
+    const SpaceMap direct = SpaceMap::fit(s, moved, o);
+    const double amax = direct.coefficients().cwiseAbs().maxCoeff();
+    EXPECT_LT((next.coefficients() - direct.coefficients()).cwiseAbs().maxCoeff(), 1e-8 * amax) << polynomial_name(p);
+    EXPECT_LT((next.polynomial_coefficients() - direct.polynomial_coefficients()).cwiseAbs().maxCoeff(), 1e-8);
+    // Unchanged destinations: the guess is the solution, and no step is needed.
+    EXPECT_EQ(first.with_destinations(d).stats().iterations, 0u) << polynomial_name(p);
+    // All at rest: zero coefficients whatever the guess.
+    const SpaceMap rest = next.with_destinations(s);
+    EXPECT_EQ(rest.coefficients().cwiseAbs().maxCoeff(), 0.0);
+  }
+}
+
 TEST(FastPaths, AutoSolverChoosesBySize) {
   std::mt19937 rng(106);
   const auto small = random_points(100, rng);
   const SpaceMap a = SpaceMap::fit(small, displaced(small, rng), {0.3, Kernel::C2, Polynomial::None});
   EXPECT_EQ(a.stats().solver, Solver::Envelope);
   EXPECT_LE(a.stats().envelope_work, kEnvelopeWorkLimit);
-  // The work estimate does not depend on the solver that ran, and matches the envelope's rows.
+  // The envelope solver under Auto compared the four orderings; its work is that of the chosen one.
+  EXPECT_TRUE(a.stats().orderings_compared);
+  const OrderingChoice c = choose_ordering(a.matrix().pattern(), Ordering::Auto);
+  EXPECT_EQ(a.stats().ordering, c.chosen);
+  EXPECT_EQ(a.stats().envelope_work, envelope_work(envelope_first_columns(a.matrix().pattern(), c.order)));
+  EXPECT_EQ(a.stats().envelope_entries, profile(a.matrix().pattern(), c.order).envelope);
+  EXPECT_EQ(a.stats().identity.envelope, c.identity.envelope);
+  // No ordering is computed only to be thrown away: Eigen orders the matrix itself; CG computes
+  // reverse Cuthill-McKee alone (for the locality of its products).
   FitOptions o{0.3, Kernel::C2, Polynomial::None};
   o.solver = Solver::Eigen;
   const SpaceMap b = SpaceMap::fit(small, displaced(small, rng), o);
-  EXPECT_EQ(b.stats().envelope_work, a.stats().envelope_work);
-  EXPECT_EQ(b.stats().envelope_entries, a.stats().envelope_entries);
+  EXPECT_EQ(b.stats().envelope_work, 0.0);
+  EXPECT_FALSE(b.stats().orderings_compared);
+  EXPECT_EQ(b.stats().reverse_cuthill_mckee.envelope, 0u);
+  o.solver = Solver::Cg;
+  const SpaceMap g = SpaceMap::fit(small, displaced(small, rng), o);
+  EXPECT_EQ(g.stats().ordering, Ordering::ReverseCuthillMcKee);
+  EXPECT_EQ(g.stats().reverse_cuthill_mckee.envelope, c.reverse_cuthill_mckee.envelope);
+  EXPECT_EQ(g.stats().identity.envelope, 0u);
+  EXPECT_FALSE(g.stats().orderings_compared);
   // Past the limit, or past the estimated cost of conjugate gradients, Auto takes CG; an explicit
   // choice is kept.
   EXPECT_EQ(resolve_solver(Solver::Auto, kEnvelopeWorkLimit), Solver::Envelope);

@@ -1,3 +1,4 @@
+#include "csrbf/errors.hpp"
 #include "csrbf/neighbor_index.hpp"
 
 #include <gtest/gtest.h>
@@ -6,6 +7,7 @@
 
 using csrbf::NeighborIndex;
 using csrbf::Vec3;
+using csrbf::InvalidInput;
 
 namespace {
 
@@ -80,12 +82,12 @@ TEST(NeighborIndex, ExactlyAtRadiusIsOutside) {
 
 TEST(NeighborIndex, RejectsBadInput) {
   const auto pts = random_points(10, 6);
-  EXPECT_THROW(NeighborIndex(pts, 0.0), std::invalid_argument);
-  EXPECT_THROW(NeighborIndex(pts, -1.0), std::invalid_argument);
-  EXPECT_THROW(NeighborIndex(pts, std::nan("")), std::invalid_argument);
-  EXPECT_THROW(NeighborIndex(pts, INFINITY), std::invalid_argument);
-  EXPECT_THROW(NeighborIndex(pts, 1e-12), std::invalid_argument);
+  EXPECT_THROW(NeighborIndex(pts, 0.0), InvalidInput);
+  EXPECT_THROW(NeighborIndex(pts, -1.0), InvalidInput);
+  EXPECT_THROW(NeighborIndex(pts, std::nan("")), InvalidInput);
+  EXPECT_THROW(NeighborIndex(pts, INFINITY), InvalidInput);
+  EXPECT_THROW(NeighborIndex(pts, 1e-12), InvalidInput);
   auto bad = pts;
   bad[3].y() = INFINITY;
-  EXPECT_THROW(NeighborIndex(bad, 0.5), std::invalid_argument);
+  EXPECT_THROW(NeighborIndex(bad, 0.5), InvalidInput);
 }

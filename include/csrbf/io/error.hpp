@@ -1,5 +1,7 @@
 #pragma once
 
+#include "csrbf/errors.hpp"
+
 #include <filesystem>
 #include <stdexcept>
 #include <string>
@@ -8,9 +10,9 @@ namespace csrbf::io {
 
 /// A file could not be read or written, or its contents are malformed. The message names the
 /// file (and the line or field where there is one) and the offending text or value.
-class FileError : public std::runtime_error {
+class FileError : public csrbf::Error {
  public:
-  using std::runtime_error::runtime_error;
+  using csrbf::Error::Error;
 };
 
 /// Throws FileError unless path names something to read a file from: a regular file or a pipe.

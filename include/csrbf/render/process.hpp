@@ -2,6 +2,8 @@
 // process group, so a Ctrl-C at the terminal reaches csrbf alone, which then stops them in order.
 #pragma once
 
+#include "csrbf/errors.hpp"
+
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -13,9 +15,9 @@ namespace csrbf::render {
 
 /// A child could not be started, failed, or the display could not be opened. The message says
 /// which program and why (with the program's own error output where it wrote any).
-class RenderError : public std::runtime_error {
+class RenderError : public csrbf::Error {
  public:
-  using std::runtime_error::runtime_error;
+  using csrbf::Error::Error;
 };
 
 /// A running program with a pipe to its standard input; standard output is discarded (or kept, with

@@ -1,0 +1,83 @@
+// What a fit is asked to do (FitOptions) and the rules it follows: the polynomial part, the solver of
+// the CSRBF system and Auto's choice among them, the accuracy a fit must reach, and its memory limit.
+#pragma once
+
+#include "csrbf/kernels.hpp"
+#include "csrbf/ordering.hpp"
+#include "csrbf/types.hpp"
+
+#include <cstddef>
+#include <optional>
+#include <span>
+#include <string_view>
+
+namespace csrbf {
+
+/// The polynomial part p of the displacement: none (the plain CSRBF sum, strictly local: points
+/// farther than R from every source do not move), a constant, or linear (the paper's choice: T
+/// reproduces any affine map the controls admit).
+enum class Polynomial { None, Constant, Linear };
+/// "none", "constant", "linear" (the name table in names.hpp).
+std::string_view polynomial_name(Polynomial p) noexcept;
+std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept;
+
+/// The solver of the N x N CSRBF system A x = b.
+enum class Solver {
+  Envelope,  ///< the paper's: ordering + Jennings envelope Cholesky (envelope_cholesky.hpp)
+  Eigen,     ///< Eigen's SimplicialLLT with AMD ordering
+  Cholmod,   ///< SuiteSparse CHOLMOD, supernodal, in nested_dissection_order (only when csrbf was built with it)
+  Auto,      ///< Envelope while its estimated work is small, then CG, CHOLMOD where CG stagnates
+  Cg,        ///< conjugate gradients, the right-hand sides together, parallel products; no factor
+};
+/// "envelope", "eigen", "cholmod", "auto", "cg" (the name table in names.hpp).
+std::string_view solver_name(Solver s) noexcept;
+std::optional<Solver> parse_solver(std::string_view name) noexcept;
+/// Whether this build of csrbf can use CHOLMOD.
+bool cholmod_available() noexcept;
+
+/// The largest relative residual at the controls a fit accepts (FitStats::residual_relative).
+inline constexpr double kResidualLimit = 1e-6;
+/// Float (single-precision) evaluation is used only where it agrees with double evaluation to this
+/// fraction of the largest control displacement, measured once per map on (up to 4096 of) its
+/// sources; otherwise float inputs are evaluated in double and rounded once.
+inline constexpr double kFloatTolerance = 1e-4;
+/// Solver::Cg stops at this relative residual ||b - A x|| / ||b|| for each right-hand side, and
+/// gives up (a direct solver takes over) after kCgMaxIterations steps.
+inline constexpr double kCgTolerance = 1e-12;
+inline constexpr std::size_t kCgMaxIterations = 3000;
+/// Auto's rule, by estimated cost: the envelope solver while the multiply-adds of its factorisation
+/// (sum over rows of (row length)^2 / 2, in reverse Cuthill-McKee order) stay below those of
+/// kCgStepsEstimate conjugate-gradient steps on 3 right-hand sides (each step a product with A:
+/// 2 * neighbour pairs + N entries) and at most kEnvelopeWorkLimit; else CG, with CHOLMOD (or Eigen)
+/// taking over where CG stagnates or, under Auto, once CG has spent a tenth of the envelope's work
+/// (at least 50 steps). CG took 28 to 230 steps on the sphere sweep; the crossover measured between
+/// N = 300 and 600 (docs/PERFORMANCE.md).
+inline constexpr double kEnvelopeWorkLimit = 1.0e8;
+inline constexpr double kCgStepsEstimate = 50.0;
+/// The solver a fit uses: `requested`, or for Solver::Auto the rule above.
+Solver resolve_solver(Solver requested, double envelope_work, std::size_t controls = 0,
+                      std::size_t neighbor_pairs = 0) noexcept;
+
+struct FitOptions {
+  double radius = 0.0;  ///< support radius R in the points' units (not squared), > 0
+  Kernel kernel = Kernel::C2;
+  Polynomial polynomial = Polynomial::None;
+  Ordering ordering = Ordering::Auto;  ///< of the envelope solver (the sparse solvers order themselves)
+  Solver solver = Solver::Auto;
+  /// The fit refuses (throws ResourceLimit) when it would need more memory than this: first from an
+  /// estimate of the neighbour graph, matrix and factor (a sample of the sources) before anything
+  /// large is built, then from the exact envelope of the chosen ordering or the factor size the
+  /// sparse solver's symbolic analysis predicts, before the factorisation. A radius near the
+  /// model's size makes the matrix dense, N^2 entries. Must be > 0 (NaN is refused).
+  double memory_limit_bytes = 4.0 * (1ull << 30);
+};
+
+/// Estimated memory (bytes) of a fit's neighbour graph and factor, and the mean number of other
+/// sources within R, from a seeded sample of at most 256 sources (exact up to 256 sources).
+struct FitMemoryEstimate {
+  double bytes = 0;
+  double mean_neighbors = 0;
+};
+FitMemoryEstimate estimate_fit_memory(std::span<const Vec3> sources, double radius);
+
+}  // namespace csrbf

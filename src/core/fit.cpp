@@ -1,0 +1,472 @@
+// SpaceMap::fit, as the paper's phases (section 4), each a function below in the order it runs:
+//   validate -> polynomial frame -> neighbour graph -> the matrix A -> ordering and solver
+//   -> factorisation -> polynomial block -> solve -> residual check.
+// with_destinations() reruns only the last two.
+#include "fit_state.hpp"
+
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <string>
+
+namespace csrbf {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+/// Up to this many sources the fit tests every pair for the neighbour graph (cheaper than the grid).
+constexpr std::size_t kBruteForceGraph = 256;
+/// Coordinates (and so distances) stay below this, so that their squares are finite.
+constexpr double kMaxCoordinate = 1e150;
+
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+int polynomial_terms(Polynomial p) {
+  return p == Polynomial::None ? 0 : p == Polynomial::Constant ? 1 : 4;
+}
+
+void check_points(std::span<const Vec3> pts, const char* what) {
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    if (!pts[i].allFinite() || pts[i].cwiseAbs().maxCoeff() > kMaxCoordinate) {
+      std::ostringstream os;
+      os << what << " " << i << (pts[i].allFinite() ? " is out of range (a coordinate beyond 1e150)" : " is not finite")
+         << ": (" << pts[i].x() << ", " << pts[i].y() << ", " << pts[i].z() << ")";
+      throw InvalidInput(os.str());
+    }
+}
+
+std::string gib(double bytes) {
+  std::ostringstream os;
+  os.precision(3);
+  os << bytes / double(1ull << 30) << " GiB";
+  return os.str();
+}
+
+}  // namespace
+
+/// The phases, with access to SpaceMap's state.
+struct FitPhases {
+  using Structure = SpaceMap::Structure;
+  using State = SpaceMap::State;
+
+  /// Sizes, finite coordinates, the radius, the memory limit, the grid's extent.
+  static void validate(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options) {
+    if (sources.size() != destinations.size()) {
+      std::ostringstream os;
+      os << "control points: " << sources.size() << " sources but " << destinations.size() << " destinations";
+      throw InvalidInput(os.str());
+    }
+    if (sources.empty()) throw InvalidInput("control points: none given (need at least 1)");
+    // Squared distances and radii must stay normal doubles: R in [1e-150, 1e150].
+    if (!(options.radius >= 1e-150 && options.radius <= 1e150)) {
+      std::ostringstream os;
+      os << "radius must be a positive finite number in [1e-150, 1e150], got " << options.radius;
+      throw InvalidInput(os.str());
+    }
+    if (!(options.memory_limit_bytes > 0)) {  // NaN must not switch the limit off
+      std::ostringstream os;
+      os << "memory_limit_bytes must be a number > 0, got " << options.memory_limit_bytes;
+      throw InvalidInput(os.str());
+    }
+    check_points(sources, "source");
+    check_points(destinations, "destination");
+    // The same limit NeighborIndex applies, checked here because small fits build it only later.
+    Vec3 lo = sources[0], hi = sources[0];
+    for (const auto& p : sources) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    NeighborIndex::check_extent(lo, hi, options.radius, "sources");
+  }
+
+  /// The polynomial's coordinates u = (x - center) / scale, and whether the sources determine it;
+  /// checked before any heavy work.
+  static void polynomial_frame(Structure& st) {
+    const auto& sources = st.sources;
+    const std::size_t n = sources.size();
+    st.terms = polynomial_terms(st.options.polynomial);
+    st.center = Vec3::Zero();
+    for (const auto& s : sources) st.center += s;
+    st.center /= double(n);
+    double spread = 0.0;
+    for (const auto& s : sources) spread = std::max(spread, (s - st.center).cwiseAbs().maxCoeff());
+    st.scale = spread > 0.0 ? spread : 1.0;
+    if (st.options.polynomial != Polynomial::Linear) return;
+    if (n < 4) {
+      std::ostringstream os;
+      os << "polynomial 'linear' needs at least 4 control points that are not coplanar, got " << n
+         << "; use polynomial 'constant' or 'none'";
+      throw DegeneratePolynomial(os.str());
+    }
+    Eigen::MatrixXd u(n, 3);
+    for (std::size_t i = 0; i < n; ++i) u.row(Eigen::Index(i)) = (sources[i] - st.center) / st.scale;
+    const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::MatrixXd>(u).singularValues();
+    const double tol = 1e-9 * std::max(sv(0), 1e-300);
+    if (sv(2) <= tol) {
+      std::ostringstream os;
+      os << "polynomial 'linear' needs control sources that span 3-D space, but the " << n << " sources are "
+         << (sv(1) <= tol ? "collinear" : "coplanar") << " (singular values " << sv(0) << ", " << sv(1) << ", "
+         << sv(2) << "); use polynomial 'constant' or 'none'";
+      throw DegeneratePolynomial(os.str());
+    }
+  }
+
+  /// Every pair of sources closer than R: by testing every pair for a few hundred sources (the grid
+  /// is then left to the first evaluation), from the evaluation grid's cell lists above that, from
+  /// NeighborIndex where the grid is unusable. The memory estimate is checked first. Then A's entries,
+  /// computed once from the squared distances.
+  static void neighbour_graph_and_matrix(Structure& st) {
+    const auto& sources = st.sources;
+    const FitOptions& options = st.options;
+    const std::size_t n = sources.size();
+    FitStats& stats = st.stats;
+    auto t0 = Clock::now();
+    if (n > kBruteForceGraph) {
+      const FitMemoryEstimate m = estimate_fit_memory(sources, options.radius);
+      if (m.bytes > options.memory_limit_bytes) {
+        std::ostringstream os;
+        os.precision(3);
+        os << "radius " << options.radius << " gives each source about " << m.mean_neighbors << " neighbours ("
+           << 100.0 * m.mean_neighbors / double(n - 1) << "% of the " << n << " sources): the fit would need about "
+           << gib(m.bytes) << " for its neighbour graph and factor, above the limit of "
+           << gib(options.memory_limit_bytes)
+           << " (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius: the compact support "
+              "is what keeps the system sparse";
+        throw ResourceLimit(os.str());
+      }
+    }
+    const bool brute = n <= kBruteForceGraph;
+    if (!brute && !st.grid().usable) st.index();
+    stats.seconds_index = seconds_since(t0);
+
+    t0 = Clock::now();
+    AdjacencyGraph g;
+    if (brute)
+      g = AdjacencyGraph::brute_force(sources, options.radius);
+    else if (st.grid().usable)
+      st.grid().neighbor_graph(sources, g.offsets, g.neighbors, g.dist2);
+    else
+      g = AdjacencyGraph::from_index(st.index(), sources);
+    stats.neighbor_pairs = g.neighbors.size() / 2;
+    stats.mean_neighbors = double(g.neighbors.size()) / double(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto nb = g.neighbors_of(i);
+      const auto d2 = g.dist2_of(i);
+      for (std::size_t k = 0; k < nb.size(); ++k)
+        if (d2[k] == 0.0) {
+          const std::size_t a = std::min<std::size_t>(i, nb[k]), b = std::max<std::size_t>(i, nb[k]);
+          std::ostringstream os;
+          os << "control sources " << a << " and " << b << " are at the same position (" << sources[a].x() << ", "
+             << sources[a].y() << ", " << sources[a].z() << ")";
+          throw DuplicateSource(a, b, os.str());
+        }
+    }
+    stats.seconds_graph = seconds_since(t0);
+    t0 = Clock::now();
+    st.a = KernelMatrix(std::move(g), options.kernel, options.radius);
+    stats.seconds_assembly = seconds_since(t0);
+  }
+
+  /// The solver, and the one ordering it needs. Auto weighs the envelope's work in reverse
+  /// Cuthill-McKee order against CG's; the envelope solver then compares the four orderings (when
+  /// asked for Auto), CG keeps RCM for the locality of its products, and CHOLMOD and Eigen order
+  /// the matrix themselves. No ordering is computed only to be thrown away.
+  static Solver ordering_and_solver(Structure& st) {
+    const FitOptions& options = st.options;
+    const AdjacencyGraph& g = st.a.pattern();
+    const std::size_t n = st.sources.size();
+    FitStats& stats = st.stats;
+    const auto t0 = Clock::now();
+    Solver solver = options.solver;
+    if (solver == Solver::Cholmod && !cholmod_available())
+      throw InvalidInput("solver 'cholmod': this build of csrbf has no CHOLMOD (SuiteSparse); use 'envelope' or 'eigen'");
+    std::vector<std::size_t> first;
+    if (solver == Solver::Auto || solver == Solver::Cg || (solver == Solver::Envelope && options.ordering != Ordering::Auto)) {
+      const Ordering one = options.ordering == Ordering::Auto ? Ordering::ReverseCuthillMcKee : options.ordering;
+      st.order = compute_ordering(g, one);
+      stats.ordering = one;
+      profile_slot(stats, one) = profile(g, st.order);
+      first = envelope_first_columns(g, st.order);
+      stats.envelope_work = envelope_work(first);
+      solver = resolve_solver(solver, stats.envelope_work, n, stats.neighbor_pairs);
+    }
+    if (solver == Solver::Envelope && options.ordering == Ordering::Auto) {
+      // The paper's choice: the smallest envelope of the four orderings (ties: RCM, reverse
+      // breadth-first, breadth-first, identity).
+      if (st.order.empty()) {
+        st.order = compute_ordering(g, Ordering::ReverseCuthillMcKee);
+        stats.reverse_cuthill_mckee = profile(g, st.order);
+      }
+      stats.ordering = Ordering::ReverseCuthillMcKee;
+      std::vector<std::uint32_t> bf = breadth_first_order(g), rbf = reversed_order(bf), id = identity_order(n);
+      stats.reverse_breadth_first = profile(g, rbf);
+      stats.breadth_first = profile(g, bf);
+      stats.identity = profile(g, id);
+      std::size_t best = stats.reverse_cuthill_mckee.envelope;
+      for (auto [o, order] : {std::pair{Ordering::ReverseBreadthFirst, &rbf}, std::pair{Ordering::BreadthFirst, &bf},
+                              std::pair{Ordering::Identity, &id}})
+        if (profile_slot(stats, o).envelope < best) {
+          best = profile_slot(stats, o).envelope;
+          stats.ordering = o;
+          st.order = std::move(*order);
+        }
+      stats.orderings_compared = true;
+      first = envelope_first_columns(g, st.order);
+      stats.envelope_work = envelope_work(first);
+    }
+    if (!st.order.empty()) {
+      const Profile chosen = profile_slot(stats, stats.ordering);
+      stats.bandwidth = chosen.bandwidth;
+      stats.envelope_entries = chosen.envelope;
+      stats.envelope_bytes = 4 * (n + chosen.envelope) + 4 * n;
+    }
+    stats.dense_bytes = 4 * n * n;
+    st.first_columns = std::move(first);
+    stats.solver = solver;
+    stats.seconds_ordering = seconds_since(t0);
+    return solver;
+  }
+
+  /// The envelope Cholesky of A in its ordering; CG's matrix in RCM order (nothing to factorise);
+  /// or CHOLMOD's or Eigen's factorisation.
+  static void factorise(Structure& st, Solver solver) {
+    const FitOptions& options = st.options;
+    const std::size_t n = st.sources.size();
+    FitStats& stats = st.stats;
+    if (solver == Solver::Envelope) {
+      // The envelope of the chosen order is known exactly now, before it is allocated.
+      double entries = double(n);
+      for (std::size_t k = 0; k < n; ++k) entries += double(k - st.first_columns[k]);
+      if (8 * entries > options.memory_limit_bytes) {
+        std::ostringstream os;
+        os.precision(3);
+        os << "the envelope of the " << ordering_name(stats.ordering) << " ordering holds " << entries << " entries, about "
+           << gib(8 * entries) << ", above the limit of " << gib(options.memory_limit_bytes)
+           << " (FitOptions::memory_limit_bytes, `--memory-limit`). Use another ordering or solver, or a smaller radius";
+        throw ResourceLimit(os.str());
+      }
+      auto t0 = Clock::now();
+      EnvelopeMatrix env = envelope_matrix(st.a, st.order, std::move(st.first_columns));
+      stats.envelope_bytes = env.paper_bytes();
+      stats.dense_bytes = env.dense_bytes();
+      stats.seconds_assembly += seconds_since(t0);
+      t0 = Clock::now();
+      try {
+        env.cholesky_in_place();
+      } catch (const NotPositiveDefinite& e) {
+        // Report the control's input index, not its row in the ordered matrix.
+        throw NotPositiveDefinite(st.order[e.row()], e.pivot());
+      }
+      st.factor = std::move(env);
+      stats.factor_nonzeros = stats.envelope_entries + n;
+      stats.seconds_factorization = seconds_since(t0);
+      return;
+    }
+    st.first_columns = {};
+    std::vector<std::uint32_t> rows = std::move(st.order);
+    st.order = identity_order(n);  // the sparse solvers take and give the input order
+    const auto t0 = Clock::now();
+    if (solver == Solver::Cg) {
+      // Chosen by Auto, CG may spend only a tenth of the envelope's work (an upper bound of a direct
+      // factorisation's) before a direct solver takes over: a system it converges on slowly (dense,
+      // ill-conditioned) costs little more than the direct solve would have.
+      std::size_t steps = kCgMaxIterations;
+      if (options.solver == Solver::Auto) {
+        const double step = 3.0 * (2.0 * double(stats.neighbor_pairs) + double(n));
+        steps = std::size_t(std::clamp(stats.envelope_work / (10.0 * step), 50.0, double(kCgMaxIterations)));
+      }
+      st.sparse = detail::conjugate_gradients(st.a, std::move(rows), kCgTolerance, steps);
+      stats.seconds_assembly += seconds_since(t0);
+    } else {
+      st.sparse = detail::factor_sparse(st.a, st.sources, solver, options.memory_limit_bytes);
+      stats.seconds_factorization = seconds_since(t0);
+    }
+    stats.factor_nonzeros = st.sparse->nonzeros();
+  }
+
+  /// George & Liu's block elimination, the part that depends on the sources only: Y = A^-1 P and the
+  /// Cholesky factor of P^T Y.
+  static void polynomial_block(Structure& st) {
+    if (st.terms == 0) return;
+    const auto t0 = Clock::now();
+    const std::size_t n = st.sources.size();
+    st.p.resize(Eigen::Index(n), st.terms);
+    for (std::size_t k = 0; k < n; ++k) {
+      st.p(Eigen::Index(k), 0) = 1.0;
+      if (st.terms == 4) {
+        const Vec3 u = (st.sources[st.order[k]] - st.center) / st.scale;
+        st.p.block<1, 3>(Eigen::Index(k), 1) = u.transpose();
+      }
+    }
+    st.y = st.p;
+    st.solve_in_place(st.y);
+    st.schur.compute(st.p.transpose() * st.y);
+    if (st.schur.info() != Eigen::Success)
+      throw DegeneratePolynomial(std::string("polynomial '") + std::string(polynomial_name(st.options.polynomial)) +
+                                 "': the sources do not determine it; use polynomial 'none'");
+    st.stats.seconds_solve += seconds_since(t0);
+  }
+
+  /// A z = g, beta = (P^T Y)^-1 P^T z, alpha = z - Y beta. `previous` (a map with the same
+  /// structure) gives CG its starting point: its z.
+  static void solve(const Structure& st, State& s, std::span<const Vec3> destinations, const State* previous) {
+    const std::size_t n = st.sources.size();
+    FitStats& stats = s.stats;
+    const auto t0 = Clock::now();
+    RowMatrix z(Eigen::Index(n), 3);
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::size_t i = st.order[k];
+      z.row(Eigen::Index(k)) = (destinations[i] - st.sources[i]).transpose();
+    }
+    RowMatrix guess;
+    const bool warm = previous && previous->alpha.rows() == Eigen::Index(n) && st.warm_starts();
+    if (warm) {
+      guess.resize(Eigen::Index(n), 3);
+      for (std::size_t k = 0; k < n; ++k) guess.row(Eigen::Index(k)) = previous->alpha.row(Eigen::Index(st.order[k]));
+      if (st.terms > 0) guess += st.y * previous->beta.topRows(st.terms);
+    }
+    st.solve_in_place(z, warm ? &guess : nullptr);
+    if (st.terms > 0) {
+      const Eigen::MatrixXd b = st.schur.solve(st.p.transpose() * z);  // terms x 3
+      z -= st.y * b;
+      s.beta.topRows(st.terms) = b;
+    }
+    s.alpha.resize(Eigen::Index(n), 3);
+    for (std::size_t k = 0; k < n; ++k) s.alpha.row(st.order[k]) = z.row(Eigen::Index(k));
+    s.poly.center = st.center;
+    s.poly.inv_scale = 1.0 / st.scale;
+    for (int r = 0; r < 4; ++r)
+      for (int c = 0; c < 3; ++c) s.poly.b[r][c] = s.beta(r, c);
+    stats.seconds_solve += seconds_since(t0);
+    stats.warm_start = warm && !st.fell_back;
+    if (st.sparse) {
+      stats.iterations = st.sparse->iterations();
+      stats.solver_residual = st.sparse->residual();
+      if (st.fell_back) {
+        stats.fell_back = true;
+        stats.solver = st.fallback_solver;
+        stats.factor_nonzeros = st.fallback->nonzeros();
+      }
+    }
+  }
+
+  /// The residual at the controls through A (and, for large coefficients, through the evaluation
+  /// itself); IllConditioned beyond kResidualLimit.
+  static void check_residual(const std::shared_ptr<State>& s, std::span<const Vec3> destinations) {
+    const Structure& st = *s->st;
+    const std::size_t n = st.sources.size();
+    FitStats& stats = s->stats;
+    const auto t0 = Clock::now();
+    const RowMatrix a_alpha = st.a * RowMatrix(s->alpha);
+    double res = 0.0, gmax = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 v = a_alpha.row(Eigen::Index(i)).transpose() + s->polynomial_at(st.sources[i]);
+      const Vec3 g = destinations[i] - st.sources[i];
+      const double e = (v - g).norm();
+      res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
+      gmax = std::max(gmax, g.norm());
+    }
+    // A solve that overflowed leaves NaN or infinite coefficients (std::max above would drop a NaN).
+    if (!s->alpha.allFinite() || !s->beta.allFinite()) res = std::numeric_limits<double>::infinity();
+    stats.residual_max = res;
+    stats.residual_relative = gmax > 0.0 ? res / gmax : res;
+    stats.seconds_residual = seconds_since(t0);
+    if (stats.residual_relative <= kResidualLimit && gmax > 0 && s->alpha.cwiseAbs().maxCoeff() > 1e6 * gmax) {
+      // Coefficients a million times the displacements: the system is ill-conditioned, and rounding in
+      // the evaluation (distances recomputed from coordinates) is amplified as much. Measure the
+      // residual through the evaluation itself.
+      const SpaceMap m(s);
+      std::vector<double> in(3 * n), d(3 * n);
+      for (std::size_t i = 0; i < n; ++i)
+        for (int c = 0; c < 3; ++c) in[3 * i + std::size_t(c)] = st.sources[i][c];
+      m.displacements(in.data(), d.data(), n);
+      double eval_res = 0;
+      for (std::size_t i = 0; i < n; ++i)
+        eval_res = std::max(eval_res, (Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]) - (destinations[i] - st.sources[i])).norm());
+      stats.residual_max = std::max(stats.residual_max, eval_res);
+      stats.residual_relative = stats.residual_max / gmax;
+    }
+    if (stats.residual_relative <= kResidualLimit) return;
+    // Name the closest pair of sources: nearly coincident sources are what makes A nearly singular.
+    std::ostringstream os;
+    os << "the controls cannot be interpolated to a relative residual of " << kResidualLimit << " (got "
+       << stats.residual_relative << "): the matrix is too ill-conditioned (condition estimate " << st.condition() << ")";
+    if (!st.a.values().empty()) {
+      const auto [a, b] = st.a.closest_pair();
+      os << "; the closest sources, " << a << " and " << b << ", are "
+         << (st.sources[a] - st.sources[b]).norm() / st.options.radius
+         << " R apart. Merge or separate them, or use a smaller radius (fewer neighbours a source)";
+    }
+    throw IllConditioned(os.str());
+  }
+
+ private:
+  static std::vector<std::uint32_t> compute_ordering(const AdjacencyGraph& g, Ordering o) {
+    switch (o) {
+      case Ordering::Identity: return identity_order(g.size());
+      case Ordering::BreadthFirst: return breadth_first_order(g);
+      case Ordering::ReverseBreadthFirst: return reversed_order(breadth_first_order(g));
+      default: return reverse_cuthill_mckee_order(g);
+    }
+  }
+  static Profile& profile_slot(FitStats& s, Ordering o) {
+    switch (o) {
+      case Ordering::Identity: return s.identity;
+      case Ordering::BreadthFirst: return s.breadth_first;
+      case Ordering::ReverseBreadthFirst: return s.reverse_breadth_first;
+      default: return s.reverse_cuthill_mckee;
+    }
+  }
+};
+
+SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options) {
+  FitPhases::validate(sources, destinations, options);
+  auto st = std::make_shared<Structure>();
+  st->options = options;
+  st->sources.assign(sources.begin(), sources.end());
+  st->stats.controls = sources.size();
+  FitPhases::polynomial_frame(*st);
+  FitPhases::neighbour_graph_and_matrix(*st);
+  const Solver solver = FitPhases::ordering_and_solver(*st);
+  FitPhases::factorise(*st, solver);
+  FitPhases::polynomial_block(*st);
+  auto structure_only = std::make_shared<State>();
+  structure_only->st = std::move(st);
+  return SpaceMap(std::move(structure_only)).solve_destinations(destinations);
+}
+
+SpaceMap SpaceMap::with_destinations(std::span<const Vec3> destinations) const {
+  if (destinations.size() != size()) {
+    std::ostringstream os;
+    os << "control points: " << size() << " sources but " << destinations.size() << " destinations";
+    throw InvalidInput(os.str());
+  }
+  check_points(destinations, "destination");
+  return solve_destinations(destinations);
+}
+
+SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const {
+  auto s = std::make_shared<State>();
+  s->st = s_->st;
+  s->destinations.assign(destinations.begin(), destinations.end());
+  s->stats = s_->st->stats;
+  FitPhases::solve(*s->st, *s, destinations, s_.get());
+  FitPhases::check_residual(s, destinations);
+  return SpaceMap(std::move(s));
+}
+
+double SpaceMap::condition_estimate() const { return s_->st->condition(); }
+const KernelMatrix& SpaceMap::matrix() const noexcept { return s_->st->a; }
+
+void deform(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options,
+            double* points, std::size_t n, double phase) {
+  SpaceMap::fit(sources, destinations, options).apply(points, points, n, phase);
+}
+
+}  // namespace csrbf

@@ -1,0 +1,169 @@
+// The fitted state behind a SpaceMap (private to csrbf::core): what depends on the sources only
+// (Structure: the matrix, its factorisation, the polynomial block), shared by every map made with
+// with_destinations(), and what depends on the destinations too (State: the coefficients and the
+// evaluation data). fit.cpp fills them phase by phase; space_map.cpp evaluates them.
+#pragma once
+
+#include "csrbf/space_map.hpp"
+
+#include "evaluator.hpp"
+#include "sparse_solver.hpp"
+
+#include <Eigen/Cholesky>
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <type_traits>
+#include <vector>
+
+namespace csrbf {
+
+// The most memory the evaluation lists of one fit may take (evaluator.hpp); past it, evaluation goes
+// through NeighborIndex.
+inline constexpr std::size_t kEvalListBytes = std::size_t(512) << 20;
+
+// Everything that depends on the sources only: shared by every map made with with_destinations().
+struct SpaceMap::Structure {
+  FitOptions options;
+  std::vector<Vec3> sources;       // input order
+  // Over the sources: built on first use (the simple path, the Jacobian) unless the fit needs it
+  // (when the evaluation grid is unusable).
+  mutable std::once_flag index_once;
+  mutable NeighborIndex index_;
+  const NeighborIndex& index() const {
+    std::call_once(index_once, [this] { index_ = NeighborIndex(sources, options.radius); });
+    return index_;
+  }
+  // The evaluation grid (evaluator.hpp): built by the fit when its lists give the neighbour graph
+  // (N > kBruteForceGraph), else on first evaluation.
+  mutable std::once_flag grid_once;
+  mutable detail::EvalGrid grid_;
+  const detail::EvalGrid& grid() const {
+    std::call_once(grid_once, [this] { grid_ = detail::EvalGrid::build(sources, options.radius, kEvalListBytes); });
+    return grid_;
+  }
+  KernelMatrix a;                  // A, input order: its pattern is the neighbour graph
+  std::vector<std::uint32_t> order;  // order[k] = input index of the source at row k
+  std::vector<std::size_t> first_columns;  // of the envelope in `order`, until it is assembled
+  EnvelopeMatrix factor;           // L, in `order` (Solver::Envelope)
+  std::unique_ptr<detail::SparseFactor> sparse;  // the other solvers (then `order` is the identity)
+  int terms = 0;                   // columns of P
+  Vec3 center = Vec3::Zero();      // polynomial coordinates u = (x - center) / scale
+  double scale = 1.0;
+  RowMatrix p;                     // N x terms, in `order`
+  RowMatrix y;                     // A^{-1} P, in `order`
+  Eigen::LLT<Eigen::MatrixXd> schur;  // P^T A^{-1} P
+  FitStats stats;                  // the structural part and its times
+
+  /// b = A^-1 b (input order); CG starts from `initial` where it is given.
+  void solve_in_place(RowMatrix& b, const RowMatrix* initial = nullptr) const {
+    if (!sparse) {
+      factor.solve_in_place(b);
+      return;
+    }
+    if (!fell_back.load()) {
+      try {
+        sparse->solve_in_place(b, initial);  // CG writes b only when it converged
+        return;
+      } catch (const detail::CgStagnated&) {
+      }
+      // CG stagnated (an ill-conditioned system): a direct factorisation takes over, once, for this
+      // fit and every later solve with these sources.
+      std::call_once(fallback_once, [this] {
+        const Solver direct = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+        fallback = detail::factor_sparse(a, sources, direct, options.memory_limit_bytes);
+        fallback_solver = direct;
+        fell_back = true;
+      });
+    }
+    fallback->solve_in_place(b);
+  }
+  /// Whether solves start from an initial guess (CG that has not fallen back).
+  bool warm_starts() const { return sparse && sparse->iterative() && !fell_back.load(); }
+  mutable std::once_flag fallback_once;
+  mutable std::unique_ptr<detail::SparseFactor> fallback;  // when CG stagnated
+  mutable Solver fallback_solver = Solver::Auto;
+  mutable std::atomic<bool> fell_back{false};
+
+  mutable std::once_flag condition_once;
+  mutable double condition_ = 0;
+  /// lambda_max by power iteration with A, lambda_min by inverse iteration with
+  /// the factorisation. A is symmetric positive definite, so both converge to the extreme eigenvalues.
+  double condition() const {
+    std::call_once(condition_once, [this] {
+      const std::size_t n = sources.size();
+      const double phi0 = wendland(options.kernel, 0.0);
+      RowMatrix v = RowMatrix::Constant(Eigen::Index(n), 1, 1.0 / std::sqrt(double(n)));
+      double lmax = phi0;
+      for (int it = 0; it < 30; ++it) {
+        const RowMatrix av = a * v;
+        const double norm = av.norm();
+        if (!(norm > 0)) break;
+        lmax = norm;
+        v = av / norm;
+      }
+      RowMatrix x = RowMatrix::Constant(Eigen::Index(n), 1, 1.0 / std::sqrt(double(n)));
+      double lmin_inv = 1.0 / phi0;
+      // Each inverse step is a whole solve: with CG (no factor to reuse) fewer of them, a rougher estimate.
+      const int inverse_steps = stats.solver == Solver::Cg && !fell_back ? 8 : 30;
+      for (int it = 0; it < inverse_steps; ++it) {
+        solve_in_place(x);
+        const double norm = x.norm();
+        if (!(norm > 0) || !std::isfinite(norm)) break;
+        lmin_inv = norm;
+        x /= norm;
+      }
+      condition_ = lmax * lmin_inv;
+    });
+    return condition_;
+  }
+};
+
+struct SpaceMap::State {
+  std::shared_ptr<const Structure> st;
+  std::vector<Vec3> destinations;
+  Eigen::Matrix<double, Eigen::Dynamic, 3> alpha;  // input order
+  // alpha in the index's slot order, for the simple path: made on first use.
+  mutable std::once_flag slot_once;
+  mutable std::vector<Vec3> alpha_by_slot_;
+  const std::vector<Vec3>& alpha_by_slot() const {
+    std::call_once(slot_once, [this] {
+      const NeighborIndex& index = st->index();
+      alpha_by_slot_.resize(index.size());
+      for (std::size_t slot = 0; slot < alpha_by_slot_.size(); ++slot)
+        alpha_by_slot_[slot] = alpha.row(Eigen::Index(index.original_index(slot))).transpose();
+    });
+    return alpha_by_slot_;
+  }
+  // The evaluation grid's runs with coordinates and alpha, made on first use of each precision.
+  mutable std::once_flag once_double, once_float, once_float_trust;
+  mutable bool float_ok = true;       // float evaluation agrees with double (float_trusted())
+  mutable double float_error = 0;     // the largest difference measured
+  mutable detail::EvalData<double> data_double;
+  mutable detail::EvalData<float> data_float;
+  template <class T>
+  const detail::EvalData<T>& eval_data() const {
+    auto& flag = std::is_same_v<T, double> ? once_double : once_float;
+    auto& data = [this]() -> detail::EvalData<T>& {
+      if constexpr (std::is_same_v<T, double>) return data_double;
+      else return data_float;
+    }();
+    std::call_once(flag, [&] {
+      const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> rows = alpha;
+      data.assign(st->grid(), st->sources, rows.data(), st->options.kernel);
+    });
+    return data;
+  }
+  detail::PolynomialPart poly;                     // beta for the evaluator
+  Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();  // in u coordinates
+  FitStats stats;
+
+  /// p(x); beta's absent rows are zero, so this serves constant and linear alike.
+  Vec3 polynomial_at(const Vec3& x) const {
+    const Vec3 u = (x - st->center) / st->scale;
+    return (beta.row(0) + u.transpose() * beta.bottomRows<3>()).transpose();
+  }
+};
+
+}  // namespace csrbf
