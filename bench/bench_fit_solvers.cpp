@@ -39,7 +39,8 @@ void BM_Fit(benchmark::State& state) {
     stats = m.stats();
     benchmark::DoNotOptimize(m.coefficients().data());
   }
-  state.SetLabel(std::string(solver_name(stats.solver)) + (stats.iterations ? ", " + std::to_string(stats.iterations) + " steps" : ""));
+  state.SetLabel(std::string(solver_name(stats.solver)) +
+                 (stats.iterations ? ", " + std::to_string(stats.iterations) + " steps" : ""));
   state.counters["neighbours"] = stats.mean_neighbors;
 }
 
@@ -62,7 +63,8 @@ void BM_WithDestinations(benchmark::State& state) {
     stats = next.stats();
     benchmark::DoNotOptimize(next.coefficients().data());
   }
-  state.SetLabel(std::string(solver_name(stats.solver)) + (stats.iterations ? ", " + std::to_string(stats.iterations) + " steps" : ""));
+  state.SetLabel(std::string(solver_name(stats.solver)) +
+                 (stats.iterations ? ", " + std::to_string(stats.iterations) + " steps" : ""));
 }
 
 }  // namespace

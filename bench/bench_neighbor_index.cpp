@@ -29,7 +29,9 @@ class Octree {
     root_ = build(std::move(ids), c, 0.5 * (hi - lo).maxCoeff() + 1e-12, 0);
   }
   template <class F>
-  void query(const Vec3& q, F&& f) const { visit(*root_, q, f); }
+  void query(const Vec3& q, F&& f) const {
+    visit(*root_, q, f);
+  }
 
  private:
   struct Node {

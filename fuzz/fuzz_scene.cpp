@@ -6,8 +6,8 @@
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {
-    const auto scene =
-        csrbf::io::read_scene_text(std::string(reinterpret_cast<const char*>(data), size), "fuzz.json", CSRBF_FUZZ_BASE);
+    const auto scene = csrbf::io::read_scene_text(std::string(reinterpret_cast<const char*>(data), size), "fuzz.json",
+                                                  CSRBF_FUZZ_BASE);
     csrbf::anim::Player player(scene);
     for (const double t : {0.0, scene.duration / 3, scene.duration}) {
       player.evaluate(t);

@@ -102,7 +102,9 @@ csrbf::Kernel kernel_of(const std::string& name) {
 }
 csrbf::Polynomial polynomial_of(const std::string& name) {
   const auto p = csrbf::parse_polynomial(name);
-  if (!p) throw py::value_error("polynomial must be one of " + csrbf::names_text<csrbf::Polynomial>() + ", got '" + name + "'");
+  if (!p)
+    throw py::value_error("polynomial must be one of " + csrbf::names_text<csrbf::Polynomial>() + ", got '" + name +
+                          "'");
   return *p;
 }
 
@@ -242,8 +244,8 @@ A CSRBF space mapping T(x) = x + phase * d(x), fitted to control points.
 sources, destinations: (n, 3) arrays; radius: the radius of support R (> 0, in the points' units);
 kernel: 'c0', 'c2' (default), 'c4' or 'c6' (Wendland); polynomial: 'none' (default, strictly
 local), 'constant' or 'linear'. The fit releases the GIL.)doc")
-      .def(py::init([](const py::array& sources, const py::array& destinations, double radius, const std::string& kernel,
-                       const std::string& polynomial) {
+      .def(py::init([](const py::array& sources, const py::array& destinations, double radius,
+                       const std::string& kernel, const std::string& polynomial) {
              const auto s = to_vec3(sources, "sources");
              const auto d = to_vec3(destinations, "destinations");
              if (s.size() != d.size())
@@ -295,29 +297,32 @@ local), 'constant' or 'linear'. The fit releases the GIL.)doc")
           py::arg("points"), py::arg("phase") = 1.0, "dT/dx at each point: an (n, 3, 3) array, [i, a, b] = dT_a/dx_b")
       .def_property_readonly("stats", &stats_dict, "What the fit did and cost (a dict)")
       .def_property_readonly("radius", &csrbf::SpaceMap::radius)
-      .def_property_readonly("kernel", [](const csrbf::SpaceMap& m) { return std::string(csrbf::kernel_name(m.kernel())); })
-      .def_property_readonly("polynomial",
-                             [](const csrbf::SpaceMap& m) { return std::string(csrbf::polynomial_name(m.polynomial())); })
-      .def_property_readonly("sources", [](const csrbf::SpaceMap& m) {
-        return from_vec3(std::vector<Vec3>(m.sources().begin(), m.sources().end()));
-      })
-      .def_property_readonly("destinations", [](const csrbf::SpaceMap& m) {
-        return from_vec3(std::vector<Vec3>(m.destinations().begin(), m.destinations().end()));
-      })
-      .def_property_readonly("coefficients",
+      .def_property_readonly("kernel",
+                             [](const csrbf::SpaceMap& m) { return std::string(csrbf::kernel_name(m.kernel())); })
+      .def_property_readonly(
+          "polynomial", [](const csrbf::SpaceMap& m) { return std::string(csrbf::polynomial_name(m.polynomial())); })
+      .def_property_readonly(
+          "sources",
+          [](const csrbf::SpaceMap& m) { return from_vec3(std::vector<Vec3>(m.sources().begin(), m.sources().end())); })
+      .def_property_readonly("destinations",
                              [](const csrbf::SpaceMap& m) {
-                               const auto& c = m.coefficients();
-                               py::array_t<double> out({py::ssize_t(c.rows()), py::ssize_t(3)});
-                               for (Eigen::Index i = 0; i < c.rows(); ++i)
-                                 for (int k = 0; k < 3; ++k) out.mutable_at(i, k) = c(i, k);
-                               return out;
-                             },
-                             "alpha, one row per source, in the sources' order")
+                               return from_vec3(std::vector<Vec3>(m.destinations().begin(), m.destinations().end()));
+                             })
+      .def_property_readonly(
+          "coefficients",
+          [](const csrbf::SpaceMap& m) {
+            const auto& c = m.coefficients();
+            py::array_t<double> out({py::ssize_t(c.rows()), py::ssize_t(3)});
+            for (Eigen::Index i = 0; i < c.rows(); ++i)
+              for (int k = 0; k < 3; ++k) out.mutable_at(i, k) = c(i, k);
+            return out;
+          },
+          "alpha, one row per source, in the sources' order")
       .def("__len__", &csrbf::SpaceMap::size)
       .def("__repr__", [](const csrbf::SpaceMap& m) {
         std::ostringstream s;
-        s << "SpaceMap(" << m.size() << " controls, radius=" << m.radius() << ", kernel='" << csrbf::kernel_name(m.kernel())
-          << "', polynomial='" << csrbf::polynomial_name(m.polynomial()) << "')";
+        s << "SpaceMap(" << m.size() << " controls, radius=" << m.radius() << ", kernel='"
+          << csrbf::kernel_name(m.kernel()) << "', polynomial='" << csrbf::polynomial_name(m.polynomial()) << "')";
         return s.str();
       });
 
@@ -345,11 +350,12 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
           py::arg("phase"))
       .def("update", &csrbf::DisplacementField<double>::update, py::arg("map"),
            py::call_guard<py::gil_scoped_release>(), "Recomputes d for another map over the same rest points")
-      .def_property_readonly("displacements", [](const csrbf::DisplacementField<double>& f) {
-        py::array_t<double> out({py::ssize_t(f.size()), py::ssize_t(3)});
-        std::copy(f.displacements().begin(), f.displacements().end(), out.mutable_data());
-        return out;
-      })
+      .def_property_readonly("displacements",
+                             [](const csrbf::DisplacementField<double>& f) {
+                               py::array_t<double> out({py::ssize_t(f.size()), py::ssize_t(3)});
+                               std::copy(f.displacements().begin(), f.displacements().end(), out.mutable_data());
+                               return out;
+                             })
       .def("__len__", &csrbf::DisplacementField<double>::size);
 
   m.def(
@@ -365,8 +371,8 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
         auto mesh = csrbf::io::MeshDocument::load(template_path);
         const auto p = to_vec3(positions, "positions");
         if (p.size() != mesh.positions().size())
-          throw py::value_error("positions has " + std::to_string(p.size()) + " points but " + template_path.string() + " has " +
-                                std::to_string(mesh.positions().size()));
+          throw py::value_error("positions has " + std::to_string(p.size()) + " points but " + template_path.string() +
+                                " has " + std::to_string(mesh.positions().size()));
         mesh.positions() = p;
         mesh.save(path);
       },

@@ -23,6 +23,7 @@ packages=(
   python3-vtk9           # vtkCSRBFTransform wrapped for VTK's Python (VTK's wrapping tools and runtime)
   python3-scipy python3-pip python3-setuptools python3-wheel   # Python tests: SciPy; the offline wheel
   clang libclang-rt-14-dev   # scripts/fuzz.sh: libFuzzer targets (not needed to build or test)
+  clang-format           # scripts/check-format.sh: CI checks the tree's formatting
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png
 )
 

@@ -25,8 +25,10 @@ double seconds_since(Clock::time_point t) { return std::chrono::duration<double>
 
 std::string clock_text(double s) {
   char buf[32];
-  if (s >= 60) std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
-  else std::snprintf(buf, sizeof buf, "%.1fs", s);
+  if (s >= 60)
+    std::snprintf(buf, sizeof buf, "%dm%02ds", int(s) / 60, int(s) % 60);
+  else
+    std::snprintf(buf, sizeof buf, "%.1fs", s);
   return buf;
 }
 
@@ -60,9 +62,7 @@ class Progress {
 };
 
 std::pair<int, int> parse_size(const std::string& s) {
-  const auto bad = [&] {
-    return UsageError("--size: expected WIDTHxHEIGHT with each in 16..16384, got '" + s + "'");
-  };
+  const auto bad = [&] { return UsageError("--size: expected WIDTHxHEIGHT with each in 16..16384, got '" + s + "'"); };
   const auto x = s.find('x');
   if (x == std::string::npos) throw bad();
   int w = 0, h = 0;
@@ -113,8 +113,9 @@ int run_animate(const AnimateOptions& o) {
   std::cout << "csrbf animate: " << o.scene << " -> " << o.out << ": " << frames << " frames, " << width << "x"
             << height << " at " << scene.fps << " fps, t = " << from << " .. " << to << " s"
             << (display.is_private() ? ", private X display " + display.name() : "")
-            << (display.unreachable_display().empty() ? ""
-                                                      : " (DISPLAY " + display.unreachable_display() + " does not open)")
+            << (display.unreachable_display().empty()
+                    ? ""
+                    : " (DISPLAY " + display.unreachable_display() + " does not open)")
             << "\n";
   std::cout.flush();
 
@@ -136,9 +137,10 @@ int run_animate(const AnimateOptions& o) {
     return 128 + int(g_interrupted);  // 130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP
   }
   const double n = double(frames);
-  std::printf("frames: %zu\ncomputation: %.3f ms/frame (mean)\nrendering: %.3f ms/frame (mean)\nencoding: %.3f ms/frame (mean)\nwrote %s\n",
-              frames, 1e3 * st.compute_seconds / n, 1e3 * st.render_seconds / n, 1e3 * st.encode_seconds / n,
-              o.out.c_str());
+  std::printf(
+      "frames: %zu\ncomputation: %.3f ms/frame (mean)\nrendering: %.3f ms/frame (mean)\nencoding: %.3f ms/frame "
+      "(mean)\nwrote %s\n",
+      frames, 1e3 * st.compute_seconds / n, 1e3 * st.render_seconds / n, 1e3 * st.encode_seconds / n, o.out.c_str());
   return 0;
 }
 

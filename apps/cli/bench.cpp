@@ -129,8 +129,7 @@ std::vector<Vec3> sphere_mesh_points(std::size_t m) {
   std::size_t placed = 0;
   for (std::size_t r = 0; r < rings; ++r) {
     const double theta = M_PI * (double(r) + 0.5) / double(rings);
-    const std::size_t want = r + 1 == rings ? m - placed
-                                            : std::size_t(std::round(double(m) * std::sin(theta) / total));
+    const std::size_t want = r + 1 == rings ? m - placed : std::size_t(std::round(double(m) * std::sin(theta) / total));
     for (std::size_t k = 0; k < want && placed < m; ++k, ++placed) {
       const double phi = 2 * M_PI * (double(k) + 0.5 * double(r % 2)) / double(want);
       p.emplace_back(std::sin(theta) * std::cos(phi), std::cos(theta), std::sin(theta) * std::sin(phi));
@@ -167,8 +166,10 @@ class Printer {
       os << "  " << key << "=";
       if (value.is_number_float()) {
         const double v = value.get<double>();
-        os << std::setprecision(v >= 100 ? 0 : v >= 10 ? 1 : 3) << std::fixed << v << std::defaultfloat
-           << std::setprecision(6);
+        os << std::setprecision(v >= 100  ? 0
+                                : v >= 10 ? 1
+                                          : 3)
+           << std::fixed << v << std::defaultfloat << std::setprecision(6);
       } else if (value.is_string()) {
         os << value.get<std::string>();
       } else {
@@ -193,7 +194,8 @@ int all_threads() { return tbb::info::default_concurrency(); }
 // fish, face: a bundled mesh and its controls; fit, full evaluation, playback, one thread.
 
 void mesh_scenario(const BenchOptions& o, const Printer& out, const std::string& name, double radius) {
-  const std::filesystem::path dir = o.data_dir.empty() ? std::filesystem::path(CSRBF_EXAMPLES_DIR) : std::filesystem::path(o.data_dir);
+  const std::filesystem::path dir =
+      o.data_dir.empty() ? std::filesystem::path(CSRBF_EXAMPLES_DIR) : std::filesystem::path(o.data_dir);
   const auto mesh = io::MeshDocument::load(dir / (name + ".obj"));
   const auto controls = io::read_controls((dir / (name + ".controls")).string());
   const int threads = o.threads > 0 ? o.threads : 1;
@@ -402,7 +404,8 @@ void scale_row(const BenchOptions& o, const Printer& out, const SweepPoint& p) {
   std::size_t hits = 0;
   const std::size_t probe = std::min<std::size_t>(p.m, 2000);
   for (std::size_t i = 0; i < probe; ++i)
-    map->index().for_each_within(Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]), [&](std::size_t, double) { ++hits; });
+    map->index().for_each_within(Vec3(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]),
+                                 [&](std::size_t, double) { ++hits; });
   json row{{"scenario", "scale"},
            {"sweep", p.sweep},
            {"vertices", p.m},
@@ -440,77 +443,104 @@ void scale_scenario(const BenchOptions& o, const Printer& out) {
 }
 
 // ---------------------------------------------------------------------------------------------------
-// solvers: the factorisation of the same matrices by the three solvers.
+// solvers: whole fits of the same systems by every back end, in one run: on the unit sphere (a
+// surface, as controls on a model are) and in the unit cube (a volume: a CFD mesh's points), at about
+// 25 and 100 neighbours a control, N = 1e3 ... 1e6 (1e3 and 1e4 with --quick). Auto is compared with
+// the fastest back end of its row (auto_over_best). A back end is left out where it would take
+// minutes: the envelope past 1.5e11 multiply-adds (known before it starts), Eigen's simplicial
+// Cholesky past 2e6 neighbour entries, CHOLMOD at N = 1e6; a fit refused by the memory limit is
+// reported as such.
 
-/// The envelope factorisation's work for these sources (FitStats::envelope_work), from the neighbour
-/// graph and the ordering alone: no factorisation.
+/// n seeded random points in the unit cube (in no spatial order, as a mesh's points often come).
+std::vector<Vec3> cube_points(std::size_t n) {
+  std::mt19937_64 rng(20261201);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  std::vector<Vec3> p(n);
+  for (auto& x : p) x = Vec3(u(rng), u(rng), u(rng));
+  return p;
+}
+
+/// A smooth displacement of points in the unit cube, 2% of its side at most.
+std::vector<Vec3> cube_destinations(std::span<const Vec3> s) {
+  std::vector<Vec3> d(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i)
+    d[i] = s[i] + 0.02 * Vec3(std::sin(5 * s[i].y()), std::cos(4 * s[i].z()), std::sin(3 * s[i].x() + 1));
+  return d;
+}
+
+/// R for about `neighbours` other points within R of each of n points in the unit cube.
+double cube_radius(std::size_t n, double neighbours) { return std::cbrt(3.0 * neighbours / (4.0 * M_PI * double(n))); }
+
+/// The envelope factorisation's work for these sources in reverse Cuthill-McKee order (what Auto
+/// weighs), from the neighbour graph alone: no factorisation.
 double envelope_work_of(std::span<const Vec3> s, double radius) {
   const AdjacencyGraph g = AdjacencyGraph::from_index(NeighborIndex(s, radius), s);
-  return envelope_work(envelope_first_columns(g, choose_ordering(g, Ordering::Auto).order));
+  return envelope_work(envelope_first_columns(g, reverse_cuthill_mckee_order(g)));
 }
 
 void solvers_scenario(const BenchOptions& o, const Printer& out) {
-  std::vector<std::size_t> sizes{100, 1000, 10000};
-  if (!o.quick) sizes.push_back(100000);
-  const int threads = o.threads > 0 ? o.threads : 1;
+  std::vector<std::size_t> sizes{1000, 10000};
+  if (!o.quick) sizes.insert(sizes.end(), {100000, 1000000});
+  const int threads = o.threads > 0 ? o.threads : int(tbb::info::default_concurrency());
   ThreadLimit limit(threads);
-  for (std::size_t n : sizes) {
-    const std::vector<Vec3> s = sphere_points(n);
-    const std::vector<Vec3> d = sphere_destinations(s, 0.02);
-    const double radius = sphere_radius(n);
-    json row{{"scenario", "solvers"}, {"controls", n}, {"radius", radius}, {"threads", threads}};
-    std::map<std::string, double> factor_us;
-    const int reps = n >= 100000 ? 3 : n >= 10000 ? 5 : 9;
-    const double seconds = n >= 10000 ? 0.0 : o.seconds;
-    for (Solver solver : {Solver::Envelope, Solver::Eigen, Solver::Cholmod, Solver::Auto}) {
-      const std::string name(solver_name(solver));
-      if (solver == Solver::Cholmod && !cholmod_available()) {
-        row[name + "_us"] = nullptr;
-        continue;
-      }
-      FitOptions fo{radius, Kernel::C2, Polynomial::None};
-      fo.solver = solver;
-      // The envelope factorisation's work is known before it starts: skip it past about a minute.
-      if (solver == Solver::Envelope) {
-        const double work = envelope_work_of(s, radius);
-        row["envelope_work"] = work;
-        if (work > 1.5e11) {
-          row[name + "_us"] = nullptr;
-          row["envelope_skipped"] = "estimated work " + std::to_string(work) + " multiply-adds";
-          continue;
+  for (const std::string geometry : {"sphere", "cube"})
+    for (const double neighbours : {25.0, 100.0})
+      for (std::size_t n : sizes) {
+        const bool sphere = geometry == "sphere";
+        const std::vector<Vec3> s = sphere ? sphere_points(n) : cube_points(n);
+        const std::vector<Vec3> d = sphere ? sphere_destinations(s, 0.02) : cube_destinations(s);
+        const double radius = sphere ? sphere_radius(n, neighbours) : cube_radius(n, neighbours);
+        json row{
+            {"scenario", "solvers"}, {"geometry", geometry}, {"controls", n}, {"radius", radius}, {"threads", threads}};
+        const int reps = n >= 1000000 ? 1 : n >= 100000 ? 3 : 5;
+        std::map<std::string, double> fit_us;
+        for (Solver solver : {Solver::Envelope, Solver::Eigen, Solver::Cholmod, Solver::Cg, Solver::Auto}) {
+          const std::string name(solver_name(solver));
+          if (solver == Solver::Cholmod && (!cholmod_available() || n >= 1000000)) {
+            row[name + "_fit_us"] = nullptr;
+            continue;
+          }
+          if (solver == Solver::Eigen && double(n) * neighbours > 2e6) {
+            row[name + "_fit_us"] = nullptr;
+            continue;
+          }
+          if (solver == Solver::Envelope) {
+            const double work = envelope_work_of(s, radius);
+            row["envelope_work"] = work;
+            if (work > 1.5e11) {
+              row[name + "_fit_us"] = nullptr;
+              continue;
+            }
+          }
+          FitOptions fo{radius, Kernel::C2, Polynomial::None};
+          fo.solver = solver;
+          std::vector<double> total;
+          try {
+            for (int r = 0; r < reps; ++r) {
+              const auto t0 = Clock::now();
+              const SpaceMap m = SpaceMap::fit(s, d, fo);
+              total.push_back(us_since(t0));
+              row["mean_neighbors"] = m.stats().mean_neighbors;
+              if (solver == Solver::Cg) row["cg_steps"] = m.stats().iterations;
+              if (solver == Solver::Auto)
+                row["auto_solver"] =
+                    std::string(solver_name(m.stats().solver)) + (m.stats().fell_back ? " (after cg)" : "");
+            }
+          } catch (const ResourceLimit&) {
+            row[name + "_fit_us"] = "memory limit";
+            continue;
+          }
+          row[name + "_fit_us"] = median(total);
+          if (solver != Solver::Auto) fit_us[name] = median(total);
         }
+        double best = INFINITY;
+        std::string best_name;
+        for (const auto& [name, v] : fit_us)
+          if (v < best) best = v, best_name = name;
+        row["best"] = best_name;
+        if (row["auto_fit_us"].is_number()) row["auto_over_best"] = row["auto_fit_us"].get<double>() / best;
+        out.row(row);
       }
-      std::vector<double> fac, total;
-      Solver used = solver;
-      std::size_t nnz = 0;
-      for (int r = 0; r < reps || (seconds > 0 && r < 200 && std::accumulate(total.begin(), total.end(), 0.0) < seconds * 1e6);
-           ++r) {
-        const auto t0 = Clock::now();
-        const SpaceMap m = SpaceMap::fit(s, d, fo);
-        total.push_back(us_since(t0));
-        fac.push_back((m.stats().seconds_assembly + m.stats().seconds_factorization) * 1e6);
-        used = m.stats().solver;
-        nnz = m.stats().factor_nonzeros;
-      }
-      if (solver == Solver::Auto) {
-        row["auto_solver"] = std::string(solver_name(used));
-        row["auto_fit_us"] = median(total);
-        row["auto_us"] = median(fac);
-      } else {
-        factor_us[name] = median(fac);
-        row[name + "_us"] = median(fac);
-        row[name + "_fit_us"] = median(total);
-        row[name + "_factor_nonzeros"] = nnz;
-      }
-    }
-    double best = INFINITY;
-    std::string best_name;
-    for (const auto& [name, v] : factor_us)
-      if (v < best) best = v, best_name = name;
-    row["best"] = best_name;
-    row["auto_over_best"] = row["auto_us"].get<double>() / best;
-    out.row(row);
-  }
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -620,18 +650,28 @@ const std::vector<std::string>& bench_scenarios() {
 }
 
 void run_bench(const BenchOptions& o) {
-  if (o.loop == "portable") set_evaluation_loop(EvaluationLoop::Portable);
-  else if (o.loop == "avx512") set_evaluation_loop(EvaluationLoop::Avx512);
-  else if (o.loop != "auto") throw std::invalid_argument("unknown evaluation loop '" + o.loop + "'");
+  if (o.loop == "portable")
+    set_evaluation_loop(EvaluationLoop::Portable);
+  else if (o.loop == "avx512")
+    set_evaluation_loop(EvaluationLoop::Avx512);
+  else if (o.loop != "auto")
+    throw std::invalid_argument("unknown evaluation loop '" + o.loop + "'");
   const Printer out(o.json);
   const auto run_one = [&](const std::string& name) {
-    if (name == "fish") mesh_scenario(o, out, "fish", 0.3);
-    else if (name == "face") mesh_scenario(o, out, "face", 0.2);
-    else if (name == "ball") ball_scenario(o, out);
-    else if (name == "scale") scale_scenario(o, out);
-    else if (name == "solvers") solvers_scenario(o, out);
-    else if (name == "peers") peers_scenario(o, out);
-    else throw std::invalid_argument("unknown scenario '" + name + "'");
+    if (name == "fish")
+      mesh_scenario(o, out, "fish", 0.3);
+    else if (name == "face")
+      mesh_scenario(o, out, "face", 0.2);
+    else if (name == "ball")
+      ball_scenario(o, out);
+    else if (name == "scale")
+      scale_scenario(o, out);
+    else if (name == "solvers")
+      solvers_scenario(o, out);
+    else if (name == "peers")
+      peers_scenario(o, out);
+    else
+      throw std::invalid_argument("unknown scenario '" + name + "'");
   };
   if (o.scenario == "all")
     for (const auto& name : bench_scenarios()) run_one(name);

@@ -23,8 +23,8 @@ FitStats report_stats(const SpaceMap& map) {
   s.reverse_breadth_first = c.reverse_breadth_first;
   s.reverse_cuthill_mckee = c.reverse_cuthill_mckee;
   if (s.bandwidth == 0 && s.envelope_entries == 0) {
-    const Profile& p = c.chosen == Ordering::Identity       ? c.identity
-                       : c.chosen == Ordering::BreadthFirst ? c.breadth_first
+    const Profile& p = c.chosen == Ordering::Identity              ? c.identity
+                       : c.chosen == Ordering::BreadthFirst        ? c.breadth_first
                        : c.chosen == Ordering::ReverseBreadthFirst ? c.reverse_breadth_first
                                                                    : c.reverse_cuthill_mckee;
     s.bandwidth = p.bandwidth;
@@ -63,10 +63,14 @@ nlohmann::json stats_json(const SpaceMap& map) {
   j["fell_back"] = s.fell_back;
   j["residual_max"] = s.residual_max;
   j["residual_relative"] = s.residual_relative;
-  j["time_us"] = {{"index", us(s.seconds_index)},           {"graph", us(s.seconds_graph)},
-                  {"ordering", us(s.seconds_ordering)},     {"assembly", us(s.seconds_assembly)},
-                  {"factorization", us(s.seconds_factorization)}, {"solve", us(s.seconds_solve)},
-                  {"residual", us(s.seconds_residual)},     {"total", us(s.seconds_total())}};
+  j["time_us"] = {{"index", us(s.seconds_index)},
+                  {"graph", us(s.seconds_graph)},
+                  {"ordering", us(s.seconds_ordering)},
+                  {"assembly", us(s.seconds_assembly)},
+                  {"factorization", us(s.seconds_factorization)},
+                  {"solve", us(s.seconds_solve)},
+                  {"residual", us(s.seconds_residual)},
+                  {"total", us(s.seconds_total())}};
   j["condition_estimate"] = map.condition_estimate();
   return j;
 }
@@ -88,9 +92,10 @@ std::string stats_text(const SpaceMap& map) {
   line("kernel", std::string(kernel_name(map.kernel())));
   line("polynomial", std::string(polynomial_name(map.polynomial())));
   line("neighbours", fmt("%zu pairs, %.2f per control", s.neighbor_pairs, s.mean_neighbors));
-  line("ordering", s.solver == Solver::Cholmod || s.solver == Solver::Eigen
-                       ? std::string("the solver's own (") + (s.solver == Solver::Cholmod ? "nested dissection" : "AMD") + ")"
-                       : std::string(ordering_name(s.ordering)));
+  line("ordering",
+       s.solver == Solver::Cholmod || s.solver == Solver::Eigen
+           ? std::string("the solver's own (") + (s.solver == Solver::Cholmod ? "nested dissection" : "AMD") + ")"
+           : std::string(ordering_name(s.ordering)));
   line("bandwidth", fmt("%zu  (identity %zu, breadth-first %zu, reverse breadth-first %zu, rcm %zu)", s.bandwidth,
                         s.identity.bandwidth, s.breadth_first.bandwidth, s.reverse_breadth_first.bandwidth,
                         s.reverse_cuthill_mckee.bandwidth));
@@ -108,10 +113,11 @@ std::string stats_text(const SpaceMap& map) {
                        s.fell_back ? "; conjugate gradients stagnated, this direct solver took over" : ""));
   line("residual", fmt("%.3g max, %.3g relative", s.residual_max, s.residual_relative));
   line("condition", fmt("%.3g (estimate of the matrix's 2-norm condition number)", map.condition_estimate()));
-  line("time (us)", fmt("index %.1f, graph %.1f, ordering %.1f, assembly %.1f, factorization %.1f, solve %.1f, "
-                        "residual %.1f, total %.1f",
-                        us(s.seconds_index), us(s.seconds_graph), us(s.seconds_ordering), us(s.seconds_assembly),
-                        us(s.seconds_factorization), us(s.seconds_solve), us(s.seconds_residual), us(s.seconds_total())));
+  line("time (us)",
+       fmt("index %.1f, graph %.1f, ordering %.1f, assembly %.1f, factorization %.1f, solve %.1f, "
+           "residual %.1f, total %.1f",
+           us(s.seconds_index), us(s.seconds_graph), us(s.seconds_ordering), us(s.seconds_assembly),
+           us(s.seconds_factorization), us(s.seconds_solve), us(s.seconds_residual), us(s.seconds_total())));
   return o.str();
 }
 
@@ -141,7 +147,8 @@ std::string folds_text(const FoldReport& r) {
     << r.min_at.z() << ")\n";
   o << "  points with det <= 0     " << r.folded << " (" << r.folded_vertices.size() << " vertices)\n";
   if (r.edge_triangles > 0)
-    o << "  active area's edge       " << r.edge_flipped << " of " << r.edge_triangles << " triangles across it turned over\n";
+    o << "  active area's edge       " << r.edge_flipped << " of " << r.edge_triangles
+      << " triangles across it turned over\n";
   if (std::isfinite(r.fold_free_phase))
     o << "  fold-free up to phase    " << r.fold_free_phase
       << (r.fold_free_phase < r.phase ? "  (FOLDS at the phase checked: lower the phase or raise the radius)" : "")

@@ -58,18 +58,21 @@ CLI::Validator positive_finite(const char* what) {
 void add_fit_options(CLI::App* cmd, FitArgs& a) {
   auto* controls =
       cmd->add_option("--controls", a.controls, "Controls file: one control vector a line, 'sx sy sz dx dy dz'");
-  auto* deformation = cmd->add_option("--deformation", a.deformation,
-                                      "Deformation JSON (docs/scene-format.md): controls, radius, kernel and polynomial "
-                                      "in one file, instead of --controls, --radius, --kernel, --polynomial");
+  auto* deformation =
+      cmd->add_option("--deformation", a.deformation,
+                      "Deformation JSON (docs/scene-format.md): controls, radius, kernel and polynomial "
+                      "in one file, instead of --controls, --radius, --kernel, --polynomial");
   auto* radius = cmd->add_option("--radius,-r", a.radius, "Radius of support R, in the mesh's units (> 0)")
                      ->check(positive_finite("--radius"));
-  auto* kernel = cmd->add_option("--kernel,-k", a.kernel, "Wendland kernel: c0 = psi20, c2 = psi31, c4 = psi42, c6 = psi53")
-                     ->check(CLI::IsMember(csrbf::names<csrbf::Kernel>()))
-                     ->capture_default_str();
-  auto* polynomial = cmd->add_option("--polynomial,-p", a.polynomial,
-                                     "Polynomial part: none (strictly local), constant, linear (reproduces affine maps)")
-                         ->check(CLI::IsMember(csrbf::names<csrbf::Polynomial>()))
-                         ->capture_default_str();
+  auto* kernel =
+      cmd->add_option("--kernel,-k", a.kernel, "Wendland kernel: c0 = psi20, c2 = psi31, c4 = psi42, c6 = psi53")
+          ->check(CLI::IsMember(csrbf::names<csrbf::Kernel>()))
+          ->capture_default_str();
+  auto* polynomial =
+      cmd->add_option("--polynomial,-p", a.polynomial,
+                      "Polynomial part: none (strictly local), constant, linear (reproduces affine maps)")
+          ->check(CLI::IsMember(csrbf::names<csrbf::Polynomial>()))
+          ->capture_default_str();
   cmd->add_option("--memory-limit", a.memory_limit_gib,
                   "Refuse fits whose neighbour graph and factor would need more than this many GiB (a radius near "
                   "the model's size makes the matrix dense)")
@@ -83,7 +86,8 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
       throw CLI::RequiredError(cmd->get_name() + ": give --controls with --radius, or --deformation");
   });
   cmd->add_option("--ordering", a.ordering,
-                  "Matrix ordering: auto (smallest envelope), breadth-first (paper Fig. 3), reverse-breadth-first, rcm, identity")
+                  "Matrix ordering: auto (smallest envelope), breadth-first (paper Fig. 3), reverse-breadth-first, "
+                  "rcm, identity")
       ->check(CLI::IsMember(csrbf::names<csrbf::Ordering>()))
       ->capture_default_str();
   cmd->add_option("--solver", a.solver,
@@ -138,9 +142,9 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
     throw csrbf::io::FileError(where(e.second()) + ": source is the same as on " + which(e.first()));
   } catch (const csrbf::NotPositiveDefinite& e) {
     if (e.row() >= controls.sources.size()) throw csrbf::io::FileError(controls.name + ": " + e.what());
-    throw csrbf::io::FileError(where(e.row()) +
-                               ": the interpolation matrix is not numerically positive definite at this control (pivot " +
-                               std::to_string(e.pivot()) + "); sources too close together for R = " + std::to_string(o.radius));
+    throw csrbf::io::FileError(
+        where(e.row()) + ": the interpolation matrix is not numerically positive definite at this control (pivot " +
+        std::to_string(e.pivot()) + "); sources too close together for R = " + std::to_string(o.radius));
   } catch (const csrbf::Error& e) {  // bad input, or the memory limit
     throw csrbf::io::FileError(controls.name + ": " + e.what());
   }
@@ -162,7 +166,8 @@ int main(int argc, char** argv) {
   std::string mesh_in, mesh_out;
   double phase = 1.0;
   auto* deform = app.add_subcommand("deform", "Deform a mesh by the space mapping the controls define");
-  deform->add_option("--mesh,-m", mesh_in, "Input mesh: .obj .ply .off .xyz (order kept), .stl .gltf .glb (assimp)")->required();
+  deform->add_option("--mesh,-m", mesh_in, "Input mesh: .obj .ply .off .xyz (order kept), .stl .gltf .glb (assimp)")
+      ->required();
   add_fit_options(deform, deform_args);
   deform->add_option("--phase,-t", phase, "Phase t in [0, 1]: each point moves to x + t d(x)")
       ->check(finite_in(0.0, 1.0, "--phase"))
@@ -178,28 +183,37 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember(scenario_names));
   bench->add_flag("--json", bench_opts.json, "One JSON object a line");
   bench->add_flag("--quick", bench_opts.quick, "Smaller sweeps (scale, solvers, peers)");
-  bench->add_option("--threads", bench_opts.threads, "Threads (default: 1 for fish/face/ball/solvers, all for scale/peers)")
+  bench
+      ->add_option("--threads", bench_opts.threads,
+                   "Threads (default: 1 for fish/face/ball, all for scale/solvers/peers)")
       ->check(CLI::Range(1, 1024));
   bench->add_option("--seconds", bench_opts.seconds, "Time spent on each measured quantity")
       ->check(finite_in(0.0, 60.0, "--seconds"))
       ->capture_default_str();
-  bench->add_option("--loop", bench_opts.loop, "Evaluation loop: auto, portable or avx512 (each row names the one used)")
+  bench
+      ->add_option("--loop", bench_opts.loop, "Evaluation loop: auto, portable or avx512 (each row names the one used)")
       ->check(CLI::IsMember({"auto", "portable", "avx512"}))
       ->capture_default_str();
-  bench->add_option("--data", bench_opts.data_dir, "Folder with fish.obj, face.obj and their .controls (default: bundled)");
+  bench->add_option("--data", bench_opts.data_dir,
+                    "Folder with fish.obj, face.obj and their .controls (default: bundled)");
 
   FitArgs info_args;
   bool json = false;
   csrbf::cli::AnimateOptions anim_opts;
-  auto* animate = app.add_subcommand("animate", "Render a scene file to a movie, without a display (docs/scene-format.md)");
+  auto* animate =
+      app.add_subcommand("animate", "Render a scene file to a movie, without a display (docs/scene-format.md)");
   animate->add_option("scene", anim_opts.scene, "Scene JSON file")->required();
-  animate->add_option("-o,--output", anim_opts.out,
-                      "Movie: .mp4 (H.264), .avi (full uncompressed frames) or a folder of numbered PNG frames")
+  animate
+      ->add_option("-o,--output", anim_opts.out,
+                   "Movie: .mp4 (H.264), .avi (full uncompressed frames) or a folder of numbered PNG frames")
       ->required();
-  animate->add_option("--fps", anim_opts.fps, "Frames per second (default: the scene's)")->check(finite_in(0.1, 1000.0, "--fps"));
+  animate->add_option("--fps", anim_opts.fps, "Frames per second (default: the scene's)")
+      ->check(finite_in(0.1, 1000.0, "--fps"));
   animate->add_option("--size", anim_opts.size, "Frame size WIDTHxHEIGHT")->capture_default_str();
-  animate->add_option("--from", anim_opts.from, "Start time in seconds (default 0)")->check(finite_in(-1e6, 1e6, "--from"));
-  animate->add_option("--to", anim_opts.to, "End time in seconds (default: the scene's duration)")->check(finite_in(-1e6, 1e6, "--to"));
+  animate->add_option("--from", anim_opts.from, "Start time in seconds (default 0)")
+      ->check(finite_in(-1e6, 1e6, "--from"));
+  animate->add_option("--to", anim_opts.to, "End time in seconds (default: the scene's duration)")
+      ->check(finite_in(-1e6, 1e6, "--to"));
   animate->add_flag("--private-display", anim_opts.private_display,
                     "Render on a private Xvfb even when DISPLAY is set (one is started anyway when it is not)");
 
@@ -213,7 +227,8 @@ int main(int argc, char** argv) {
   auto* folds_flag = info->add_flag("--check-folds", check_folds,
                                     "Report det(dT/dx) over the mesh's vertices and points inside its triangles: "
                                     "the minimum, where it is <= 0, and the largest fold-free phase");
-  info->add_option("--phase", info_phase, "Phase at which folds are counted (default 1)")->check(finite_in(-1e6, 1e6, "--phase"));
+  info->add_option("--phase", info_phase, "Phase at which folds are counted (default 1)")
+      ->check(finite_in(-1e6, 1e6, "--phase"));
   folds_flag->needs(info->get_option("--mesh"));
   info->get_option("--mesh")->needs(folds_flag);  // a mesh is read only to check it for folds
 
@@ -228,7 +243,8 @@ int main(int argc, char** argv) {
     if (*deform) {
       csrbf::io::check_output_path(csrbf::io::resolve_output(mesh_out));
       if (csrbf::io::format_for(mesh_out) == csrbf::io::MeshFormat::Assimp)
-        throw csrbf::cli::UsageError("-o: unknown output format '" + std::filesystem::path(mesh_out).extension().string() +
+        throw csrbf::cli::UsageError("-o: unknown output format '" +
+                                     std::filesystem::path(mesh_out).extension().string() +
                                      "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
       const auto t0 = std::chrono::steady_clock::now();
       auto mesh = csrbf::io::MeshDocument::load(mesh_in, deform_args.memory_limit_gib * double(1ull << 30));
@@ -241,9 +257,11 @@ int main(int argc, char** argv) {
       std::size_t moved = 0;
       for (std::size_t i = 0; i < p.size(); ++i) moved += p[i] != before[i];
       std::cout << "csrbf deform: " << p.size() << " vertices (" << moved << " moved) of " << mesh_in << " by "
-                << f.map.size() << " controls, R = " << f.map.radius() << ", kernel " << csrbf::kernel_name(f.map.kernel())
-                << ", polynomial " << csrbf::polynomial_name(f.map.polynomial()) << ", phase " << phase
-                << (f.area ? ", active area of " + std::to_string(f.area->vertices.size()) + " vertices" : std::string())
+                << f.map.size() << " controls, R = " << f.map.radius() << ", kernel "
+                << csrbf::kernel_name(f.map.kernel()) << ", polynomial " << csrbf::polynomial_name(f.map.polynomial())
+                << ", phase " << phase
+                << (f.area ? ", active area of " + std::to_string(f.area->vertices.size()) + " vertices"
+                           : std::string())
                 << " -> " << mesh_out << " (" << std::chrono::duration<double, std::milli>(t1 - t0).count() << " ms)\n";
     } else if (*animate) {
       return csrbf::cli::run_animate(anim_opts);
@@ -251,7 +269,8 @@ int main(int argc, char** argv) {
       csrbf::cli::run_bench(bench_opts);
     } else if (*info) {
       std::optional<csrbf::io::MeshDocument> mesh;
-      if (check_folds) mesh.emplace(csrbf::io::MeshDocument::load(info_mesh, info_args.memory_limit_gib * double(1ull << 30)));
+      if (check_folds)
+        mesh.emplace(csrbf::io::MeshDocument::load(info_mesh, info_args.memory_limit_gib * double(1ull << 30)));
       Fitted f = fit(info_args, mesh ? &*mesh : nullptr, info_mesh);
       std::optional<csrbf::FoldReport> folds;
       if (check_folds) {
@@ -274,7 +293,8 @@ int main(int argc, char** argv) {
     std::cerr << "csrbf: error: " << e.what() << '\n';
     return 2;
   } catch (const std::bad_alloc&) {
-    std::cerr << "csrbf: error: out of memory (a limit such as ulimit -v, or --memory-limit too high for this machine)\n";
+    std::cerr
+        << "csrbf: error: out of memory (a limit such as ulimit -v, or --memory-limit too high for this machine)\n";
     return 1;
   } catch (const std::exception& e) {
     std::cerr << "csrbf: error: " << e.what() << '\n';

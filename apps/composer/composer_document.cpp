@@ -96,8 +96,8 @@ void rebase(Json& j, const fs::path& from, const fs::path& to) {
   if (old_base == new_base) return;
   for_each_path(j, [&](Json& p) {
     if (!p.is_string()) return;
-    const fs::path abs = fs::path(p.get<std::string>()).is_absolute() ? fs::path(p.get<std::string>())
-                                                                         : old_base / p.get<std::string>();
+    const fs::path abs =
+        fs::path(p.get<std::string>()).is_absolute() ? fs::path(p.get<std::string>()) : old_base / p.get<std::string>();
     const fs::path rel = abs.lexically_normal().lexically_relative(new_base);
     p = rel.empty() ? abs.lexically_normal().string() : rel.string();
   });
@@ -168,7 +168,9 @@ const Json& Document::object(std::size_t i) const {
 }
 
 std::size_t Document::object_count() const { return json_["objects"].size(); }
-std::string Document::object_name(std::size_t i) const { return object(i).value("name", "object " + std::to_string(i)); }
+std::string Document::object_name(std::size_t i) const {
+  return object(i).value("name", "object " + std::to_string(i));
+}
 double Document::duration() const { return json_["duration"].get<double>(); }
 double Document::fps() const { return json_.value("fps", 25.0); }
 
@@ -218,7 +220,8 @@ std::string Document::easing(std::size_t o, std::size_t d) const {
 }
 
 void Document::set_easing(std::size_t o, std::size_t d, const std::string& easing) {
-  if (easing != "smooth" && easing != "linear") throw EditError("easing must be \"smooth\" or \"linear\", got '" + easing + "'");
+  if (easing != "smooth" && easing != "linear")
+    throw EditError("easing must be \"smooth\" or \"linear\", got '" + easing + "'");
   keys(o, Track::Phase, d);  // makes the schedule keyed
   deformation_entry(o, d)["phase"]["easing"] = easing;
 }
@@ -247,10 +250,12 @@ void Document::remove_phase_key(std::size_t o, std::size_t d, std::size_t key) {
 }
 
 void Document::set_camera(const Vec3& position, const Vec3& focal, const Vec3& up, double angle) {
-  if (!position.allFinite() || !focal.allFinite() || !up.allFinite() || (position - focal).norm() == 0 || up.norm() == 0)
+  if (!position.allFinite() || !focal.allFinite() || !up.allFinite() || (position - focal).norm() == 0 ||
+      up.norm() == 0)
     throw EditError("the camera needs a position apart from its focal point and a view-up direction");
   if (!(angle > 0 && angle < 180)) throw EditError("the view angle must be in (0, 180) degrees");
-  json_["camera"] = {{"position", vec(position)}, {"focal_point", vec(focal)}, {"view_up", vec(up)}, {"view_angle", angle}};
+  json_["camera"] = {
+      {"position", vec(position)}, {"focal_point", vec(focal)}, {"view_up", vec(up)}, {"view_angle", angle}};
 }
 
 namespace {
@@ -279,7 +284,9 @@ void Document::set_object_color(std::size_t o, const Vec3& rgb) {
     for (auto& p : obj["parts"]) p.erase("color");
 }
 
-Vec3 Document::object_color(std::size_t o) const { return rgb_of(object(o).value("color", Json()), Vec3(0.8, 0.8, 0.8)); }
+Vec3 Document::object_color(std::size_t o) const {
+  return rgb_of(object(o).value("color", Json()), Vec3(0.8, 0.8, 0.8));
+}
 
 std::size_t Document::light_count() const { return json_.contains("lights") ? json_["lights"].size() : 0; }
 
@@ -311,7 +318,8 @@ std::string Document::light_label(std::size_t i) const {
   if (i >= light_count()) return {};
   const Json& l = json_["lights"][i];
   std::ostringstream o;
-  if (l.value("headlight", false)) o << "headlight";
+  if (l.value("headlight", false))
+    o << "headlight";
   else if (l.contains("position"))
     o << "from (" << l["position"][0].get<double>() << ", " << l["position"][1].get<double>() << ", "
       << l["position"][2].get<double>() << ")";

@@ -74,8 +74,7 @@ using Clock = std::chrono::steady_clock;
 class ComposerStyle : public vtkInteractorStyleTrackballCamera {
  public:
   static ComposerStyle* New();
-  vtkTypeMacro(ComposerStyle, vtkInteractorStyleTrackballCamera)
-  ComposerWindow* window = nullptr;
+  vtkTypeMacro(ComposerStyle, vtkInteractorStyleTrackballCamera) ComposerWindow* window = nullptr;
 
   // VTK's own keys (w wireframe, 3 stereo, e/q quit, ...) are off: the menus hold every key.
   void OnChar() override {}
@@ -272,8 +271,10 @@ void Timeline::mousePressEvent(QMouseEvent* e) {
 }
 
 void Timeline::mouseMoveEvent(QMouseEvent* e) {
-  if (drag_key_ >= 0) drag_time_ = drag_limit(drag_row_, drag_key_, e->pos().x());
-  else if (e->pos().x() >= kLeft) w_->set_time(t_of(e->pos().x()));
+  if (drag_key_ >= 0)
+    drag_time_ = drag_limit(drag_row_, drag_key_, e->pos().x());
+  else if (e->pos().x() >= kLeft)
+    w_->set_time(t_of(e->pos().x()));
   update();
 }
 
@@ -285,7 +286,9 @@ void Timeline::mouseReleaseEvent(QMouseEvent* e) {
     const std::size_t o = std::size_t(w_->object_);
     const auto times = w_->doc_.key_times(o, track_of(r), std::size_t(std::max(0, r - 2)));
     if (std::abs(times[std::size_t(k)] - t) > 1e-12)
-      w_->edit("Move key in time", [&](Document& d) { d.set_key_time(o, track_of(r), std::size_t(std::max(0, r - 2)), std::size_t(k), t); });
+      w_->edit("Move key in time", [&](Document& d) {
+        d.set_key_time(o, track_of(r), std::size_t(std::max(0, r - 2)), std::size_t(k), t);
+      });
   }
   update();
 }
@@ -297,7 +300,8 @@ ComposerWindow::ComposerWindow(QWidget* parent) : QMainWindow(parent) {
   connect(&undo_, &QUndoStack::cleanChanged, this, [this](bool clean) { setWindowModified(!clean); });
   build_ui();
   build_menus();
-  statusBar()->showMessage("Open a scene (Ctrl+O), or add an object (Ctrl+Shift+A)");  // made now: a message later never resizes the view
+  statusBar()->showMessage(
+      "Open a scene (Ctrl+O), or add an object (Ctrl+Shift+A)");  // made now: a message later never resizes the view
   timer_ = new QTimer(this);
   connect(timer_, &QTimer::timeout, this, [this] { tick(); });
   rebuild();
@@ -421,7 +425,8 @@ void ComposerWindow::build_ui() {
   auto* add_obj = new QPushButton("Add object...", panel);
   add_obj->setObjectName("addObject");
   connect(add_obj, &QPushButton::clicked, this, [this] {
-    const QString f = QFileDialog::getOpenFileName(this, "Add object", gui::dialog_folder(QString::fromStdString(doc_.path().string())),
+    const QString f = QFileDialog::getOpenFileName(this, "Add object",
+                                                   gui::dialog_folder(QString::fromStdString(doc_.path().string())),
                                                    "Meshes (*.obj *.ply *.off *.stl *.glb *.gltf)");
     gui::remember_folder(f);
     if (!f.isEmpty()) add_object(f);
@@ -521,7 +526,8 @@ void ComposerWindow::build_ui() {
   connect(set_rot, &QPushButton::clicked, this, [this] {
     if (!has_object()) return;
     edit("Orientation key", [&](Document& d) {
-      d.set_orientation_key(std::size_t(object_), d.snap(time_), angles_[0]->value(), angles_[1]->value(), angles_[2]->value());
+      d.set_orientation_key(std::size_t(object_), d.snap(time_), angles_[0]->value(), angles_[1]->value(),
+                            angles_[2]->value());
     });
   });
   rf->addRow(set_rot);
@@ -557,7 +563,8 @@ void ComposerWindow::build_ui() {
     if (updating_ || !has_object() || deformation_ < 0) return;
     const std::string name = def_name_->text().toStdString();
     if (name == doc_.deformation_name(std::size_t(object_), std::size_t(deformation_))) return;
-    edit("Rename deformation", [&](Document& d) { d.set_deformation_name(std::size_t(object_), std::size_t(deformation_), name); });
+    edit("Rename deformation",
+         [&](Document& d) { d.set_deformation_name(std::size_t(object_), std::size_t(deformation_), name); });
   });
   df->addRow("name", def_name_);
   combine_ = new QComboBox(defbox);
@@ -574,7 +581,8 @@ void ComposerWindow::build_ui() {
   easing_->addItems({"smooth", "linear"});
   connect(easing_, &QComboBox::currentTextChanged, this, [this](const QString& e) {
     if (updating_ || !has_object() || deformation_ < 0) return;
-    edit("Easing", [&](Document& d) { d.set_easing(std::size_t(object_), std::size_t(deformation_), e.toStdString()); });
+    edit("Easing",
+         [&](Document& d) { d.set_easing(std::size_t(object_), std::size_t(deformation_), e.toStdString()); });
   });
   df->addRow("easing", easing_);
   phase_time_ = spin("phaseTime", 0, 1e6, 0.04, 3);
@@ -587,7 +595,8 @@ void ComposerWindow::build_ui() {
   connect(phase_time_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double t) {
     if (updating_ || !has_object() || deformation_ < 0 || phase_key_ < 0) return;
     edit("Phase key time", [&](Document& d) {
-      d.set_key_time(std::size_t(object_), Document::Track::Phase, std::size_t(deformation_), std::size_t(phase_key_), d.snap(t));
+      d.set_key_time(std::size_t(object_), Document::Track::Phase, std::size_t(deformation_), std::size_t(phase_key_),
+                     d.snap(t));
     });
   });
   connect(phase_value_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double v) {
@@ -603,9 +612,11 @@ void ComposerWindow::build_ui() {
   connect(add_phase, &QPushButton::clicked, this, [this] {
     if (!has_object() || deformation_ < 0) return;
     const double t = doc_.snap(time_);
-    const double v = scene_->objects[std::size_t(object_)].parts[0].deformations[std::size_t(deformation_)].schedule.phase(t);
+    const double v =
+        scene_->objects[std::size_t(object_)].parts[0].deformations[std::size_t(deformation_)].schedule.phase(t);
     std::size_t k = 0;
-    if (edit("Add phase key", [&](Document& d) { k = d.add_phase_key(std::size_t(object_), std::size_t(deformation_), t, v); }))
+    if (edit("Add phase key",
+             [&](Document& d) { k = d.add_phase_key(std::size_t(object_), std::size_t(deformation_), t, v); }))
       select_phase_key(deformation_, int(k));
   });
   auto* del_phase = new QPushButton("Delete key", defbox);
@@ -613,7 +624,8 @@ void ComposerWindow::build_ui() {
   connect(del_phase, &QPushButton::clicked, this, [this] {
     if (!has_object() || deformation_ < 0 || phase_key_ < 0) return;
     const int k = phase_key_;
-    if (edit("Delete phase key", [&](Document& d) { d.remove_phase_key(std::size_t(object_), std::size_t(deformation_), std::size_t(k)); }))
+    if (edit("Delete phase key",
+             [&](Document& d) { d.remove_phase_key(std::size_t(object_), std::size_t(deformation_), std::size_t(k)); }))
       select_phase_key(deformation_, -1);
   });
   auto* del_def = new QPushButton("Remove", defbox);
@@ -769,17 +781,20 @@ void ComposerWindow::build_menus() {
     if (!f.isEmpty()) open_scene(f);
   });
   add(file, "&Save scene", QKeySequence::Save, [this, save_as] {
-    if (doc_.path().empty()) save_as();
-    else save_scene(QString::fromStdString(doc_.path().string()));
+    if (doc_.path().empty())
+      save_as();
+    else
+      save_scene(QString::fromStdString(doc_.path().string()));
   });
   add(file, "Save scene &as...", QKeySequence("Ctrl+Shift+S"), save_as);  // QKeySequence::SaveAs is empty on X11
   add(file, "&Export movie...", QKeySequence("Ctrl+E"), [this, folder] {
-    const QString f = QFileDialog::getSaveFileName(this, "Export movie", folder() + "/movie.mp4", "Movies (*.mp4 *.avi)");
+    const QString f =
+        QFileDialog::getSaveFileName(this, "Export movie", folder() + "/movie.mp4", "Movies (*.mp4 *.avi)");
     gui::remember_folder(f);
     if (f.isEmpty()) return;
     bool ok = false;
-    const QString size = QInputDialog::getText(this, "Export movie", "Frame size (WIDTHxHEIGHT):", QLineEdit::Normal,
-                                               "640x480", &ok);
+    const QString size =
+        QInputDialog::getText(this, "Export movie", "Frame size (WIDTHxHEIGHT):", QLineEdit::Normal, "640x480", &ok);
     if (!ok) return;
     const QStringList wh = size.split('x');
     if (wh.size() != 2 || wh[0].toInt() < 16 || wh[1].toInt() < 16) {
@@ -796,8 +811,10 @@ void ComposerWindow::build_menus() {
   editm->addSeparator();
   add(editm, "Add trajectory &key", QKeySequence("K"), [this] { findChild<QPushButton*>("addKey")->click(); });
   add(editm, "&Delete selected key", QKeySequence::Delete, [this] {
-    if (phase_key_ >= 0) findChild<QPushButton*>("deletePhaseKey")->click();
-    else findChild<QPushButton*>("deleteKey")->click();
+    if (phase_key_ >= 0)
+      findChild<QPushButton*>("deletePhaseKey")->click();
+    else
+      findChild<QPushButton*>("deleteKey")->click();
   });
   add(editm, "Set &orientation key", QKeySequence("O"), [this] { findChild<QPushButton*>("setOrientation")->click(); });
   add(editm, "Add &phase key", QKeySequence("P"), [this] { findChild<QPushButton*>("addPhaseKey")->click(); });
@@ -954,7 +971,8 @@ bool ComposerWindow::attach_deformation(const QString& file) {
     show_error("Select an object first");
     return false;
   }
-  return edit("Attach deformation", [&](Document& d) { d.attach_deformation(std::size_t(object_), file.toStdString()); });
+  return edit("Attach deformation",
+              [&](Document& d) { d.attach_deformation(std::size_t(object_), file.toStdString()); });
 }
 
 bool ComposerWindow::edit(const QString& what, const std::function<void(Document&)>& change) {
@@ -1056,7 +1074,8 @@ void ComposerWindow::rebuild() {
   if (object_ >= 0) objects_->setCurrentRow(object_);
   updating_ = false;
   time_ = std::clamp(time_, 0.0, doc_.duration());
-  if (!has_object() || deformation_ >= int(doc_.deformation_count(std::size_t(object_)))) deformation_ = phase_key_ = -1;
+  if (!has_object() || deformation_ >= int(doc_.deformation_count(std::size_t(object_))))
+    deformation_ = phase_key_ = -1;
   refresh_panel();
   refresh_overlays();
   show_frame();
@@ -1099,8 +1118,9 @@ void ComposerWindow::refresh_panel() {
     tcb_[1]->setValue(k.continuity);
     tcb_[2]->setValue(k.bias);
   }
-  const Vec3 a = has_object() ? angles_from_quaternion(scene_->objects[std::size_t(object_)].orientation.rotation(time_))
-                              : Vec3::Zero();
+  const Vec3 a = has_object()
+                     ? angles_from_quaternion(scene_->objects[std::size_t(object_)].orientation.rotation(time_))
+                     : Vec3::Zero();
   for (int c = 0; c < 3; ++c) {
     angles_[c]->setValue(a[c]);
     angles_[c]->setEnabled(has_object());
@@ -1117,8 +1137,10 @@ void ComposerWindow::refresh_deformation_panel() {
   if (deformations_->count() != int(n)) deformations_->clear();
   for (std::size_t d = 0; d < n; ++d) {
     const QString name = QString::fromStdString(doc_.deformation_name(std::size_t(object_), d));
-    if (int(d) < deformations_->count()) deformations_->item(int(d))->setText(name);
-    else deformations_->addItem(name);
+    if (int(d) < deformations_->count())
+      deformations_->item(int(d))->setText(name);
+    else
+      deformations_->addItem(name);
   }
   deformations_->setCurrentRow(deformation_);
   const bool has_def = deformation_ >= 0 && std::size_t(deformation_) < n;
@@ -1128,9 +1150,12 @@ void ComposerWindow::refresh_deformation_panel() {
   combine_->setEnabled(n > 0);
   phase_time_->setEnabled(has_key);
   phase_value_->setEnabled(has_key);
-  def_name_->setText(has_def ? QString::fromStdString(doc_.deformation_name(std::size_t(object_), std::size_t(deformation_))) : QString());
+  def_name_->setText(
+      has_def ? QString::fromStdString(doc_.deformation_name(std::size_t(object_), std::size_t(deformation_)))
+              : QString());
   combine_->setCurrentText(n > 0 ? QString::fromStdString(doc_.combine(std::size_t(object_))) : "compose");
-  easing_->setCurrentText(has_def ? QString::fromStdString(doc_.easing(std::size_t(object_), std::size_t(deformation_))) : "smooth");
+  easing_->setCurrentText(has_def ? QString::fromStdString(doc_.easing(std::size_t(object_), std::size_t(deformation_)))
+                                  : "smooth");
   if (has_key) {
     const auto times = doc_.key_times(std::size_t(object_), Document::Track::Phase, std::size_t(deformation_));
     phase_time_->setValue(std::size_t(phase_key_) < times.size() ? times[std::size_t(phase_key_)] : 0.0);
@@ -1230,13 +1255,17 @@ void ComposerWindow::refresh_overlays() {
       const double t0 = keys.front().time, t1 = keys.back().time;
       const int n = std::max(2, 40 * int(keys.size()));
       std::vector<vtkIdType> ids;
-      for (int s = 0; s < n; ++s) ids.push_back(cp->InsertNextPoint(obj.trajectory->position(t0 + (t1 - t0) * s / (n - 1)).data()));
+      for (int s = 0; s < n; ++s)
+        ids.push_back(cp->InsertNextPoint(obj.trajectory->position(t0 + (t1 - t0) * s / (n - 1)).data()));
       cl->InsertNextCell(vtkIdType(ids.size()), ids.data());
       for (std::size_t k = 0; k < keys.size(); ++k) {
         hp->InsertNextPoint(keys[k].position.data());
-        if (int(o) == object_ && int(k) == key_) hc->InsertNextTuple3(255, 240, 60);
-        else if (int(o) == object_) hc->InsertNextTuple3(255, 150, 40);
-        else hc->InsertNextTuple3(150, 110, 80);
+        if (int(o) == object_ && int(k) == key_)
+          hc->InsertNextTuple3(255, 240, 60);
+        else if (int(o) == object_)
+          hc->InsertNextTuple3(255, 150, 40);
+        else
+          hc->InsertNextTuple3(150, 110, 80);
       }
       // Orientation along the path: the object's x (red), y (green), z (blue) axes at 12 times.
       if (int(o) != object_) continue;
@@ -1484,8 +1513,10 @@ bool ComposerWindow::maybe_save() {
 
 void ComposerWindow::closeEvent(QCloseEvent* e) {
   play(false);
-  if (maybe_save()) e->accept();
-  else e->ignore();
+  if (maybe_save())
+    e->accept();
+  else
+    e->ignore();
 }
 
 }  // namespace csrbf::composer

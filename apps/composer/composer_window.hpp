@@ -142,8 +142,8 @@ class ComposerWindow : public QMainWindow {
   friend class JsonCommand;
   void build_ui();
   void build_menus();
-  void rebuild();      // scene from the document: renderer, player, overlays
-  void show_frame();   // evaluate at time_, draw
+  void rebuild();     // scene from the document: renderer, player, overlays
+  void show_frame();  // evaluate at time_, draw
   void refresh_panel();
   void refresh_overlays();
   void show_error(const QString& m);

@@ -58,7 +58,8 @@ QLabel* add_message(QScrollArea* box, const char* name, const char* background) 
   l->setObjectName(name);
   l->setWordWrap(true);
   const QString text = QString(name) == "error" ? "white" : "black";
-  l->setStyleSheet(QString("QLabel { color: %1; background: %2; padding: 6px; border-radius: 4px; }").arg(text, background));
+  l->setStyleSheet(
+      QString("QLabel { color: %1; background: %2; padding: 6px; border-radius: 4px; }").arg(text, background));
   l->hide();
   auto* layout = static_cast<QVBoxLayout*>(box->widget()->layout());
   layout->insertWidget(layout->count() - 1, l);  // above the stretch
@@ -97,7 +98,8 @@ void add_view_actions(QMenu* menu, QWidget* owner, const std::function<void(View
     const char* text;
     Qt::Key key;
     View view;
-  } views[] = {{"&Front view", Qt::Key_1, View::Front}, {"&Side view (right)", Qt::Key_3, View::Side},
+  } views[] = {{"&Front view", Qt::Key_1, View::Front},
+               {"&Side view (right)", Qt::Key_3, View::Side},
                {"&Top view", Qt::Key_7, View::Top}};
   for (const auto& v : views) {
     QAction* a = menu->addAction(v.text);

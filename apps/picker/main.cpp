@@ -28,7 +28,8 @@ int main(int argc, char** argv) {
   parser.addHelpOption();
   parser.addPositionalArgument("mesh", "Mesh to open (OBJ, PLY, OFF, STL, glTF, ...)", "[mesh]");
   const QCommandLineOption deformation("deformation", "Deformation JSON to load", "file");
-  const QCommandLineOption controls("controls", "Controls file to load (with --radius, or a radius is proposed)", "file");
+  const QCommandLineOption controls("controls", "Controls file to load (with --radius, or a radius is proposed)",
+                                    "file");
   const QCommandLineOption radius("radius", "Radius of support for --controls", "R");
   const QCommandLineOption screenshot("screenshot", "Render the window once to this PNG and exit", "file");
   const QCommandLineOption size("size", "Window size WIDTHxHEIGHT (default 1280x800)", "WxH", "1280x800");
@@ -59,8 +60,8 @@ int main(int argc, char** argv) {
       bool number = false;
       r = parser.value(radius).toDouble(&number);
       if (!number || !(*r > 0) || !std::isfinite(*r)) {
-        std::cerr << "csrbf-picker: error: --radius must be a positive number, got '" << parser.value(radius).toStdString()
-                  << "'\n";
+        std::cerr << "csrbf-picker: error: --radius must be a positive number, got '"
+                  << parser.value(radius).toStdString() << "'\n";
         return 2;
       }
     }

@@ -114,7 +114,8 @@ double Document::propose_radius(const State& s) const {
   const std::size_t step = std::max<std::size_t>(1, n / 2000);
   std::vector<double> nearest;
   double longest = 0;
-  for (std::size_t i = 0; i < n; ++i) longest = std::max(longest, (s.controls[i].destination - s.controls[i].source).norm());
+  for (std::size_t i = 0; i < n; ++i)
+    longest = std::max(longest, (s.controls[i].destination - s.controls[i].source).norm());
   for (std::size_t i = 0; i < n; i += step) {
     double best = std::numeric_limits<double>::infinity();
     for (std::size_t j = 0; j < n; ++j)
@@ -139,7 +140,8 @@ double Document::propose_radius(const State& s) const {
   // Three significant digits, rounded up (a short number in the file, never below the fold-free one).
   const auto round_up = [](double x) {
     const int e = int(std::floor(std::log10(x))) - 2;
-    return e < 0 ? std::ceil(x * std::pow(10.0, -e)) / std::pow(10.0, -e) : std::ceil(x / std::pow(10.0, e)) * std::pow(10.0, e);
+    return e < 0 ? std::ceil(x * std::pow(10.0, -e)) / std::pow(10.0, -e)
+                 : std::ceil(x / std::pow(10.0, e)) * std::pow(10.0, e);
   };
   for (r = round_up(r); r < diagonal_; r = round_up(1.25 * r)) {
     const SpaceMap map = SpaceMap::fit(src, dst, FitOptions{r, s.kernel, s.polynomial});

@@ -73,8 +73,7 @@ namespace csrbf::picker {
 class PickerStyle : public vtkInteractorStyleTrackballCamera {
  public:
   static PickerStyle* New();
-  vtkTypeMacro(PickerStyle, vtkInteractorStyleTrackballCamera)
-  PickerWindow* window = nullptr;
+  vtkTypeMacro(PickerStyle, vtkInteractorStyleTrackballCamera) PickerWindow* window = nullptr;
 
   void OnLeftButtonDown() override {
     const int* p = GetInteractor()->GetEventPosition();
@@ -178,7 +177,9 @@ enum MergeId { kMergeRadius = 1, kMergePhase = 2, kMergeTable = 3 };
 QString number(double v) { return QString::number(v, 'g', 6); }
 
 // Radius slider: 0 .. 1000 over R / diagonal from 1e-3 to 1, logarithmic.
-int slider_from_fraction(double f) { return int(std::lround(1000.0 * (std::log10(std::clamp(f, 1e-3, 1.0)) + 3.0) / 3.0)); }
+int slider_from_fraction(double f) {
+  return int(std::lround(1000.0 * (std::log10(std::clamp(f, 1e-3, 1.0)) + 3.0) / 3.0));
+}
 double fraction_from_slider(int v) { return std::pow(10.0, 3.0 * double(v) / 1000.0 - 3.0); }
 
 }  // namespace
@@ -436,7 +437,8 @@ void PickerWindow::build_ui() {
   connect(kernel_, qOverload<int>(&QComboBox::currentIndexChanged), this, [this] { options_changed(-1, "Kernel"); });
   polynomial_ = new QComboBox(panel);
   polynomial_->setObjectName("polynomial");
-  for (const auto& e : NameTable<Polynomial>::entries) polynomial_->addItem(QString::fromUtf8(e.name.data(), int(e.name.size())));
+  for (const auto& e : NameTable<Polynomial>::entries)
+    polynomial_->addItem(QString::fromUtf8(e.name.data(), int(e.name.size())));
   form->addRow("Polynomial", polynomial_);
   connect(polynomial_, qOverload<int>(&QComboBox::currentIndexChanged), this,
           [this] { options_changed(-1, "Polynomial"); });
@@ -487,8 +489,8 @@ void PickerWindow::build_menus() {
   };
   add(file, "&Open mesh...", QKeySequence::Open, [this, folder] {
     if (!maybe_save()) return;
-    const QString f = QFileDialog::getOpenFileName(this, "Open mesh", folder(),
-                                                   "Meshes (*.obj *.ply *.off *.stl *.gltf *.glb *.xyz);;All files (*)");
+    const QString f = QFileDialog::getOpenFileName(
+        this, "Open mesh", folder(), "Meshes (*.obj *.ply *.off *.stl *.gltf *.glb *.xyz);;All files (*)");
     gui::remember_folder(f);
     if (!f.isEmpty()) open_mesh(f);
   });
@@ -498,7 +500,8 @@ void PickerWindow::build_menus() {
     if (!f.isEmpty()) load_deformation(f);
   });
   add(file, "Load &controls...", QKeySequence("Ctrl+Shift+L"), [this, folder] {
-    const QString f = QFileDialog::getOpenFileName(this, "Load controls", folder(), "Controls (*.controls *.txt);;All files (*)");
+    const QString f =
+        QFileDialog::getOpenFileName(this, "Load controls", folder(), "Controls (*.controls *.txt);;All files (*)");
     gui::remember_folder(f);
     if (!f.isEmpty()) load_controls(f);
   });
@@ -510,12 +513,15 @@ void PickerWindow::build_menus() {
     return !f.isEmpty() && save_deformation(f);
   };
   add(file, "&Save deformation", QKeySequence::Save, [this, save_as] {
-    if (deformation_path_.isEmpty()) save_as();
-    else save_deformation(deformation_path_);
+    if (deformation_path_.isEmpty())
+      save_as();
+    else
+      save_deformation(deformation_path_);
   });
   add(file, "Save deformation &as...", QKeySequence("Ctrl+Shift+S"), save_as);
   add(file, "Save con&trols...", QKeySequence("Ctrl+Alt+S"), [this, folder] {
-    const QString f = QFileDialog::getSaveFileName(this, "Save controls", folder() + "/deformation.controls", "Controls (*.controls)");
+    const QString f = QFileDialog::getSaveFileName(this, "Save controls", folder() + "/deformation.controls",
+                                                   "Controls (*.controls)");
     gui::remember_folder(f);
     if (!f.isEmpty()) save_controls(f);
   });
@@ -543,10 +549,12 @@ void PickerWindow::build_menus() {
   add(viewm, "&Reset camera (front, fit)", QKeySequence("R"), [this] { reset_camera(); });
   gui::add_view_actions(viewm, this, [this](gui::View v) { reset_camera(v); });
   viewm->addSeparator();
-  QAction* supports = add(viewm, "&Support spheres", QKeySequence("S"), [this](bool on) { show_supports_->setChecked(on); });
+  QAction* supports =
+      add(viewm, "&Support spheres", QKeySequence("S"), [this](bool on) { show_supports_->setChecked(on); });
   supports->setCheckable(true);
   connect(show_supports_, &QCheckBox::toggled, supports, &QAction::setChecked);
-  QAction* colours = add(viewm, "Colour by &displacement", QKeySequence("D"), [this](bool on) { colour_displacement_->setChecked(on); });
+  QAction* colours = add(viewm, "Colour by &displacement", QKeySequence("D"),
+                         [this](bool on) { colour_displacement_->setChecked(on); });
   colours->setCheckable(true);
   connect(colour_displacement_, &QCheckBox::toggled, colours, &QAction::setChecked);
   wireframe_ = add(viewm, "&Wireframe", QKeySequence("W"), [this] { refresh_view(); });
@@ -650,8 +658,9 @@ bool PickerWindow::load_controls(const QString& path, std::optional<double> radi
     } else {
       // A controls file carries no radius: the current one may fold the mesh or move nothing.
       next.radius = doc_.propose_radius(next);
-      proposal = QString("Radius R = %1 (%2 % of the mesh's size) proposed for %3 controls from their spacing and "
-                         "length. Change it in the panel.")
+      proposal = QString(
+                     "Radius R = %1 (%2 % of the mesh's size) proposed for %3 controls from their spacing and "
+                     "length. Change it in the panel.")
                      .arg(next.radius, 0, 'g', 4)
                      .arg(100.0 * next.radius / doc_.diagonal(), 0, 'g', 3)
                      .arg(next.controls.size());
@@ -668,8 +677,9 @@ bool PickerWindow::load_controls(const QString& path, std::optional<double> radi
   }
   proposal_ = proposal;
   refresh_hints();
-  statusBar()->showMessage(proposal.isEmpty() ? "Loaded " + path
-                                              : QString("Radius R = %1 proposed (see the blue box)").arg(doc_.state().radius),
+  statusBar()->showMessage(proposal.isEmpty()
+                               ? "Loaded " + path
+                               : QString("Radius R = %1 proposed (see the blue box)").arg(doc_.state().radius),
                            10000);
   return true;
 }
@@ -736,8 +746,10 @@ bool PickerWindow::edit(const State& next, const QString& what, int merge_id) {
 
 void PickerWindow::restore(const State& s) {
   const Outcome o = doc_.apply(s);
-  if (!o.ok) show_error(QString::fromStdString(o.error));
-  else clear_error();
+  if (!o.ok)
+    show_error(QString::fromStdString(o.error));
+  else
+    clear_error();
   if (selected_ >= int(doc_.state().controls.size())) selected_ = -1;
   refresh(&o);
 }
@@ -775,11 +787,13 @@ void PickerWindow::refresh(const Outcome* outcome) {
   refresh_view();
   const auto& s = doc_.state();
   if (outcome) {
-    timing_->setText(QString("fit %1 ms, evaluation %2 ms").arg(outcome->fit_ms, 0, 'f', 3).arg(outcome->eval_ms, 0, 'f', 3));
+    timing_->setText(
+        QString("fit %1 ms, evaluation %2 ms").arg(outcome->fit_ms, 0, 'f', 3).arg(outcome->eval_ms, 0, 'f', 3));
   }
   refresh_hints();
-  region_label_->setText(s.region.empty() ? "Active area: whole mesh (ctrl + drag to select one)"
-                                          : QString("Active area: %1 of %2 vertices").arg(s.region.size()).arg(doc_.rest().size()));
+  region_label_->setText(s.region.empty()
+                             ? "Active area: whole mesh (ctrl + drag to select one)"
+                             : QString("Active area: %1 of %2 vertices").arg(s.region.size()).arg(doc_.rest().size()));
 }
 
 void PickerWindow::refresh_options() {
@@ -801,7 +815,8 @@ void PickerWindow::refresh_table() {
   table_->setRowCount(int(cs.size()));
   for (int r = 0; r < int(cs.size()); ++r) {
     const auto& c = cs[std::size_t(r)];
-    const double v[6] = {c.source.x(), c.source.y(), c.source.z(), c.destination.x(), c.destination.y(), c.destination.z()};
+    const double v[6] = {c.source.x(),      c.source.y(),      c.source.z(),
+                         c.destination.x(), c.destination.y(), c.destination.z()};
     for (int k = 0; k < 6; ++k) {
       auto* item = new QTableWidgetItem(number(v[k]));
       table_->setItem(r, k, item);
@@ -811,8 +826,10 @@ void PickerWindow::refresh_table() {
     pin->setCheckState(c.pinned ? Qt::Checked : Qt::Unchecked);
     table_->setItem(r, 6, pin);
   }
-  if (selected_ >= 0 && selected_ < int(cs.size())) table_->selectRow(selected_);
-  else table_->clearSelection();
+  if (selected_ >= 0 && selected_ < int(cs.size()))
+    table_->selectRow(selected_);
+  else
+    table_->clearSelection();
   updating_ = false;
 }
 
@@ -847,9 +864,10 @@ void PickerWindow::refresh_view() {
   std::vector<char> folded(pos.size(), 0);
   for (const auto v : folds.folded_vertices) folded[v] = 1;
   if (folds.folded > 0 || folds.edge_flipped > 0) {
-    const QString edge = folds.edge_flipped == 0 ? QString()
-                                                 : QString(" %1 of the triangles across the active area's edge turn over.")
-                                                       .arg(folds.edge_flipped);
+    const QString edge =
+        folds.edge_flipped == 0
+            ? QString()
+            : QString(" %1 of the triangles across the active area's edge turn over.").arg(folds.edge_flipped);
     fold_warning_->setText(QString("%1 %2 over (det dT/dx <= 0, shown in magenta).%3 The map is fold-free up "
                                    "to phase %4: lower the phase or the displacements, or raise the radius.")
                                .arg(folds.folded)
@@ -885,14 +903,19 @@ void PickerWindow::refresh_view() {
     const auto& c = s.controls[i];
     const bool sel = int(i) == selected_;
     hp->InsertNextPoint(c.source.data());
-    if (sel) hc->InsertNextTuple3(255, 240, 60);
-    else if (c.pinned) hc->InsertNextTuple3(20, 20, 20);  // black: seen on the mesh and on every displacement colour
-    else hc->InsertNextTuple3(60, 200, 90);
+    if (sel)
+      hc->InsertNextTuple3(255, 240, 60);
+    else if (c.pinned)
+      hc->InsertNextTuple3(20, 20, 20);  // black: seen on the mesh and on every displacement colour
+    else
+      hc->InsertNextTuple3(60, 200, 90);
     sp->InsertNextPoint(c.source.data());
     if (!c.pinned && c.destination != c.source) {
       hp->InsertNextPoint(c.destination.data());
-      if (sel) hc->InsertNextTuple3(255, 240, 60);
-      else hc->InsertNextTuple3(255, 120, 40);
+      if (sel)
+        hc->InsertNextTuple3(255, 240, 60);
+      else
+        hc->InsertNextTuple3(255, 120, 40);
       const vtkIdType a = lp->InsertNextPoint(c.source.data()), b = lp->InsertNextPoint(c.destination.data());
       const vtkIdType ids[2] = {a, b};
       lc->InsertNextCell(2, ids);
@@ -963,14 +986,17 @@ void PickerWindow::refresh_hints() {
                    .arg(s.radius, 0, 'g', 4)
                    .arg(s.region.empty() ? QString() : QString(" inside the active area"));
     } else if (most > 2.0 * longest) {
-      hints << QString("The mesh moves up to %1, %2 times the longest control vector (%3)%4. Check the result, or use "
-                       "more controls%5.")
+      hints << QString(
+                   "The mesh moves up to %1, %2 times the longest control vector (%3)%4. Check the result, or use "
+                   "more controls%5.")
                    .arg(most, 0, 'g', 3)
                    .arg(most / longest, 0, 'f', 1)
                    .arg(longest, 0, 'g', 3)
-                   .arg(s.polynomial == Polynomial::None ? QString()
-                                                          : QString(": the %1 polynomial extrapolates from the controls")
-                                                                .arg(QString::fromUtf8(name_of(s.polynomial).data(), int(name_of(s.polynomial).size()))))
+                   .arg(s.polynomial == Polynomial::None
+                            ? QString()
+                            : QString(": the %1 polynomial extrapolates from the controls")
+                                  .arg(QString::fromUtf8(name_of(s.polynomial).data(),
+                                                         int(name_of(s.polynomial).size()))))
                    .arg(s.polynomial == Polynomial::None ? QString() : QString(" or polynomial 'none'"));
     }
   }
@@ -1104,9 +1130,12 @@ void PickerWindow::dragEnterEvent(QDragEnterEvent* e) {
 void PickerWindow::dropEvent(QDropEvent* e) {
   for (const QUrl& url : e->mimeData()->urls()) {
     const QString f = url.toLocalFile();
-    if (f.endsWith(".json", Qt::CaseInsensitive)) load_deformation(f);
-    else if (f.endsWith(".controls", Qt::CaseInsensitive)) load_controls(f);
-    else if (maybe_save()) open_mesh(f);
+    if (f.endsWith(".json", Qt::CaseInsensitive))
+      load_deformation(f);
+    else if (f.endsWith(".controls", Qt::CaseInsensitive))
+      load_controls(f);
+    else if (maybe_save())
+      open_mesh(f);
   }
 }
 
@@ -1117,9 +1146,10 @@ bool PickerWindow::maybe_save() {
   if (answer == QMessageBox::Discard) return true;
   QString f = deformation_path_;
   if (f.isEmpty()) {
-    f = QFileDialog::getSaveFileName(this, "Save deformation", gui::dialog_folder(QString::fromStdString(doc_.mesh_path().string())) +
-                                                                   "/deformation.json",
-                                     "Deformation (*.json)");
+    f = QFileDialog::getSaveFileName(
+        this, "Save deformation",
+        gui::dialog_folder(QString::fromStdString(doc_.mesh_path().string())) + "/deformation.json",
+        "Deformation (*.json)");
     gui::remember_folder(f);
   }
   return !f.isEmpty() && save_deformation(f);

@@ -83,6 +83,7 @@ class PickerWindow : public QMainWindow {
   double drag_fps() const { return drag_fps_; }
   /// True while a ctrl + drag draws the active-area rectangle.
   bool band_visible() const;
+
  protected:
   void dragEnterEvent(QDragEnterEvent* e) override;
   void dropEvent(QDropEvent* e) override;

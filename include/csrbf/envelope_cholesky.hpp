@@ -34,9 +34,7 @@ class EnvelopeMatrix {
   /// Entry (i, j) of the symmetric matrix (or of L once factorised, for j <= i); zero outside.
   double coeff(std::size_t i, std::size_t j) const noexcept;
   /// Row i's stored entries, columns first_column(i) .. i.
-  std::span<const double> row(std::size_t i) const noexcept {
-    return {values_.data() + start_[i], i - first_[i] + 1};
-  }
+  std::span<const double> row(std::size_t i) const noexcept { return {values_.data() + start_[i], i - first_[i] + 1}; }
 
   std::size_t envelope_entries() const noexcept { return values_.size() - rows(); }  ///< off-diagonal
   std::size_t bandwidth() const noexcept;

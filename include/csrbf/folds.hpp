@@ -15,13 +15,13 @@
 namespace csrbf {
 
 struct FoldReport {
-  double phase = 1.0;            ///< the phase checked
-  std::size_t vertices = 0;      ///< vertices checked
-  std::size_t samples = 0;       ///< points checked: the vertices and 4 points inside each triangle
+  double phase = 1.0;        ///< the phase checked
+  std::size_t vertices = 0;  ///< vertices checked
+  std::size_t samples = 0;   ///< points checked: the vertices and 4 points inside each triangle
   double min_det = std::numeric_limits<double>::infinity();  ///< smallest det(dT/dx) at `phase`
-  Vec3 min_at = Vec3::Zero();    ///< where
-  std::size_t folded = 0;        ///< points (of `samples`) with det <= 0 at `phase`
-  std::vector<std::uint32_t> folded_vertices;  ///< vertices with det <= 0 at `phase`
+  Vec3 min_at = Vec3::Zero();                                ///< where
+  std::size_t folded = 0;                                    ///< points (of `samples`) with det <= 0 at `phase`
+  std::vector<std::uint32_t> folded_vertices;                ///< vertices with det <= 0 at `phase`
   /// The largest t such that every point checked has det > 0 for all phases in [0, t): the first
   /// fold over the samples. Infinity if none of them ever folds.
   double fold_free_phase = std::numeric_limits<double>::infinity();

@@ -23,9 +23,16 @@ inline T wendland(Kernel k, T r) noexcept {
   const T s = T(1) - r;
   const T s2 = s * s;
   switch (k) {
-    case Kernel::C0: return s2;
-    case Kernel::C2: { const T s4 = s2 * s2; return s4 * (T(4) * r + T(1)); }
-    case Kernel::C4: { const T s6 = s2 * s2 * s2; return s6 * ((T(35) * r + T(18)) * r + T(3)); }
+    case Kernel::C0:
+      return s2;
+    case Kernel::C2: {
+      const T s4 = s2 * s2;
+      return s4 * (T(4) * r + T(1));
+    }
+    case Kernel::C4: {
+      const T s6 = s2 * s2 * s2;
+      return s6 * ((T(35) * r + T(18)) * r + T(3));
+    }
     case Kernel::C6: {
       const T s4 = s2 * s2;
       return s4 * s4 * (((T(32) * r + T(25)) * r + T(8)) * r + T(1));
@@ -42,9 +49,14 @@ inline T wendland_derivative(Kernel k, T r) noexcept {
   const T s = T(1) - r;
   const T s2 = s * s;
   switch (k) {
-    case Kernel::C0: return T(-2) * s;
-    case Kernel::C2: return T(-20) * r * s2 * s;
-    case Kernel::C4: { const T s5 = s2 * s2 * s; return T(-56) * r * s5 * (T(5) * r + T(1)); }
+    case Kernel::C0:
+      return T(-2) * s;
+    case Kernel::C2:
+      return T(-20) * r * s2 * s;
+    case Kernel::C4: {
+      const T s5 = s2 * s2 * s;
+      return T(-56) * r * s5 * (T(5) * r + T(1));
+    }
     case Kernel::C6: {
       const T s7 = s2 * s2 * s2 * s;
       return T(-22) * r * s7 * ((T(16) * r + T(7)) * r + T(1));

@@ -49,11 +49,12 @@ struct NameTable<Solver> {
 };
 template <>
 struct NameTable<Ordering> {
-  static constexpr std::array<Name<Ordering>, 5> entries{{{Ordering::Auto, "auto", ""},
-                                                          {Ordering::BreadthFirst, "breadth-first", "bfs"},
-                                                          {Ordering::ReverseBreadthFirst, "reverse-breadth-first", "rbfs"},
-                                                          {Ordering::ReverseCuthillMcKee, "rcm", "reverse-cuthill-mckee"},
-                                                          {Ordering::Identity, "identity", "none"}}};
+  static constexpr std::array<Name<Ordering>, 5> entries{
+      {{Ordering::Auto, "auto", ""},
+       {Ordering::BreadthFirst, "breadth-first", "bfs"},
+       {Ordering::ReverseBreadthFirst, "reverse-breadth-first", "rbfs"},
+       {Ordering::ReverseCuthillMcKee, "rcm", "reverse-cuthill-mckee"},
+       {Ordering::Identity, "identity", "none"}}};
 };
 
 /// The canonical name of v ("?" for a value outside the table).

@@ -73,9 +73,9 @@ class NeighborIndex {
     }
   }
 
-  std::vector<Vec3> points_;          // sorted by cell
-  std::vector<std::uint32_t> ids_;    // original index of each sorted point
-  std::vector<Cell> table_;           // open addressing, power-of-two size
+  std::vector<Vec3> points_;        // sorted by cell
+  std::vector<std::uint32_t> ids_;  // original index of each sorted point
+  std::vector<Cell> table_;         // open addressing, power-of-two size
   std::uint64_t mask_ = 0;
   std::size_t cells_used_ = 0;
   Vec3 origin_ = Vec3::Zero();
@@ -91,8 +91,8 @@ void NeighborIndex::for_each_slot_within(const Vec3& q, F&& f) const {
   const double fy = std::floor((q.y() - origin_.y()) * inv_cell_);
   const double fz = std::floor((q.z() - origin_.z()) * inv_cell_);
   // Outside the grid by more than one cell (or NaN): nothing can be within R.
-  if (!(fx >= -1.0 && fy >= -1.0 && fz >= -1.0 && fx <= max_cell_.x() + 1.0 &&
-        fy <= max_cell_.y() + 1.0 && fz <= max_cell_.z() + 1.0))
+  if (!(fx >= -1.0 && fy >= -1.0 && fz >= -1.0 && fx <= max_cell_.x() + 1.0 && fy <= max_cell_.y() + 1.0 &&
+        fz <= max_cell_.z() + 1.0))
     return;
   const auto cx = std::int32_t(fx), cy = std::int32_t(fy), cz = std::int32_t(fz);
   for (std::int32_t dz = -1; dz <= 1; ++dz)

@@ -44,8 +44,7 @@ class SpaceMap {
  public:
   /// sources and destinations: N points each, N >= 1, finite, sources pairwise distinct.
   /// Throws InvalidInput, DuplicateSource, DegeneratePolynomial or NotPositiveDefinite.
-  static SpaceMap fit(std::span<const Vec3> sources, std::span<const Vec3> destinations,
-                      const FitOptions& options);
+  static SpaceMap fit(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options);
 
   /// The same sources, radius, kernel and polynomial with new destinations: reuses the neighbour
   /// index, the matrix, its ordering and factorisation, so only the solve is redone (by CG, started
@@ -103,8 +102,10 @@ class SpaceMap {
   struct State;
   explicit SpaceMap(std::shared_ptr<const State> s) : s_(std::move(s)) {}
   SpaceMap solve_destinations(std::span<const Vec3> destinations) const;  // sizes and values already checked
-  template <class T> void apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
-  template <class T> void apply_direct(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
+  template <class T>
+  void apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
+  template <class T>
+  void apply_direct(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
   std::shared_ptr<const State> s_;
 };
 

@@ -85,11 +85,11 @@ void contact_controls(const Vec3& lo, const Vec3& hi, const Vec3& centre, double
 namespace {
 
 struct PartState {
-  std::vector<double> rest;                               // the part's rest vertices, interleaved
+  std::vector<double> rest;                                      // the part's rest vertices, interleaved
   std::vector<std::optional<DisplacementField<double>>> fields;  // per deformation, where kept
-  std::vector<std::vector<char>> inside;  // per deformation with an active area: 1 for a part vertex in it
-  std::vector<double> a, b;                               // work buffers
-  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();              // bounding box of the rest vertices
+  std::vector<std::vector<char>> inside;      // per deformation with an active area: 1 for a part vertex in it
+  std::vector<double> a, b;                   // work buffers
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();  // bounding box of the rest vertices
 };
 
 struct ObjectState {
@@ -168,8 +168,7 @@ void Player::evaluate(double t) {
           const Pose cp = pose_at(col, t);
           // The collider's centre in this object's model coordinates.
           const Vec3 centre = pose.rotation.conjugate() * (cp.position - pose.position) + obj.centre;
-          contact_controls(ps.lo, ps.hi, centre, def.contact->collider_radius, def.contact->spread, impl_->s,
-                           impl_->d);
+          contact_controls(ps.lo, ps.hi, centre, def.contact->collider_radius, def.contact->spread, impl_->s, impl_->d);
           if (impl_->s.size() == 8) continue;  // no wall touched: corners only, the identity
           // A contact is refitted at every frame: a fit that fails says where and when.
           const SpaceMap map = [&] {
@@ -198,13 +197,16 @@ void Player::evaluate(double t) {
           // Vertices outside the active area keep where they were before this deformation.
           const auto& inside = ps.inside[k];
           if (!inside.empty()) std::copy(ps.a.begin(), ps.a.end(), ps.b.begin());
-          if (ps.fields[k]) ps.fields[k]->apply(phase, ps.a.data());  // the first: rest + phase d(rest)
-          else def.map->apply(ps.a.data(), ps.a.data(), n, phase);
+          if (ps.fields[k])
+            ps.fields[k]->apply(phase, ps.a.data());  // the first: rest + phase d(rest)
+          else
+            def.map->apply(ps.a.data(), ps.a.data(), n, phase);
           for (std::size_t i = 0; i < inside.size(); ++i)
             if (!inside[i]) std::copy_n(ps.b.begin() + std::ptrdiff_t(3 * i), 3, ps.a.begin() + std::ptrdiff_t(3 * i));
         }
       }
-      for (std::size_t i = 0; i < n; ++i) st.model[part.vertices[i]] = Vec3(ps.a[3 * i], ps.a[3 * i + 1], ps.a[3 * i + 2]);
+      for (std::size_t i = 0; i < n; ++i)
+        st.model[part.vertices[i]] = Vec3(ps.a[3 * i], ps.a[3 * i + 1], ps.a[3 * i + 2]);
     }
     const Eigen::Matrix3d r = pose.rotation.toRotationMatrix();
     bool finite = pose.position.allFinite() && r.allFinite();

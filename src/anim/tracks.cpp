@@ -150,7 +150,8 @@ OrientationTrack::OrientationTrack(std::vector<OrientationKey> keys, Rotation ro
   check_times(keys_, "orientation track");
   for (std::size_t i = 0; i < keys_.size(); ++i) {
     auto& q = keys_[i].rotation;
-    if (!q.coeffs().allFinite() || q.norm() < 1e-12) fail("orientation track", i, "quaternion is not finite or is zero");
+    if (!q.coeffs().allFinite() || q.norm() < 1e-12)
+      fail("orientation track", i, "quaternion is not finite or is zero");
     q.normalize();
     if (i > 0 && q.dot(keys_[i - 1].rotation) < 0) q.coeffs() = -q.coeffs();  // the short way
   }

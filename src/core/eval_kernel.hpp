@@ -24,10 +24,14 @@ template <Kernel K, class V, class S = V>
 inline __attribute__((always_inline)) V phi(V r) {
   const V s = S(1) - r;
   const V s2 = s * s;
-  if constexpr (K == Kernel::C0) return s2;
-  else if constexpr (K == Kernel::C2) return (s2 * s2) * (r + S(0.25));
-  else if constexpr (K == Kernel::C4) return (s2 * s2 * s2) * ((r + S(18.0 / 35.0)) * r + S(3.0 / 35.0));
-  else return (s2 * s2) * (s2 * s2) * (((r + S(25.0 / 32.0)) * r + S(0.25)) * r + S(1.0 / 32.0));
+  if constexpr (K == Kernel::C0)
+    return s2;
+  else if constexpr (K == Kernel::C2)
+    return (s2 * s2) * (r + S(0.25));
+  else if constexpr (K == Kernel::C4)
+    return (s2 * s2 * s2) * ((r + S(18.0 / 35.0)) * r + S(3.0 / 35.0));
+  else
+    return (s2 * s2) * (s2 * s2) * (((r + S(25.0 / 32.0)) * r + S(0.25)) * r + S(1.0 / 32.0));
 }
 
 /// Runs sum a cell's run [b, e) (a multiple of kLanes long) for kGroup points at once: the
@@ -56,7 +60,8 @@ struct Block {
   /// The cell of point i; none outside the grid (the sources' box grown by R: no source within R)
   /// or for NaN. limit: 1 + |p - c| / R for the cell's centre c, rounded up (EvalData::trim).
   std::size_t cell_of(std::size_t i, float& limit) const {
-    const double ux = (double(in[3 * i]) - g.origin.x()) * g.inv_h, uy = (double(in[3 * i + 1]) - g.origin.y()) * g.inv_h,
+    const double ux = (double(in[3 * i]) - g.origin.x()) * g.inv_h,
+                 uy = (double(in[3 * i + 1]) - g.origin.y()) * g.inv_h,
                  uz = (double(in[3 * i + 2]) - g.origin.z()) * g.inv_h;
     const double fx = std::floor(ux), fy = std::floor(uy), fz = std::floor(uz);
     const double dx = ux - fx - 0.5, dy = uy - fy - 0.5, dz = uz - fz - 0.5;
@@ -69,8 +74,7 @@ struct Block {
   /// grid's origin.
   void local(std::size_t i, T (&t)[3]) const {
     constexpr bool dbl = std::is_same_v<T, double>;
-    for (int c = 0; c < 3; ++c)
-      t[c] = T((dbl ? double(in[3 * i + c]) : double(in[3 * i + c]) - g.origin[c]) * inv_r);
+    for (int c = 0; c < 3; ++c) t[c] = T((dbl ? double(in[3 * i + c]) : double(in[3 * i + c]) - g.origin[c]) * inv_r);
   }
   /// Writes point i's output from its CSRBF sum d (the polynomial part added here).
   void finish(std::size_t i, const T (&d)[3]) const {
@@ -189,8 +193,10 @@ inline __attribute__((always_inline)) void evaluate_block(const EvalGrid& g, con
         k += kGroup;
         continue;
       }
-      if (cell != none) Run::template one<K, Run>(blk, cb[cell], a.trim(cb[cell], cb[cell + 1], limit[k]), c0 + k);
-      else Run::template one<K, Run>(blk, 0, 0, c0 + k);
+      if (cell != none)
+        Run::template one<K, Run>(blk, cb[cell], a.trim(cb[cell], cb[cell + 1], limit[k]), c0 + k);
+      else
+        Run::template one<K, Run>(blk, 0, 0, c0 + k);
       ++k;
     }
   }

@@ -96,8 +96,7 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
     for (std::size_t c = 0; c < ncell; ++c)
       g.begin[c + 1] = g.begin[c] + std::uint32_t((count[c + 1] + kLanes - 1) / kLanes * kLanes);
     const std::size_t total = g.begin[ncell];
-    if (double(total) * 76.0 + double(ncell) * 4.0 > double(max_bytes) || total >= 0xffffffffu)
-      continue;
+    if (double(total) * 76.0 + double(ncell) * 4.0 > double(max_bytes) || total >= 0xffffffffu) continue;
     g.source.assign(total, std::uint32_t(n));  // n: the inert source
     std::vector<std::uint32_t> fill(g.begin.begin(), g.begin.end() - 1);
     for (const auto& [cell, src] : pairs) g.source[fill[cell]++] = src;
@@ -241,7 +240,8 @@ namespace {
 /// The cell of a point, or the grid's cell count for a point outside it (or NaN).
 template <class T>
 std::size_t cell_index(const EvalGrid& g, const T* p) noexcept {
-  const double fx = std::floor((double(p[0]) - g.origin.x()) * g.inv_h), fy = std::floor((double(p[1]) - g.origin.y()) * g.inv_h),
+  const double fx = std::floor((double(p[0]) - g.origin.x()) * g.inv_h),
+               fy = std::floor((double(p[1]) - g.origin.y()) * g.inv_h),
                fz = std::floor((double(p[2]) - g.origin.z()) * g.inv_h);
   if (fx >= 0 && fy >= 0 && fz >= 0 && fx < double(g.nx) && fy < double(g.ny) && fz < double(g.nz))
     return std::size_t((std::int64_t(fz) * g.ny + std::int64_t(fy)) * g.nx + std::int64_t(fx));
@@ -312,11 +312,10 @@ template void order_by_cell<float>(const EvalGrid&, const float*, std::size_t, C
 
 namespace {
 
-#define CSRBF_EVAL_CLONE(K, T)                                                                                 \
-  CSRBF_CLONES void eval_##K##_##T(const EvalGrid& g, const EvalData<T>& a, const PolynomialPart* poly, \
-                                   const T* in, T* out, std::size_t b, std::size_t e, double phase,           \
-                                   bool add_point) {                                                          \
-    evaluate_block<Kernel::K, T, PortableRun>(g, a, poly, in, out, b, e, phase, add_point);                                         \
+#define CSRBF_EVAL_CLONE(K, T)                                                                                       \
+  CSRBF_CLONES void eval_##K##_##T(const EvalGrid& g, const EvalData<T>& a, const PolynomialPart* poly, const T* in, \
+                                   T* out, std::size_t b, std::size_t e, double phase, bool add_point) {             \
+    evaluate_block<Kernel::K, T, PortableRun>(g, a, poly, in, out, b, e, phase, add_point);                          \
   }
 CSRBF_EVAL_CLONE(C0, double)
 CSRBF_EVAL_CLONE(C2, double)
@@ -352,31 +351,39 @@ bool avx512_available() noexcept {
 void set_eval_isa(EvalIsa isa) noexcept { g_use_avx512 = isa == EvalIsa::Avx512 && avx512_available(); }
 EvalIsa eval_isa() noexcept { return g_use_avx512 ? EvalIsa::Avx512 : EvalIsa::Portable; }
 
-void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
-              const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
+void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly, const double* in,
+              double* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
 #ifdef CSRBF_HAVE_AVX512_EVAL
   if (g_use_avx512.load(std::memory_order_relaxed))
     return evaluate_avx512(g, a, kernel, poly, in, out, begin, end, phase, add_point);
 #endif
   switch (kernel) {
-    case Kernel::C0: return eval_C0_double(g, a, poly, in, out, begin, end, phase, add_point);
-    case Kernel::C2: return eval_C2_double(g, a, poly, in, out, begin, end, phase, add_point);
-    case Kernel::C4: return eval_C4_double(g, a, poly, in, out, begin, end, phase, add_point);
-    case Kernel::C6: return eval_C6_double(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C0:
+      return eval_C0_double(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C2:
+      return eval_C2_double(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C4:
+      return eval_C4_double(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C6:
+      return eval_C6_double(g, a, poly, in, out, begin, end, phase, add_point);
   }
 }
 
-void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
-              const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
+void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly, const float* in,
+              float* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
 #ifdef CSRBF_HAVE_AVX512_EVAL
   if (g_use_avx512.load(std::memory_order_relaxed))
     return evaluate_avx512(g, a, kernel, poly, in, out, begin, end, phase, add_point);
 #endif
   switch (kernel) {
-    case Kernel::C0: return eval_C0_float(g, a, poly, in, out, begin, end, phase, add_point);
-    case Kernel::C2: return eval_C2_float(g, a, poly, in, out, begin, end, phase, add_point);
-    case Kernel::C4: return eval_C4_float(g, a, poly, in, out, begin, end, phase, add_point);
-    case Kernel::C6: return eval_C6_float(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C0:
+      return eval_C0_float(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C2:
+      return eval_C2_float(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C4:
+      return eval_C4_float(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C6:
+      return eval_C6_float(g, a, poly, in, out, begin, end, phase, add_point);
   }
 }
 

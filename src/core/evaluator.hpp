@@ -27,9 +27,9 @@ namespace csrbf::detail {
 
 /// The cell lists: depend on the sources and R only.
 struct EvalGrid {
-  bool usable = false;                // false: lists too large; SpaceMap uses NeighborIndex instead
-  int subdivision = 0;                // K: h = R / K
-  Vec3 origin = Vec3::Zero();         // lower corner of the grid (sources' box grown by R)
+  bool usable = false;         // false: lists too large; SpaceMap uses NeighborIndex instead
+  int subdivision = 0;         // K: h = R / K
+  Vec3 origin = Vec3::Zero();  // lower corner of the grid (sources' box grown by R)
   double h = 0, inv_h = 0, radius = 0;
   std::int64_t nx = 0, ny = 0, nz = 0;
   std::vector<std::uint32_t> begin;   // begin[cell] .. begin[cell+1]: the cell's entries
@@ -123,10 +123,10 @@ struct PolynomialPart {
   double b[4][3] = {};  // row 0 constant, rows 1..3 linear in u = (x - center) * inv_scale
 };
 
-void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
-              const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point);
-void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
-              const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point);
+void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly, const double* in,
+              double* out, std::size_t begin, std::size_t end, double phase, bool add_point);
+void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly, const float* in,
+              float* out, std::size_t begin, std::size_t end, double phase, bool add_point);
 
 /// Points that arrive in an order unrelated to space (a point cloud, a mesh renumbered by another
 /// tool) make every point a new cell: the group path never runs and each run is fetched from memory
@@ -160,11 +160,9 @@ EvalIsa eval_isa() noexcept;
 
 #ifdef CSRBF_HAVE_AVX512_EVAL
 void evaluate_avx512(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
-                     const double* in, double* out, std::size_t begin, std::size_t end, double phase,
-                     bool add_point);
+                     const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point);
 void evaluate_avx512(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
-                     const float* in, float* out, std::size_t begin, std::size_t end, double phase,
-                     bool add_point);
+                     const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point);
 #endif
 
 }  // namespace csrbf::detail

@@ -36,8 +36,10 @@ inline __attribute__((always_inline)) __m256 root(__m256 r2) {
 }
 
 // The vector of 8 lanes for T, and its operations.
-template <class T> struct V8;
-template <> struct V8<double> {
+template <class T>
+struct V8;
+template <>
+struct V8<double> {
   using v = __m512d;
   static v load(const double* p) { return _mm512_loadu_pd(p); }
   static v set1(double x) { return _mm512_set1_pd(x); }
@@ -50,7 +52,8 @@ template <> struct V8<double> {
   static constexpr double tiny = 1e-300;
   static double hsum(v a) { return _mm512_reduce_add_pd(a); }
 };
-template <> struct V8<float> {
+template <>
+struct V8<float> {
   using v = __m256;
   static v load(const float* p) { return _mm256_loadu_ps(p); }
   static v set1(float x) { return _mm256_set1_ps(x); }
@@ -72,9 +75,8 @@ template <> struct V8<float> {
 struct Avx512Run : PortableRun {
   /// The CSRBF sums of P points over the run [b, e), left in one vector per point and component.
   template <Kernel K, class T, std::size_t P>
-  static inline __attribute__((always_inline)) void accumulate(const EvalData<T>& a, std::uint32_t b,
-                                                               std::uint32_t e, const T (&t)[P][3],
-                                                               typename V8<T>::v (&acc)[P][3]) {
+  static inline __attribute__((always_inline)) void accumulate(const EvalData<T>& a, std::uint32_t b, std::uint32_t e,
+                                                               const T (&t)[P][3], typename V8<T>::v (&acc)[P][3]) {
     static_assert(EvalGrid::kLanes == 8, "one vector of 8 lanes a block");
     using O = V8<T>;
     using v = typename O::v;
@@ -151,7 +153,8 @@ struct Avx512Run : PortableRun {
                     fz = _mm512_roundscale_pd(uz, down);
       const __m512d dx = _mm512_sub_pd(_mm512_sub_pd(ux, fx), half), dy = _mm512_sub_pd(_mm512_sub_pd(uy, fy), half),
                     dz = _mm512_sub_pd(_mm512_sub_pd(uz, fz), half);
-      const __m512d d2 = _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
+      const __m512d d2 =
+          _mm512_add_pd(_mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy)), _mm512_mul_pd(dz, dz));
       _mm256_storeu_ps(limit + i, _mm512_cvtpd_ps(_mm512_add_pd(_mm512_mul_pd(_mm512_sqrt_pd(d2), h_over_r), slack)));
       // Ordered comparisons: false for NaN.
       __mmask8 in = _mm512_cmp_pd_mask(fx, zero, _CMP_GE_OQ);
@@ -161,7 +164,8 @@ struct Avx512Run : PortableRun {
       in = _mm512_mask_cmp_pd_mask(in, fy, ny, _CMP_LT_OQ);
       in = _mm512_mask_cmp_pd_mask(in, fz, nz, _CMP_LT_OQ);
       const __m512i c = _mm512_add_epi64(
-          _mm512_mullo_epi64(_mm512_add_epi64(_mm512_mullo_epi64(_mm512_cvttpd_epi64(fz), iny), _mm512_cvttpd_epi64(fy)), inx),
+          _mm512_mullo_epi64(
+              _mm512_add_epi64(_mm512_mullo_epi64(_mm512_cvttpd_epi64(fz), iny), _mm512_cvttpd_epi64(fy)), inx),
           _mm512_cvttpd_epi64(fx));
       static_assert(sizeof(std::size_t) == 8, "cells are stored as 64-bit lanes");
       _mm512_storeu_si512(cell + i, _mm512_mask_mov_epi64(outside, in, c));
@@ -192,8 +196,8 @@ struct Avx512Run : PortableRun {
       const auto fold2 = [](__m512d a, __m512d b) {
         return _mm512_add_pd(_mm512_shuffle_f64x2(a, b, 0x88), _mm512_shuffle_f64x2(a, b, 0xDD));
       };
-      const __m512d even = fold2(fold4(s[0], s[2]), fold4(s[4], s[6]));  // outputs 0 2 4 6
-      const __m512d odd = fold2(fold4(s[1], s[3]), fold4(s[5], s[7]));   // outputs 1 3 5 7
+      const __m512d even = fold2(fold4(s[0], s[2]), fold4(s[4], s[6]));    // outputs 0 2 4 6
+      const __m512d odd = fold2(fold4(s[1], s[3]), fold4(s[5], s[7]));     // outputs 1 3 5 7
       const __m512d last = fold2(fold4(s[8], s[9]), fold4(s[10], s[11]));  // outputs 8 9 10 11
       // Step 3: the pairs' halves; the first 8 outputs interleave into order.
       __m512d lo = _mm512_add_pd(_mm512_unpacklo_pd(even, odd), _mm512_unpackhi_pd(even, odd));
@@ -204,7 +208,8 @@ struct Avx512Run : PortableRun {
       if (k.poly) {
         // As Block::finish: b0 + u0 b1 + u1 b2 + u2 b3, u = (p - center) / scale, per output lane.
         const PolynomialPart& q = *k.poly;
-        const __m512i comp_lo = _mm512_setr_epi64(0, 1, 2, 0, 1, 2, 0, 1), comp_hi = _mm512_setr_epi64(2, 0, 1, 2, 2, 2, 2, 2);
+        const __m512i comp_lo = _mm512_setr_epi64(0, 1, 2, 0, 1, 2, 0, 1),
+                      comp_hi = _mm512_setr_epi64(2, 0, 1, 2, 2, 2, 2, 2);
         const __m512d is = _mm512_set1_pd(q.inv_scale);
         __m512d plo, phi_;
         for (int r = 0; r < 4; ++r) {
@@ -239,27 +244,29 @@ struct Avx512Run : PortableRun {
 };
 
 template <class T>
-void dispatch(const EvalGrid& g, const EvalData<T>& a, Kernel kernel, const PolynomialPart* poly, const T* in,
-              T* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
+void dispatch(const EvalGrid& g, const EvalData<T>& a, Kernel kernel, const PolynomialPart* poly, const T* in, T* out,
+              std::size_t begin, std::size_t end, double phase, bool add_point) {
   switch (kernel) {
-    case Kernel::C0: return evaluate_block<Kernel::C0, T, Avx512Run>(g, a, poly, in, out, begin, end, phase, add_point);
-    case Kernel::C2: return evaluate_block<Kernel::C2, T, Avx512Run>(g, a, poly, in, out, begin, end, phase, add_point);
-    case Kernel::C4: return evaluate_block<Kernel::C4, T, Avx512Run>(g, a, poly, in, out, begin, end, phase, add_point);
-    case Kernel::C6: return evaluate_block<Kernel::C6, T, Avx512Run>(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C0:
+      return evaluate_block<Kernel::C0, T, Avx512Run>(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C2:
+      return evaluate_block<Kernel::C2, T, Avx512Run>(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C4:
+      return evaluate_block<Kernel::C4, T, Avx512Run>(g, a, poly, in, out, begin, end, phase, add_point);
+    case Kernel::C6:
+      return evaluate_block<Kernel::C6, T, Avx512Run>(g, a, poly, in, out, begin, end, phase, add_point);
   }
 }
 
 }  // namespace
 
 void evaluate_avx512(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
-                     const double* in, double* out, std::size_t begin, std::size_t end, double phase,
-                     bool add_point) {
+                     const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
   dispatch(g, a, kernel, poly, in, out, begin, end, phase, add_point);
 }
 
 void evaluate_avx512(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
-                     const float* in, float* out, std::size_t begin, std::size_t end, double phase,
-                     bool add_point) {
+                     const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point) {
   dispatch(g, a, kernel, poly, in, out, begin, end, phase, add_point);
 }
 

@@ -23,13 +23,9 @@ constexpr std::size_t kBruteForceGraph = 256;
 /// Coordinates (and so distances) stay below this, so that their squares are finite.
 constexpr double kMaxCoordinate = 1e150;
 
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
-int polynomial_terms(Polynomial p) {
-  return p == Polynomial::None ? 0 : p == Polynomial::Constant ? 1 : 4;
-}
+int polynomial_terms(Polynomial p) { return p == Polynomial::None ? 0 : p == Polynomial::Constant ? 1 : 4; }
 
 void check_points(std::span<const Vec3> pts, const char* what) {
   for (std::size_t i = 0; i < pts.size(); ++i)
@@ -111,8 +107,8 @@ struct FitPhases {
     if (sv(2) <= tol) {
       std::ostringstream os;
       os << "polynomial 'linear' needs control sources that span 3-D space, but the " << n << " sources are "
-         << (sv(1) <= tol ? "collinear" : "coplanar") << " (singular values " << sv(0) << ", " << sv(1) << ", "
-         << sv(2) << "); use polynomial 'constant' or 'none'";
+         << (sv(1) <= tol ? "collinear" : "coplanar") << " (singular values " << sv(0) << ", " << sv(1) << ", " << sv(2)
+         << "); use polynomial 'constant' or 'none'";
       throw DegeneratePolynomial(os.str());
     }
   }
@@ -185,9 +181,11 @@ struct FitPhases {
     const auto t0 = Clock::now();
     Solver solver = options.solver;
     if (solver == Solver::Cholmod && !cholmod_available())
-      throw InvalidInput("solver 'cholmod': this build of csrbf has no CHOLMOD (SuiteSparse); use 'envelope' or 'eigen'");
+      throw InvalidInput(
+          "solver 'cholmod': this build of csrbf has no CHOLMOD (SuiteSparse); use 'envelope' or 'eigen'");
     std::vector<std::size_t> first;
-    if (solver == Solver::Auto || solver == Solver::Cg || (solver == Solver::Envelope && options.ordering != Ordering::Auto)) {
+    if (solver == Solver::Auto || solver == Solver::Cg ||
+        (solver == Solver::Envelope && options.ordering != Ordering::Auto)) {
       const Ordering one = options.ordering == Ordering::Auto ? Ordering::ReverseCuthillMcKee : options.ordering;
       st.order = compute_ordering(g, one);
       stats.ordering = one;
@@ -246,9 +244,10 @@ struct FitPhases {
       if (8 * entries > options.memory_limit_bytes) {
         std::ostringstream os;
         os.precision(3);
-        os << "the envelope of the " << ordering_name(stats.ordering) << " ordering holds " << entries << " entries, about "
-           << gib(8 * entries) << ", above the limit of " << gib(options.memory_limit_bytes)
-           << " (FitOptions::memory_limit_bytes, `--memory-limit`). Use another ordering or solver, or a smaller radius";
+        os << "the envelope of the " << ordering_name(stats.ordering) << " ordering holds " << entries
+           << " entries, about " << gib(8 * entries) << ", above the limit of " << gib(options.memory_limit_bytes)
+           << " (FitOptions::memory_limit_bytes, `--memory-limit`). Use another ordering or solver, or a smaller "
+              "radius";
         throw ResourceLimit(os.str());
       }
       auto t0 = Clock::now();
@@ -273,15 +272,18 @@ struct FitPhases {
     st.order = identity_order(n);  // the sparse solvers take and give the input order
     const auto t0 = Clock::now();
     if (solver == Solver::Cg) {
-      // Chosen by Auto, CG may spend only a tenth of the envelope's work (an upper bound of a direct
-      // factorisation's) before a direct solver takes over: a system it converges on slowly (dense,
-      // ill-conditioned) costs little more than the direct solve would have.
-      std::size_t steps = kCgMaxIterations;
+      // Chosen by Auto, CG checks after kCgProbeSteps steps how many it will need, and gives way
+      // where a direct solver is predicted to be faster (fit_options.hpp).
+      detail::CgProbe probe;
       if (options.solver == Solver::Auto) {
-        const double step = 3.0 * (2.0 * double(stats.neighbor_pairs) + double(n));
-        steps = std::size_t(std::clamp(stats.envelope_work / (10.0 * step), 50.0, double(kCgMaxIterations)));
+        probe.steps = kCgProbeSteps;
+        probe.worth_it = [work = stats.envelope_work, step = st.cg_step_work()](double steps) {
+          if (steps > kCgDirectSteps) return false;
+          return !(work <= kEnvelopeWorkLimit && kEnvelopeCostRatio * work < steps * step);
+        };
       }
-      st.sparse = detail::conjugate_gradients(st.a, std::move(rows), kCgTolerance, steps);
+      st.cg_rows = rows;
+      st.sparse = detail::conjugate_gradients(st.a, std::move(rows), kCgTolerance, kCgMaxIterations, std::move(probe));
       stats.seconds_assembly += seconds_since(t0);
     } else {
       st.sparse = detail::factor_sparse(st.a, st.sources, solver, options.memory_limit_bytes);
@@ -349,9 +351,13 @@ struct FitPhases {
       stats.iterations = st.sparse->iterations();
       stats.solver_residual = st.sparse->residual();
       if (st.fell_back) {
-        stats.fell_back = true;
+        stats.fell_back = st.fallback_solver != Solver::Cg;
         stats.solver = st.fallback_solver;
         stats.factor_nonzeros = st.fallback->nonzeros();
+        if (st.fallback->iterative()) {  // CG again, the direct factor refused by the memory limit
+          stats.iterations = st.fallback->iterations();
+          stats.solver_residual = st.fallback->residual();
+        }
       }
     }
   }
@@ -388,7 +394,8 @@ struct FitPhases {
       m.displacements(in.data(), d.data(), n);
       double eval_res = 0;
       for (std::size_t i = 0; i < n; ++i)
-        eval_res = std::max(eval_res, (Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]) - (destinations[i] - st.sources[i])).norm());
+        eval_res =
+            std::max(eval_res, (Vec3(d[3 * i], d[3 * i + 1], d[3 * i + 2]) - (destinations[i] - st.sources[i])).norm());
       stats.residual_max = std::max(stats.residual_max, eval_res);
       stats.residual_relative = stats.residual_max / gmax;
     }
@@ -396,7 +403,8 @@ struct FitPhases {
     // Name the closest pair of sources: nearly coincident sources are what makes A nearly singular.
     std::ostringstream os;
     os << "the controls cannot be interpolated to a relative residual of " << kResidualLimit << " (got "
-       << stats.residual_relative << "): the matrix is too ill-conditioned (condition estimate " << st.condition() << ")";
+       << stats.residual_relative << "): the matrix is too ill-conditioned (condition estimate " << st.condition()
+       << ")";
     if (!st.a.values().empty()) {
       const auto [a, b] = st.a.closest_pair();
       os << "; the closest sources, " << a << " and " << b << ", are "
@@ -409,18 +417,26 @@ struct FitPhases {
  private:
   static std::vector<std::uint32_t> compute_ordering(const AdjacencyGraph& g, Ordering o) {
     switch (o) {
-      case Ordering::Identity: return identity_order(g.size());
-      case Ordering::BreadthFirst: return breadth_first_order(g);
-      case Ordering::ReverseBreadthFirst: return reversed_order(breadth_first_order(g));
-      default: return reverse_cuthill_mckee_order(g);
+      case Ordering::Identity:
+        return identity_order(g.size());
+      case Ordering::BreadthFirst:
+        return breadth_first_order(g);
+      case Ordering::ReverseBreadthFirst:
+        return reversed_order(breadth_first_order(g));
+      default:
+        return reverse_cuthill_mckee_order(g);
     }
   }
   static Profile& profile_slot(FitStats& s, Ordering o) {
     switch (o) {
-      case Ordering::Identity: return s.identity;
-      case Ordering::BreadthFirst: return s.breadth_first;
-      case Ordering::ReverseBreadthFirst: return s.reverse_breadth_first;
-      default: return s.reverse_cuthill_mckee;
+      case Ordering::Identity:
+        return s.identity;
+      case Ordering::BreadthFirst:
+        return s.breadth_first;
+      case Ordering::ReverseBreadthFirst:
+        return s.reverse_breadth_first;
+      default:
+        return s.reverse_cuthill_mckee;
     }
   }
 };

@@ -28,7 +28,8 @@ bool cholmod_available() noexcept {
 #endif
 }
 
-Solver resolve_solver(Solver requested, double envelope_work, std::size_t controls, std::size_t neighbor_pairs) noexcept {
+Solver resolve_solver(Solver requested, double envelope_work, std::size_t controls,
+                      std::size_t neighbor_pairs) noexcept {
   if (requested != Solver::Auto) return requested;
   const double cg_work = kCgStepsEstimate * 3.0 * (2.0 * double(neighbor_pairs) + double(controls));
   if (envelope_work <= kEnvelopeWorkLimit && (controls == 0 || envelope_work <= cg_work)) return Solver::Envelope;

@@ -26,7 +26,7 @@ inline constexpr std::size_t kEvalListBytes = std::size_t(512) << 20;
 // Everything that depends on the sources only: shared by every map made with with_destinations().
 struct SpaceMap::Structure {
   FitOptions options;
-  std::vector<Vec3> sources;       // input order
+  std::vector<Vec3> sources;  // input order
   // Over the sources: built on first use (the simple path, the Jacobian) unless the fit needs it
   // (when the evaluation grid is unusable).
   mutable std::once_flag index_once;
@@ -43,18 +43,19 @@ struct SpaceMap::Structure {
     std::call_once(grid_once, [this] { grid_ = detail::EvalGrid::build(sources, options.radius, kEvalListBytes); });
     return grid_;
   }
-  KernelMatrix a;                  // A, input order: its pattern is the neighbour graph
-  std::vector<std::uint32_t> order;  // order[k] = input index of the source at row k
-  std::vector<std::size_t> first_columns;  // of the envelope in `order`, until it is assembled
-  EnvelopeMatrix factor;           // L, in `order` (Solver::Envelope)
+  KernelMatrix a;                                // A, input order: its pattern is the neighbour graph
+  std::vector<std::uint32_t> order;              // order[k] = input index of the source at row k
+  std::vector<std::size_t> first_columns;        // of the envelope in `order`, until it is assembled
+  EnvelopeMatrix factor;                         // L, in `order` (Solver::Envelope)
   std::unique_ptr<detail::SparseFactor> sparse;  // the other solvers (then `order` is the identity)
-  int terms = 0;                   // columns of P
-  Vec3 center = Vec3::Zero();      // polynomial coordinates u = (x - center) / scale
+  std::vector<std::uint32_t> cg_rows;            // CG's row order (RCM), for the solver that may take over
+  int terms = 0;                                 // columns of P
+  Vec3 center = Vec3::Zero();                    // polynomial coordinates u = (x - center) / scale
   double scale = 1.0;
-  RowMatrix p;                     // N x terms, in `order`
-  RowMatrix y;                     // A^{-1} P, in `order`
+  RowMatrix p;                        // N x terms, in `order`
+  RowMatrix y;                        // A^{-1} P, in `order`
   Eigen::LLT<Eigen::MatrixXd> schur;  // P^T A^{-1} P
-  FitStats stats;                  // the structural part and its times
+  FitStats stats;                     // the structural part and its times
 
   /// b = A^-1 b (input order); CG starts from `initial` where it is given.
   void solve_in_place(RowMatrix& b, const RowMatrix* initial = nullptr) const {
@@ -63,24 +64,48 @@ struct SpaceMap::Structure {
       return;
     }
     if (!fell_back.load()) {
+      double predicted = 0;
       try {
         sparse->solve_in_place(b, initial);  // CG writes b only when it converged
         return;
-      } catch (const detail::CgStagnated&) {
+      } catch (const detail::CgStagnated& e) {
+        predicted = e.predicted_steps();
       }
-      // CG stagnated (an ill-conditioned system): a direct factorisation takes over, once, for this
-      // fit and every later solve with these sources.
-      std::call_once(fallback_once, [this] {
-        const Solver direct = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+      // CG stagnated, or Auto's probe found it slower than a direct solve: another solver takes
+      // over, once, for this fit and every later solve with these sources.
+      std::call_once(fallback_once, [this, predicted] { take_over(predicted); });
+    }
+    fallback->solve_in_place(b, initial);
+  }
+  /// Whether solves start from an initial guess (CG, or CG again after a direct solver was refused).
+  bool warm_starts() const { return fell_back.load() ? fallback->iterative() : sparse && sparse->iterative(); }
+  /// Multiply-adds of one CG step over all the solves of a fit: 3 right-hand sides, and the
+  /// polynomial block's.
+  double cg_step_work() const {
+    return (2.0 * double(stats.neighbor_pairs) + double(sources.size())) * double(3 + terms);
+  }
+  /// After CG: under Auto, the envelope solver where its work (at kEnvelopeCostRatio) is below what
+  /// CG was predicted to need and within kEnvelopeWorkLimit; else CHOLMOD (or Eigen); and where
+  /// Auto's direct factor would exceed the memory limit, CG again, without the probe.
+  void take_over(double predicted_steps) const {
+    const bool automatic = options.solver == Solver::Auto;
+    if (automatic && stats.envelope_work <= kEnvelopeWorkLimit &&
+        kEnvelopeCostRatio * stats.envelope_work < predicted_steps * cg_step_work()) {
+      fallback = detail::envelope_factor(a, cg_rows, options.memory_limit_bytes);
+      fallback_solver = Solver::Envelope;
+    } else {
+      const Solver direct = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+      try {
         fallback = detail::factor_sparse(a, sources, direct, options.memory_limit_bytes);
         fallback_solver = direct;
-        fell_back = true;
-      });
+      } catch (const ResourceLimit&) {
+        if (!automatic) throw;
+        fallback = detail::conjugate_gradients(a, cg_rows, kCgTolerance, kCgMaxIterations);
+        fallback_solver = Solver::Cg;
+      }
     }
-    fallback->solve_in_place(b);
+    fell_back = true;
   }
-  /// Whether solves start from an initial guess (CG that has not fallen back).
-  bool warm_starts() const { return sparse && sparse->iterative() && !fell_back.load(); }
   mutable std::once_flag fallback_once;
   mutable std::unique_ptr<detail::SparseFactor> fallback;  // when CG stagnated
   mutable Solver fallback_solver = Solver::Auto;
@@ -138,16 +163,18 @@ struct SpaceMap::State {
   }
   // The evaluation grid's runs with coordinates and alpha, made on first use of each precision.
   mutable std::once_flag once_double, once_float, once_float_trust;
-  mutable bool float_ok = true;       // float evaluation agrees with double (float_trusted())
-  mutable double float_error = 0;     // the largest difference measured
+  mutable bool float_ok = true;    // float evaluation agrees with double (float_trusted())
+  mutable double float_error = 0;  // the largest difference measured
   mutable detail::EvalData<double> data_double;
   mutable detail::EvalData<float> data_float;
   template <class T>
   const detail::EvalData<T>& eval_data() const {
     auto& flag = std::is_same_v<T, double> ? once_double : once_float;
     auto& data = [this]() -> detail::EvalData<T>& {
-      if constexpr (std::is_same_v<T, double>) return data_double;
-      else return data_float;
+      if constexpr (std::is_same_v<T, double>)
+        return data_double;
+      else
+        return data_float;
     }();
     std::call_once(flag, [&] {
       const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> rows = alpha;
@@ -155,7 +182,7 @@ struct SpaceMap::State {
     });
     return data;
   }
-  detail::PolynomialPart poly;                     // beta for the evaluator
+  detail::PolynomialPart poly;                                             // beta for the evaluator
   Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();  // in u coordinates
   FitStats stats;
 

@@ -42,8 +42,8 @@ FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices,
   for (const auto& f : faces)
     for (std::size_t k = 1; k + 1 < f.size(); ++k) {
       if (f[0] >= vertices.size() || f[k] >= vertices.size() || f[k + 1] >= vertices.size())
-        throw InvalidInput("a face refers to vertex " +
-                           std::to_string(std::max({f[0], f[k], f[k + 1]})) + " of " + std::to_string(vertices.size()));
+        throw InvalidInput("a face refers to vertex " + std::to_string(std::max({f[0], f[k], f[k + 1]})) + " of " +
+                           std::to_string(vertices.size()));
       const Vec3 &a = vertices[f[0]], &b = vertices[f[k]], &c = vertices[f[k + 1]];
       const Vec3 g = (a + b + c) / 3;
       points.push_back(g);
@@ -54,13 +54,14 @@ FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices,
   r.vertices = vertices.size();
   r.samples = points.size();
   std::vector<double> det(points.size()), first(points.size());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, points.size(), 256), [&](const tbb::blocked_range<std::size_t>& range) {
-    for (std::size_t i = range.begin(); i < range.end(); ++i) {
-      const Eigen::Matrix3d j1 = map.jacobian(points[i], 1.0);
-      det[i] = (Eigen::Matrix3d::Identity() + phase * (j1 - Eigen::Matrix3d::Identity())).determinant();
-      first[i] = first_fold_phase(j1);
-    }
-  });
+  tbb::parallel_for(
+      tbb::blocked_range<std::size_t>(0, points.size(), 256), [&](const tbb::blocked_range<std::size_t>& range) {
+        for (std::size_t i = range.begin(); i < range.end(); ++i) {
+          const Eigen::Matrix3d j1 = map.jacobian(points[i], 1.0);
+          det[i] = (Eigen::Matrix3d::Identity() + phase * (j1 - Eigen::Matrix3d::Identity())).determinant();
+          first[i] = first_fold_phase(j1);
+        }
+      });
   for (std::size_t i = 0; i < points.size(); ++i) {
     if (det[i] < r.min_det) {
       r.min_det = det[i];
@@ -92,7 +93,9 @@ FoldReport check_folds_in_area(const SpaceMap& map, std::span<const Vec3> vertic
   std::vector<std::vector<std::uint32_t>> inside;
   std::size_t edge = 0, flipped = 0;
   double first_flip = std::numeric_limits<double>::infinity();
-  const auto disp = [&](std::uint32_t v) -> Vec3 { return local[v] == kOut ? Vec3::Zero() : Vec3(moved[local[v]] - part[local[v]]); };
+  const auto disp = [&](std::uint32_t v) -> Vec3 {
+    return local[v] == kOut ? Vec3::Zero() : Vec3(moved[local[v]] - part[local[v]]);
+  };
   for (const auto& f : faces) {
     std::size_t in = 0;
     for (const auto v : f) in += local.at(v) != kOut;

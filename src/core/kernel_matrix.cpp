@@ -12,9 +12,11 @@ KernelMatrix::KernelMatrix(AdjacencyGraph graph, Kernel kernel, double radius)
   values_ = std::move(pattern_.dist2);
   pattern_.dist2 = {};
   const double inv_r = 1.0 / radius;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values_.size(), 1 << 16), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t e = r.begin(); e < r.end(); ++e) values_[e] = wendland(kernel, std::sqrt(values_[e]) * inv_r);
-  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values_.size(), 1 << 16),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t e = r.begin(); e < r.end(); ++e)
+                        values_[e] = wendland(kernel, std::sqrt(values_[e]) * inv_r);
+                    });
 }
 
 RowMatrix KernelMatrix::operator*(const RowMatrix& x) const {

@@ -9,10 +9,14 @@ std::optional<Kernel> parse_kernel(std::string_view name) noexcept { return pars
 
 int kernel_smoothness(Kernel k) noexcept {
   switch (k) {
-    case Kernel::C0: return 0;
-    case Kernel::C2: return 2;
-    case Kernel::C4: return 4;
-    case Kernel::C6: return 6;
+    case Kernel::C0:
+      return 0;
+    case Kernel::C2:
+      return 2;
+    case Kernel::C4:
+      return 4;
+    case Kernel::C6:
+      return 6;
   }
   return 0;
 }

@@ -159,7 +159,8 @@ std::vector<std::uint32_t> reverse_cuthill_mckee_order(const AdjacencyGraph& g) 
       nb.clear();
       for (std::uint32_t j : g.neighbors_of(out[i]))
         if (!taken[j]) nb.push_back(j);
-      std::stable_sort(nb.begin(), nb.end(), [&](std::uint32_t a, std::uint32_t b) { return g.degree(a) < g.degree(b); });
+      std::stable_sort(nb.begin(), nb.end(),
+                       [&](std::uint32_t a, std::uint32_t b) { return g.degree(a) < g.degree(b); });
       for (std::uint32_t j : nb) {
         taken[j] = 1;
         out.push_back(j);
@@ -225,16 +226,30 @@ OrderingChoice choose_ordering(const AdjacencyGraph& g, Ordering requested) {
   if (requested == Ordering::Auto) {
     requested = Ordering::ReverseCuthillMcKee;
     std::size_t best = c.reverse_cuthill_mckee.envelope;
-    if (c.reverse_breadth_first.envelope < best) { requested = Ordering::ReverseBreadthFirst; best = c.reverse_breadth_first.envelope; }
-    if (c.breadth_first.envelope < best) { requested = Ordering::BreadthFirst; best = c.breadth_first.envelope; }
+    if (c.reverse_breadth_first.envelope < best) {
+      requested = Ordering::ReverseBreadthFirst;
+      best = c.reverse_breadth_first.envelope;
+    }
+    if (c.breadth_first.envelope < best) {
+      requested = Ordering::BreadthFirst;
+      best = c.breadth_first.envelope;
+    }
     if (c.identity.envelope < best) requested = Ordering::Identity;
   }
   c.chosen = requested;
   switch (requested) {
-    case Ordering::Identity: c.order = std::move(id); break;
-    case Ordering::BreadthFirst: c.order = std::move(bf); break;
-    case Ordering::ReverseCuthillMcKee: c.order = std::move(rcm); break;
-    default: c.order = std::move(rbf); break;
+    case Ordering::Identity:
+      c.order = std::move(id);
+      break;
+    case Ordering::BreadthFirst:
+      c.order = std::move(bf);
+      break;
+    case Ordering::ReverseCuthillMcKee:
+      c.order = std::move(rcm);
+      break;
+    default:
+      c.order = std::move(rbf);
+      break;
   }
   return c;
 }
@@ -277,7 +292,8 @@ class Dissection {
     (hi - lo).maxCoeff(&axis);
     if (!(hi[axis] - lo[axis] > 2 * radius_)) return keep(ids, b, e);  // a dense block anyway
     const auto mid = first + std::ptrdiff_t((e - b) / 2);
-    std::nth_element(first, mid, last, [&](std::uint32_t p, std::uint32_t q) { return points_[p][axis] < points_[q][axis]; });
+    std::nth_element(first, mid, last,
+                     [&](std::uint32_t p, std::uint32_t q) { return points_[p][axis] < points_[q][axis]; });
     const double m = points_[*mid][axis];
     for (auto it = first; it != last; ++it) side_[*it] = points_[*it][axis] < m ? kLeft : kRight;
     // Only points closer than R to the plane can have a neighbour across it.

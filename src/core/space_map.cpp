@@ -33,9 +33,8 @@ Vec3 SpaceMap::displacement(const Vec3& x) const {
   const Kernel k = st.options.kernel;
   Vec3 d = Vec3::Zero();
   const std::vector<Vec3>& alpha = s_->alpha_by_slot();
-  st.index().for_each_slot_within(x, [&](std::size_t slot, double d2) {
-    d += wendland(k, std::sqrt(d2) * inv_r) * alpha[slot];
-  });
+  st.index().for_each_slot_within(
+      x, [&](std::size_t slot, double d2) { d += wendland(k, std::sqrt(d2) * inv_r) * alpha[slot]; });
   if (st.terms > 0) d += s_->polynomial_at(x);
   return d;
 }
@@ -184,12 +183,8 @@ void SpaceMap::apply(std::span<const Vec3> in, std::span<Vec3> out, double phase
   static_assert(sizeof(Vec3) == 3 * sizeof(double), "Vec3 must be three packed doubles");
   apply_impl(in.data()->data(), out.data()->data(), in.size(), phase, true);
 }
-void SpaceMap::displacements(const double* in, double* out, std::size_t n) const {
-  apply_impl(in, out, n, 1.0, false);
-}
-void SpaceMap::displacements(const float* in, float* out, std::size_t n) const {
-  apply_impl(in, out, n, 1.0, false);
-}
+void SpaceMap::displacements(const double* in, double* out, std::size_t n) const { apply_impl(in, out, n, 1.0, false); }
+void SpaceMap::displacements(const float* in, float* out, std::size_t n) const { apply_impl(in, out, n, 1.0, false); }
 
 std::size_t SpaceMap::size() const noexcept { return s_->st->sources.size(); }
 double SpaceMap::radius() const noexcept { return s_->st->options.radius; }

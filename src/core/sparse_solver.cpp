@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <mutex>
 #include <sstream>
 #include <span>
@@ -79,8 +80,8 @@ class EigenFactor final : public SparseFactor {
     }
     llt_.factorize(a);
     if (llt_.info() != Eigen::Success)
-      throw NotPositiveDefinite(std::string("the interpolation matrix is not numerically positive definite (") +
-                                name + " factorisation failed)");
+      throw NotPositiveDefinite(std::string("the interpolation matrix is not numerically positive definite (") + name +
+                                " factorisation failed)");
   }
   void solve_in_place(RowMatrix& b, const RowMatrix* = nullptr) const override {
     std::lock_guard lock(mutex_);  // CHOLMOD's workspace is shared by solves
@@ -147,8 +148,9 @@ std::size_t EigenFactor<Supernodal>::count() const {
 /// parallel, m right-hand sides at once.
 class BatchedCg final : public SparseFactor {
  public:
-  BatchedCg(const KernelMatrix& a, std::vector<std::uint32_t> order, double tolerance, std::size_t max_iterations)
-      : order_(std::move(order)), tolerance_(tolerance), max_iterations_(max_iterations) {
+  BatchedCg(const KernelMatrix& a, std::vector<std::uint32_t> order, double tolerance, std::size_t max_iterations,
+            CgProbe probe)
+      : order_(std::move(order)), tolerance_(tolerance), max_iterations_(max_iterations), probe_(std::move(probe)) {
     // A's rows copied into `order`, their columns renumbered: the entries are A's, not recomputed.
     const std::size_t n = a.size();
     std::vector<std::uint32_t> position(n);
@@ -242,14 +244,16 @@ class BatchedCg final : public SparseFactor {
         for (std::size_t c = 0; c < m; ++c)  // a zero right-hand side has the solution 0, whatever the guess
           x[k * m + c] = rr0[c] > 0 ? (*initial)(Eigen::Index(order_[k]), Eigen::Index(c)) : 0.0;
       times_a(x, q, m, reduce);
-      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n * m, 1 << 15), [&](const tbb::blocked_range<std::size_t>& range) {
-        for (std::size_t e = range.begin(); e < range.end(); ++e) r[e] -= q[e];
-      });
+      tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n * m, 1 << 15),
+                        [&](const tbb::blocked_range<std::size_t>& range) {
+                          for (std::size_t e = range.begin(); e < range.end(); ++e) r[e] -= q[e];
+                        });
     } else {
       std::fill(x.begin(), x.end(), 0.0);
     }
     p = r;
     Sums rr = initial ? squares(r) : rr0;
+    const Sums rr_start = rr;
     std::array<double, 8> alpha{}, beta{};
     std::array<bool, 8> done{};
     for (std::size_t c = 0; c < m; ++c) done[c] = rr[c] <= tolerance_ * tolerance_ * rr0[c];
@@ -259,7 +263,25 @@ class BatchedCg final : public SparseFactor {
         if (!done[c]) return false;
       return true;
     };
+    std::size_t probe_at = probe_.steps;
     for (; !all_done() && it < max_iterations_; ++it) {
+      if (probe_at > 0 && it == probe_at) {
+        // The steps this solve needs in all, were the residual to keep falling at its rate so far.
+        double predicted = double(it);
+        for (std::size_t c = 0; c < m; ++c) {
+          if (done[c]) continue;
+          const double fell = std::sqrt(rr[c] / rr_start[c]), need = tolerance_ * std::sqrt(rr0[c] / rr_start[c]);
+          predicted = std::max(predicted, fell < 1 ? double(it) * std::log(need) / std::log(fell)
+                                                   : std::numeric_limits<double>::infinity());
+        }
+        if (!probe_.worth_it(predicted)) {
+          iterations_ = it;
+          std::ostringstream os;
+          os << "conjugate gradients would need about " << predicted << " steps (after " << it << ")";
+          throw CgStagnated(os.str(), predicted);
+        }
+        probe_at *= 3;
+      }
       const Sums pq = times_a(p, q, m, reduce);
       for (std::size_t c = 0; c < m; ++c) alpha[c] = done[c] || !(pq[c] > 0) ? 0.0 : rr[c] / pq[c];
       // x += alpha p, r -= alpha q, and r . r per column.
@@ -290,7 +312,7 @@ class BatchedCg final : public SparseFactor {
     if (!all_done() || !std::isfinite(worst)) {
       std::ostringstream os;
       os << "conjugate gradients stagnated at a relative residual of " << worst << " after " << it << " steps";
-      throw CgStagnated(os.str());
+      throw CgStagnated(os.str(), std::numeric_limits<double>::infinity());
     }
     for (std::size_t k = 0; k < n; ++k)
       for (std::size_t c = 0; c < m; ++c) b(Eigen::Index(order_[k]), Eigen::Index(c)) = x[k * m + c];
@@ -302,6 +324,7 @@ class BatchedCg final : public SparseFactor {
   FillVector<double> val_;
   double diagonal_ = 1.0, tolerance_;
   std::size_t max_iterations_;
+  CgProbe probe_;
   mutable std::size_t iterations_ = 0;
   mutable double residual_ = 0;
   mutable std::mutex mutex_;
@@ -309,20 +332,62 @@ class BatchedCg final : public SparseFactor {
 
 }  // namespace
 
-std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order, double tolerance,
-                                                  std::size_t max_iterations) {
-  return std::make_unique<BatchedCg>(a, std::move(order), tolerance, max_iterations);
+std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
+                                                  double tolerance, std::size_t max_iterations, CgProbe probe) {
+  return std::make_unique<BatchedCg>(a, std::move(order), tolerance, max_iterations, std::move(probe));
+}
+
+namespace {
+class EnvelopeFactor final : public SparseFactor {
+ public:
+  EnvelopeFactor(const KernelMatrix& a, std::vector<std::uint32_t> order, double memory_limit_bytes)
+      : order_(std::move(order)) {
+    std::vector<std::size_t> first = envelope_first_columns(a.pattern(), order_);
+    double entries = double(order_.size());
+    for (std::size_t k = 0; k < first.size(); ++k) entries += double(k - first[k]);
+    if (8 * entries > memory_limit_bytes) {
+      std::ostringstream os;
+      os.precision(3);
+      os << "the envelope holds " << entries << " entries, about " << 8 * entries / double(1ull << 30)
+         << " GiB, above the limit of " << memory_limit_bytes / double(1ull << 30)
+         << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`)";
+      throw ResourceLimit(os.str());
+    }
+    factor_ = envelope_matrix(a, order_, std::move(first));
+    try {
+      factor_.cholesky_in_place();
+    } catch (const NotPositiveDefinite& e) {
+      throw NotPositiveDefinite(order_[e.row()], e.pivot());
+    }
+  }
+  void solve_in_place(RowMatrix& b, const RowMatrix* = nullptr) const override {
+    RowMatrix bp(b.rows(), b.cols());
+    for (Eigen::Index k = 0; k < b.rows(); ++k) bp.row(k) = b.row(Eigen::Index(order_[std::size_t(k)]));
+    factor_.solve_in_place(bp);
+    for (Eigen::Index k = 0; k < b.rows(); ++k) b.row(Eigen::Index(order_[std::size_t(k)])) = bp.row(k);
+  }
+  std::size_t nonzeros() const override { return factor_.envelope_entries() + order_.size(); }
+
+ private:
+  std::vector<std::uint32_t> order_;
+  EnvelopeMatrix factor_;
+};
+}  // namespace
+
+std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
+                                              double memory_limit_bytes) {
+  return std::make_unique<EnvelopeFactor>(a, std::move(order), memory_limit_bytes);
 }
 
 std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
                                             double memory_limit_bytes) {
   if (which == Solver::Eigen)
-    return std::make_unique<EigenFactor<Simplicial>>(lower_matrix(a), "Eigen SimplicialLLT",
-                                                     memory_limit_bytes);
+    return std::make_unique<EigenFactor<Simplicial>>(lower_matrix(a), "Eigen SimplicialLLT", memory_limit_bytes);
 #ifdef CSRBF_HAVE_CHOLMOD
   if (which == Solver::Cholmod) {
     std::vector<std::uint32_t> order = nested_dissection_order(a.pattern(), sources, a.radius());
-    return std::make_unique<EigenFactor<Supernodal>>(lower_matrix(a, order), "CHOLMOD", memory_limit_bytes, std::move(order));
+    return std::make_unique<EigenFactor<Supernodal>>(lower_matrix(a, order), "CHOLMOD", memory_limit_bytes,
+                                                     std::move(order));
   }
 #else
   (void)sources;

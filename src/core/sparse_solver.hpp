@@ -8,7 +8,10 @@
 #include "csrbf/kernel_matrix.hpp"
 #include "csrbf/types.hpp"
 
+#include <functional>
 #include <memory>
+#include <stdexcept>
+#include <string>
 
 namespace csrbf::detail {
 
@@ -31,7 +34,22 @@ class SparseFactor {
 /// CG did not reach its tolerance within its step limit (the caller falls back to a direct solver).
 class CgStagnated : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  CgStagnated(const std::string& what, double predicted_steps)
+      : std::runtime_error(what), predicted_(predicted_steps) {}
+  /// The steps the solve was predicted to need in all, from its convergence so far (infinity where
+  /// it made no progress).
+  double predicted_steps() const noexcept { return predicted_; }
+
+ private:
+  double predicted_;
+};
+
+/// Auto's check on CG: after `steps` steps of a solve (and again after 3 and 9 times as many), CG
+/// predicts the steps it needs in all from the residual's decrease so far (geometric, for the
+/// slowest right-hand side) and gives up, throwing CgStagnated, unless worth_it(predicted) holds.
+struct CgProbe {
+  std::size_t steps = 0;  ///< 0: no probe
+  std::function<bool(double predicted_steps)> worth_it;
 };
 
 /// Conjugate gradients on A, the right-hand sides of a solve together: one parallel pass over A a
@@ -39,8 +57,14 @@ class CgStagnated : public std::runtime_error {
 /// diagonal is phi(0) everywhere, so Jacobi preconditioning would change nothing. Rows are stored in
 /// `order` (a bandwidth-reducing ordering of the sources) for locality. Stops at a relative residual
 /// of `tolerance` per column; throws CgStagnated after `max_iterations`.
-std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order, double tolerance,
-                                                  std::size_t max_iterations);
+std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
+                                                  double tolerance, std::size_t max_iterations, CgProbe probe = {});
+
+/// The paper's envelope Cholesky of A in `order` (rows: the sources order[k]) as a SparseFactor that
+/// takes and gives the input order: the direct solver Auto turns to after CG on a small system.
+/// ResourceLimit when the envelope exceeds memory_limit_bytes; NotPositiveDefinite names the source.
+std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
+                                              double memory_limit_bytes);
 
 /// Assembles A in compressed columns and factorises it with Solver::Eigen (AMD ordering) or
 /// Solver::Cholmod (in nested_dissection_order of the sources). Throws NotPositiveDefinite on

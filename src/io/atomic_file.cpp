@@ -39,9 +39,7 @@ std::string unique_suffix() {
   return buf;
 }
 
-fs::path folder_of(const fs::path& target) {
-  return target.has_parent_path() ? target.parent_path() : fs::path(".");
-}
+fs::path folder_of(const fs::path& target) { return target.has_parent_path() ? target.parent_path() : fs::path("."); }
 
 std::string errno_text() { return std::strerror(errno); }
 
@@ -117,7 +115,8 @@ void remove_partials_on_signals() noexcept {
 
 bool is_frame_name(const std::string& name) {
   // frame_ + 5 or more digits + .png
-  if (name.size() < 15 || name.compare(0, 6, "frame_") != 0 || name.compare(name.size() - 4, 4, ".png") != 0) return false;
+  if (name.size() < 15 || name.compare(0, 6, "frame_") != 0 || name.compare(name.size() - 4, 4, ".png") != 0)
+    return false;
   for (std::size_t i = 6; i + 4 < name.size(); ++i)
     if (name[i] < '0' || name[i] > '9') return false;
   return true;
@@ -138,8 +137,10 @@ void remove_stale_partials(const fs::path& folder) noexcept {
     const int fd = ::open(it->path().c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | (dir ? O_DIRECTORY : 0));
     if (fd < 0) continue;
     if (::flock(fd, LOCK_EX | LOCK_NB) == 0) {
-      if (dir) remove_partial_folder(it->path());
-      else ::unlink(it->path().c_str());
+      if (dir)
+        remove_partial_folder(it->path());
+      else
+        ::unlink(it->path().c_str());
     }
     ::close(fd);
   }
@@ -178,8 +179,10 @@ Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : ki
 Partial::~Partial() {
   unregister_partial(slot_);
   if (!committed_) {
-    if (kind_ == Kind::File) ::unlink(path_.c_str());
-    else remove_partial_folder(path_);
+    if (kind_ == Kind::File)
+      ::unlink(path_.c_str());
+    else
+      remove_partial_folder(path_);
   }
   if (lock_fd_ >= 0) ::close(lock_fd_);
 }
@@ -194,7 +197,9 @@ fs::path resolve_output(const fs::path& target) {
   std::error_code ec;
   if (fs::is_symlink(fs::symlink_status(target, ec))) {
     const fs::path real = fs::canonical(target, ec);
-    if (ec) throw FileError("cannot write '" + target.string() + "': it is a symbolic link to nothing (" + ec.message() + ")");
+    if (ec)
+      throw FileError("cannot write '" + target.string() + "': it is a symbolic link to nothing (" + ec.message() +
+                      ")");
     return real;
   }
   return target;
@@ -216,13 +221,17 @@ void check_output_path(const fs::path& target) {
   if (target.empty()) throw FileError("output path is empty");
   const fs::path dir = folder_of(target);
   std::error_code ec;
-  if (!fs::exists(dir, ec)) throw FileError("cannot write '" + target.string() + "': folder '" + dir.string() + "' does not exist");
-  if (!fs::is_directory(dir, ec)) throw FileError("cannot write '" + target.string() + "': '" + dir.string() + "' is not a folder");
+  if (!fs::exists(dir, ec))
+    throw FileError("cannot write '" + target.string() + "': folder '" + dir.string() + "' does not exist");
+  if (!fs::is_directory(dir, ec))
+    throw FileError("cannot write '" + target.string() + "': '" + dir.string() + "' is not a folder");
   const auto st = fs::status(target, ec);
   switch (st.type()) {
     case fs::file_type::not_found:
-    case fs::file_type::regular: return;
-    case fs::file_type::directory: throw FileError("cannot write '" + target.string() + "': it is a folder");
+    case fs::file_type::regular:
+      return;
+    case fs::file_type::directory:
+      throw FileError("cannot write '" + target.string() + "': it is a folder");
     default:
       throw FileError("cannot write '" + target.string() +
                       "': it exists and is not a regular file (a device, FIFO or socket is never replaced)");
@@ -236,12 +245,15 @@ void write_atomically(const fs::path& target_in, const std::function<void(std::o
   std::streamoff written = 0;
   {
     std::ofstream out(partial.path(), std::ios::binary | std::ios::trunc);
-    if (!out) throw FileError("cannot write '" + target.string() + "': cannot open a file in '" + folder_of(target).string() + "'");
+    if (!out)
+      throw FileError("cannot write '" + target.string() + "': cannot open a file in '" + folder_of(target).string() +
+                      "'");
     write(out);
     out.flush();
     written = out ? std::streamoff(out.tellp()) : -1;
     out.close();
-    if (!out || written < 0) throw FileError("cannot write '" + target.string() + "': write failed (disk full or file size limit?)");
+    if (!out || written < 0)
+      throw FileError("cannot write '" + target.string() + "': write failed (disk full or file size limit?)");
   }
   std::error_code ec;
   const auto size = fs::file_size(partial.path(), ec);
@@ -263,7 +275,9 @@ void write_atomically_via_folder(const fs::path& target_in, const std::function<
   // Check every destination first, so that either all files move or none.
   std::vector<fs::path> made;
   for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    if (!it->is_regular_file()) throw FileError("cannot write '" + target.string() + "': the writer made '" + it->path().filename().string() + "', not a file");
+    if (!it->is_regular_file())
+      throw FileError("cannot write '" + target.string() + "': the writer made '" + it->path().filename().string() +
+                      "', not a file");
     const fs::path dest = folder_of(target) / it->path().filename();
     check_output_path(dest);
     // A side file (glTF's .bin) replaces an existing file only when that is the side file of the
@@ -331,12 +345,13 @@ std::string read_input(const std::filesystem::path& path, const char* what, doub
       const ssize_t n = ::read(fd, buf, sizeof buf);
       if (n < 0) {
         if (errno == EINTR) continue;
-        throw FileError(path.string() + ": read error after " + std::to_string(text.size()) + " bytes: " + errno_text());
+        throw FileError(path.string() + ": read error after " + std::to_string(text.size()) +
+                        " bytes: " + errno_text());
       }
       if (n == 0) break;
       if (double(text.size() + std::size_t(n)) > max_bytes)
-        throw FileError(path.string() + ": more than the " + std::to_string(std::llround(max_bytes)) + " bytes allowed for " +
-                        what + " (--memory-limit)");
+        throw FileError(path.string() + ": more than the " + std::to_string(std::llround(max_bytes)) +
+                        " bytes allowed for " + what + " (--memory-limit)");
       text.append(buf, std::size_t(n));
     }
   } catch (const std::bad_alloc&) {

@@ -68,7 +68,8 @@ Controls parse_controls(std::istream& in, const std::string& name) {
       if (!detail::parse_double(tok[k], v[k]))
         throw FileError(where + "'" + detail::cut(tok[k]) + "' is not a number (line: '" + detail::cut(body) + "')");
       if (!std::isfinite(v[k]))
-        throw FileError(where + "'" + detail::cut(tok[k]) + "' is not a finite number (line: '" + detail::cut(body) + "')");
+        throw FileError(where + "'" + detail::cut(tok[k]) + "' is not a finite number (line: '" + detail::cut(body) +
+                        "')");
     }
     const Vec3 s(v[0], v[1], v[2]), d(v[3], v[4], v[5]);
     const std::array<double, 3> key{v[0] == 0.0 ? 0.0 : v[0], v[1] == 0.0 ? 0.0 : v[1], v[2] == 0.0 ? 0.0 : v[2]};
@@ -76,11 +77,12 @@ Controls parse_controls(std::istream& in, const std::string& name) {
       const std::size_t k = it->second;
       if (c.destinations[k] == d) {
         if (++duplicates <= kMaxWarnings)
-          c.warnings.push_back(where + "duplicate of line " + std::to_string(c.lines[k]) + " (same source and destination); merged");
+          c.warnings.push_back(where + "duplicate of line " + std::to_string(c.lines[k]) +
+                               " (same source and destination); merged");
         continue;
       }
-      throw FileError(where + "source (" + format_number(v[0]) + ", " + format_number(v[1]) + ", " + format_number(v[2]) +
-                      ") is also on line " + std::to_string(c.lines[k]) +
+      throw FileError(where + "source (" + format_number(v[0]) + ", " + format_number(v[1]) + ", " +
+                      format_number(v[2]) + ") is also on line " + std::to_string(c.lines[k]) +
                       " with a different destination; one point cannot move to two places");
     }
     seen.emplace(key, c.sources.size());

@@ -56,7 +56,8 @@ DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::p
     if (area.vertex_count == 0 || area.vertex_count > std::numeric_limits<std::uint32_t>::max())
       a["vertex_count"].expected("a vertex count from 1 to 4294967295");
     const JsonNode v = a["vertices"];
-    if (v.size() == 0) v.fail("an active area needs at least one vertex (leave \"active_area\" out for the whole mesh)");
+    if (v.size() == 0)
+      v.fail("an active area needs at least one vertex (leave \"active_area\" out for the whole mesh)");
     area.vertices.reserve(v.size());
     for (std::size_t i = 0; i < v.size(); ++i) {
       const std::size_t k = v[i].index();
@@ -84,8 +85,8 @@ DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::p
 namespace {
 DeformationSpec from_json(const nlohmann::json& j, const std::string& name, const std::filesystem::path& base) {
   const detail::JsonNode root(j, name);
-  root.only({"format", "version", "kernel", "radius", "polynomial", "sources", "destinations", "controls",
-             "active_area"});
+  root.only(
+      {"format", "version", "kernel", "radius", "polynomial", "sources", "destinations", "controls", "active_area"});
   if (root.has("format") && root["format"].string() != "csrbf-deformation")
     root["format"].expected("\"csrbf-deformation\"");
   if (root.has("version") && root["version"].number() != 1) root["version"].expected("1");
@@ -132,7 +133,8 @@ void write_deformation(const std::filesystem::path& path, const DeformationSpec&
         out << (i == 0 ? "" : i % 16 == 0 ? ",\n    " : ", ") << spec.area->vertices[i];
       out << "]";
       if (spec.area->bounds)
-        out << ",\n    \"bounds\": [" << point((*spec.area->bounds)[0]) << ", " << point((*spec.area->bounds)[1]) << "]";
+        out << ",\n    \"bounds\": [" << point((*spec.area->bounds)[0]) << ", " << point((*spec.area->bounds)[1])
+            << "]";
       out << "}\n";
     }
     out << "}\n";
@@ -167,11 +169,15 @@ void check_active_area(const ActiveArea& area, const std::vector<Vec3>& rest, co
   if (!area.bounds || area.vertices.empty()) return;
   const std::array<Vec3, 2> here = bounds_of(rest, area.vertices);
   const auto& want = *area.bounds;
-  const double scale = std::max({(want[1] - want[0]).norm(), want[0].cwiseAbs().maxCoeff(), want[1].cwiseAbs().maxCoeff()});
+  const double scale =
+      std::max({(want[1] - want[0]).norm(), want[0].cwiseAbs().maxCoeff(), want[1].cwiseAbs().maxCoeff()});
   const double off = std::max((here[0] - want[0]).cwiseAbs().maxCoeff(), (here[1] - want[1]).cwiseAbs().maxCoeff());
   if (!(off <= 1e-6 * scale))
-    throw FileError(where + ": active_area: its vertices of " + mesh + " are not where they were picked (their bounds "
-                    "differ by " + format_number(off) + "): the mesh's vertices are in another order, as an STL or a "
+    throw FileError(where + ": active_area: its vertices of " + mesh +
+                    " are not where they were picked (their bounds "
+                    "differ by " +
+                    format_number(off) +
+                    "): the mesh's vertices are in another order, as an STL or a "
                     "re-exported file may have them; use the mesh the deformation was made on");
 }
 

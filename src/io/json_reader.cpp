@@ -26,15 +26,18 @@ nlohmann::json parse_json(const std::string& text, const std::string& name) {
     using Event = nlohmann::json::parse_event_t;
     const nlohmann::json::parser_callback_t limit = [&keys](int depth, Event event, nlohmann::json& parsed) {
       if (depth > kMaxJsonDepth && (event == Event::object_start || event == Event::array_start)) throw TooDeep{depth};
-      if (event == Event::object_start) keys.emplace_back();
-      else if (event == Event::object_end && !keys.empty()) keys.pop_back();
+      if (event == Event::object_start)
+        keys.emplace_back();
+      else if (event == Event::object_end && !keys.empty())
+        keys.pop_back();
       else if (event == Event::key && !keys.empty() && !keys.back().insert(parsed.get<std::string>()).second)
         throw DuplicateKey{parsed.get<std::string>()};
       return true;
     };
     return nlohmann::json::parse(text, limit);
   } catch (const TooDeep& d) {
-    throw FileError(name + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) + " levels (arrays and objects)");
+    throw FileError(name + ": JSON nested deeper than " + std::to_string(kMaxJsonDepth) +
+                    " levels (arrays and objects)");
   } catch (const DuplicateKey& k) {
     throw FileError(name + ": the key \"" + detail::cut(k.key) + "\" appears twice in one object");
   } catch (const nlohmann::json::exception& e) {

@@ -50,14 +50,22 @@ MeshFormat format_for(const fs::path& path) {
 
 const char* format_name(MeshFormat f) noexcept {
   switch (f) {
-    case MeshFormat::Obj: return "OBJ";
-    case MeshFormat::Ply: return "PLY";
-    case MeshFormat::Off: return "OFF";
-    case MeshFormat::Xyz: return "XYZ";
-    case MeshFormat::Stl: return "STL";
-    case MeshFormat::Gltf: return "glTF";
-    case MeshFormat::Glb: return "GLB";
-    case MeshFormat::Assimp: return "assimp";
+    case MeshFormat::Obj:
+      return "OBJ";
+    case MeshFormat::Ply:
+      return "PLY";
+    case MeshFormat::Off:
+      return "OFF";
+    case MeshFormat::Xyz:
+      return "XYZ";
+    case MeshFormat::Stl:
+      return "STL";
+    case MeshFormat::Gltf:
+      return "glTF";
+    case MeshFormat::Glb:
+      return "GLB";
+    case MeshFormat::Assimp:
+      return "assimp";
   }
   return "?";
 }
@@ -106,10 +114,18 @@ std::optional<PlyType> ply_type(std::string_view s) {
 }
 std::size_t ply_size(PlyType t) {
   switch (t) {
-    case PlyType::I8: case PlyType::U8: return 1;
-    case PlyType::I16: case PlyType::U16: return 2;
-    case PlyType::I32: case PlyType::U32: case PlyType::F32: return 4;
-    case PlyType::F64: return 8;
+    case PlyType::I8:
+    case PlyType::U8:
+      return 1;
+    case PlyType::I16:
+    case PlyType::U16:
+      return 2;
+    case PlyType::I32:
+    case PlyType::U32:
+    case PlyType::F32:
+      return 4;
+    case PlyType::F64:
+      return 8;
   }
   return 0;
 }
@@ -122,14 +138,46 @@ double ply_read(const unsigned char* p, PlyType t, bool swap) {
   std::memcpy(b, p, n);
   if (swap) reverse_bytes(b, n);
   switch (t) {
-    case PlyType::I8: { std::int8_t v; std::memcpy(&v, b, 1); return v; }
-    case PlyType::U8: { std::uint8_t v; std::memcpy(&v, b, 1); return v; }
-    case PlyType::I16: { std::int16_t v; std::memcpy(&v, b, 2); return v; }
-    case PlyType::U16: { std::uint16_t v; std::memcpy(&v, b, 2); return v; }
-    case PlyType::I32: { std::int32_t v; std::memcpy(&v, b, 4); return v; }
-    case PlyType::U32: { std::uint32_t v; std::memcpy(&v, b, 4); return v; }
-    case PlyType::F32: { float v; std::memcpy(&v, b, 4); return v; }
-    case PlyType::F64: { double v; std::memcpy(&v, b, 8); return v; }
+    case PlyType::I8: {
+      std::int8_t v;
+      std::memcpy(&v, b, 1);
+      return v;
+    }
+    case PlyType::U8: {
+      std::uint8_t v;
+      std::memcpy(&v, b, 1);
+      return v;
+    }
+    case PlyType::I16: {
+      std::int16_t v;
+      std::memcpy(&v, b, 2);
+      return v;
+    }
+    case PlyType::U16: {
+      std::uint16_t v;
+      std::memcpy(&v, b, 2);
+      return v;
+    }
+    case PlyType::I32: {
+      std::int32_t v;
+      std::memcpy(&v, b, 4);
+      return v;
+    }
+    case PlyType::U32: {
+      std::uint32_t v;
+      std::memcpy(&v, b, 4);
+      return v;
+    }
+    case PlyType::F32: {
+      float v;
+      std::memcpy(&v, b, 4);
+      return v;
+    }
+    case PlyType::F64: {
+      double v;
+      std::memcpy(&v, b, 8);
+      return v;
+    }
   }
   return 0;
 }
@@ -137,8 +185,13 @@ double ply_read(const unsigned char* p, PlyType t, bool swap) {
 void ply_write(unsigned char* p, PlyType t, bool swap, double value) {
   unsigned char b[8];
   const std::size_t n = ply_size(t);
-  if (t == PlyType::F32) { const float v = float(value); std::memcpy(b, &v, 4); }
-  else { const double v = value; std::memcpy(b, &v, 8); }
+  if (t == PlyType::F32) {
+    const float v = float(value);
+    std::memcpy(b, &v, 4);
+  } else {
+    const double v = value;
+    std::memcpy(b, &v, 8);
+  }
   if (swap) reverse_bytes(b, n);
   std::memcpy(p, b, n);
 }
@@ -218,8 +271,8 @@ struct MeshDocument::Impl {
   // Text formats (OBJ, OFF, XYZ, ASCII PLY body): the original lines and where each number sits.
   std::vector<std::string> lines;
   std::vector<std::array<Slot, 3>> position_slots;
-  std::vector<std::array<Slot, 3>> normal_slots;  // per vertex (OFF, PLY) or per vn (OBJ)
-  std::vector<Vec3> normals;                       // original values, kept where none can be computed
+  std::vector<std::array<Slot, 3>> normal_slots;           // per vertex (OFF, PLY) or per vn (OBJ)
+  std::vector<Vec3> normals;                               // original values, kept where none can be computed
   std::vector<std::vector<std::int64_t>> face_normal_ids;  // OBJ: vn index of each face corner, or -1
   std::map<std::string, std::vector<std::uint32_t>> groups, materials;  // OBJ: g/o and usemtl -> faces
 
@@ -267,11 +320,13 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
     if (body.empty()) continue;
     const auto tok = split(body);
     if (tok[0] == "v" || tok[0] == "vn") {
-      if (tok.size() < 4) throw FileError(where(li) + "expected '" + detail::cut(tok[0]) + " x y z', got '" + detail::cut(body) + "'");
+      if (tok.size() < 4)
+        throw FileError(where(li) + "expected '" + detail::cut(tok[0]) + " x y z', got '" + detail::cut(body) + "'");
       Vec3 p;
       for (int k = 0; k < 3; ++k)
         if (!parse_double(tok[k + 1], p[k]) || !std::isfinite(p[k]))
-          throw FileError(where(li) + "'" + detail::cut(tok[k + 1]) + "' is not a finite number (line: '" + detail::cut(body) + "')");
+          throw FileError(where(li) + "'" + detail::cut(tok[k + 1]) + "' is not a finite number (line: '" +
+                          detail::cut(body) + "')");
       if (tok[0] == "v") {
         positions.push_back(p);
         position_slots.push_back({Slot{li, 1}, Slot{li, 2}, Slot{li, 3}});
@@ -344,16 +399,21 @@ void MeshDocument::Impl::load_off(const std::string& text) {
       throw FileError(where(li) + "expected an 'OFF' header, got '" + key + "'");
     const std::string pre = k.substr(0, k.size() - 3);
     for (char c : pre) {
-      if (c == 'N') normals_present = true;
+      if (c == 'N')
+        normals_present = true;
       else if (c != 'C' && c != 'S' && c != 'T')
         throw FileError(where(li) + "unsupported OFF variant '" + key + "' (supported: OFF, COFF, NOFF, CNOFF, STOFF)");
     }
   }
   tok.erase(tok.begin());
-  if (tok.empty()) { ++li; tok = next(); }
+  if (tok.empty()) {
+    ++li;
+    tok = next();
+  }
   std::size_t nv = 0, nf = 0;
   if (tok.size() < 2 || !parse_int(tok[0], nv) || !parse_int(tok[1], nf))
-    throw FileError(where(li) + "expected 'vertex_count face_count edge_count', got '" + detail::cut(lines[std::min(li, lines.size() - 1)]) + "'");
+    throw FileError(where(li) + "expected 'vertex_count face_count edge_count', got '" +
+                    detail::cut(lines[std::min(li, lines.size() - 1)]) + "'");
   // Each vertex and face takes a line: the counts are bounded by the file before any allocation.
   if (nv > lines.size() || nf > lines.size() || nv + nf > lines.size())
     throw FileError(where(li) + "the header declares " + std::to_string(nv) + " vertices and " + std::to_string(nf) +
@@ -361,9 +421,12 @@ void MeshDocument::Impl::load_off(const std::string& text) {
   ++li;
   for (std::size_t v = 0; v < nv; ++v) {
     tok = next();
-    if (tok.empty()) throw FileError(path.string() + ": ends after " + std::to_string(v) + " of " + std::to_string(nv) + " vertices");
+    if (tok.empty())
+      throw FileError(path.string() + ": ends after " + std::to_string(v) + " of " + std::to_string(nv) + " vertices");
     const std::size_t need = normals_present ? 6 : 3;
-    if (tok.size() < need) throw FileError(where(li) + "expected " + std::to_string(need) + " numbers for vertex " + std::to_string(v) + ", got '" + lines[li] + "'");
+    if (tok.size() < need)
+      throw FileError(where(li) + "expected " + std::to_string(need) + " numbers for vertex " + std::to_string(v) +
+                      ", got '" + lines[li] + "'");
     Vec3 p, n = Vec3::Zero();
     for (std::size_t k = 0; k < need; ++k) {
       double x;
@@ -381,11 +444,14 @@ void MeshDocument::Impl::load_off(const std::string& text) {
   }
   for (std::size_t f = 0; f < nf; ++f) {
     tok = next();
-    if (tok.empty()) throw FileError(path.string() + ": ends after " + std::to_string(f) + " of " + std::to_string(nf) + " faces");
+    if (tok.empty())
+      throw FileError(path.string() + ": ends after " + std::to_string(f) + " of " + std::to_string(nf) + " faces");
     std::size_t k = 0;
     if (!parse_int(tok[0], k) || k >= tok.size())
       throw FileError(where(li) + "bad face '" + detail::cut(lines[li]) + "' (expected 'n i1 ... in')");
-    if (k < 3) throw FileError(where(li) + "a face has " + std::to_string(k) + " vertices; a face needs at least 3: '" + detail::cut(lines[li]) + "'");
+    if (k < 3)
+      throw FileError(where(li) + "a face has " + std::to_string(k) + " vertices; a face needs at least 3: '" +
+                      detail::cut(lines[li]) + "'");
     std::vector<std::uint32_t> face(k);
     for (std::size_t j = 0; j < k; ++j)
       if (!parse_int(tok[j + 1], face[j]))
@@ -407,7 +473,8 @@ void MeshDocument::Impl::load_xyz(const std::string& text) {
     Vec3 p;
     for (int k = 0; k < 3; ++k)
       if (!parse_double(tok[k], p[k]) || !std::isfinite(p[k]))
-        throw FileError(where(li) + "'" + detail::cut(tok[k]) + "' is not a finite number (line: '" + detail::cut(b) + "')");
+        throw FileError(where(li) + "'" + detail::cut(tok[k]) + "' is not a finite number (line: '" + detail::cut(b) +
+                        "')");
     positions.push_back(p);
     position_slots.push_back({Slot{li, 0}, Slot{li, 1}, Slot{li, 2}});
   }
@@ -430,14 +497,21 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
     if (tok.empty() || tok[0] == "comment" || tok[0] == "obj_info" || tok[0] == "end_header") continue;
     if (tok[0] == "format") {
       if (tok.size() < 2) throw FileError(where(li) + "bad format line '" + hlines[li] + "'");
-      if (tok[1] == "ascii") ply_binary = false;
-      else if (tok[1] == "binary_little_endian") { ply_binary = true; ply_swap = std::endian::native != std::endian::little; }
-      else if (tok[1] == "binary_big_endian") { ply_binary = true; ply_swap = std::endian::native != std::endian::big; }
-      else throw FileError(where(li) + "unknown PLY format '" + std::string(tok[1]) + "'");
+      if (tok[1] == "ascii")
+        ply_binary = false;
+      else if (tok[1] == "binary_little_endian") {
+        ply_binary = true;
+        ply_swap = std::endian::native != std::endian::little;
+      } else if (tok[1] == "binary_big_endian") {
+        ply_binary = true;
+        ply_swap = std::endian::native != std::endian::big;
+      } else
+        throw FileError(where(li) + "unknown PLY format '" + std::string(tok[1]) + "'");
       format_seen = true;
     } else if (tok[0] == "element") {
       PlyElement e;
-      if (tok.size() != 3 || !parse_int(tok[2], e.count)) throw FileError(where(li) + "bad element line '" + hlines[li] + "'");
+      if (tok.size() != 3 || !parse_int(tok[2], e.count))
+        throw FileError(where(li) + "bad element line '" + hlines[li] + "'");
       e.name = std::string(tok[1]);
       elements.push_back(std::move(e));
     } else if (tok[0] == "property") {
@@ -472,7 +546,8 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
     for (std::size_t b = 0; b < a; ++b)
       if (elements[b].name == e.name) throw FileError(name + ": PLY header declares element '" + e.name + "' twice");
     if (e.props.empty() && e.count > 0)
-      throw FileError(name + ": PLY element '" + e.name + "' has " + std::to_string(e.count) + " entries but no properties");
+      throw FileError(name + ": PLY element '" + e.name + "' has " + std::to_string(e.count) +
+                      " entries but no properties");
     std::size_t least = 0;  // bytes (binary) or tokens (ASCII) of one entry at the least
     for (const auto& pr : e.props) {
       if (pr.list) {
@@ -495,8 +570,7 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
   const PlyElement* vertex = nullptr;
   for (const auto& e : elements) {
     if (e.name == "vertex") vertex = &e;
-    if (e.name == "face" && e.count > 0 &&
-        std::none_of(e.props.begin(), e.props.end(), [](const PlyProperty& p) {
+    if (e.name == "face" && e.count > 0 && std::none_of(e.props.begin(), e.props.end(), [](const PlyProperty& p) {
           return p.list && (p.name == "vertex_indices" || p.name == "vertex_index");
         }))
       throw FileError(name + ": PLY element 'face' has no list property 'vertex_indices' (or 'vertex_index')");
@@ -542,7 +616,8 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
             const double c = ply_read(&ply_body[off], pr.count_type, ply_swap);
             off += ply_size(pr.count_type);
             if (c < 0) throw FileError(name + ": negative list length in " + what);
-            if (c > double((size - off) / ply_size(pr.type))) throw FileError(name + ": PLY body ends early, in " + what);
+            if (c > double((size - off) / ply_size(pr.type)))
+              throw FileError(name + ": PLY body ends early, in " + what);
             const bool face_list = e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
             if (face_list && c < 3)
               throw FileError(name + ": face " + std::to_string(i) + " has " + std::to_string(std::size_t(c)) +
@@ -551,7 +626,9 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
             for (std::size_t j = 0; j < std::size_t(c); ++j) {
               if (is_face) {
                 const double v = ply_read(&ply_body[off], pr.type, ply_swap);
-                if (v < 0 || v > 4294967295.0) throw FileError(name + ": vertex index " + std::to_string(std::int64_t(v)) + " out of range in " + what);
+                if (v < 0 || v > 4294967295.0)
+                  throw FileError(name + ": vertex index " + std::to_string(std::int64_t(v)) + " out of range in " +
+                                  what);
                 face.push_back(std::uint32_t(v));
               }
               off += ply_size(pr.type);
@@ -560,9 +637,11 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
         }
         if (&e == vertex) {
           Vec3 p, n = Vec3::Zero();
-          for (int k = 0; k < 3; ++k) p[k] = ply_read(&ply_body[offs[std::size_t(k)]], ply_types[std::size_t(k)], ply_swap);
+          for (int k = 0; k < 3; ++k)
+            p[k] = ply_read(&ply_body[offs[std::size_t(k)]], ply_types[std::size_t(k)], ply_swap);
           if (has_normals)
-            for (int k = 0; k < 3; ++k) n[k] = ply_read(&ply_body[offs[std::size_t(k + 3)]], ply_types[std::size_t(k + 3)], ply_swap);
+            for (int k = 0; k < 3; ++k)
+              n[k] = ply_read(&ply_body[offs[std::size_t(k + 3)]], ply_types[std::size_t(k + 3)], ply_swap);
           if (!p.allFinite()) throw FileError(name + ": vertex " + std::to_string(i) + " is not finite");
           positions.push_back(p);
           normals.push_back(n);
@@ -606,7 +685,8 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
             if (&e == vertex)
               for (int k = 0; k < 6; ++k)
                 if (idx[k] == int(pi)) {
-                  if (!std::isfinite(v)) throw FileError(body_where(s) + "'" + detail::cut(t) + "' is not a finite number");
+                  if (!std::isfinite(v))
+                    throw FileError(body_where(s) + "'" + detail::cut(t) + "' is not a finite number");
                   slots[std::size_t(k)] = s;
                   (k < 3 ? p[k] : n[k - 3]) = v;
                 }
@@ -615,7 +695,8 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
             std::size_t c = 0;
             if (!parse_int(t, c)) throw FileError(body_where(s) + "bad list length '" + detail::cut(t) + "'");
             const bool is_face = e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
-            if (c > body_bytes / 2) throw FileError(body_where(s) + "list length " + detail::cut(t) + " is longer than the file");
+            if (c > body_bytes / 2)
+              throw FileError(body_where(s) + "list length " + detail::cut(t) + " is longer than the file");
             if (is_face && c < 3)
               throw FileError(body_where(s) + "a face has " + detail::cut(t) + " vertices; a face needs at least 3");
             for (std::size_t j = 0; j < c; ++j) {
@@ -641,8 +722,8 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
     for (; li < lines.size(); ++li, tk = 0) {
       if (tk == 0) tok = split(lines[li]);
       if (tk < tok.size())
-        throw FileError(name + ":" + std::to_string(header_lines + li + 1) + ": trailing data after the last PLY element: '" +
-                        detail::cut(lines[li]) + "'");
+        throw FileError(name + ":" + std::to_string(header_lines + li + 1) +
+                        ": trailing data after the last PLY element: '" + detail::cut(lines[li]) + "'");
     }
   }
   check_faces();
@@ -666,21 +747,23 @@ void check_gltf(const fs::path& path, MeshFormat format, double max_bytes) {
     std::memcpy(&version, data.data() + 4, 4);
     std::memcpy(&total, data.data() + 8, 4);
     std::memcpy(&n, data.data() + 12, 4);
-    if (version != 2) throw FileError(name + ": binary glTF version " + std::to_string(version) + "; csrbf reads version 2");
+    if (version != 2)
+      throw FileError(name + ": binary glTF version " + std::to_string(version) + "; csrbf reads version 2");
     if (total != data.size())
-      throw FileError(name + ": the binary glTF header gives a length of " + std::to_string(total) + " bytes, the file has " +
-                      std::to_string(data.size()));
+      throw FileError(name + ": the binary glTF header gives a length of " + std::to_string(total) +
+                      " bytes, the file has " + std::to_string(data.size()));
     if (n > data.size() - 20 || data.compare(16, 4, "JSON") != 0)
       throw FileError(name + ": the binary glTF's first chunk is not a JSON chunk of " + std::to_string(n) +
                       " bytes within the file");
     json_text = data.substr(20, n);
     for (std::size_t off = 20 + std::size_t(n); off < data.size();) {
       std::uint32_t len = 0;
-      if (data.size() - off < 8) throw FileError(name + ": a binary glTF chunk header is cut at byte " + std::to_string(off));
+      if (data.size() - off < 8)
+        throw FileError(name + ": a binary glTF chunk header is cut at byte " + std::to_string(off));
       std::memcpy(&len, data.data() + off, 4);
       if (len > data.size() - off - 8)
-        throw FileError(name + ": the binary glTF chunk at byte " + std::to_string(off) + " claims " + std::to_string(len) +
-                        " bytes, beyond the end of the file");
+        throw FileError(name + ": the binary glTF chunk at byte " + std::to_string(off) + " claims " +
+                        std::to_string(len) + " bytes, beyond the end of the file");
       off += 8 + std::size_t(len);
     }
   }
@@ -736,7 +819,8 @@ void check_gltf(const fs::path& path, MeshFormat format, double max_bytes) {
     for (std::size_t p = 0; p < prims.size(); ++p) {
       const auto& pr = prims[p];
       const std::string pw = mw + ".primitives[" + std::to_string(p) + "]";
-      if (!pr.is_object() || !pr.contains("attributes") || !pr["attributes"].is_object() || !pr["attributes"].contains("POSITION"))
+      if (!pr.is_object() || !pr.contains("attributes") || !pr["attributes"].is_object() ||
+          !pr["attributes"].contains("POSITION"))
         throw FileError(name + ": glTF " + pw + " has no attributes.POSITION");
       const double vertices = accessor_count(pr["attributes"]["POSITION"], pw + ".attributes.POSITION");
       const double elements = pr.contains("indices") ? accessor_count(pr["indices"], pw + ".indices") : vertices;
@@ -769,13 +853,15 @@ void MeshDocument::Impl::load_assimp(double max_bytes) {
   // cleaning steps can drop or merge it.
   const aiScene* raw = importer->ReadFile(path.string(), aiProcess_ValidateDataStructure);
   if (!raw)
-    throw FileError(path.string() + ": cannot read mesh: " + (io->error().empty() ? std::string(importer->GetErrorString()) : io->error()));
+    throw FileError(path.string() + ": cannot read mesh: " +
+                    (io->error().empty() ? std::string(importer->GetErrorString()) : io->error()));
   for (unsigned m = 0; m < raw->mNumMeshes; ++m)
     for (unsigned v = 0; v < raw->mMeshes[m]->mNumVertices; ++v) {
       const aiVector3D& p = raw->mMeshes[m]->mVertices[v];
       if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
-        throw FileError(path.string() + ": mesh " + std::to_string(m) + " vertex " + std::to_string(v) + " is not finite (" +
-                        format_number(p.x) + " " + format_number(p.y) + " " + format_number(p.z) + ")");
+        throw FileError(path.string() + ": mesh " + std::to_string(m) + " vertex " + std::to_string(v) +
+                        " is not finite (" + format_number(p.x) + " " + format_number(p.y) + " " + format_number(p.z) +
+                        ")");
     }
   const aiScene* scene = importer->ApplyPostProcessing(flags & ~unsigned(aiProcess_ValidateDataStructure));
   if (!scene) throw FileError(path.string() + ": cannot read mesh: " + importer->GetErrorString());
@@ -788,7 +874,8 @@ void MeshDocument::Impl::load_assimp(double max_bytes) {
       // assimp passes NaN through, and a node's scale of 1e39 overflows single precision.
       if (!p.allFinite())
         throw FileError(path.string() + ": mesh " + std::to_string(m) + " vertex " + std::to_string(v) +
-                        " is not finite (" + format_number(p.x()) + " " + format_number(p.y()) + " " + format_number(p.z()) + ")");
+                        " is not finite (" + format_number(p.x()) + " " + format_number(p.y()) + " " +
+                        format_number(p.z()) + ")");
       positions.push_back(p);
     }
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
@@ -865,7 +952,8 @@ void MeshDocument::Impl::save_same(const fs::path& out) const {
         continue;
       }
       // The first line's byte order mark is not a token: its numbers were counted without it.
-      const std::string_view line = li == 0 && format != MeshFormat::Ply ? detail::skip_bom(lines[li]) : std::string_view(lines[li]);
+      const std::string_view line =
+          li == 0 && format != MeshFormat::Ply ? detail::skip_bom(lines[li]) : std::string_view(lines[li]);
       os << lines[li].substr(0, lines[li].size() - line.size()) << rewrite_line(std::string(line), repl[li]) << '\n';
     }
   });
@@ -880,14 +968,15 @@ std::unique_ptr<aiScene> make_scene(const std::vector<Vec3>& p, const std::vecto
   scene->mRootNode->mNumMeshes = 1;
   scene->mRootNode->mMeshes = new unsigned[1]{0};
   scene->mNumMaterials = 1;
-  scene->mMaterials = new aiMaterial*[1]{new aiMaterial()};
+  scene->mMaterials = new aiMaterial* [1] { new aiMaterial() };
   auto* mesh = new aiMesh();
   scene->mNumMeshes = 1;
-  scene->mMeshes = new aiMesh*[1]{mesh};
+  scene->mMeshes = new aiMesh* [1] { mesh };
   mesh->mMaterialIndex = 0;
   mesh->mNumVertices = unsigned(p.size());
   mesh->mVertices = new aiVector3D[p.size()];
-  for (std::size_t i = 0; i < p.size(); ++i) mesh->mVertices[i] = aiVector3D(ai_real(p[i].x()), ai_real(p[i].y()), ai_real(p[i].z()));
+  for (std::size_t i = 0; i < p.size(); ++i)
+    mesh->mVertices[i] = aiVector3D(ai_real(p[i].x()), ai_real(p[i].y()), ai_real(p[i].z()));
   std::vector<std::vector<std::uint32_t>> polys;
   for (const auto& f : faces) {
     if (triangulate && f.size() > 3)
@@ -910,10 +999,14 @@ std::unique_ptr<aiScene> make_scene(const std::vector<Vec3>& p, const std::vecto
 
 const char* assimp_export_id(MeshFormat f) {
   switch (f) {
-    case MeshFormat::Stl: return "stlb";
-    case MeshFormat::Gltf: return "gltf2";
-    case MeshFormat::Glb: return "glb2";
-    default: return nullptr;
+    case MeshFormat::Stl:
+      return "stlb";
+    case MeshFormat::Gltf:
+      return "gltf2";
+    case MeshFormat::Glb:
+      return "glb2";
+    default:
+      return nullptr;
   }
 }
 
@@ -970,7 +1063,8 @@ class CheckedIOSystem : public Assimp::IOSystem {
   void Close(Assimp::IOStream* s) override { delete s; }
 
   void fail(const std::string& name, int err) {
-    if (error_.empty()) error_ = "writing '" + name + "' failed: " + std::strerror(err ? err : EIO) + " (disk full or file size limit?)";
+    if (error_.empty())
+      error_ = "writing '" + name + "' failed: " + std::strerror(err ? err : EIO) + " (disk full or file size limit?)";
   }
   const std::string& error() const { return error_; }
 
@@ -1001,7 +1095,8 @@ void MeshDocument::Impl::save_generic(const fs::path& out, MeshFormat f) const {
     case MeshFormat::Obj:
       write_atomically(out, [&](std::ostream& os) {
         os << "# written by csrbf\n";
-        for (const auto& p : positions) os << "v " << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
+        for (const auto& p : positions)
+          os << "v " << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
         for (const auto& face : faces) {
           os << 'f';
           for (auto v : face) os << ' ' << v + 1;
@@ -1012,7 +1107,8 @@ void MeshDocument::Impl::save_generic(const fs::path& out, MeshFormat f) const {
     case MeshFormat::Off:
       write_atomically(out, [&](std::ostream& os) {
         os << "OFF\n" << positions.size() << ' ' << faces.size() << " 0\n";
-        for (const auto& p : positions) os << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
+        for (const auto& p : positions)
+          os << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
         for (const auto& face : faces) {
           os << face.size();
           for (auto v : face) os << ' ' << v;
@@ -1025,7 +1121,8 @@ void MeshDocument::Impl::save_generic(const fs::path& out, MeshFormat f) const {
         os << "ply\nformat ascii 1.0\ncomment written by csrbf\nelement vertex " << positions.size()
            << "\nproperty double x\nproperty double y\nproperty double z\nelement face " << faces.size()
            << "\nproperty list uchar int vertex_indices\nend_header\n";
-        for (const auto& p : positions) os << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
+        for (const auto& p : positions)
+          os << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
         for (const auto& face : faces) {
           os << face.size();
           for (auto v : face) os << ' ' << v;
@@ -1035,18 +1132,22 @@ void MeshDocument::Impl::save_generic(const fs::path& out, MeshFormat f) const {
       return;
     case MeshFormat::Xyz:
       write_atomically(out, [&](std::ostream& os) {
-        for (const auto& p : positions) os << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
+        for (const auto& p : positions)
+          os << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
       });
       return;
     case MeshFormat::Stl:
     case MeshFormat::Gltf:
     case MeshFormat::Glb: {
-      if (faces.empty()) throw FileError("cannot write '" + out.string() + "': " + format_name(f) + " needs faces and the mesh has none");
+      if (faces.empty())
+        throw FileError("cannot write '" + out.string() + "': " + format_name(f) +
+                        " needs faces and the mesh has none");
       const auto scene = make_scene(positions, faces, f == MeshFormat::Stl);
       export_scene(scene.get(), out, f);
       return;
     }
-    case MeshFormat::Assimp: break;
+    case MeshFormat::Assimp:
+      break;
   }
   throw FileError("cannot write '" + out.string() + "': unknown output format '" + out.extension().string() +
                   "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
@@ -1061,10 +1162,18 @@ MeshDocument MeshDocument::load(const fs::path& path, double memory_limit_bytes)
   const double max_file = memory_limit_bytes / 12;
   try {
     switch (impl->format) {
-      case MeshFormat::Obj: impl->load_obj(read_input(path, "a mesh", max_file)); break;
-      case MeshFormat::Off: impl->load_off(read_input(path, "a mesh", max_file)); break;
-      case MeshFormat::Xyz: impl->load_xyz(read_input(path, "a mesh", max_file)); break;
-      case MeshFormat::Ply: impl->load_ply(read_input(path, "a mesh", max_file)); break;
+      case MeshFormat::Obj:
+        impl->load_obj(read_input(path, "a mesh", max_file));
+        break;
+      case MeshFormat::Off:
+        impl->load_off(read_input(path, "a mesh", max_file));
+        break;
+      case MeshFormat::Xyz:
+        impl->load_xyz(read_input(path, "a mesh", max_file));
+        break;
+      case MeshFormat::Ply:
+        impl->load_ply(read_input(path, "a mesh", max_file));
+        break;
       case MeshFormat::Assimp:
         check_readable(path, "a mesh");
         // assimp reads dozens of other formats, some of whose readers crash or loop on bad files:
@@ -1074,10 +1183,13 @@ MeshDocument MeshDocument::load(const fs::path& path, double memory_limit_bytes)
       default: {
         check_readable(path, "a mesh");
         std::error_code ec;
-        if (!fs::is_regular_file(path, ec)) throw FileError(path.string() + ": " + format_name(impl->format) + " meshes are read from regular files only, not pipes");
+        if (!fs::is_regular_file(path, ec))
+          throw FileError(path.string() + ": " + format_name(impl->format) +
+                          " meshes are read from regular files only, not pipes");
         const auto size = fs::file_size(path, ec);
         if (!ec && double(size) > max_file)
-          throw FileError(path.string() + ": " + std::to_string(size) + " bytes is more than the memory limit allows (--memory-limit)");
+          throw FileError(path.string() + ": " + std::to_string(size) +
+                          " bytes is more than the memory limit allows (--memory-limit)");
         impl->load_assimp(max_file);
       }
     }
@@ -1119,11 +1231,12 @@ void MeshDocument::save(const fs::path& path) const {
   for (std::size_t i = 0; i < impl_->positions.size(); ++i) {
     const Vec3& p = impl_->positions[i];
     if (!(p.cwiseAbs().maxCoeff() <= limit))
-      throw FileError("cannot write '" + path.string() + "': vertex " + std::to_string(i) + " (" + format_number(p.x()) +
-                      " " + format_number(p.y()) + " " + format_number(p.z()) + ") is " +
+      throw FileError("cannot write '" + path.string() + "': vertex " + std::to_string(i) + " (" +
+                      format_number(p.x()) + " " + format_number(p.y()) + " " + format_number(p.z()) + ") is " +
                       (p.allFinite() ? std::string("beyond the single precision the format stores") : "not finite"));
   }
-  const bool text_same = out == in && (in == MeshFormat::Obj || in == MeshFormat::Ply || in == MeshFormat::Off || in == MeshFormat::Xyz);
+  const bool text_same =
+      out == in && (in == MeshFormat::Obj || in == MeshFormat::Ply || in == MeshFormat::Off || in == MeshFormat::Xyz);
   if (text_same) return impl_->save_same(path);
   // STL keeps nothing but triangles, so it is always written from positions and faces (assimp's STL
   // exporter also refuses some of its importer's scenes without a reason).
@@ -1137,7 +1250,9 @@ void MeshDocument::save(const fs::path& path) const {
       for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
         const Vec3& p = impl_->positions[base + v];
         mesh->mVertices[v] = aiVector3D(ai_real(p.x()), ai_real(p.y()), ai_real(p.z()));
-        if (mesh->mNormals) mesh->mNormals[v] = aiVector3D(ai_real(vn[base + v].x()), ai_real(vn[base + v].y()), ai_real(vn[base + v].z()));
+        if (mesh->mNormals)
+          mesh->mNormals[v] =
+              aiVector3D(ai_real(vn[base + v].x()), ai_real(vn[base + v].y()), ai_real(vn[base + v].z()));
       }
       base += mesh->mNumVertices;
     }

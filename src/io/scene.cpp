@@ -92,10 +92,14 @@ void read_material(const JsonNode& n, const fs::path& base, anim::Material& m) {
   if (n.has("texture_mapping")) {
     const JsonNode t = n["texture_mapping"];
     const std::string s = t.string();
-    if (s == "sphere") m.mapping = anim::TextureMapping::Sphere;
-    else if (s == "plane") m.mapping = anim::TextureMapping::Plane;
-    else if (s == "cylinder") m.mapping = anim::TextureMapping::Cylinder;
-    else t.expected("one of \"sphere\", \"plane\", \"cylinder\"");
+    if (s == "sphere")
+      m.mapping = anim::TextureMapping::Sphere;
+    else if (s == "plane")
+      m.mapping = anim::TextureMapping::Plane;
+    else if (s == "cylinder")
+      m.mapping = anim::TextureMapping::Cylinder;
+    else
+      t.expected("one of \"sphere\", \"plane\", \"cylinder\"");
   }
 }
 
@@ -104,9 +108,12 @@ anim::PositionTrack read_trajectory(const JsonNode& n) {
   anim::TrackEnds ends = anim::TrackEnds::Natural;
   if (n.has("ends")) {
     const std::string s = n["ends"].string();
-    if (s == "natural") ends = anim::TrackEnds::Natural;
-    else if (s == "still") ends = anim::TrackEnds::Still;
-    else n["ends"].expected("\"natural\" or \"still\"");
+    if (s == "natural")
+      ends = anim::TrackEnds::Natural;
+    else if (s == "still")
+      ends = anim::TrackEnds::Still;
+    else
+      n["ends"].expected("\"natural\" or \"still\"");
   }
   const JsonNode keys = n["keys"];
   if (keys.size() == 0) keys.fail("at least one key is needed");
@@ -130,9 +137,12 @@ anim::OrientationTrack read_orientation(const JsonNode& n) {
   anim::Rotation mode = anim::Rotation::Squad;
   if (n.has("interpolation")) {
     const std::string s = n["interpolation"].string();
-    if (s == "squad") mode = anim::Rotation::Squad;
-    else if (s == "slerp") mode = anim::Rotation::Slerp;
-    else n["interpolation"].expected("\"squad\" or \"slerp\"");
+    if (s == "squad")
+      mode = anim::Rotation::Squad;
+    else if (s == "slerp")
+      mode = anim::Rotation::Slerp;
+    else
+      n["interpolation"].expected("\"squad\" or \"slerp\"");
   }
   const JsonNode keys = n["keys"];
   if (keys.size() == 0) keys.fail("at least one key is needed");
@@ -173,9 +183,12 @@ anim::PhaseTrack read_phase(const JsonNode& n) {
   anim::PhaseEasing easing = anim::PhaseEasing::Smooth;
   if (n.has("easing")) {
     const std::string s = n["easing"].string();
-    if (s == "smooth") easing = anim::PhaseEasing::Smooth;
-    else if (s == "linear") easing = anim::PhaseEasing::Linear;
-    else n["easing"].expected("\"smooth\" or \"linear\"");
+    if (s == "smooth")
+      easing = anim::PhaseEasing::Smooth;
+    else if (s == "linear")
+      easing = anim::PhaseEasing::Linear;
+    else
+      n["easing"].expected("\"smooth\" or \"linear\"");
   }
   const JsonNode keys = n["keys"];
   if (keys.size() == 0) keys.fail("at least one key is needed");
@@ -206,8 +219,9 @@ anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base
   const int sources = int(n.has("deformation")) + int(n.has("controls") || n.has("sources") || n.has("destinations")) +
                       int(n.has("contact"));
   if (sources != 1)
-    n.fail("give exactly one of \"deformation\" (a deformation JSON file), \"controls\" (a controls file), "
-           "\"sources\" with \"destinations\", or \"contact\"");
+    n.fail(
+        "give exactly one of \"deformation\" (a deformation JSON file), \"controls\" (a controls file), "
+        "\"sources\" with \"destinations\", or \"contact\"");
   if (n.has("contact")) {
     const JsonNode c = n["contact"];
     c.only({"collider", "collider_radius", "spread"});
@@ -274,8 +288,8 @@ void read_part_selection(const JsonNode& n, const MeshDocument& mesh, anim::Part
     if (it == table.end()) {
       std::string list;
       for (const auto& [k, v] : table) list += (list.empty() ? "" : ", ") + k;
-      g.fail("the mesh has no " + std::string(group ? "group" : "material") + " '" + name + "' (it has: " +
-             (list.empty() ? std::string("none") : list) + ")");
+      g.fail("the mesh has no " + std::string(group ? "group" : "material") + " '" + name +
+             "' (it has: " + (list.empty() ? std::string("none") : list) + ")");
     }
     part.faces = it->second;
     for (const auto f : part.faces)
@@ -286,7 +300,8 @@ void read_part_selection(const JsonNode& n, const MeshDocument& mesh, anim::Part
       if (list.size() == 0) list.fail("at least one vertex is needed");
       for (std::size_t i = 0; i < list.size(); ++i) {
         const std::size_t v = list[i].index();
-        if (v >= nv) list[i].fail("vertex " + std::to_string(v) + " is out of range (the mesh has " + std::to_string(nv) + ")");
+        if (v >= nv)
+          list[i].fail("vertex " + std::to_string(v) + " is out of range (the mesh has " + std::to_string(nv) + ")");
         in[v] = 1;
       }
     } else {
@@ -335,8 +350,10 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
       l.only({"position", "color", "intensity", "headlight"});
       anim::Light light;
       if (l.has("headlight")) light.headlight = l["headlight"].boolean();
-      if (l.has("position")) light.position = l["position"].vec3();
-      else if (!light.headlight) l.fail("a light needs \"position\" (or \"headlight\": true)");
+      if (l.has("position"))
+        light.position = l["position"].vec3();
+      else if (!light.headlight)
+        l.fail("a light needs \"position\" (or \"headlight\": true)");
       if (l.has("color")) light.color = l["color"].color();
       if (l.has("intensity")) light.intensity = l["intensity"].number(0.0, 100.0);
       scene.lights.push_back(light);
@@ -345,7 +362,8 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
 
   const JsonNode objects = root["objects"];
   if (objects.size() == 0) objects.fail("at least one object is needed");
-  if (objects.size() > kMaxObjects) objects.fail("at most " + std::to_string(kMaxObjects) + " objects, got " + std::to_string(objects.size()));
+  if (objects.size() > kMaxObjects)
+    objects.fail("at most " + std::to_string(kMaxObjects) + " objects, got " + std::to_string(objects.size()));
   std::vector<PendingContact> contacts;
   std::map<std::string, std::size_t> names;
   for (std::size_t o = 0; o < objects.size(); ++o) {
@@ -371,11 +389,12 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
     if (on.has("orientation")) obj.orientation = read_orientation(on["orientation"]);
     if (on.has("parts")) {
       const JsonNode ps = on["parts"];
-      if (ps.size() > kMaxParts) ps.fail("at most " + std::to_string(kMaxParts) + " parts, got " + std::to_string(ps.size()));
+      if (ps.size() > kMaxParts)
+        ps.fail("at most " + std::to_string(kMaxParts) + " parts, got " + std::to_string(ps.size()));
       for (std::size_t p = 0; p < ps.size(); ++p) {
         const JsonNode pn = ps[p];
-        pn.only({"name", "vertices", "group", "material", "color", "opacity", "specular", "texture",
-                 "texture_mapping", "combine", "deformations"});
+        pn.only({"name", "vertices", "group", "material", "color", "opacity", "specular", "texture", "texture_mapping",
+                 "combine", "deformations"});
         anim::Part part;
         part.name = pn.has("name") ? pn["name"].string() : "part " + std::to_string(p);
         part.material = obj.material;
@@ -383,14 +402,18 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
         read_part_selection(pn, *mesh, part);
         if (pn.has("combine")) {
           const std::string s = pn["combine"].string();
-          if (s == "compose") part.combine = anim::Combine::Compose;
-          else if (s == "sum") part.combine = anim::Combine::Sum;
-          else pn["combine"].expected("\"compose\" or \"sum\"");
+          if (s == "compose")
+            part.combine = anim::Combine::Compose;
+          else if (s == "sum")
+            part.combine = anim::Combine::Sum;
+          else
+            pn["combine"].expected("\"compose\" or \"sum\"");
         }
         if (pn.has("deformations")) {
           const JsonNode ds = pn["deformations"];
           if (ds.size() > kMaxDeformations)
-            ds.fail("at most " + std::to_string(kMaxDeformations) + " deformations a part, got " + std::to_string(ds.size()));
+            ds.fail("at most " + std::to_string(kMaxDeformations) + " deformations a part, got " +
+                    std::to_string(ds.size()));
           for (std::size_t d = 0; d < ds.size(); ++d)
             part.deformations.push_back(read_deformation_entry(ds[d], base, contacts, o, p, d, mesh->positions()));
         }

@@ -30,9 +30,7 @@ inline std::vector<std::string_view> split(std::string_view s) {
 }
 
 /// A UTF-8 byte order mark at the start of a file is not part of its first line's text.
-inline std::string_view skip_bom(std::string_view s) {
-  return s.substr(0, 3) == "\xEF\xBB\xBF" ? s.substr(3) : s;
-}
+inline std::string_view skip_bom(std::string_view s) { return s.substr(0, 3) == "\xEF\xBB\xBF" ? s.substr(3) : s; }
 
 /// Text quoted in a message: at most 120 bytes, so that a huge line is not echoed whole.
 /// Control bytes (a NUL would end the message early) are shown as \xNN.

@@ -33,15 +33,17 @@ void check_frame_folder(const fs::path& out) {
   if (st.type() == fs::file_type::symlink)
     throw RenderError(out.string() + ": is a symbolic link; give the folder of PNG frames itself");
   if (st.type() != fs::file_type::directory)
-    throw RenderError(out.string() + ": exists and is not a folder; a folder of PNG frames must be new, empty, or "
+    throw RenderError(out.string() +
+                      ": exists and is not a folder; a folder of PNG frames must be new, empty, or "
                       "hold only frames csrbf wrote (frame_NNNNN.png). Give a new name, or .mp4 / .avi for a movie");
   for (fs::directory_iterator it(out, ec), end; !ec && it != end; it.increment(ec)) {
     const std::string name = it->path().filename().string();
     std::error_code e2;
     if (!io::is_frame_name(name) || !it->is_regular_file(e2))
-      throw RenderError(out.string() + ": the folder holds '" + name +
-                        "', which csrbf did not write; frames go only into a new or empty folder, or one that holds "
-                        "only frame_NNNNN.png files (an earlier run's frames, which are replaced); nothing was changed");
+      throw RenderError(
+          out.string() + ": the folder holds '" + name +
+          "', which csrbf did not write; frames go only into a new or empty folder, or one that holds "
+          "only frame_NNNNN.png files (an earlier run's frames, which are replaced); nothing was changed");
   }
   if (ec) throw RenderError(out.string() + ": cannot list the folder: " + ec.message());
 }
@@ -77,7 +79,8 @@ void check_movie_output(const fs::path& out_in) {
   if (f == MovieFormat::PngFolder) {
     const fs::path dir = out.has_parent_path() ? out.parent_path() : fs::path(".");
     std::error_code ec;
-    if (!fs::is_directory(dir, ec)) throw RenderError(out.string() + ": the folder '" + dir.string() + "' does not exist");
+    if (!fs::is_directory(dir, ec))
+      throw RenderError(out.string() + ": the folder '" + dir.string() + "' does not exist");
     check_frame_folder(out);
     return;
   }
@@ -103,10 +106,11 @@ MovieWriter::MovieWriter(const fs::path& out_in, int width, int height, double f
   check_movie_output(out_);
   std::ostringstream rate;
   rate << fps;
-  std::vector<std::string> argv{"ffmpeg", "-nostdin", "-hide_banner", "-loglevel", "error", "-y",
-                                "-f", "rawvideo", "-pix_fmt", "rgb24",
-                                "-s", std::to_string(width) + "x" + std::to_string(height),
-                                "-framerate", rate.str(), "-i", "pipe:0"};
+  std::vector<std::string> argv{
+      "ffmpeg",     "-nostdin", "-hide_banner", "-loglevel",
+      "error",      "-y",       "-f",           "rawvideo",
+      "-pix_fmt",   "rgb24",    "-s",           std::to_string(width) + "x" + std::to_string(height),
+      "-framerate", rate.str(), "-i",           "pipe:0"};
   try {
     switch (format_) {
       case MovieFormat::Mp4:
@@ -155,7 +159,8 @@ bool MovieWriter::write(const std::uint8_t* rgb) {
       return false;
     }
     if (ffmpeg_->stalled())
-      fail("ffmpeg stopped reading frames for " + std::to_string(stall) + " s after " + std::to_string(frames_) + " frames");
+      fail("ffmpeg stopped reading frames for " + std::to_string(stall) + " s after " + std::to_string(frames_) +
+           " frames");
     ffmpeg_->finish();
     const std::string err = ffmpeg_->error_output();
     fail("ffmpeg stopped after " + std::to_string(frames_) + " frames" + (err.empty() ? std::string() : ": " + err));
@@ -171,13 +176,14 @@ std::size_t MovieWriter::count_frames(const fs::path& movie) const {
   const int st = probe.finish();
   if (st != 0) {
     const std::string err = probe.error_output();
-    throw RenderError(out_.string() + ": ffprobe cannot read the movie ffmpeg wrote (exit status " + std::to_string(st) +
-                      ")" + (err.empty() ? std::string() : ": " + err));
+    throw RenderError(out_.string() + ": ffprobe cannot read the movie ffmpeg wrote (exit status " +
+                      std::to_string(st) + ")" + (err.empty() ? std::string() : ": " + err));
   }
   const std::string text = probe.output();
   std::size_t n = 0;
   const auto r = std::from_chars(text.data(), text.data() + text.size(), n);
-  if (r.ec != std::errc()) throw RenderError(out_.string() + ": ffprobe gave no frame count ('" + text.substr(0, 80) + "')");
+  if (r.ec != std::errc())
+    throw RenderError(out_.string() + ": ffprobe gave no frame count ('" + text.substr(0, 80) + "')");
   return n;
 }
 

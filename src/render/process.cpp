@@ -89,7 +89,7 @@ Child::Child(const std::vector<std::string>& argv, bool stdin_pipe, int extra_fd
   pid_ = ::fork();
   if (pid_ == 0) {
     // The child: async-signal-safe calls only, then exec.
-    ::setpgid(0, 0);  // own process group: a terminal's Ctrl-C reaches csrbf, which stops its children
+    ::setpgid(0, 0);                   // own process group: a terminal's Ctrl-C reaches csrbf, which stops its children
     ::prctl(PR_SET_PDEATHSIG, death);  // dies with csrbf, even after kill -9 of csrbf
     if (::getppid() != parent) ::_exit(127);
     struct sigaction dfl {};
@@ -289,8 +289,10 @@ Display::Display(bool force_private) {
 Display::~Display() {
   if (!xvfb_) return;
   xvfb_->kill();
-  if (had_previous_) setenv("DISPLAY", previous_.c_str(), 1);
-  else unsetenv("DISPLAY");
+  if (had_previous_)
+    setenv("DISPLAY", previous_.c_str(), 1);
+  else
+    unsetenv("DISPLAY");
 }
 
 }  // namespace csrbf::render

@@ -50,9 +50,15 @@ vtkSmartPointer<vtkCellArray> cells_of(const anim::Object& obj, const std::vecto
 vtkSmartPointer<vtkDataArray> texture_coordinates(vtkPolyData* rest, anim::TextureMapping mapping) {
   vtkSmartPointer<vtkDataSetAlgorithm> map;
   switch (mapping) {
-    case anim::TextureMapping::Sphere: map = vtkSmartPointer<vtkTextureMapToSphere>::New(); break;
-    case anim::TextureMapping::Plane: map = vtkSmartPointer<vtkTextureMapToPlane>::New(); break;
-    case anim::TextureMapping::Cylinder: map = vtkSmartPointer<vtkTextureMapToCylinder>::New(); break;
+    case anim::TextureMapping::Sphere:
+      map = vtkSmartPointer<vtkTextureMapToSphere>::New();
+      break;
+    case anim::TextureMapping::Plane:
+      map = vtkSmartPointer<vtkTextureMapToPlane>::New();
+      break;
+    case anim::TextureMapping::Cylinder:
+      map = vtkSmartPointer<vtkTextureMapToCylinder>::New();
+      break;
   }
   map->SetInputData(rest);
   map->Update();

@@ -73,8 +73,9 @@ void vtkCSRBFTransform::InternalUpdate() {
     bool known = false;
     for (const auto& e : csrbf::NameTable<csrbf::Kernel>::entries)
       if (csrbf::kernel_smoothness(e.value) == this->Kernel) o.kernel = e.value, known = true;
-    if (!known) throw csrbf::InvalidInput("Kernel must be KERNEL_C0, _C2, _C4 or _C6 (" + csrbf::names_text<csrbf::Kernel>() +
-                                          "), got " + std::to_string(this->Kernel));
+    if (!known)
+      throw csrbf::InvalidInput("Kernel must be KERNEL_C0, _C2, _C4 or _C6 (" + csrbf::names_text<csrbf::Kernel>() +
+                                "), got " + std::to_string(this->Kernel));
     const auto& polynomials = csrbf::NameTable<csrbf::Polynomial>::entries;
     if (this->Polynomial < 0 || std::size_t(this->Polynomial) >= polynomials.size())
       throw csrbf::InvalidInput("Polynomial must be POLYNOMIAL_NONE, _CONSTANT or _LINEAR (" +

@@ -20,7 +20,8 @@ std::vector<Vec3> box_points(int n) {
   for (int z = 0; z <= n; ++z)
     for (int y = 0; y <= n; ++y)
       for (int x = 0; x <= n; ++x)
-        if (x == 0 || y == 0 || z == 0 || x == n || y == n || z == n) v.emplace_back(double(x) / n, double(y) / n, double(z) / n);
+        if (x == 0 || y == 0 || z == 0 || x == n || y == n || z == n)
+          v.emplace_back(double(x) / n, double(y) / n, double(z) / n);
   return v;
 }
 
@@ -81,9 +82,12 @@ TEST(Scene, ObjectFollowsItsTrajectoryAndTurnsAboutItsCentre) {
 TEST(Scene, ComposeAppliesDeformationsInOrderWithTheirPhases) {
   Scene scene;
   Object o = cloud_object(box_points(6));
-  const SpaceMap a = bump(Vec3(0.5, 0.5, 1.0), Vec3(0, 0, 0.2), 0.5), b = bump(Vec3(0.5, 0.5, 1.1), Vec3(0.1, 0, 0), 0.3);
-  o.parts[0].deformations.push_back({"a", a, std::nullopt, {}, PhaseTrack({{0.0, 0.0}, {1.0, 1.0}}, PhaseEasing::Linear), {}});
-  o.parts[0].deformations.push_back({"b", b, std::nullopt, {}, PhaseTrack({{0.0, 1.0}, {1.0, 0.5}}, PhaseEasing::Linear), {}});
+  const SpaceMap a = bump(Vec3(0.5, 0.5, 1.0), Vec3(0, 0, 0.2), 0.5),
+                 b = bump(Vec3(0.5, 0.5, 1.1), Vec3(0.1, 0, 0), 0.3);
+  o.parts[0].deformations.push_back(
+      {"a", a, std::nullopt, {}, PhaseTrack({{0.0, 0.0}, {1.0, 1.0}}, PhaseEasing::Linear), {}});
+  o.parts[0].deformations.push_back(
+      {"b", b, std::nullopt, {}, PhaseTrack({{0.0, 1.0}, {1.0, 0.5}}, PhaseEasing::Linear), {}});
   o.parts[0].combine = Combine::Compose;
   scene.objects.push_back(o);
   Player player(scene);
@@ -112,7 +116,8 @@ TEST(Scene, PartsDeformOnlyTheirVertices) {
   for (std::uint32_t i = 0; i < o.rest.size(); ++i)
     if (o.rest[i].x() < 0.5) left.vertices.push_back(i);
   // Reaches every vertex: a wide support about the centre.
-  left.deformations.push_back({"up", bump(Vec3(0.5, 0.5, 0.5), Vec3(0, 0.3, 0), 3.0), std::nullopt, {}, PhaseTrack(), {}});
+  left.deformations.push_back(
+      {"up", bump(Vec3(0.5, 0.5, 0.5), Vec3(0, 0.3, 0), 3.0), std::nullopt, {}, PhaseTrack(), {}});
   o.parts = {left};
   scene.objects.push_back(o);
   Player player(scene);

@@ -113,8 +113,8 @@ TEST(PositionTrack, MatchesVtkKochanekSpline) {
   // its own, adjusts tangents for unequal spacing as we do, and offers both our end conditions:
   // constraint 2 with value 0 (natural) and 1 with value 0 (still).
   for (bool uneven : {false, true})
-    for (const auto& [t, c, b] : std::vector<std::array<double, 3>>{{0, 0, 0}, {0.5, 0, 0}, {0, 0.5, 0}, {0, 0, 0.5},
-                                                                     {-0.3, -0.4, 0.6}, {0.2, 0.7, -0.5}})
+    for (const auto& [t, c, b] : std::vector<std::array<double, 3>>{
+             {0, 0, 0}, {0.5, 0, 0}, {0, 0.5, 0}, {0, 0, 0.5}, {-0.3, -0.4, 0.6}, {0.2, 0.7, -0.5}})
       for (TrackEnds ends : {TrackEnds::Natural, TrackEnds::Still}) {
         auto keys = wavy_keys(uneven);
         for (auto& k : keys) k.tension = t, k.continuity = c, k.bias = b;

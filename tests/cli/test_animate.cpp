@@ -37,8 +37,10 @@ struct Probe {
 };
 
 Probe probe(const fs::path& movie) {
-  const Shell r = shell("ffprobe -v error -count_frames -select_streams v:0 -show_entries "
-                      "stream=codec_name,width,height,nb_read_frames -of csv=p=0 '" + movie.string() + "'");
+  const Shell r = shell(
+      "ffprobe -v error -count_frames -select_streams v:0 -show_entries "
+      "stream=codec_name,width,height,nb_read_frames -of csv=p=0 '" +
+      movie.string() + "'");
   Probe p;
   char codec[64] = {};
   if (std::sscanf(r.out.c_str(), "%63[^,],%d,%d,%d", codec, &p.width, &p.height, &p.frames) == 4) p.codec = codec;
@@ -59,7 +61,8 @@ std::vector<std::vector<unsigned char>> frames_of(const std::string& input, int 
 double covered(const std::vector<unsigned char>& f) {
   std::size_t n = 0;
   for (std::size_t i = 0; i < f.size(); i += 3)
-    n += std::abs(int(f[i]) - int(f[0])) + std::abs(int(f[i + 1]) - int(f[1])) + std::abs(int(f[i + 2]) - int(f[2])) > 30;
+    n += std::abs(int(f[i]) - int(f[0])) + std::abs(int(f[i + 1]) - int(f[1])) + std::abs(int(f[i + 2]) - int(f[2])) >
+         30;
   return double(n) / double(f.size() / 3);
 }
 
@@ -108,7 +111,8 @@ TEST(Animate, EachExampleRendersAMovieThatMoves) {
 
 TEST(Animate, FullFrameAviAndPngFolder) {
   TempDir dir;
-  const Shell avi = animate(kExamples + "ball.scene.json -o " + (dir / "ball.avi").string() + " --size 96x64 --fps 10 --from 0.5 --to 1.0");
+  const Shell avi = animate(kExamples + "ball.scene.json -o " + (dir / "ball.avi").string() +
+                            " --size 96x64 --fps 10 --from 0.5 --to 1.0");
   ASSERT_EQ(avi.code, 0) << avi.out;
   const Probe p = probe(dir / "ball.avi");
   EXPECT_EQ(p.codec, "rawvideo");
@@ -117,7 +121,8 @@ TEST(Animate, FullFrameAviAndPngFolder) {
   // Uncompressed: at least the frames' bytes.
   EXPECT_GE(fs::file_size(dir / "ball.avi"), std::uintmax_t(6 * 96 * 64 * 3));
 
-  const Shell png = animate(kExamples + "fish.scene.json -o " + (dir / "frames/").string() + " --size 96x64 --fps 5 --to 1");
+  const Shell png =
+      animate(kExamples + "fish.scene.json -o " + (dir / "frames/").string() + " --size 96x64 --fps 5 --to 1");
   ASSERT_EQ(png.code, 0) << png.out;
   ASSERT_TRUE(fs::is_directory(dir / "frames"));
   EXPECT_EQ(entries(dir / "frames"), 6u);
@@ -129,22 +134,25 @@ TEST(Animate, FullFrameAviAndPngFolder) {
   EXPECT_GT(difference(a[0], b[0]), 0.5);
   // A file csrbf did not write in the folder: refused, and nothing in it changes.
   write_text(dir / "frames" / "notes.txt", "mine");
-  const Shell refused = animate(kExamples + "fish.scene.json -o " + (dir / "frames").string() + " --size 96x64 --fps 5 --to 0.4");
+  const Shell refused =
+      animate(kExamples + "fish.scene.json -o " + (dir / "frames").string() + " --size 96x64 --fps 5 --to 0.4");
   EXPECT_EQ(refused.code, 1) << refused.out;
   EXPECT_NE(refused.out.find("notes.txt"), std::string::npos) << refused.out;
   EXPECT_EQ(entries(dir / "frames"), 7u);
   EXPECT_EQ(read_text(dir / "frames" / "notes.txt"), "mine");
   // Frames of an earlier run are replaced whole, only at the end.
   fs::remove(dir / "frames" / "notes.txt");
-  ASSERT_EQ(animate(kExamples + "fish.scene.json -o " + (dir / "frames").string() + " --size 96x64 --fps 5 --to 0.4").code, 0);
+  ASSERT_EQ(
+      animate(kExamples + "fish.scene.json -o " + (dir / "frames").string() + " --size 96x64 --fps 5 --to 0.4").code,
+      0);
   EXPECT_EQ(entries(dir / "frames"), 3u);
   EXPECT_EQ(entries(dir.path), 2u);
 }
 
 TEST(Animate, UsesAnExistingDisplay) {
   TempDir dir;
-  const Shell r = shell("xvfb-run -a " + kCli + " animate " + kExamples + "face.scene.json -o " + (dir / "f.mp4").string() +
-                      " --size 64x64 --to 0.1");
+  const Shell r = shell("xvfb-run -a " + kCli + " animate " + kExamples + "face.scene.json -o " +
+                        (dir / "f.mp4").string() + " --size 64x64 --to 0.1");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(r.out.find("private X display"), std::string::npos) << r.out;
   EXPECT_EQ(probe(dir / "f.mp4").frames, 3);
@@ -180,7 +188,8 @@ TEST(Animate, BadInputFailsAndWritesNothing) {
     EXPECT_NE(r.out.find(c.words), std::string::npos) << c.args << "\n" << r.out;
   }
   // A scene error names the JSON path, and the existing movie is untouched.
-  write_text(dir / "bad.json", R"({"duration": 1, "objects": [{"mesh": ")" + kExamples + R"(fish.obj", "parts": [{"colour": [1,0,0]}]}]})");
+  write_text(dir / "bad.json", R"({"duration": 1, "objects": [{"mesh": ")" + kExamples +
+                                   R"(fish.obj", "parts": [{"colour": [1,0,0]}]}]})");
   const Shell r = animate((dir / "bad.json").string() + " -o " + (dir / "keep.mp4").string());
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.out.find("objects[0].parts[0].colour: unknown key"), std::string::npos) << r.out;
@@ -194,7 +203,7 @@ TEST(Animate, AFullDiskLeavesNothing) {
   // A file size limit of 100 KiB (inherited by ffmpeg) stands in for a full disk: the AVI of 20
   // frames of 96x64 needs 370 KiB.
   const Shell r = shell("ulimit -f 100; env -u DISPLAY " + kCli + " animate " + kExamples + "ball.scene.json -o " +
-                      (dir / "keep.avi").string() + " --size 96x64 --to 0.8");
+                        (dir / "keep.avi").string() + " --size 96x64 --to 0.8");
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("ffmpeg"), std::string::npos) << r.out;
   EXPECT_EQ(read_text(dir / "keep.avi"), "precious");

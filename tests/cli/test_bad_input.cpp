@@ -41,8 +41,10 @@ TEST(BadInput, CommandLine) {
   for (int i = 0; i < 4096; ++i) garbage.push_back(char(rng() & 0xff));
   write_text(dir / "garbage.controls", garbage);
   write_text(dir / "garbage.obj", garbage);
-  write_text(dir / "garbage.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
-                                  "property float y\nproperty float z\nend_header\n" + garbage.substr(0, 40));
+  write_text(dir / "garbage.ply",
+             "ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\n"
+             "property float y\nproperty float z\nend_header\n" +
+                 garbage.substr(0, 40));
   write_text(dir / "garbage.stl", garbage);
   write_text(dir / "truncated.obj", "v 0 0 0\nv 1 0 0\nf 1 2 3\n");
   write_text(dir / "badnumber.obj", "v 0 0 0\nv 1 0 x\n");
@@ -91,23 +93,26 @@ TEST(BadInput, CommandLine) {
        "badnumber.obj:2", 1},
       {"no vertices", "deform --mesh {dir}/novertices.obj --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.obj",
        "no vertices", 1},
-      {"OFF without header", "deform --mesh {dir}/noheader.off --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.obj",
-       "noheader.off", 1},
+      {"OFF without header",
+       "deform --mesh {dir}/noheader.off --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.obj", "noheader.off",
+       1},
       {"mesh is a device", "deform --mesh /dev/urandom --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.obj",
        "not a regular file", 1},
       // Options.
-      {"radius 0", "deform --mesh " + fish + " --controls {dir}/ok.controls --radius 0 -o {dir}/out.obj", "--radius", 2},
-      {"radius NaN", "deform --mesh " + fish + " --controls {dir}/ok.controls --radius nan -o {dir}/out.obj", "--radius", 2},
-      {"radius a word", "deform --mesh " + fish + " --controls {dir}/ok.controls --radius big -o {dir}/out.obj", "--radius",
+      {"radius 0", "deform --mesh " + fish + " --controls {dir}/ok.controls --radius 0 -o {dir}/out.obj", "--radius",
        2},
+      {"radius NaN", "deform --mesh " + fish + " --controls {dir}/ok.controls --radius nan -o {dir}/out.obj",
+       "--radius", 2},
+      {"radius a word", "deform --mesh " + fish + " --controls {dir}/ok.controls --radius big -o {dir}/out.obj",
+       "--radius", 2},
       {"unknown kernel", deform + "{dir}/ok.controls --kernel c3", "c3", 2},
       {"phase NaN", deform + "{dir}/ok.controls --phase nan", "--phase", 2},
       {"linear polynomial on a plane", deform + "{dir}/planar.controls --polynomial linear", "coplanar", 1},
-      {"dense beyond the memory limit",
-       "info --controls {dir}/many.controls --radius 100 --memory-limit 0.05", "GiB for its neighbour graph", 1},
+      {"dense beyond the memory limit", "info --controls {dir}/many.controls --radius 100 --memory-limit 0.05",
+       "GiB for its neighbour graph", 1},
       // Outputs.
-      {"output folder missing", "deform --mesh " + fish + " --controls {dir}/ok.controls --radius 0.3 -o {dir}/no/out.obj",
-       "no", 1},
+      {"output folder missing",
+       "deform --mesh " + fish + " --controls {dir}/ok.controls --radius 0.3 -o {dir}/no/out.obj", "no", 1},
       {"output is a folder", "deform --mesh " + fish + " --controls {dir}/ok.controls --radius 0.3 -o {dir}/folder",
        "folder", 1},
   };
@@ -116,14 +121,15 @@ TEST(BadInput, CommandLine) {
     const auto before = csrbf::test::files_in(dir.path);
     const auto r = run_shell(kCli + " " + expand(c.args, d));
     EXPECT_EQ(r.code, c.code) << c.name << "\n" << r.out;
-    EXPECT_NE(r.out.find(c.message), std::string::npos) << c.name << ": the message should name '" << c.message
-                                                        << "'\n" << r.out;
+    EXPECT_NE(r.out.find(c.message), std::string::npos) << c.name << ": the message should name '" << c.message << "'\n"
+                                                        << r.out;
     EXPECT_EQ(csrbf::test::files_in(dir.path), before) << c.name << ": a file appeared";
     EXPECT_FALSE(fs::exists(dir / "out.obj")) << c.name;
   }
   // An existing output is untouched by a failed run, whichever input failed.
   for (const std::string bad : {"{dir}/nan.controls", "{dir}/garbage.controls"}) {
-    const auto r = run_shell(kCli + " deform --mesh " + fish + " --radius 0.3 -o " + d + "/keep.obj --controls " + expand(bad, d));
+    const auto r =
+        run_shell(kCli + " deform --mesh " + fish + " --radius 0.3 -o " + d + "/keep.obj --controls " + expand(bad, d));
     EXPECT_EQ(r.code, 1);
     EXPECT_EQ(read_text(dir / "keep.obj"), "precious");
   }
@@ -149,16 +155,27 @@ TEST(BadInput, LibraryApi) {
   };
   expect([&] { SpaceMap::fit({}, {}, FitOptions{1.0}); }, "none given");
   expect([&] { SpaceMap::fit(s, std::vector<Vec3>{d[0]}, FitOptions{1.0}); }, "2 sources but 1 destinations");
-  expect([&] { SpaceMap::fit(s, d, FitOptions{-1.0}); }, "radius must be a positive finite number in [1e-150, 1e150], got -1");
+  expect([&] { SpaceMap::fit(s, d, FitOptions{-1.0}); },
+         "radius must be a positive finite number in [1e-150, 1e150], got -1");
   // Found by fuzz_spacemap: with R = 1e-304, R^2 underflows to 0 and two sources at one point passed
   // as different ones.
   expect([&] { SpaceMap::fit(std::vector<Vec3>{s[0], s[0]}, d, FitOptions{1e-304}); }, "[1e-150, 1e150]");
-  expect([&] { SpaceMap::fit(std::vector<Vec3>{Vec3(1e200, 0, 0), s[1]}, d, FitOptions{1.0}); },
-         "source 0 is out of range");
+  expect(
+      [&] {
+        SpaceMap::fit(std::vector<Vec3>{Vec3(1e200, 0, 0), s[1]}, d, FitOptions{1.0});
+      },
+      "source 0 is out of range");
   expect([&] { SpaceMap::fit(s, d, FitOptions{NAN}); }, "radius must be a positive finite number");
-  expect([&] { SpaceMap::fit(std::vector<Vec3>{Vec3(0, NAN, 0), s[1]}, d, FitOptions{1.0}); }, "source 0 is not finite");
-  expect([&] { SpaceMap::fit(s, std::vector<Vec3>{d[0], Vec3(INFINITY, 0, 0)}, FitOptions{1.0}); },
-         "destination 1 is not finite");
+  expect(
+      [&] {
+        SpaceMap::fit(std::vector<Vec3>{Vec3(0, NAN, 0), s[1]}, d, FitOptions{1.0});
+      },
+      "source 0 is not finite");
+  expect(
+      [&] {
+        SpaceMap::fit(s, std::vector<Vec3>{d[0], Vec3(INFINITY, 0, 0)}, FitOptions{1.0});
+      },
+      "destination 1 is not finite");
   expect([&] { SpaceMap::fit(std::vector<Vec3>{s[0], s[0]}, d, FitOptions{1.0}); }, "same");
   expect([&] { SpaceMap::fit(s, d, FitOptions{1.0, Kernel::C2, Polynomial::Linear}); }, "linear");
   const auto map = SpaceMap::fit(s, d, FitOptions{1.0});

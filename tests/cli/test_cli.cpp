@@ -34,7 +34,8 @@ std::vector<std::string> v_lines(const std::string& text) {
 TEST(Cli, DeformsTheBundledFishKeepingVertexOrder) {
   TempDir dir;
   const auto out = (dir / "fish.obj").string();
-  const CliRun r = run("deform --mesh " + kExamples + "fish.obj --controls " + kExamples + "fish.controls --radius 0.3 -o " + out);
+  const CliRun r =
+      run("deform --mesh " + kExamples + "fish.obj --controls " + kExamples + "fish.controls --radius 0.3 -o " + out);
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("977 vertices"), std::string::npos) << r.out;
   const std::string in_text = read_text(kExamples + "fish.obj"), out_text = read_text(out);
@@ -86,7 +87,7 @@ TEST(Cli, PhaseZeroLeavesTheMeshAndHalfPhaseHalves) {
   write_text(dir / "p.xyz", "0 0 0\n0.1 0 0\n5 5 5\n");
   write_text(dir / "c.txt", "0 0 0 0 0 1\n");
   CliRun r = run("deform --mesh " + (dir / "p.xyz").string() + " --controls " + (dir / "c.txt").string() +
-              " -r 1 --kernel c0 --phase 0.5 -o " + (dir / "o.xyz").string());
+                 " -r 1 --kernel c0 --phase 0.5 -o " + (dir / "o.xyz").string());
   ASSERT_EQ(r.code, 0) << r.out;
   // phi_c0(0.1) = 0.81; alpha = 1; phase 0.5
   EXPECT_EQ(read_text(dir / "o.xyz"), "0 0 0.5\n0.1 0 0.405\n5 5 5\n");
@@ -116,8 +117,8 @@ TEST(Cli, HelpAndUsageErrors) {
     EXPECT_NE(r.out.find("--"), std::string::npos);
   }
   const std::string base = "info --controls " + kExamples + "fish.controls ";
-  for (const char* bad : {"--radius 0", "--radius -1", "--radius abc", "--radius nan", "--radius inf", "--radius 0.3 --kernel c3",
-                          "--radius 0.3 --polynomial cubic"}) {
+  for (const char* bad : {"--radius 0", "--radius -1", "--radius abc", "--radius nan", "--radius inf",
+                          "--radius 0.3 --kernel c3", "--radius 0.3 --polynomial cubic"}) {
     const CliRun r = run(base + bad);
     EXPECT_EQ(r.code, 2) << bad << "\n" << r.out;
   }
@@ -146,7 +147,8 @@ TEST(Cli, BadDataFailsWithoutTouchingTheOutput) {
   };
   for (const auto& c : cases) {
     write_text(dir / "c.txt", c.controls_text);
-    const CliRun r = run("deform --mesh " + mesh + " --controls " + (dir / "c.txt").string() + " " + c.args + " -o " + out);
+    const CliRun r =
+        run("deform --mesh " + mesh + " --controls " + (dir / "c.txt").string() + " " + c.args + " -o " + out);
     EXPECT_EQ(r.code, 1) << r.out;
     EXPECT_NE(r.out.find(c.expect), std::string::npos) << r.out;
     EXPECT_EQ(read_text(out), "precious");
@@ -173,8 +175,8 @@ TEST(Cli, BadDataFailsWithoutTouchingTheOutput) {
 TEST(Cli, ExactDuplicateControlsWarnAndSucceed) {
   TempDir dir;
   write_text(dir / "c.txt", "0.5 0.5 0.5 0.5 0.6 0.5\n0.5 0.5 0.5 0.5 0.6 0.5\n");
-  const CliRun r = run("deform --mesh " + kExamples + "fish.obj --controls " + (dir / "c.txt").string() + " -r 0.3 -o " +
-                    (dir / "o.ply").string());
+  const CliRun r = run("deform --mesh " + kExamples + "fish.obj --controls " + (dir / "c.txt").string() +
+                       " -r 0.3 -o " + (dir / "o.ply").string());
   EXPECT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("warning"), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("c.txt:2:"), std::string::npos) << r.out;
@@ -199,9 +201,10 @@ TEST(Cli, ReadsADeformationFile) {
   TempDir dir;
   // The same deformation as a deformation JSON (referring to the controls) and as options.
   write_text(dir / "fish.json", R"({"format": "csrbf-deformation", "version": 1, "kernel": "c4", "radius": 0.3,
-                                    "polynomial": "constant", "controls": ")" + kExamples + R"(fish.controls"})");
-  const CliRun a = run("deform --mesh " + kExamples + "fish.obj --deformation " + (dir / "fish.json").string() + " -o " +
-                       (dir / "a.obj").string());
+                                    "polynomial": "constant", "controls": ")" +
+                                    kExamples + R"(fish.controls"})");
+  const CliRun a = run("deform --mesh " + kExamples + "fish.obj --deformation " + (dir / "fish.json").string() +
+                       " -o " + (dir / "a.obj").string());
   ASSERT_EQ(a.code, 0) << a.out;
   const CliRun b = run("deform --mesh " + kExamples + "fish.obj --controls " + kExamples +
                        "fish.controls --radius 0.3 --kernel c4 --polynomial constant -o " + (dir / "b.obj").string());
@@ -211,7 +214,8 @@ TEST(Cli, ReadsADeformationFile) {
   EXPECT_EQ(run("info --deformation " + (dir / "fish.json").string() + " --radius 0.3").code, 2);
   EXPECT_EQ(run("info").code, 2);
   // Inline sources with a duplicate: the message names the JSON entries.
-  write_text(dir / "dup.json", R"({"radius": 0.3, "sources": [[0,0,0],[1,0,0],[0,0,0]], "destinations": [[0,0,0],[1,0,0],[0,0,1]]})");
+  write_text(dir / "dup.json",
+             R"({"radius": 0.3, "sources": [[0,0,0],[1,0,0],[0,0,0]], "destinations": [[0,0,0],[1,0,0],[0,0,1]]})");
   const CliRun d = run("info --deformation " + (dir / "dup.json").string());
   EXPECT_EQ(d.code, 1);
   EXPECT_NE(d.out.find("dup.json: sources[2]: source is the same as on sources[0]"), std::string::npos) << d.out;

@@ -94,39 +94,57 @@ TEST(Hostile, BadFilesAndNumbers) {
   const std::string d = dir.path.string();
   write_text(dir / "ok.controls", "0.5 0.5 0.5  0.5 0.5 0.6\n");
   // PLY headers that lie.
-  const std::string ply_head = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
-  write_text(dir / "hugeface.ply", ply_head + "element face 1000000000000\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  const std::string ply_head =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
+  write_text(dir / "hugeface.ply", ply_head +
+                                       "element face 1000000000000\nproperty list uchar int "
+                                       "vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   write_text(dir / "junk.ply", ply_head + "element junk 1000000000000000\nend_header\n0 0 0\n1 0 0\n0 1 0\n");
-  write_text(dir / "junkb.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement junk 1000000000000000\nproperty uchar a\nend_header\n" + std::string(12, '\0'));
-  write_text(dir / "twice.ply", ply_head + "element vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 0\n1 0 0\n0 1 0\n");
+  write_text(dir / "junkb.ply",
+             "ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty "
+             "float z\nelement junk 1000000000000000\nproperty uchar a\nend_header\n" +
+                 std::string(12, '\0'));
+  write_text(dir / "twice.ply", ply_head +
+                                    "element vertex 3\nproperty float x\nproperty float y\nproperty float "
+                                    "z\nend_header\n0 0 0\n1 0 0\n0 1 0\n0 0 0\n1 0 0\n0 1 0\n");
   write_text(dir / "trailing.ply", ply_head + "end_header\n0 0 0\n1 0 0\n0 1 0\n7 7 7\n");
-  write_text(dir / "face0.ply", ply_head + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0\n");
-  write_text(dir / "floatcount.ply", ply_head + "element face 1\nproperty list float int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  write_text(dir / "face0.ply",
+             ply_head + "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n0\n");
+  write_text(
+      dir / "floatcount.ply",
+      ply_head + "element face 1\nproperty list float int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   // OFF.
   write_text(dir / "face2.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n");
   write_text(dir / "hugecount.off", "OFF\n18446744073709551615 1 0\n0 0 0\n");
   write_text(dir / "hugeface.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n18446744073709551615 0 1 2\n");
   // STL and glTF through assimp with NaN.
   write_text(dir / "nan.stl", binary_stl({{0, 0, 0, 1, 0, 0, NAN, 1, 0}}));
-  write_text(dir / "nolist.ply", ply_head + "element face 1\nproperty list uchar int vertex_indexes\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+  write_text(
+      dir / "nolist.ply",
+      ply_head + "element face 1\nproperty list uchar int vertex_indexes\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
   write_text(dir / "cr.obj", "v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\r");
   write_text(dir / "a.smd", "version 1\n");
   write_text(dir / "far.obj", "v 0 0 0\nv 1e300 0 0\nv 0 1 0\nf 1 2 3\n");
   write_text(dir / "dup.json", "{\"radius\": -1, \"radius\": 1}");
-  write_text(dir / "nul.controls", std::string("0 0 0 1\0" "0 0 0\n", 14));
+  write_text(dir / "nul.controls", std::string("0 0 0 1\0"
+                                               "0 0 0\n",
+                                               14));
   // Numbers in controls.
   write_text(dir / "plusminus.controls", "0.5 0.5 0.5 +-0.5 0.5 0.6\n");
   write_text(dir / "longline.controls", std::string(200000, '1') + "\n");
   // JSON nested 70 000 deep.
-  write_text(dir / "deep.json", "{\"radius\": 1, \"sources\": " + std::string(70000, '[') + std::string(70000, ']') + "}");
-  write_text(dir / "deep.scene.json", "{\"duration\": 1, \"objects\": " + std::string(70000, '[') + std::string(70000, ']') + "}");
+  write_text(dir / "deep.json",
+             "{\"radius\": 1, \"sources\": " + std::string(70000, '[') + std::string(70000, ']') + "}");
+  write_text(dir / "deep.scene.json",
+             "{\"duration\": 1, \"objects\": " + std::string(70000, '[') + std::string(70000, ']') + "}");
   const std::string deform = "deform --mesh " + kFish + " --radius 0.3 -o {dir}/out.obj --controls ";
   const auto mesh = [](const std::string& m) {
     return "deform --mesh {dir}/" + m + " --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.obj";
   };
   const std::vector<Case> cases{
       {"PLY face count beyond the file", mesh("hugeface.ply"), "declares 1000000000000 entries", 1},
-      {"PLY element without properties", mesh("junk.ply"), "element 'junk' has 1000000000000000 entries but no properties", 1},
+      {"PLY element without properties", mesh("junk.ply"),
+       "element 'junk' has 1000000000000000 entries but no properties", 1},
       {"binary PLY element count beyond the file", mesh("junkb.ply"), "can hold at most", 1},
       {"PLY element twice", mesh("twice.ply"), "element 'vertex' twice", 1},
       {"PLY trailing data", mesh("trailing.ply"), "trailing.ply:11: trailing data", 1},
@@ -140,19 +158,26 @@ TEST(Hostile, BadFilesAndNumbers) {
       {"old Mac line endings", mesh("cr.obj"), "cr.obj:1: a carriage return inside the line", 1},
       {"a format only assimp reads", mesh("a.smd"), "unknown mesh format '.smd'", 1},
       {"a vertex beyond float for STL",
-       "deform --mesh {dir}/far.obj --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.stl", "beyond the single precision", 1},
-      {"a key twice", "deform --mesh " + kFish + " --deformation {dir}/dup.json -o {dir}/out.obj", "the key \"radius\" appears twice", 1},
+       "deform --mesh {dir}/far.obj --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.stl",
+       "beyond the single precision", 1},
+      {"a key twice", "deform --mesh " + kFish + " --deformation {dir}/dup.json -o {dir}/out.obj",
+       "the key \"radius\" appears twice", 1},
       {"a NUL in controls", deform + "{dir}/nul.controls", "nul.controls:1: '1\\x000' is not a number", 1},
-      {"unknown output format", "deform --mesh " + kFish + " --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.foo", "unknown output format '.foo'", 2},
+      {"unknown output format",
+       "deform --mesh " + kFish + " --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.foo",
+       "unknown output format '.foo'", 2},
       {"+-0.5 in controls", deform + "{dir}/plusminus.controls", "plusminus.controls:1: '+-0.5' is not a number", 1},
       {"a 200 kB line", deform + "{dir}/longline.controls", "longline.controls:1: line longer than 65536 bytes", 1},
       {"deformation nested 70000 deep", "deform --mesh " + kFish + " --deformation {dir}/deep.json -o {dir}/out.obj",
        "deep.json: JSON nested deeper than 64 levels", 1},
-      {"scene nested 70000 deep", "animate {dir}/deep.scene.json -o {dir}/out.mp4", "deep.scene.json: JSON nested deeper than 64", 1},
+      {"scene nested 70000 deep", "animate {dir}/deep.scene.json -o {dir}/out.mp4",
+       "deep.scene.json: JSON nested deeper than 64", 1},
       // Usage: every number checked, exit 2 with the option named.
-      {"--radius 1e151", deform + "{dir}/ok.controls --radius 1e151", "--radius must be a finite number in [1e-150, 1e+150], got '1e151'", 2},
+      {"--radius 1e151", deform + "{dir}/ok.controls --radius 1e151",
+       "--radius must be a finite number in [1e-150, 1e+150], got '1e151'", 2},
       {"--phase nan", deform + "{dir}/ok.controls --phase nan", "--phase must be a finite number", 2},
-      {"--memory-limit nan", deform + "{dir}/ok.controls --memory-limit nan", "--memory-limit must be a finite number", 2},
+      {"--memory-limit nan", deform + "{dir}/ok.controls --memory-limit nan", "--memory-limit must be a finite number",
+       2},
       {"--memory-limit inf", deform + "{dir}/ok.controls --memory-limit inf", "--memory-limit", 2},
       {"info --phase 1e300",
        "info --controls {dir}/ok.controls --radius 0.3 --mesh " + kFish + " --check-folds --phase 1e300", "--phase", 2},
@@ -160,8 +185,8 @@ TEST(Hostile, BadFilesAndNumbers) {
       {"animate --to inf", "animate " + kExamples + "fish.scene.json -o {dir}/out.mp4 --to inf", "--to", 2},
       {"animate --to 1e7", "animate " + kExamples + "fish.scene.json -o {dir}/out.mp4 --to 1e7", "--to", 2},
       {"animate --fps nan", "animate " + kExamples + "fish.scene.json -o {dir}/out.mp4 --fps nan", "--fps", 2},
-      {"animate --size overflow", "animate " + kExamples + "fish.scene.json -o {dir}/out.mp4 --size 4294967312x4294967312",
-       "--size", 2},
+      {"animate --size overflow",
+       "animate " + kExamples + "fish.scene.json -o {dir}/out.mp4 --size 4294967312x4294967312", "--size", 2},
   };
   write_text(dir / "keep.obj", "precious");
   for (const auto& c : cases) {
@@ -191,8 +216,9 @@ TEST(Hostile, OutputsThatAreNotOurs) {
       {"animate onto a FIFO", anim + "{dir}/fifo.mp4", "is not a regular file", 1},
       {"animate onto an extensionless file", anim + "{dir}/Makefile", "Makefile: exists and is not a folder", 1},
       {"animate into a folder of the user's", anim + "{dir}/notes", "the folder holds 'todo.txt'", 1},
-      {"animate into the scene's own folder", "animate " + kExamples + "fish.scene.json --size 64x48 --to 0.1 -o " + kExamples,
-       "which csrbf did not write", 1},
+      {"animate into the scene's own folder",
+       "animate " + kExamples + "fish.scene.json --size 64x48 --to 0.1 -o " + kExamples, "which csrbf did not write",
+       1},
   };
   for (const auto& c : cases) {
     const std::string before = listing(dir.path), notes = listing(dir / "notes"), examples = listing(kExamples);
@@ -214,7 +240,8 @@ TEST(Hostile, OutputsThatAreNotOurs) {
   ASSERT_EQ(run_shell(kCli + " " + deform + d + "/link.obj").code, 0);
   EXPECT_TRUE(fs::is_symlink(dir / "link.obj"));
   EXPECT_GT(fs::file_size(dir / "mine.obj"), 1000u);
-  EXPECT_EQ(fs::status(dir / "mine.obj").permissions() & fs::perms::all, fs::perms::owner_read | fs::perms::owner_write);
+  EXPECT_EQ(fs::status(dir / "mine.obj").permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write);
   // glTF's side file: a .bin of someone else's is not replaced; the .bin of an earlier .gltf is.
   write_text(dir / "model.bin", "my firmware");
   const auto g = run_shell(kCli + " " + deform + d + "/model.gltf");
@@ -242,19 +269,27 @@ TEST(Hostile, StlAndBomInputsWork) {
   TempDir dir;
   const std::string d = dir.path.string();
   // STL in, STL out (binary and ASCII): works, and the copies of each vertex are joined.
-  ASSERT_EQ(run_shell(kCli + " deform --mesh " + kFish + " --controls " + kFishControls + " --radius 0.3 --phase 0 -o " + d + "/a.stl").code, 0);
-  const auto r = run_shell(kCli + " deform --mesh " + d + "/a.stl --controls " + kFishControls + " --radius 0.3 -o " + d + "/b.stl");
+  ASSERT_EQ(run_shell(kCli + " deform --mesh " + kFish + " --controls " + kFishControls +
+                      " --radius 0.3 --phase 0 -o " + d + "/a.stl")
+                .code,
+            0);
+  const auto r = run_shell(kCli + " deform --mesh " + d + "/a.stl --controls " + kFishControls + " --radius 0.3 -o " +
+                           d + "/b.stl");
   EXPECT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("977 vertices"), std::string::npos) << r.out;
   EXPECT_EQ(fs::file_size(dir / "b.stl"), fs::file_size(dir / "a.stl"));
-  write_text(dir / "ascii.stl", "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nendloop\nendfacet\nendsolid t\n");
-  const auto a = run_shell(kCli + " deform --mesh " + d + "/ascii.stl --controls " + kFishControls + " --radius 0.3 -o " + d + "/c.stl");
+  write_text(dir / "ascii.stl",
+             "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 "
+             "0\nendloop\nendfacet\nendsolid t\n");
+  const auto a = run_shell(kCli + " deform --mesh " + d + "/ascii.stl --controls " + kFishControls +
+                           " --radius 0.3 -o " + d + "/c.stl");
   EXPECT_EQ(a.code, 0) << a.out;
   EXPECT_EQ(fs::file_size(dir / "c.stl"), 84u + 50u);
   // An OBJ with a UTF-8 byte order mark keeps its first vertex, and its mark.
   write_text(dir / "bom.obj", "\xEF\xBB\xBFv 0.5 0.5 0.5\nv 0.6 0.5 0.5\nv 0.5 0.6 0.5\nf 1 2 3\n");
   write_text(dir / "c.controls", "0.5 0.5 0.5 0.5 0.5 0.6\n");
-  const auto b = run_shell(kCli + " deform --mesh " + d + "/bom.obj --controls " + d + "/c.controls --radius 0.3 -o " + d + "/bom2.obj");
+  const auto b = run_shell(kCli + " deform --mesh " + d + "/bom.obj --controls " + d + "/c.controls --radius 0.3 -o " +
+                           d + "/bom2.obj");
   EXPECT_EQ(b.code, 0) << b.out;
   EXPECT_NE(b.out.find("3 vertices"), std::string::npos) << b.out;
   EXPECT_EQ(read_text(dir / "bom2.obj").substr(0, 16), "\xEF\xBB\xBFv 0.5 0.5 0.6");
@@ -287,7 +322,8 @@ TEST(Hostile, HangsAreBounded) {
   // A FIFO nobody writes to: an error after CSRBF_PIPE_TIMEOUT, not a hang.
   ASSERT_EQ(mkfifo((dir / "c.fifo").c_str(), 0644), 0);
   const auto t0 = std::chrono::steady_clock::now();
-  const auto r = run_shell("CSRBF_PIPE_TIMEOUT=2 timeout 60 " + kCli + " info --radius 0.3 --controls " + (dir / "c.fifo").string());
+  const auto r = run_shell("CSRBF_PIPE_TIMEOUT=2 timeout 60 " + kCli + " info --radius 0.3 --controls " +
+                           (dir / "c.fifo").string());
   EXPECT_EQ(r.code, 1) << r.out;
   EXPECT_NE(r.out.find("c.fifo: nothing was written to this FIFO in 2 s"), std::string::npos) << r.out;
   EXPECT_LT(std::chrono::steady_clock::now() - t0, std::chrono::seconds(30));
@@ -298,8 +334,10 @@ TEST(Hostile, HangsAreBounded) {
   std::string lights = "[";
   for (int i = 0; i < 2000; ++i) lights += std::string(i ? "," : "") + "{\"headlight\": true}";
   lights += "]";
-  write_text(dir / "lights.json", "{\"duration\": 1, \"lights\": " + lights + ", \"objects\": [{\"mesh\": \"" + kFish + "\"}]}");
-  const auto l = run_shell("env -u DISPLAY " + kCli + " animate " + (dir / "lights.json").string() + " -o " + (dir / "l.mp4").string());
+  write_text(dir / "lights.json",
+             "{\"duration\": 1, \"lights\": " + lights + ", \"objects\": [{\"mesh\": \"" + kFish + "\"}]}");
+  const auto l = run_shell("env -u DISPLAY " + kCli + " animate " + (dir / "lights.json").string() + " -o " +
+                           (dir / "l.mp4").string());
   EXPECT_EQ(l.code, 1) << l.out;
   EXPECT_NE(l.out.find("lights: at most 16 lights"), std::string::npos) << l.out;
   // An ffmpeg that stops reading (a stand-in that sleeps) fails after the timeout, leaves nothing,
@@ -307,8 +345,9 @@ TEST(Hostile, HangsAreBounded) {
   fs::create_directory(dir / "bin");
   write_text(dir / "bin" / "ffmpeg", "#!/bin/sh\nexec sleep 600\n");
   fs::permissions(dir / "bin" / "ffmpeg", fs::perms::owner_all);
-  const auto f = run_shell("PATH=" + (dir / "bin").string() + ":$PATH CSRBF_PIPE_TIMEOUT=2 env -u DISPLAY timeout 120 " + kCli +
-                           " animate " + kExamples + "fish.scene.json --size 320x240 --to 1 -o " + (dir / "s.mp4").string());
+  const auto f =
+      run_shell("PATH=" + (dir / "bin").string() + ":$PATH CSRBF_PIPE_TIMEOUT=2 env -u DISPLAY timeout 120 " + kCli +
+                " animate " + kExamples + "fish.scene.json --size 320x240 --to 1 -o " + (dir / "s.mp4").string());
   EXPECT_EQ(f.code, 1) << f.out;
   EXPECT_NE(f.out.find("ffmpeg stopped reading frames for 2 s"), std::string::npos) << f.out;
   EXPECT_FALSE(fs::exists(dir / "s.mp4"));
@@ -320,11 +359,13 @@ TEST(Hostile, HangsAreBounded) {
   write_text(dir / "bin" / "ffmpeg", "#!/bin/sh\ncat > /dev/null\nexec sleep 601\n");
   write_text(dir / "keep.mp4", "old movie");
   const std::string env = "PATH=" + (dir / "bin").string() + ":$PATH env -u DISPLAY ";
-  const std::string run = kCli + " animate " + kExamples + "fish.scene.json --size 64x48 --to 0.2 -o " + (dir / "keep.mp4").string();
+  const std::string run =
+      kCli + " animate " + kExamples + "fish.scene.json --size 64x48 --to 0.2 -o " + (dir / "keep.mp4").string();
   const auto n = run_shell(env + "CSRBF_PIPE_TIMEOUT=2 timeout 120 " + run);
   EXPECT_EQ(n.code, 1) << n.out;
   EXPECT_NE(n.out.find("ffmpeg did not finish within 2 s of the last frame"), std::string::npos) << n.out;
-  const auto c = run_shell("(" + env + run + " > /dev/null 2>&1 & p=$!; sleep 4; kill -INT $p; wait $p; echo status=$?)");
+  const auto c =
+      run_shell("(" + env + run + " > /dev/null 2>&1 & p=$!; sleep 4; kill -INT $p; wait $p; echo status=$?)");
   EXPECT_NE(c.out.find("status=130"), std::string::npos) << c.out;
   EXPECT_EQ(read_text(dir / "keep.mp4"), "old movie");
   EXPECT_EQ(run_shell("pgrep -f 'slee[p] 601'").code, 1) << "the child is still running";
@@ -345,11 +386,15 @@ TEST(Hostile, TexturesAreCheckedBeforeDecoding) {
   write_text(dir / "huge.png", png(100000, 100000));
   for (const std::string t : {"big.png", "huge.png", "fish.obj"}) {
     const std::string tex = t == "fish.obj" ? kFish : (dir / t).string();
-    write_text(dir / "s.json", "{\"duration\": 1, \"objects\": [{\"mesh\": \"" + kFish + "\", \"texture\": \"" + tex + "\"}]}");
-    const auto r = run_shell("env -u DISPLAY " + kCli + " animate " + (dir / "s.json").string() + " --to 0.1 -o " + (dir / "o.mp4").string());
+    write_text(dir / "s.json",
+               "{\"duration\": 1, \"objects\": [{\"mesh\": \"" + kFish + "\", \"texture\": \"" + tex + "\"}]}");
+    const auto r = run_shell("env -u DISPLAY " + kCli + " animate " + (dir / "s.json").string() + " --to 0.1 -o " +
+                             (dir / "o.mp4").string());
     EXPECT_EQ(r.code, 1) << t << "\n" << r.out;
     EXPECT_NE(r.out.find("objects[0].texture"), std::string::npos) << t << "\n" << r.out;
-    EXPECT_NE(r.out.find(t == "fish.obj" ? "is not a PNG or JPEG" : "textures must be 1 to 16384 pixels"), std::string::npos) << r.out;
+    EXPECT_NE(r.out.find(t == "fish.obj" ? "is not a PNG or JPEG" : "textures must be 1 to 16384 pixels"),
+              std::string::npos)
+        << r.out;
     EXPECT_FALSE(fs::exists(dir / "o.mp4"));
   }
 }
@@ -359,22 +404,27 @@ TEST(Hostile, SceneNumbersNamedByPath) {
   const std::string obj = "{\"mesh\": \"" + kFish + "\"";
   const std::vector<std::pair<std::string, std::string>> cases{
       // Keys at +-1e308: refused where they are, not NaN frames.
-      {obj + ", \"trajectory\": {\"keys\": [{\"time\": 0, \"position\": [1e308, 0, 0]}, {\"time\": 1, \"position\": [-1e308, 0, 0]}]}}",
+      {obj + ", \"trajectory\": {\"keys\": [{\"time\": 0, \"position\": [1e308, 0, 0]}, {\"time\": 1, \"position\": "
+             "[-1e308, 0, 0]}]}}",
        "objects[0].trajectory.keys[0].position[0]"},
-      {obj + ", \"parts\": [{\"deformations\": [{\"contact\": {\"collider\": \"x\", \"collider_radius\": 1e-300}, \"radius\": 0.3}]}]}",
+      {obj + ", \"parts\": [{\"deformations\": [{\"contact\": {\"collider\": \"x\", \"collider_radius\": 1e-300}, "
+             "\"radius\": 0.3}]}]}",
        "collider_radius"},
   };
   for (const auto& [o, where] : cases) {
     write_text(dir / "s.json", "{\"duration\": 1, \"objects\": [" + o + "]}");
-    const auto r = run_shell("env -u DISPLAY " + kCli + " animate " + (dir / "s.json").string() + " --to 0.1 -o " + (dir / "o.mp4").string());
+    const auto r = run_shell("env -u DISPLAY " + kCli + " animate " + (dir / "s.json").string() + " --to 0.1 -o " +
+                             (dir / "o.mp4").string());
     EXPECT_EQ(r.code, 1) << r.out;
     EXPECT_NE(r.out.find(where), std::string::npos) << r.out;
     EXPECT_FALSE(fs::exists(dir / "o.mp4"));
   }
   // A quaternion [1e200, 1e200, 0, 0] is a rotation of 90 degrees about x, as its direction says.
-  write_text(dir / "q.json", "{\"duration\": 0.2, \"objects\": [" + obj +
-                                 ", \"orientation\": {\"keys\": [{\"time\": 0, \"quaternion\": [1e200, 1e200, 0, 0]}]}}]}");
-  const auto q = run_shell("env -u DISPLAY " + kCli + " animate " + (dir / "q.json").string() + " --size 64x48 -o " + (dir / "q.mp4").string());
+  write_text(dir / "q.json",
+             "{\"duration\": 0.2, \"objects\": [" + obj +
+                 ", \"orientation\": {\"keys\": [{\"time\": 0, \"quaternion\": [1e200, 1e200, 0, 0]}]}}]}");
+  const auto q = run_shell("env -u DISPLAY " + kCli + " animate " + (dir / "q.json").string() + " --size 64x48 -o " +
+                           (dir / "q.mp4").string());
   EXPECT_EQ(q.code, 0) << q.out;
 }
 
@@ -396,11 +446,13 @@ TEST(Hostile, FullDiskAndFileSizeLimits) {
   // shadow memory alone is beyond any such limit.)
 #if !defined(__SANITIZE_ADDRESS__)
   {
-    std::string big = "ply\nformat ascii 1.0\nelement vertex 4000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    std::string big =
+        "ply\nformat ascii 1.0\nelement vertex 4000000\nproperty float x\nproperty float y\nproperty float "
+        "z\nend_header\n";
     for (int i = 0; i < 4000000; ++i) big += "0.5 0.5 0.5\n";
     write_text(dir / "big.ply", big);
-    const auto r = run_shell("ulimit -v 600000; " + kCli + " deform --mesh " + d + "/big.ply --controls " + kFishControls +
-                             " --radius 0.3 -o " + d + "/big2.ply");
+    const auto r = run_shell("ulimit -v 600000; " + kCli + " deform --mesh " + d + "/big.ply --controls " +
+                             kFishControls + " --radius 0.3 -o " + d + "/big2.ply");
     EXPECT_EQ(r.code, 1) << r.out;
     EXPECT_EQ(r.out.find("std::bad_alloc"), std::string::npos) << r.out;
     EXPECT_NE(r.out.find("memory"), std::string::npos) << r.out;
@@ -419,7 +471,8 @@ TEST(Hostile, FullDiskAndFileSizeLimits) {
   } unmount{d + "/full"};
   write_text(dir / "full" / "keep.avi", "old movie");
   write_text(dir / "full" / "keep.stl", "old mesh");
-  const auto a = run_shell("env -u DISPLAY " + kCli + " animate " + kExamples + "fish.scene.json --size 320x240 --to 1 -o " + d + "/full/keep.avi");
+  const auto a = run_shell("env -u DISPLAY " + kCli + " animate " + kExamples +
+                           "fish.scene.json --size 320x240 --to 1 -o " + d + "/full/keep.avi");
   EXPECT_EQ(a.code, 1) << a.out;
   EXPECT_EQ(read_text(dir / "full" / "keep.avi"), "old movie");
   write_text(dir / "full" / "filler", std::string(1000000, 'x'));
@@ -437,18 +490,23 @@ TEST(Hostile, SignalsLeaveNothing) {
   const std::string d = dir.path.string();
   // deform of a big mesh, stopped while it writes: the partial file goes with it.
   {
-    std::string big = "ply\nformat ascii 1.0\nelement vertex 2000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n";
+    std::string big =
+        "ply\nformat ascii 1.0\nelement vertex 2000000\nproperty float x\nproperty float y\nproperty float "
+        "z\nend_header\n";
     std::mt19937 rng(15);
     std::uniform_real_distribution<double> u(0, 1);
-    for (int i = 0; i < 2000000; ++i) big += std::to_string(u(rng)) + " " + std::to_string(u(rng)) + " " + std::to_string(u(rng)) + "\n";
+    for (int i = 0; i < 2000000; ++i)
+      big += std::to_string(u(rng)) + " " + std::to_string(u(rng)) + " " + std::to_string(u(rng)) + "\n";
     write_text(dir / "big.ply", big);
   }
   for (const char* sig : {"INT", "TERM", "HUP"}) {
     // The signal comes while the output is written (the fit and the read take most of the time
     // before that): sent repeatedly until the program is gone.
-    const auto r = run_shell("(" + kCli + " deform --mesh " + d + "/big.ply --controls " + kFishControls +
-                             " --radius 0.3 -o " + d + "/out.ply & p=$!; while kill -0 $p 2>/dev/null; do "
-                             "if ls -a " + d + " | grep -q csrbf-partial; then kill -" + sig + " $p; fi; sleep 0.01; done; wait $p; echo status=$?)");
+    const auto r = run_shell(
+        "(" + kCli + " deform --mesh " + d + "/big.ply --controls " + kFishControls + " --radius 0.3 -o " + d +
+        "/out.ply & p=$!; while kill -0 $p 2>/dev/null; do "
+        "if ls -a " +
+        d + " | grep -q csrbf-partial; then kill -" + sig + " $p; fi; sleep 0.01; done; wait $p; echo status=$?)");
     EXPECT_NE(r.out.find("status="), std::string::npos) << r.out;
     for (const auto& e : fs::directory_iterator(dir.path))
       EXPECT_EQ(e.path().filename().string().find(".csrbf-partial-"), std::string::npos) << sig << ": " << e.path();
@@ -483,7 +541,8 @@ TEST(Hostile, KillNineLeavesNoProcessAndTheNextRunCleansUp) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
     kids = children_of(pid);
     partial = false;
-    for (const auto& e : fs::directory_iterator(dir.path)) partial = partial || e.path().filename().string().find(".csrbf-partial-") != std::string::npos;
+    for (const auto& e : fs::directory_iterator(dir.path))
+      partial = partial || e.path().filename().string().find(".csrbf-partial-") != std::string::npos;
   }
   ASSERT_GE(kids.size(), 2u) << "Xvfb and ffmpeg should be running";
   ASSERT_TRUE(partial);
@@ -502,15 +561,16 @@ TEST(Hostile, KillNineLeavesNoProcessAndTheNextRunCleansUp) {
   // The next write into the folder removes the dead run's partial (older than 2 s), nothing else.
   write_text(dir / "mine.txt", "mine");
   std::this_thread::sleep_for(std::chrono::milliseconds(2100));
-  const auto r = run_shell(kCli + " deform --mesh " + kFish + " --controls " + kFishControls + " --radius 0.3 -o " + d + "/x.obj");
+  const auto r =
+      run_shell(kCli + " deform --mesh " + kFish + " --controls " + kFishControls + " --radius 0.3 -o " + d + "/x.obj");
   EXPECT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(listing(dir.path), "mine.txt:4\nx.obj:" + std::to_string(fs::file_size(dir / "x.obj")) + "\n");
 }
 
 TEST(Hostile, DeadDisplayFallsBackToAPrivateOne) {
   TempDir dir;
-  const auto r = run_shell("DISPLAY=:77 " + kCli + " animate " + kExamples + "face.scene.json --size 64x48 --to 0.1 -o " +
-                           (dir / "f.mp4").string());
+  const auto r = run_shell("DISPLAY=:77 " + kCli + " animate " + kExamples +
+                           "face.scene.json --size 64x48 --to 0.1 -o " + (dir / "f.mp4").string());
   EXPECT_EQ(r.code, 0) << r.out;
   EXPECT_NE(r.out.find("DISPLAY :77 does not open"), std::string::npos) << r.out;
   EXPECT_TRUE(fs::is_regular_file(dir / "f.mp4"));

@@ -43,16 +43,12 @@ namespace {
 const std::string kExamples = std::string(CSRBF_SOURCE_DIR) + "/examples/";
 const fs::path kShots = CSRBF_SCREENSHOT_DIR;
 
-
 struct Fixture : ::testing::Test {
   ComposerWindow w;
-  void SetUp() override {
-    ASSERT_TRUE(csrbf::test::show_for_test(w, 1280, 820));
-  }
+  void SetUp() override { ASSERT_TRUE(csrbf::test::show_for_test(w, 1280, 820)); }
   /// Clicks the timeline's ruler (above the key rows) at time t: scrubbing.
   void scrub_to(double t) {
-    QTest::mouseClick(w.timeline(), Qt::LeftButton, Qt::NoModifier,
-                      QPoint(int(std::lround(w.timeline()->x_of(t))), 8));
+    QTest::mouseClick(w.timeline(), Qt::LeftButton, Qt::NoModifier, QPoint(int(std::lround(w.timeline()->x_of(t))), 8));
   }
 };
 
@@ -89,7 +85,7 @@ TEST_F(Fixture, BuildsASceneThroughTheUiSavesAndReloadsIt) {
   // A timing mark: drag the last key's diamond on the timeline from 2 s to 3 s.
   const int y = w.timeline()->y_of(0);
   csrbf::test::drag(w.timeline(), QPoint(int(std::lround(w.timeline()->x_of(times[2]))), y),
-       QPoint(int(std::lround(w.timeline()->x_of(3.0))), y));
+                    QPoint(int(std::lround(w.timeline()->x_of(3.0))), y));
   times = w.document().key_times(0, Track::Position);
   ASSERT_EQ(times.size(), 3u);
   EXPECT_NEAR(times[2], 3.0, 0.02);
@@ -117,7 +113,8 @@ TEST_F(Fixture, BuildsASceneThroughTheUiSavesAndReloadsIt) {
   EXPECT_TRUE(w.undo_stack().isClean());
   const auto j = nlohmann::json::parse(csrbf::test::read_text(file));
   const auto& o = j["objects"][0];
-  EXPECT_EQ(fs::weakly_canonical(dir.path / o["mesh"].get<std::string>()), fs::weakly_canonical(kExamples + "fish.obj"));
+  EXPECT_EQ(fs::weakly_canonical(dir.path / o["mesh"].get<std::string>()),
+            fs::weakly_canonical(kExamples + "fish.obj"));
   ASSERT_EQ(o["trajectory"]["keys"].size(), 3u);
   EXPECT_NEAR(o["trajectory"]["keys"][2]["time"].get<double>(), 3.0, 0.02);
   EXPECT_EQ(o["trajectory"]["keys"][1]["tension"].get<double>(), 0.5);
@@ -150,7 +147,8 @@ TEST_F(Fixture, RefusesBadEditsAndKeepsTheScene) {
   // A second key at a time that has one.
   w.set_time(2.0);
   QTest::mouseClick(w.findChild<QPushButton*>("addKey"), Qt::LeftButton);
-  EXPECT_NE(w.error_text().toStdString().find("a key is already at t = 2 s"), std::string::npos) << w.error_text().toStdString();
+  EXPECT_NE(w.error_text().toStdString().find("a key is already at t = 2 s"), std::string::npos)
+      << w.error_text().toStdString();
   // A key time typed past its neighbour is refused.
   w.select_key(1);
   w.findChild<QDoubleSpinBox*>("keyTime")->setValue(5.0);
@@ -180,21 +178,27 @@ TEST_F(Fixture, PlaysAndExportsTheSameMovieAsTheCommandLine) {
   EXPECT_FALSE(w.playing());
 
   csrbf::test::TempDir dir;
-  ASSERT_TRUE(w.export_movie(QString::fromStdString((dir / "gui.mp4").string()), 160, 120)) << w.error_text().toStdString();
-  const auto probe = csrbf::test::run_shell("ffprobe -v error -count_frames -show_entries stream=nb_read_frames,width,height "
-                                            "-of csv=p=0 " + (dir / "gui.mp4").string());
+  ASSERT_TRUE(w.export_movie(QString::fromStdString((dir / "gui.mp4").string()), 160, 120))
+      << w.error_text().toStdString();
+  const auto probe = csrbf::test::run_shell(
+      "ffprobe -v error -count_frames -show_entries stream=nb_read_frames,width,height "
+      "-of csv=p=0 " +
+      (dir / "gui.mp4").string());
   EXPECT_EQ(probe.out, "160,120,101\n");
   EXPECT_NE(w.info_text().toStdString().find("Wrote"), std::string::npos) << "an export says when it is done";
   // The command line makes the same movie: the same frames, decoded.
   const auto cli = csrbf::test::run_shell(std::string(CSRBF_CLI) + " animate " + kExamples + "ball.scene.json -o " +
                                           (dir / "cli.mp4").string() + " --size 160x120");
   ASSERT_EQ(cli.code, 0) << cli.out;
-  const auto a = csrbf::test::run_shell("ffmpeg -v error -i " + (dir / "gui.mp4").string() + " -f rawvideo -pix_fmt rgb24 -");
-  const auto b = csrbf::test::run_shell("ffmpeg -v error -i " + (dir / "cli.mp4").string() + " -f rawvideo -pix_fmt rgb24 -");
+  const auto a =
+      csrbf::test::run_shell("ffmpeg -v error -i " + (dir / "gui.mp4").string() + " -f rawvideo -pix_fmt rgb24 -");
+  const auto b =
+      csrbf::test::run_shell("ffmpeg -v error -i " + (dir / "cli.mp4").string() + " -f rawvideo -pix_fmt rgb24 -");
   ASSERT_EQ(a.out.size(), b.out.size());
   ASSERT_EQ(a.out.size(), 101u * 160 * 120 * 3);
   double diff = 0;
-  for (std::size_t i = 0; i < a.out.size(); ++i) diff += std::abs(int((unsigned char)a.out[i]) - int((unsigned char)b.out[i]));
+  for (std::size_t i = 0; i < a.out.size(); ++i)
+    diff += std::abs(int((unsigned char)a.out[i]) - int((unsigned char)b.out[i]));
   EXPECT_LT(diff / double(a.out.size()), 0.5);
 }
 

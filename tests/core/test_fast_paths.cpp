@@ -170,7 +170,8 @@ TEST(FastPaths, RandomOrderIsGatheredByCellAndWrittenBackInTheCallersOrder) {
   std::vector<Vec3> lattice;
   for (int k = 0; k < 40; ++k)
     for (int j = 0; j < 40; ++j)
-      for (int i = 0; i < 40; ++i) lattice.emplace_back(-0.3 + 1.6 * i / 39.0, -0.3 + 1.6 * j / 39.0, -0.3 + 1.6 * k / 39.0);
+      for (int i = 0; i < 40; ++i)
+        lattice.emplace_back(-0.3 + 1.6 * i / 39.0, -0.3 + 1.6 * j / 39.0, -0.3 + 1.6 * k / 39.0);
   std::vector<std::size_t> perm(lattice.size());
   for (std::size_t i = 0; i < perm.size(); ++i) perm[i] = i;
   std::shuffle(perm.begin(), perm.end(), std::mt19937_64(7));
@@ -192,7 +193,8 @@ TEST(FastPaths, RandomOrderIsGatheredByCellAndWrittenBackInTheCallersOrder) {
   const auto cell_of = [&](const Vec3& q) {
     Vec3 corner;
     const Vec3 u = (q - g.origin) * g.inv_h;
-    if ((u.array() < 0).any() || u.x() >= double(g.nx) || u.y() >= double(g.ny) || u.z() >= double(g.nz)) return outside;
+    if ((u.array() < 0).any() || u.x() >= double(g.nx) || u.y() >= double(g.ny) || u.z() >= double(g.nz))
+      return outside;
     return grid_cell(g, q, corner);
   };
   std::vector<char> seen(order.size(), 0);
@@ -222,7 +224,8 @@ TEST(FastPaths, RandomOrderIsGatheredByCellAndWrittenBackInTheCallersOrder) {
       EXPECT_LT(worst, 1e-14);
       for (std::size_t i = 0; i < shuffled.size(); i += 97) {
         const Vec3 ref = shuffled[i] + 0.7 * map.displacement(shuffled[i]);
-        ASSERT_LT((Vec3(out_shuffled[3 * i], out_shuffled[3 * i + 1], out_shuffled[3 * i + 2]) - ref).norm(), 1e-13) << i;
+        ASSERT_LT((Vec3(out_shuffled[3 * i], out_shuffled[3 * i + 1], out_shuffled[3 * i + 2]) - ref).norm(), 1e-13)
+            << i;
       }
       // In place (the caller's buffer is both): the same.
       std::vector<double> inplace = xyz_shuffled;
@@ -235,7 +238,8 @@ TEST(FastPaths, RandomOrderIsGatheredByCellAndWrittenBackInTheCallersOrder) {
       map.apply(f_shuffled.data(), fo_shuffled.data(), shuffled.size(), 0.7);
       double worst_f = 0;
       for (std::size_t i = 0; i < perm.size(); ++i)
-        for (int c = 0; c < 3; ++c) worst_f = std::max(worst_f, double(std::abs(fo_shuffled[3 * i + c] - fo[3 * perm[i] + c])));
+        for (int c = 0; c < 3; ++c)
+          worst_f = std::max(worst_f, double(std::abs(fo_shuffled[3 * i + c] - fo[3 * perm[i] + c])));
       EXPECT_LT(worst_f, 1e-6);
     }
   });
@@ -252,26 +256,27 @@ TEST(FastPaths, FloatPathAccuracy) {
     std::sort(probes.begin() + 2500, probes.end(), [](const Vec3& a, const Vec3& b) {
       return std::floor(a.z() / 0.05) < std::floor(b.z() / 0.05) ||
              (std::floor(a.z() / 0.05) == std::floor(b.z() / 0.05) && a.x() < b.x());
-  });
-  const auto xyz = flat(probes);
-  const std::vector<float> xyzf(xyz.begin(), xyz.end());
-  for (Kernel k : kKernels) {
-    const SpaceMap map = SpaceMap::fit(s, d, {0.2, k, Polynomial::None});
-    double amax = 0;
-    for (Eigen::Index i = 0; i < map.coefficients().rows(); ++i) amax = std::max(amax, map.coefficients().row(i).cwiseAbs().maxCoeff());
-    std::vector<float> outf(xyz.size());
-    map.displacements(xyzf.data(), outf.data(), probes.size());
-    double worst = 0;
-    for (std::size_t i = 0; i < probes.size(); ++i) {
-      // Reference: double evaluation at the float-rounded input.
-      const Vec3 x{double(xyzf[3 * i]), double(xyzf[3 * i + 1]), double(xyzf[3 * i + 2])};
-      const Vec3 ref = map.displacement(x);
-      worst = std::max(worst, (Vec3(outf[3 * i], outf[3 * i + 1], outf[3 * i + 2]) - ref).cwiseAbs().maxCoeff());
+    });
+    const auto xyz = flat(probes);
+    const std::vector<float> xyzf(xyz.begin(), xyz.end());
+    for (Kernel k : kKernels) {
+      const SpaceMap map = SpaceMap::fit(s, d, {0.2, k, Polynomial::None});
+      double amax = 0;
+      for (Eigen::Index i = 0; i < map.coefficients().rows(); ++i)
+        amax = std::max(amax, map.coefficients().row(i).cwiseAbs().maxCoeff());
+      std::vector<float> outf(xyz.size());
+      map.displacements(xyzf.data(), outf.data(), probes.size());
+      double worst = 0;
+      for (std::size_t i = 0; i < probes.size(); ++i) {
+        // Reference: double evaluation at the float-rounded input.
+        const Vec3 x{double(xyzf[3 * i]), double(xyzf[3 * i + 1]), double(xyzf[3 * i + 2])};
+        const Vec3 ref = map.displacement(x);
+        worst = std::max(worst, (Vec3(outf[3 * i], outf[3 * i + 1], outf[3 * i + 2]) - ref).cwiseAbs().maxCoeff());
+      }
+      // Documented bound (docs/PERFORMANCE.md): 1e-5 of the largest coefficient.
+      EXPECT_LT(worst, 1e-5 * amax) << kernel_name(k) << " max |alpha| " << amax;
+      EXPECT_GT(worst, 0.0);  // it is a float path
     }
-    // Documented bound (docs/PERFORMANCE.md): 1e-5 of the largest coefficient.
-    EXPECT_LT(worst, 1e-5 * amax) << kernel_name(k) << " max |alpha| " << amax;
-    EXPECT_GT(worst, 0.0);  // it is a float path
-  }
   });
 }
 
@@ -364,7 +369,8 @@ TEST(FastPaths, SortedRunsKeepEverySourceWithinReach) {
     for (std::uint32_t k = b; k < e; k += detail::EvalGrid::kLanes)
       for (std::uint32_t j = k; j < k + detail::EvalGrid::kLanes; ++j)
         if (a.x[j] < 1e17) {  // not padding
-          ASSERT_LE(double(a.reach[k / detail::EvalGrid::kLanes]), (Vec3(a.x[j], a.y[j], a.z[j]) * r - centre).norm() / r);
+          ASSERT_LE(double(a.reach[k / detail::EvalGrid::kLanes]),
+                    (Vec3(a.x[j], a.y[j], a.z[j]) * r - centre).norm() / r);
         }
     std::size_t within = 0, found = 0;
     for (const auto& p : s) within += (p - q).norm() < r;

@@ -26,7 +26,8 @@ TEST(KernelMatrix, EqualsTheDenseMatrixOfThePoints) {
     const auto n = Eigen::Index(pts.size());
     Eigen::MatrixXd dense(n, n);
     for (std::size_t i = 0; i < pts.size(); ++i)
-      for (std::size_t j = 0; j < pts.size(); ++j) dense(Eigen::Index(i), Eigen::Index(j)) = wendland(k, (pts[i] - pts[j]).norm() / r);
+      for (std::size_t j = 0; j < pts.size(); ++j)
+        dense(Eigen::Index(i), Eigen::Index(j)) = wendland(k, (pts[i] - pts[j]).norm() / r);
     Eigen::MatrixXd from_a = Eigen::MatrixXd::Zero(dense.rows(), dense.cols());
     for (std::size_t i = 0; i < pts.size(); ++i) {
       from_a(Eigen::Index(i), Eigen::Index(i)) = a.diagonal();

@@ -11,10 +11,14 @@ namespace {
 double closed_form(Kernel k, double r) {
   if (r >= 1) return 0;
   switch (k) {
-    case Kernel::C0: return std::pow(1 - r, 2);
-    case Kernel::C2: return std::pow(1 - r, 4) * (4 * r + 1);
-    case Kernel::C4: return std::pow(1 - r, 6) * (35 * r * r + 18 * r + 3);
-    case Kernel::C6: return std::pow(1 - r, 8) * (32 * r * r * r + 25 * r * r + 8 * r + 1);
+    case Kernel::C0:
+      return std::pow(1 - r, 2);
+    case Kernel::C2:
+      return std::pow(1 - r, 4) * (4 * r + 1);
+    case Kernel::C4:
+      return std::pow(1 - r, 6) * (35 * r * r + 18 * r + 3);
+    case Kernel::C6:
+      return std::pow(1 - r, 8) * (32 * r * r * r + 25 * r * r + 8 * r + 1);
   }
   return NAN;
 }

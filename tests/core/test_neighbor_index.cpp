@@ -5,9 +5,9 @@
 
 #include <random>
 
+using csrbf::InvalidInput;
 using csrbf::NeighborIndex;
 using csrbf::Vec3;
-using csrbf::InvalidInput;
 
 namespace {
 

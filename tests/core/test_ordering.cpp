@@ -103,7 +103,8 @@ TEST(Ordering, EnvelopeNeverLargerThanShuffledInput) {
     EXPECT_LT(c.reverse_cuthill_mckee.envelope, c.breadth_first.envelope);
     EXPECT_LT(c.reverse_cuthill_mckee.bandwidth * 3, c.identity.bandwidth);
     EXPECT_TRUE(is_permutation_of_n(reverse_cuthill_mckee_order(g)));
-    for (Ordering o : {Ordering::Identity, Ordering::BreadthFirst, Ordering::ReverseBreadthFirst, Ordering::ReverseCuthillMcKee})
+    for (Ordering o :
+         {Ordering::Identity, Ordering::BreadthFirst, Ordering::ReverseBreadthFirst, Ordering::ReverseCuthillMcKee})
       EXPECT_TRUE(is_permutation_of_n(choose_ordering(g, o).order));
   }
 }
@@ -168,7 +169,8 @@ TEST(Ordering, NestedDissectionCutsTheFill) {
     ASSERT_TRUE(is_permutation_of_n(nd));
     const long fill_nd = factor_entries(g, nd), fill_amd = factor_entries(g, {});
     const long fill_rcm = factor_entries(g, reverse_cuthill_mckee_order(g));
-    std::printf("[ info     ] %zu points: factor entries ND %ld, AMD %ld, RCM %ld\n", c.points.size(), fill_nd, fill_amd, fill_rcm);
+    std::printf("[ info     ] %zu points: factor entries ND %ld, AMD %ld, RCM %ld\n", c.points.size(), fill_nd,
+                fill_amd, fill_rcm);
     EXPECT_LT(double(fill_nd), 0.8 * double(fill_rcm));
     EXPECT_LT(double(fill_nd), 1.3 * double(fill_amd));
   }

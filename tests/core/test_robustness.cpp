@@ -183,8 +183,10 @@ TEST(Robustness, MemoryLimitCountsWhatTheSolverWillHold) {
   for (const auto& x : s) d.push_back(x + Vec3(0, 0, 0.01));
   const std::vector<std::pair<FitOptions, std::string>> cases{
       {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Auto, Solver::Cholmod}, "CHOLMOD's analysis predicts"},
-      {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Auto, Solver::Eigen}, "Eigen SimplicialLLT's analysis predicts"},
-      {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Identity, Solver::Envelope}, "the envelope of the identity ordering"},
+      {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Auto, Solver::Eigen},
+       "Eigen SimplicialLLT's analysis predicts"},
+      {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Identity, Solver::Envelope},
+       "the envelope of the identity ordering"},
   };
   for (auto [o, words] : cases) {
     if (o.solver == Solver::Cholmod && !cholmod_available()) continue;

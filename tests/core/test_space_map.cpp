@@ -36,7 +36,8 @@ struct DenseSolution {
   Vec3 eval(const std::vector<Vec3>& s, Kernel k, double r, const Vec3& x) const {
     Eigen::Matrix<long double, 3, 1> d = Eigen::Matrix<long double, 3, 1>::Zero();
     for (std::size_t i = 0; i < s.size(); ++i)
-      d += wendland(k, (x - s[i]).cast<long double>().norm() / r) * alpha.row(Eigen::Index(i)).transpose().cast<long double>();
+      d += wendland(k, (x - s[i]).cast<long double>().norm() / r) *
+           alpha.row(Eigen::Index(i)).transpose().cast<long double>();
     if (beta.rows() >= 1) d += beta.row(0).transpose().cast<long double>();
     if (beta.rows() == 4) d += beta.bottomRows(3).transpose().cast<long double>() * x.cast<long double>();
     return d.cast<double>();
@@ -253,7 +254,8 @@ TEST(SpaceMap, OrderingsGiveTheSameMap) {
   const auto s = random_points(600, rng);
   const auto d = displaced(s, rng);
   const SpaceMap ref = SpaceMap::fit(s, d, {0.15, Kernel::C2, Polynomial::Linear, Ordering::Identity});
-  for (Ordering o : {Ordering::BreadthFirst, Ordering::ReverseBreadthFirst, Ordering::ReverseCuthillMcKee, Ordering::Auto}) {
+  for (Ordering o :
+       {Ordering::BreadthFirst, Ordering::ReverseBreadthFirst, Ordering::ReverseCuthillMcKee, Ordering::Auto}) {
     const SpaceMap m = SpaceMap::fit(s, d, {0.15, Kernel::C2, Polynomial::Linear, o});
     EXPECT_LT((m.coefficients() - ref.coefficients()).cwiseAbs().maxCoeff(), 1e-10);
     EXPECT_LE(m.stats().envelope_entries, ref.stats().envelope_entries);

@@ -127,7 +127,8 @@ TEST(AtomicFile, ReadInputBoundsSizeAndWaitsForAFifo) {
     io::read_input(dir / "big.txt", "a test file", 100);
     FAIL();
   } catch (const io::FileError& e) {
-    EXPECT_NE(std::string(e.what()).find("big.txt: 1000 bytes is more than the 100 bytes allowed"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("big.txt: 1000 bytes is more than the 100 bytes allowed"), std::string::npos)
+        << e.what();
   }
   EXPECT_EQ(io::read_input(dir / "big.txt", "a test file").size(), 1000u);
   ASSERT_EQ(::mkfifo((dir / "fifo").c_str(), 0644), 0);

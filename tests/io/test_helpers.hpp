@@ -44,8 +44,8 @@ inline std::size_t files_in(const std::filesystem::path& dir) {
 }
 
 struct ShellRun {
-  int code = -1;     ///< exit status, -1 if killed by a signal
-  std::string out;   ///< standard output and standard error together
+  int code = -1;    ///< exit status, -1 if killed by a signal
+  std::string out;  ///< standard output and standard error together
 };
 
 /// Runs a shell command line and collects what it prints.

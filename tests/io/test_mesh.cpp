@@ -90,7 +90,8 @@ TEST(Mesh, OffKeepsOrderFacesAndColours) {
   EXPECT_EQ(m.faces()[1], (std::vector<std::uint32_t>{0, 2, 3}));
   for (auto& p : m.positions()) p += Vec3(0.5, 0, 0);
   m.save(dir / "b.off");
-  EXPECT_EQ(test::read_text(dir / "b.off"), "OFF\n# comment\n4 2 0\n0.5 0 0\n1.5 0 0\n1.5 1 0\n0.5 1 0\n3 0 1 2 255 0 0\n3 0 2 3\n");
+  EXPECT_EQ(test::read_text(dir / "b.off"),
+            "OFF\n# comment\n4 2 0\n0.5 0 0\n1.5 0 0\n1.5 1 0\n0.5 1 0\n3 0 1 2 255 0 0\n3 0 2 3\n");
   test::write_text(dir / "n.off", "NOFF 3 1 0\n0 0 0 0 0 1\n1 0 0 0 0 1\n0 1 0 0 0 1\n3 0 1 2\n");
   auto n = MeshDocument::load(dir / "n.off");
   rotate(n.positions());
@@ -220,7 +221,8 @@ TEST(Mesh, PlyCountsAreBoundedByTheFile) {
   }
   // Binary: a face list longer than the body, and a face of 0 vertices (which crashed assimp's STL
   // export), each named.
-  std::string bin = "ply\nformat binary_little_endian 1.0\n" + v3 + "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string bin = "ply\nformat binary_little_endian 1.0\n" + v3 +
+                    "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
   bin += std::string(36, '\0');
   test::write_text(dir / "b.ply", bin + std::string(1, char(200)) + std::string(12, '\0'));
   EXPECT_NE(error_of(dir / "b.ply").find("ends early, in face 0"), std::string::npos) << error_of(dir / "b.ply");
@@ -241,9 +243,11 @@ TEST(Mesh, PlyCountsAreBoundedByTheFile) {
 TEST(Mesh, OffAndObjEdgeCases) {
   test::TempDir dir;
   test::write_text(dir / "a.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n2 0 1\n");
-  EXPECT_NE(error_of(dir / "a.off").find("a.off:6: a face has 2 vertices"), std::string::npos) << error_of(dir / "a.off");
+  EXPECT_NE(error_of(dir / "a.off").find("a.off:6: a face has 2 vertices"), std::string::npos)
+      << error_of(dir / "a.off");
   test::write_text(dir / "b.off", "OFF\n18446744073709551615 18446744073709551615 0\n");
-  EXPECT_NE(error_of(dir / "b.off").find("but the file has only 2 lines"), std::string::npos) << error_of(dir / "b.off");
+  EXPECT_NE(error_of(dir / "b.off").find("but the file has only 2 lines"), std::string::npos)
+      << error_of(dir / "b.off");
   test::write_text(dir / "c.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n18446744073709551615 0 1 2\n");
   EXPECT_NE(error_of(dir / "c.off").find("c.off:6: bad face"), std::string::npos) << error_of(dir / "c.off");
   // A byte order mark does not hide the first vertex, and is kept on output.
@@ -334,7 +338,8 @@ TEST(Mesh, GltfStructureIsCheckedBeforeAssimpTrustsIt) {
     return error_of(dir / "b.glb");
   };
   e = patched(12, 0xffffff00u, glb.size());
-  EXPECT_NE(e.find("b.glb: the binary glTF's first chunk is not a JSON chunk of 4294967040 bytes"), std::string::npos) << e;
+  EXPECT_NE(e.find("b.glb: the binary glTF's first chunk is not a JSON chunk of 4294967040 bytes"), std::string::npos)
+      << e;
   e = patched(8, std::uint32_t(glb.size() + 4), glb.size());
   EXPECT_NE(e.find("the binary glTF header gives a length of"), std::string::npos) << e;
   e = patched(8, std::uint32_t(glb.size() - 4), glb.size() - 4);

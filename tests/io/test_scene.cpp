@@ -74,8 +74,9 @@ TEST(SceneFile, ReadsAMinimalScene) {
   EXPECT_EQ(o.parts[0].deformations[0].map->kernel(), csrbf::Kernel::C0);
   EXPECT_DOUBLE_EQ(o.parts[0].deformations[0].schedule.phase(0.5), 0.5);
   EXPECT_EQ(o.trajectory->keys()[2].tension, 0.5);
-  EXPECT_NEAR(o.orientation.rotation(2.0).angularDistance(
-                  Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Vec3::UnitZ()))), 0.0, 1e-12);
+  EXPECT_NEAR(
+      o.orientation.rotation(2.0).angularDistance(Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Vec3::UnitZ()))), 0.0,
+      1e-12);
   EXPECT_DOUBLE_EQ(scene.duration, 2.0);
   EXPECT_DOUBLE_EQ(scene.fps, 10.0);
   // Evaluation at a key: the centre of gravity sits at the key's position.
@@ -124,22 +125,33 @@ TEST(SceneFile, ErrorsNameTheJsonPath) {
     edit(j);
     return j;
   };
-  expect_error(dir, with([](json& j) { j["objects"][0]["colour"] = {1, 0, 0}; }), "objects[0].colour", "unknown key 'colour'");
+  expect_error(dir, with([](json& j) {
+                 j["objects"][0]["colour"] = {1, 0, 0};
+               }),
+               "objects[0].colour", "unknown key 'colour'");
   expect_error(dir, with([](json& j) { j["duration"] = "long"; }), "duration", "expected a number, got \"long\"");
   expect_error(dir, with([](json& j) { j["duration"] = -1; }), "duration", "expected a number > 0");
   expect_error(dir, with([](json& j) { j.erase("duration"); }), "duration", "missing");
   expect_error(dir, with([](json& j) { j["objects"][0]["trajectory"]["keys"][2]["time"] = 0.5; }),
-               "objects[0].trajectory.keys[2].time", "keys must be in time order: 0.5 is not after the previous key's 1");
-  expect_error(dir, with([](json& j) { j["objects"][0]["trajectory"]["keys"][1]["position"] = {1, 2}; }),
+               "objects[0].trajectory.keys[2].time",
+               "keys must be in time order: 0.5 is not after the previous key's 1");
+  expect_error(dir, with([](json& j) {
+                 j["objects"][0]["trajectory"]["keys"][1]["position"] = {1, 2};
+               }),
                "objects[0].trajectory.keys[1].position", "expected [x, y, z]");
   expect_error(dir, with([](json& j) { j["objects"][0]["trajectory"]["keys"][1]["tension"] = 3; }),
                "objects[0].trajectory.keys[1].tension", "in [-1, 1]");
   expect_error(dir, with([](json& j) { j["objects"][0]["mesh"] = "nowhere.obj"; }), "objects[0].mesh", "nowhere.obj");
   expect_error(dir, with([](json& j) { j["objects"][0]["parts"][0]["group"] = "middle"; }), "objects[0].parts[0].group",
                "no group 'middle' (it has: left, right)");
-  expect_error(dir, with([](json& j) { j["objects"][0]["parts"][0]["color"] = {1, 2, 0}; }),
+  expect_error(dir, with([](json& j) {
+                 j["objects"][0]["parts"][0]["color"] = {1, 2, 0};
+               }),
                "objects[0].parts[0].color[1]", "in [0, 1]");
-  expect_error(dir, with([](json& j) { j["objects"][0]["parts"][1]["vertices"] = {0, 9}; j["objects"][0]["parts"][1].erase("material"); }),
+  expect_error(dir, with([](json& j) {
+                 j["objects"][0]["parts"][1]["vertices"] = {0, 9};
+                 j["objects"][0]["parts"][1].erase("material");
+               }),
                "objects[0].parts[1].vertices[1]", "vertex 9 is out of range (the mesh has 6)");
   expect_error(dir, with([](json& j) { j["objects"][0]["parts"][0]["deformations"][0]["kernel"] = "c3"; }),
                "objects[0].parts[0].deformations[0].kernel", "one of \"c0\"");
@@ -147,16 +159,21 @@ TEST(SceneFile, ErrorsNameTheJsonPath) {
                "objects[0].parts[0].deformations[0].controls", "none.controls");
   expect_error(dir, with([](json& j) { j["objects"][0]["parts"][0]["deformations"][0]["polynomial"] = "linear"; }),
                "objects[0].parts[0].deformations[0]", "cannot fit this deformation");
-  expect_error(dir, with([](json& j) { j["objects"][0]["parts"][0]["deformations"][0]["phase"]["keys"][1]["time"] = 0; }),
+  expect_error(dir,
+               with([](json& j) { j["objects"][0]["parts"][0]["deformations"][0]["phase"]["keys"][1]["time"] = 0; }),
                "objects[0].parts[0].deformations[0].phase.keys[1].time", "time order");
   expect_error(dir, with([](json& j) {
-                 j["objects"][0]["parts"][0]["deformations"][0] = json::parse(
-                     R"({"contact": {"collider": "ghost", "collider_radius": 0.2}, "radius": 0.4})");
+                 j["objects"][0]["parts"][0]["deformations"][0] =
+                     json::parse(R"({"contact": {"collider": "ghost", "collider_radius": 0.2}, "radius": 0.4})");
                }),
                "objects[0].parts[0].deformations[0].contact.collider", "no object is named 'ghost'");
-  expect_error(dir, with([](json& j) { j["objects"][0]["orientation"]["keys"][0]["quaternion"] = {0, 0, 0, 0}; }),
+  expect_error(dir, with([](json& j) {
+                 j["objects"][0]["orientation"]["keys"][0]["quaternion"] = {0, 0, 0, 0};
+               }),
                "objects[0].orientation.keys[0].quaternion", "zero");
-  expect_error(dir, with([](json& j) { j["camera"] = {{"position", {0, 0, 1}}, {"focal_point", {0, 0, 0}}, {"view_up", {0, 0, 2}}}; }),
+  expect_error(dir, with([](json& j) {
+                 j["camera"] = {{"position", {0, 0, 1}}, {"focal_point", {0, 0, 0}}, {"view_up", {0, 0, 2}}};
+               }),
                "camera.view_up", "parallel");
   // Not JSON at all: the line and column.
   write_text(dir / "scene.json", "{\n  \"duration\": 2,\n  oops\n}");
@@ -233,7 +250,8 @@ TEST(DeformationFile, ActiveAreaRoundTripsAndLimitsTheVerticesMoved) {
     csrbf::io::check_active_area(*back.area, five, "d.json", "five.obj");
     FAIL();
   } catch (const FileError& e) {
-    EXPECT_NE(std::string(e.what()).find("d.json: active_area: the deformation was picked on a mesh of 6 vertices, five.obj has 5"),
+    EXPECT_NE(std::string(e.what()).find(
+                  "d.json: active_area: the deformation was picked on a mesh of 6 vertices, five.obj has 5"),
               std::string::npos)
         << e.what();
   }
@@ -249,8 +267,9 @@ TEST(DeformationFile, ActiveAreaRoundTripsAndLimitsTheVerticesMoved) {
     csrbf::io::check_active_area(bounded, reordered, "d.json", "quad.stl");
     FAIL();
   } catch (const FileError& e) {
-    EXPECT_NE(std::string(e.what()).find("d.json: active_area: its vertices of quad.stl are not where they were picked"),
-              std::string::npos)
+    EXPECT_NE(
+        std::string(e.what()).find("d.json: active_area: its vertices of quad.stl are not where they were picked"),
+        std::string::npos)
         << e.what();
   }
   spec.area = bounded;
@@ -263,14 +282,18 @@ TEST(DeformationFile, ActiveAreaRoundTripsAndLimitsTheVerticesMoved) {
   // Bad areas name the JSON path and the value.
   const std::string head = R"({"radius": 1, "sources": [[0,0,0]], "destinations": [[0,0,1]], "active_area": )";
   const std::pair<std::string, std::string> bad[] = {
-      {R"({"vertex_count": 4, "vertices": [1, 1]})", "active_area.vertices[1]: vertices must be sorted and unique (1 follows 1)"},
+      {R"({"vertex_count": 4, "vertices": [1, 1]})",
+       "active_area.vertices[1]: vertices must be sorted and unique (1 follows 1)"},
       {R"({"vertex_count": 4, "vertices": [4]})", "active_area.vertices[0]: vertex 4 is not below vertex_count 4"},
       {R"({"vertex_count": 0, "vertices": [0]})", "active_area.vertex_count: expected a vertex count from 1"},
       {R"({"vertex_count": 4, "vertices": []})", "active_area.vertices: an active area needs at least one vertex"},
       {R"({"vertex_count": 4, "vertices": [-1]})", "active_area.vertices[0]: expected an integer >= 0"},
-      {R"({"vertex_count": 4, "vertices": [0], "extra": 1})", "active_area.extra: unknown key 'extra' (allowed here: vertex_count, vertices, bounds)"},
-      {R"({"vertex_count": 4, "vertices": [0], "bounds": [[1, 0, 0], [0, 0, 0]]})", "active_area.bounds: the first corner must not exceed the second"},
-      {R"({"vertex_count": 4, "vertices": [0], "bounds": [[0, 0, 0]]})", "active_area.bounds: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]]"},
+      {R"({"vertex_count": 4, "vertices": [0], "extra": 1})",
+       "active_area.extra: unknown key 'extra' (allowed here: vertex_count, vertices, bounds)"},
+      {R"({"vertex_count": 4, "vertices": [0], "bounds": [[1, 0, 0], [0, 0, 0]]})",
+       "active_area.bounds: the first corner must not exceed the second"},
+      {R"({"vertex_count": 4, "vertices": [0], "bounds": [[0, 0, 0]]})",
+       "active_area.bounds: expected [[xmin, ymin, zmin], [xmax, ymax, zmax]]"},
   };
   for (const auto& [area, message] : bad) {
     write_text(dir / "bad.json", head + area + "}");
@@ -295,8 +318,8 @@ TEST(Scene, ADeformationsActiveAreaMovesOnlyItsVerticesInComposeAndSum) {
   const auto map = spec.fit();
   for (const char* combine : {"compose", "sum"}) {
     json scene = j;
-    scene["objects"][0]["parts"] = json::array({json{{"combine", combine},
-                                                     {"deformations", json::array({json{{"deformation", "area.json"}, {"phase", 0.5}}})}}});
+    scene["objects"][0]["parts"] = json::array({json{
+        {"combine", combine}, {"deformations", json::array({json{{"deformation", "area.json"}, {"phase", 0.5}}})}}});
     write_text(dir / "s.json", scene.dump());
     const auto sc = csrbf::io::read_scene(dir / "s.json");
     csrbf::anim::Player player(sc);
@@ -311,8 +334,9 @@ TEST(Scene, ADeformationsActiveAreaMovesOnlyItsVerticesInComposeAndSum) {
   }
   // An entry naming a file cannot give another area beside it (it would be ignored).
   json both = j;
-  both["objects"][0]["parts"] = json::array({json{{"deformations", json::array({json{
-      {"deformation", "area.json"}, {"active_area", {{"vertex_count", 6}, {"vertices", {0}}}}}})}}});
+  both["objects"][0]["parts"] = json::array({json{
+      {"deformations",
+       json::array({json{{"deformation", "area.json"}, {"active_area", {{"vertex_count", 6}, {"vertices", {0}}}}}})}}});
   write_text(dir / "s.json", both.dump());
   try {
     csrbf::io::read_scene(dir / "s.json");
@@ -326,14 +350,16 @@ TEST(Scene, ADeformationsActiveAreaMovesOnlyItsVerticesInComposeAndSum) {
   spec.area = csrbf::io::ActiveArea{7, {1}, std::nullopt};
   csrbf::io::write_deformation(dir / "area.json", spec);
   json scene = j;
-  scene["objects"][0]["parts"] = json::array({json{{"deformations", json::array({json{{"deformation", "area.json"}}})}}});
+  scene["objects"][0]["parts"] =
+      json::array({json{{"deformations", json::array({json{{"deformation", "area.json"}}})}}});
   write_text(dir / "s.json", scene.dump());
   try {
     csrbf::io::read_scene(dir / "s.json");
     FAIL();
   } catch (const FileError& e) {
-    EXPECT_NE(std::string(e.what()).find("objects[0].parts[0].deformations[0].deformation: this deformation: active_area: the "
-                                         "deformation was picked on a mesh of 7 vertices, this object's mesh has 6"),
+    EXPECT_NE(std::string(e.what()).find(
+                  "objects[0].parts[0].deformations[0].deformation: this deformation: active_area: the "
+                  "deformation was picked on a mesh of 7 vertices, this object's mesh has 6"),
               std::string::npos)
         << e.what();
   }
@@ -355,12 +381,14 @@ TEST(DeformationFile, NumbersTooLargeForADoubleAreAnError) {
 TEST(DeformationFile, NestingAndMessagesAreBounded) {
   TempDir dir;
   // 70 000 levels: refused while parsing (the error path once recursed and overflowed the stack).
-  write_text(dir / "deep.json", "{\"radius\": 1, \"sources\": " + std::string(70000, '[') + std::string(70000, ']') + "}");
+  write_text(dir / "deep.json",
+             "{\"radius\": 1, \"sources\": " + std::string(70000, '[') + std::string(70000, ']') + "}");
   try {
     csrbf::io::read_deformation(dir / "deep.json");
     FAIL();
   } catch (const FileError& e) {
-    EXPECT_NE(std::string(e.what()).find("deep.json: JSON nested deeper than 64 levels"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("deep.json: JSON nested deeper than 64 levels"), std::string::npos)
+        << e.what();
   }
   // 64 levels are fine for the parser (the value is then the wrong type, named by its path).
   write_text(dir / "d64.json", "{\"radius\": " + std::string(63, '[') + std::string(63, ']') + "}");

@@ -320,10 +320,12 @@ TEST_F(Fixture, ActiveAreaIsSavedAndThePickerTheCliAndTheComposerMoveTheSameVert
   ASSERT_TRUE(spec.area->bounds.has_value()) << "the Picker writes the area's bounds";
 
   // csrbf deform --deformation writes the same file, byte for byte.
-  const auto cli = csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "fish.obj --deformation " +
-                                          (dir / "tail.json").string() + " -o " + (dir / "cli.obj").string());
+  const auto cli =
+      csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "fish.obj --deformation " +
+                             (dir / "tail.json").string() + " -o " + (dir / "cli.obj").string());
   ASSERT_EQ(cli.code, 0) << cli.out;
-  EXPECT_NE(cli.out.find("active area of " + std::to_string(region.size()) + " vertices"), std::string::npos) << cli.out;
+  EXPECT_NE(cli.out.find("active area of " + std::to_string(region.size()) + " vertices"), std::string::npos)
+      << cli.out;
   const auto read = [](const fs::path& f) {
     std::ifstream in(f, std::ios::binary);
     return std::string(std::istreambuf_iterator<char>(in), {});
@@ -339,7 +341,8 @@ TEST_F(Fixture, ActiveAreaIsSavedAndThePickerTheCliAndTheComposerMoveTheSameVert
 
   // The Composer's scene (the animate renderer's input) moves the same vertices by the same amounts.
   csrbf::test::write_text(dir / "tail.scene.json",
-                          R"({"duration": 1, "objects": [{"mesh": ")" + kExamples + R"(fish.obj", "parts": [{"deformations": [{"deformation": "tail.json"}]}]}]})");
+                          R"({"duration": 1, "objects": [{"mesh": ")" + kExamples +
+                              R"(fish.obj", "parts": [{"deformations": [{"deformation": "tail.json"}]}]}]})");
   const auto scene = csrbf::io::read_scene(dir / "tail.scene.json");
   csrbf::anim::Player player(scene);
   player.evaluate(0.0);
@@ -355,8 +358,9 @@ TEST_F(Fixture, ActiveAreaIsSavedAndThePickerTheCliAndTheComposerMoveTheSameVert
   }
 
   // A mesh of another vertex count is refused by name, by the CLI and the Picker alike.
-  const auto other = csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "bunny.obj --deformation " +
-                                            (dir / "tail.json").string() + " -o " + (dir / "b.obj").string());
+  const auto other =
+      csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "bunny.obj --deformation " +
+                             (dir / "tail.json").string() + " -o " + (dir / "b.obj").string());
   EXPECT_EQ(other.code, 1);
   EXPECT_NE(other.out.find("picked on a mesh of 977 vertices"), std::string::npos) << other.out;
   ASSERT_TRUE(w.open_mesh(QString::fromStdString(kExamples + "bunny.obj")));
@@ -418,7 +422,8 @@ TEST_F(Fixture, VtkKeysAreOffNewMeshesAreFramedAndViewsReset) {
   // A second, larger mesh opens framed: centred and filling the view.
   ASSERT_TRUE(w.open_mesh(QString::fromStdString(kExamples + "bunny.obj")));
   QApplication::processEvents();
-  const double vw = w.view()->width() * w.view()->devicePixelRatioF(), vh = w.view()->height() * w.view()->devicePixelRatioF();
+  const double vw = w.view()->width() * w.view()->devicePixelRatioF(),
+               vh = w.view()->height() * w.view()->devicePixelRatioF();
   auto b = screen_box(w);
   EXPECT_GE(b[0], 0);
   EXPECT_LE(b[1], vw);
@@ -504,7 +509,8 @@ TEST_F(Fixture, HintsLegendRadiusBoxAndFrameRate) {
   s.controls[0].destination += 0.3 * (r[1] - r[0]).norm() * Vec3(0, 1, 0);
   s.polynomial = csrbf::Polynomial::Linear;
   ASSERT_TRUE(w.edit(s, "Four controls")) << w.error_text().toStdString();
-  EXPECT_NE(w.hint().toStdString().find("the linear polynomial extrapolates"), std::string::npos) << w.hint().toStdString();
+  EXPECT_NE(w.hint().toStdString().find("the linear polynomial extrapolates"), std::string::npos)
+      << w.hint().toStdString();
   ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-linear-hint.png").string())));
 }
 

@@ -22,7 +22,7 @@ struct Material {
   Vec3 color = Vec3(0.8, 0.8, 0.8);
   double opacity = 1.0;
   double specular = 0.2;
-  std::string texture;  ///< image file (PNG or JPEG), or empty
+  std::string texture;                              ///< image file (PNG or JPEG), or empty
   TextureMapping mapping = TextureMapping::Sphere;  ///< texture coordinates, projected from the rest shape
 };
 
@@ -32,18 +32,18 @@ struct Material {
 /// box's 8 corners are pinned. The controls change every frame, so every frame is a full recompute
 /// (neighbour search, ordering, factorisation, solve, evaluation): the paper's 386-vertex box.
 struct Contact {
-  std::size_t collider = 0;         ///< index of the pushing object in Scene::objects
-  double collider_radius = 0.0;     ///< > 0, world units
-  double spread = 0.6;              ///< distance of the four side controls, in collider radii
+  std::size_t collider = 0;      ///< index of the pushing object in Scene::objects
+  double collider_radius = 0.0;  ///< > 0, world units
+  double spread = 0.6;           ///< distance of the four side controls, in collider radii
 };
 
 /// One CSRBF deformation of a part, in the object's model coordinates.
 struct Deformation {
   std::string name;
-  std::optional<SpaceMap> map;      ///< a fixed deformation (fitted once), or
-  std::optional<Contact> contact;   ///< a dynamic one, fitted every frame with `options`
-  FitOptions options;               ///< radius, kernel and polynomial of a contact deformation
-  PhaseTrack schedule;              ///< phase against time (default: 1 throughout)
+  std::optional<SpaceMap> map;     ///< a fixed deformation (fitted once), or
+  std::optional<Contact> contact;  ///< a dynamic one, fitted every frame with `options`
+  FitOptions options;              ///< radius, kernel and polynomial of a contact deformation
+  PhaseTrack schedule;             ///< phase against time (default: 1 throughout)
   /// The active area: sorted object vertex indices it moves (the Picker's); empty: the whole part.
   std::vector<std::uint32_t> area;
 };
@@ -66,10 +66,10 @@ struct Part {
 
 struct Object {
   std::string name;
-  std::vector<Vec3> rest;                              ///< model coordinates
-  std::vector<std::vector<std::uint32_t>> faces;       ///< polygons, 0-based
-  std::vector<Part> parts;  ///< a vertex in several parts takes the last one's deformation
-  Material material;        ///< faces in no part
+  std::vector<Vec3> rest;                         ///< model coordinates
+  std::vector<std::vector<std::uint32_t>> faces;  ///< polygons, 0-based
+  std::vector<Part> parts;                        ///< a vertex in several parts takes the last one's deformation
+  Material material;                              ///< faces in no part
   /// World position of the centre of gravity against time; empty: it stays at centre.
   std::optional<PositionTrack> trajectory;
   OrientationTrack orientation;  ///< about the centre of gravity (identity by default)

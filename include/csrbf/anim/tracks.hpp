@@ -77,7 +77,7 @@ class OrientationTrack {
   Rotation interpolation() const noexcept { return mode_; }
 
  private:
-  std::vector<OrientationKey> keys_;  // hemisphere-aligned
+  std::vector<OrientationKey> keys_;       // hemisphere-aligned
   std::vector<Eigen::Quaterniond> inner_;  // squad's control quaternions s_i
   Rotation mode_;
 };

@@ -22,8 +22,8 @@ namespace csrbf::io {
 
 /// The vertices of one mesh that a deformation moves; the others keep their rest positions.
 struct ActiveArea {
-  std::size_t vertex_count = 0;          ///< vertices of the mesh it was picked on
-  std::vector<std::uint32_t> vertices;   ///< sorted, unique, each < vertex_count
+  std::size_t vertex_count = 0;         ///< vertices of the mesh it was picked on
+  std::vector<std::uint32_t> vertices;  ///< sorted, unique, each < vertex_count
   /// Bounding box (min, max corners) of those vertices' rest positions, when written: a mesh of the
   /// same count but in another vertex order (an STL, a re-export) is refused, not deformed wrongly.
   std::optional<std::array<Vec3, 2>> bounds;
