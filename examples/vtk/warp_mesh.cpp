@@ -30,7 +30,8 @@ int main(int argc, char** argv) {
     }
     char* end = nullptr;
     const double radius = std::strtod(argv[3], &end);
-    if (*end || !(radius > 0)) throw std::invalid_argument(std::string("RADIUS must be a positive number, got '") + argv[3] + "'");
+    if (*end || !(radius > 0))
+      throw std::invalid_argument(std::string("RADIUS must be a positive number, got '") + argv[3] + "'");
 
     vtkNew<vtkOBJReader> reader;
     reader->SetFileName(argv[1]);
@@ -46,7 +47,8 @@ int main(int argc, char** argv) {
     writer->SetFileName(argv[4]);
     writer->Write();
     if (*warp->GetLastError()) throw std::runtime_error(warp->GetLastError());
-    if (filter->GetOutput()->GetNumberOfPoints() == 0) throw std::runtime_error(std::string(argv[1]) + ": no points read");
+    if (filter->GetOutput()->GetNumberOfPoints() == 0)
+      throw std::runtime_error(std::string(argv[1]) + ": no points read");
     std::cout << argv[1] << ": " << filter->GetOutput()->GetNumberOfPoints() << " points warped by "
               << controls.sources.size() << " controls, R = " << radius << " -> " << argv[4] << '\n';
   } catch (const std::exception& e) {
