@@ -2,6 +2,7 @@
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/controls.hpp"
+#include "gltf_check.hpp"
 #include "text.hpp"
 
 #include <assimp/DefaultIOSystem.h>
@@ -729,119 +730,9 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
   check_faces();
 }
 
-namespace {
-/// assimp trusts what a glTF says (fuzz_mesh_glb): an accessor's count (2^32 elements from a 1 kB
-/// file), and a primitive's element count, from which it subtracts 1 or 2 for strips and loops (a
-/// strip of 0 elements became 2^32 - 1 faces, 64 GB). So before assimp runs, the JSON must be valid
-/// (glTF requires UTF-8 JSON), every accessor must fit in the bytes the file and its buffers hold,
-/// and every primitive must name its POSITION accessor and hold enough elements for its mode.
-void check_gltf(const fs::path& path, MeshFormat format, double max_bytes) {
-  const std::string data = read_input(path, "a mesh", max_bytes);
-  const std::string name = path.string();
-  std::string json_text = data;
-  if (format == MeshFormat::Glb) {
-    // The header and the JSON chunk's length: assimp allocates what they claim before reading.
-    if (data.size() < 20 || data.compare(0, 4, "glTF") != 0)
-      throw FileError(name + ": not a binary glTF (no 'glTF' header of 20 bytes)");
-    std::uint32_t version = 0, total = 0, n = 0;
-    std::memcpy(&version, data.data() + 4, 4);
-    std::memcpy(&total, data.data() + 8, 4);
-    std::memcpy(&n, data.data() + 12, 4);
-    if (version != 2)
-      throw FileError(name + ": binary glTF version " + std::to_string(version) + "; csrbf reads version 2");
-    if (total != data.size())
-      throw FileError(name + ": the binary glTF header gives a length of " + std::to_string(total) +
-                      " bytes, the file has " + std::to_string(data.size()));
-    if (n > data.size() - 20 || data.compare(16, 4, "JSON") != 0)
-      throw FileError(name + ": the binary glTF's first chunk is not a JSON chunk of " + std::to_string(n) +
-                      " bytes within the file");
-    json_text = data.substr(20, n);
-    for (std::size_t off = 20 + std::size_t(n); off < data.size();) {
-      std::uint32_t len = 0;
-      if (data.size() - off < 8)
-        throw FileError(name + ": a binary glTF chunk header is cut at byte " + std::to_string(off));
-      std::memcpy(&len, data.data() + off, 4);
-      if (len > data.size() - off - 8)
-        throw FileError(name + ": the binary glTF chunk at byte " + std::to_string(off) + " claims " +
-                        std::to_string(len) + " bytes, beyond the end of the file");
-      off += 8 + std::size_t(len);
-    }
-  }
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(json_text);
-  } catch (const nlohmann::json::exception& e) {
-    throw FileError(name + ": the glTF's JSON is not valid: " + detail::cut(e.what()));
-  }
-  if (!j.is_object()) throw FileError(name + ": the glTF's JSON is not an object");
-  double available = double(data.size());
-  std::error_code ec;
-  if (j.contains("buffers") && j["buffers"].is_array())
-    for (const auto& b : j["buffers"])
-      if (b.is_object() && b.contains("uri") && b["uri"].is_string()) {
-        const std::string uri = b["uri"].get<std::string>();
-        if (uri.rfind("data:", 0) != 0) {
-          const auto size = fs::file_size(path.parent_path() / uri, ec);
-          if (!ec) available += double(size);
-        }
-      }
-  const nlohmann::json none = nlohmann::json::array();
-  const auto& accessors = j.contains("accessors") && j["accessors"].is_array() ? j["accessors"] : none;
-  std::vector<double> counts(accessors.size(), -1);
-  for (std::size_t k = 0; k < accessors.size(); ++k) {
-    const auto& a = accessors[k];
-    if (a.is_object() && a.contains("count") && a["count"].is_number()) {
-      const double count = a["count"].get<double>();
-      // The smallest element is one byte: a count beyond the bytes available cannot be real.
-      if (!(count <= available))
-        throw FileError(name + ": glTF accessors[" + std::to_string(k) + "].count " + format_number(count) +
-                        " is more than the " + format_number(available) + " bytes the file and its buffers hold");
-      counts[k] = count;
-    }
-  }
-  if (!j.contains("meshes")) return;
-  if (!j["meshes"].is_array()) throw FileError(name + ": glTF meshes is not an array");
-  // An accessor index at `where`: it must name an accessor with a count.
-  auto accessor_count = [&](const nlohmann::json& v, const std::string& where) {
-    if (!v.is_number_unsigned() || v.get<std::uint64_t>() >= counts.size())
-      throw FileError(name + ": glTF " + where + " " + detail::cut(v.dump()) + " is not an accessor (" +
-                      std::to_string(counts.size()) + " accessors)");
-    const double c = counts[v.get<std::size_t>()];
-    if (c < 0) throw FileError(name + ": glTF " + where + " names accessor " + v.dump() + ", which has no count");
-    return c;
-  };
-  const auto& meshes = j["meshes"];
-  for (std::size_t m = 0; m < meshes.size(); ++m) {
-    const std::string mw = "meshes[" + std::to_string(m) + "]";
-    if (!meshes[m].is_object() || !meshes[m].contains("primitives") || !meshes[m]["primitives"].is_array())
-      throw FileError(name + ": glTF " + mw + " has no primitives array");
-    const auto& prims = meshes[m]["primitives"];
-    for (std::size_t p = 0; p < prims.size(); ++p) {
-      const auto& pr = prims[p];
-      const std::string pw = mw + ".primitives[" + std::to_string(p) + "]";
-      if (!pr.is_object() || !pr.contains("attributes") || !pr["attributes"].is_object() ||
-          !pr["attributes"].contains("POSITION"))
-        throw FileError(name + ": glTF " + pw + " has no attributes.POSITION");
-      const double vertices = accessor_count(pr["attributes"]["POSITION"], pw + ".attributes.POSITION");
-      const double elements = pr.contains("indices") ? accessor_count(pr["indices"], pw + ".indices") : vertices;
-      std::int64_t mode = 4;
-      if (pr.contains("mode")) {
-        if (!pr["mode"].is_number_integer() || pr["mode"].get<std::int64_t>() < 0 || pr["mode"].get<std::int64_t>() > 6)
-          throw FileError(name + ": glTF " + pw + ".mode " + detail::cut(pr["mode"].dump()) + " is not 0..6");
-        mode = pr["mode"].get<std::int64_t>();
-      }
-      // points need 1 element, lines and line strips or loops 2, triangles, strips and fans 3.
-      const double least = mode == 0 ? 1 : mode <= 3 ? 2 : 3;
-      if (elements < least)
-        throw FileError(name + ": glTF " + pw + " has " + format_number(elements) + " elements; its mode " +
-                        std::to_string(mode) + " needs at least " + format_number(least));
-    }
-  }
-}
-}  // namespace
-
 void MeshDocument::Impl::load_assimp(double max_bytes) {
-  if (format == MeshFormat::Gltf || format == MeshFormat::Glb) check_gltf(path, format, max_bytes);
+  if (format == MeshFormat::Gltf || format == MeshFormat::Glb)
+    detail::check_gltf(path, format == MeshFormat::Glb, max_bytes);
   importer = std::make_unique<Assimp::Importer>();
   auto* io = new LimitedIOSystem(max_bytes);  // owned by the importer
   importer->SetIOHandler(io);

@@ -312,20 +312,80 @@ TEST(Mesh, GltfStructureIsCheckedBeforeAssimpTrustsIt) {
   e = variant("\"attributes\"", "\"mode\": 9, \"attributes\"");
   EXPECT_NE(e.find("meshes[0].primitives[0].mode 9 is not 0..6"), std::string::npos) << e;
   e = variant("\"POSITION\"", "\"POSITION\": 77, \"X\"");
-  EXPECT_NE(e.find("meshes[0].primitives[0].attributes.POSITION 77 is not an accessor"), std::string::npos) << e;
+  EXPECT_NE(e.find("meshes[0].primitives[0].attributes.POSITION 77 is not one of the"), std::string::npos) << e;
   e = variant("\"asset\"", "\"\xff\"");
   EXPECT_NE(e.find("b.gltf: the glTF's JSON is not valid"), std::string::npos) << e;
-  // A strip whose indices accessor holds 0 elements.
-  std::string v = g;
-  const auto indices = v.find("\"indices\"");
-  ASSERT_NE(indices, std::string::npos) << g;
-  const auto k = std::stoul(v.substr(v.find(':', indices) + 1));
-  nlohmann::json j = nlohmann::json::parse(v);
-  j["accessors"][k]["count"] = 0;
-  j["meshes"][0]["primitives"][0]["mode"] = 5;
-  test::write_text(dir / "c.gltf", j.dump());
-  e = error_of(dir / "c.gltf");
-  EXPECT_NE(e.find("meshes[0].primitives[0] has 0 elements; its mode 5 needs at least 3"), std::string::npos) << e;
+  // Edits of the parsed file, each refused with the field and the value.
+  const nlohmann::json base = nlohmann::json::parse(g);
+  const auto edited = [&](auto&& edit) {
+    nlohmann::json j = base;
+    edit(j);
+    test::write_text(dir / "c.gltf", j.dump());
+    return error_of(dir / "c.gltf");
+  };
+  const std::size_t ix = base["meshes"][0]["primitives"][0]["indices"].get<std::size_t>();
+  const std::size_t pos = base["meshes"][0]["primitives"][0]["attributes"]["POSITION"].get<std::size_t>();
+  // A strip of 1 element (a strip of 0 became 2^32 - 1 faces in assimp).
+  e = edited([&](nlohmann::json& j) {
+    j["accessors"][ix]["count"] = 1;
+    j["meshes"][0]["primitives"][0]["mode"] = 5;
+  });
+  EXPECT_NE(e.find("meshes[0].primitives[0] has 1 elements; its mode 5 needs at least 3"), std::string::npos) << e;
+  // Sparse accessors: a count beyond the accessor's, or offsets beyond their bufferView (assimp read
+  // out of bounds or crashed).
+  e = edited([&](nlohmann::json& j) {
+    j["accessors"][pos]["sparse"] = {
+        {"count", 5000}, {"indices", {{"bufferView", 0}, {"componentType", 5125}}}, {"values", {{"bufferView", 0}}}};
+  });
+  EXPECT_NE(e.find("glTF accessors[" + std::to_string(pos) + "].sparse.count 5000 is not an integer from 0 to"),
+            std::string::npos)
+      << e;
+  e = edited([&](nlohmann::json& j) {
+    j["accessors"][pos]["sparse"] = {
+        {"count", 1},
+        {"indices", {{"bufferView", 0}, {"componentType", 5125}, {"byteOffset", 1099511627776}}},
+        {"values", {{"bufferView", 0}}}};
+  });
+  EXPECT_NE(e.find(".sparse.indices needs bytes up to"), std::string::npos) << e;
+  e = edited([&](nlohmann::json& j) { j["accessors"][pos]["sparse"] = nlohmann::json::object(); });
+  EXPECT_NE(e.find(".sparse has no count"), std::string::npos) << e;
+  // A bufferView past its buffer (an offset of 2^64 - 4 wrapped around); positions that are not VEC3 floats.
+  e = edited([&](nlohmann::json& j) { j["bufferViews"][0]["byteOffset"] = 18446744073709551612ull; });
+  EXPECT_NE(e.find("glTF bufferViews[0].byteOffset 18446744073709551612 is not an integer"), std::string::npos) << e;
+  e = edited([&](nlohmann::json& j) { j["bufferViews"][0]["byteOffset"] = 100000; });
+  EXPECT_NE(e.find("glTF bufferViews[0] runs to byte"), std::string::npos) << e;
+  e = edited([&](nlohmann::json& j) { j["accessors"][pos]["type"] = "SCALAR"; });
+  EXPECT_NE(
+      e.find("attributes.POSITION names accessors[" + std::to_string(pos) + "] of SCALAR 5126; positions are VEC3"),
+      std::string::npos)
+      << e;
+  e = edited([&](nlohmann::json& j) { j["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = ix; });
+  EXPECT_NE(e.find("positions are VEC3 of floats"), std::string::npos) << e;
+  // Nodes: a child of two nodes (a DAG: 2^40 instances), or itself.
+  e = edited([&](nlohmann::json& j) {
+    j["nodes"] = {{{"children", {1, 1}}}, {{"mesh", 0}}};
+    j["scenes"] = {{{"nodes", {0}}}};
+  });
+  EXPECT_NE(e.find("glTF nodes[0].children[1] makes node 1 the child of a second node (0); glTF's nodes form trees"),
+            std::string::npos)
+      << e;
+  // Buffers: a missing .bin, bad base64; a required extension csrbf cannot read; glTF 1.
+  e = edited([&](nlohmann::json& j) { j["buffers"][0]["uri"] = "missing.bin"; });
+  EXPECT_NE(e.find("glTF buffers[0].uri 'missing.bin': no such file"), std::string::npos) << e;
+  e = edited([&](nlohmann::json& j) { j["buffers"][0]["uri"] = "data:application/octet-stream;base64,AA$A"; });
+  EXPECT_NE(e.find("glTF buffers[0].uri is not valid base64 at character 3"), std::string::npos) << e;
+  e = edited([&](nlohmann::json& j) { j["extensionsRequired"] = {"KHR_draco_mesh_compression"}; });
+  EXPECT_NE(e.find("glTF extensionsRequired[0] 'KHR_draco_mesh_compression' is required by the file and not supported"),
+            std::string::npos)
+      << e;
+  e = edited([&](nlohmann::json& j) { j["asset"]["version"] = "1.0"; });
+  EXPECT_NE(e.find("glTF asset.version \"1.0\" is not 2.x"), std::string::npos) << e;
+  // JSON a million levels deep overflowed assimp's recursive parser.
+  std::string deep = g;
+  deep.insert(deep.rfind('}'), ", \"extras\": " + std::string(100000, '[') + std::string(100000, ']'));
+  test::write_text(dir / "d.gltf", deep);
+  e = error_of(dir / "d.gltf");
+  EXPECT_NE(e.find("d.gltf: the glTF's JSON nests deeper than 256 levels"), std::string::npos) << e;
   // A binary glTF whose JSON chunk claims 4 GB (assimp allocated it), whose header lies about the
   // length, or whose last chunk runs past the end.
   MeshDocument::load(dir / "a.obj").save(dir / "a.glb");
