@@ -108,6 +108,15 @@ csrbf::Polynomial polynomial_of(const std::string& name) {
   return *p;
 }
 
+/// The value of an option enum named `text` (any case), or ValueError listing the names.
+template <class E>
+E named(const std::string& text, const char* what) {
+  const auto v = csrbf::parse_name<E>(text);
+  if (!v)
+    throw py::value_error(std::string(what) + " must be one of " + csrbf::names_text<E>() + ", got '" + text + "'");
+  return *v;
+}
+
 /// The output array of apply_points: `out` when the caller gives one (checked: (n, 3), C-contiguous,
 /// writeable, of the result's type), else a new one.
 template <class T>
@@ -243,20 +252,39 @@ A CSRBF space mapping T(x) = x + phase * d(x), fitted to control points.
 
 sources, destinations: (n, 3) arrays; radius: the radius of support R (> 0, in the points' units);
 kernel: 'c0', 'c2' (default), 'c4' or 'c6' (Wendland); polynomial: 'none' (default, strictly
-local), 'constant' or 'linear'. The fit releases the GIL.)doc")
+local), 'constant' or 'linear'. Keyword-only: solver: 'auto' (default), 'envelope', 'eigen',
+'cholmod' or 'cg'; ordering (of the envelope solver and CG's rows): 'auto' (default),
+'breadth-first', 'reverse-breadth-first', 'rcm' or 'identity'; memory_limit: the most memory the fit
+may take, in bytes (default 4 GiB; beyond it MemoryError). The fit releases the GIL.)doc")
       .def(py::init([](const py::array& sources, const py::array& destinations, double radius,
-                       const std::string& kernel, const std::string& polynomial) {
+                       const std::string& kernel, const std::string& polynomial, const std::string& solver,
+                       const std::string& ordering, double memory_limit) {
              const auto s = to_vec3(sources, "sources");
              const auto d = to_vec3(destinations, "destinations");
              if (s.size() != d.size())
                throw py::value_error("sources has " + std::to_string(s.size()) + " points but destinations has " +
                                      std::to_string(d.size()));
-             const csrbf::FitOptions o{radius, kernel_of(kernel), polynomial_of(polynomial)};
+             csrbf::FitOptions o{radius, kernel_of(kernel), polynomial_of(polynomial)};
+             o.solver = named<csrbf::Solver>(solver, "solver");
+             o.ordering = named<csrbf::Ordering>(ordering, "ordering");
+             o.memory_limit_bytes = memory_limit;
              py::gil_scoped_release release;
              return csrbf::SpaceMap::fit(s, d, o);
            }),
            py::arg("sources"), py::arg("destinations"), py::arg("radius"), py::arg("kernel") = "c2",
-           py::arg("polynomial") = "none")
+           py::arg("polynomial") = "none", py::kw_only(), py::arg("solver") = "auto", py::arg("ordering") = "auto",
+           py::arg("memory_limit") = 4.0 * double(1ull << 30))
+      .def(
+          "with_destinations",
+          [](const csrbf::SpaceMap& map, const py::array& destinations) {
+            const auto d = to_vec3(destinations, "destinations");
+            py::gil_scoped_release release;
+            return map.with_destinations(d);
+          },
+          py::arg("destinations"),
+          "The same sources, radius, kernel and polynomial with new destinations ((n, 3), n as fitted): only the "
+          "solve is redone, conjugate gradients starting from this map's solution (stats['warm_start']). For "
+          "animation frames.")
       .def(
           "__call__",
           [](const csrbf::SpaceMap& map, const py::array& points, double phase, const py::object& out) {

@@ -22,6 +22,7 @@ FitStats report_stats(const SpaceMap& map) {
   s.breadth_first = c.breadth_first;
   s.reverse_breadth_first = c.reverse_breadth_first;
   s.reverse_cuthill_mckee = c.reverse_cuthill_mckee;
+  if (s.envelope_work == 0) s.envelope_work = envelope_work(envelope_first_columns(map.matrix().pattern(), c.order));
   if (s.bandwidth == 0 && s.envelope_entries == 0) {
     const Profile& p = c.chosen == Ordering::Identity              ? c.identity
                        : c.chosen == Ordering::BreadthFirst        ? c.breadth_first
@@ -104,13 +105,18 @@ std::string stats_text(const SpaceMap& map) {
                                s.reverse_breadth_first.envelope, s.reverse_cuthill_mckee.envelope));
   line("envelope bytes", fmt("%zu  (dense %zu, %.1f%%; 4-byte floats as in the paper)", s.envelope_bytes, s.dense_bytes,
                              100.0 * double(s.envelope_bytes) / double(s.dense_bytes)));
+  const std::string handover = !s.fell_back ? std::string()
+                               : s.iterations < kCgMaxIterations
+                                   ? "; conjugate gradients gave way after " + std::to_string(s.iterations) +
+                                         " steps (the direct solve was predicted faster)"
+                                   : std::string("; conjugate gradients stagnated, this direct solver took over");
   if (s.solver == Solver::Cg)
     line("solver", fmt("%s  (%zu iterations to a relative residual of %.3g; matrix %zu entries)",
                        std::string(solver_name(s.solver)).c_str(), s.iterations, s.solver_residual, s.factor_nonzeros));
   else
-    line("solver", fmt("%s  (factor %zu entries; envelope work %.3g multiply-adds)%s",
-                       std::string(solver_name(s.solver)).c_str(), s.factor_nonzeros, s.envelope_work,
-                       s.fell_back ? "; conjugate gradients stagnated, this direct solver took over" : ""));
+    line("solver",
+         fmt("%s  (factor %zu entries; envelope work %.3g multiply-adds)%s", std::string(solver_name(s.solver)).c_str(),
+             s.factor_nonzeros, s.envelope_work, handover.c_str()));
   line("residual", fmt("%.3g max, %.3g relative", s.residual_max, s.residual_relative));
   line("condition", fmt("%.3g (estimate of the matrix's 2-norm condition number)", map.condition_estimate()));
   line("time (us)",

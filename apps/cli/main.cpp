@@ -127,6 +127,9 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
   o.ordering = *csrbf::parse_ordering(a.ordering);
   o.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
   o.solver = *csrbf::parse_solver(a.solver);
+  if (o.ordering != csrbf::Ordering::Auto && (o.solver == csrbf::Solver::Eigen || o.solver == csrbf::Solver::Cholmod))
+    throw csrbf::cli::UsageError("--ordering " + a.ordering + ": solver '" + a.solver +
+                                 "' orders the matrix itself; --ordering applies to the envelope solver and cg");
   // Where control i came from: "file:line" for controls text, "file: sources[i]" for JSON.
   const bool json_file = !a.deformation.empty();
   const auto where = [&](std::size_t i) {

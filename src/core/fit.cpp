@@ -244,7 +244,7 @@ struct FitPhases {
       if (8 * entries > options.memory_limit_bytes) {
         std::ostringstream os;
         os.precision(3);
-        os << "the envelope of the " << ordering_name(stats.ordering) << " ordering holds " << entries
+        os << "the envelope of the " << ordering_name(stats.ordering) << " ordering holds " << std::llround(entries)
            << " entries, about " << gib(8 * entries) << ", above the limit of " << gib(options.memory_limit_bytes)
            << " (FitOptions::memory_limit_bytes, `--memory-limit`). Use another ordering or solver, or a smaller "
               "radius";
@@ -273,7 +273,8 @@ struct FitPhases {
     const auto t0 = Clock::now();
     if (solver == Solver::Cg) {
       // Chosen by Auto, CG checks after kCgProbeSteps steps how many it will need, and gives way
-      // where a direct solver is predicted to be faster (fit_options.hpp).
+      // where a direct solver is predicted to be faster (fit_options.hpp). Asked for by name, it runs
+      // until it converges or stagnates (kCgMaxIterations).
       detail::CgProbe probe;
       if (options.solver == Solver::Auto) {
         probe.steps = kCgProbeSteps;
@@ -281,6 +282,15 @@ struct FitPhases {
           if (steps > kCgDirectSteps) return false;
           return !(work <= kEnvelopeWorkLimit && kEnvelopeCostRatio * work < steps * step);
         };
+      }
+      // CG holds A's rows in its order (12 bytes an entry) and 4 vectors of 7 columns.
+      const double bytes = 12.0 * double(st.a.values().size()) + 8.0 * double(n) + 4.0 * 7 * 8 * double(n);
+      if (bytes > options.memory_limit_bytes) {
+        std::ostringstream os;
+        os << "conjugate gradients would hold " << std::llround(bytes) << " bytes for A's " << st.a.values().size() + n
+           << " entries and their vectors, above the limit of " << gib(options.memory_limit_bytes)
+           << " (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius";
+        throw ResourceLimit(os.str());
       }
       st.cg_rows = rows;
       st.sparse = detail::conjugate_gradients(st.a, std::move(rows), kCgTolerance, kCgMaxIterations, std::move(probe));
@@ -308,11 +318,12 @@ struct FitPhases {
     }
     st.y = st.p;
     st.solve_in_place(st.y);
+    if (st.fell_back) st.stats.seconds_factorization = st.fallback_seconds;
     st.schur.compute(st.p.transpose() * st.y);
     if (st.schur.info() != Eigen::Success)
       throw DegeneratePolynomial(std::string("polynomial '") + std::string(polynomial_name(st.options.polynomial)) +
                                  "': the sources do not determine it; use polynomial 'none'");
-    st.stats.seconds_solve += seconds_since(t0);
+    st.stats.seconds_solve += seconds_since(t0) - (st.fell_back ? st.fallback_seconds : 0.0);
   }
 
   /// A z = g, beta = (P^T Y)^-1 P^T z, alpha = z - Y beta. `previous` (a map with the same
@@ -333,6 +344,7 @@ struct FitPhases {
       for (std::size_t k = 0; k < n; ++k) guess.row(Eigen::Index(k)) = previous->alpha.row(Eigen::Index(st.order[k]));
       if (st.terms > 0) guess += st.y * previous->beta.topRows(st.terms);
     }
+    const bool had_fallen_back = st.fell_back;
     st.solve_in_place(z, warm ? &guess : nullptr);
     if (st.terms > 0) {
       const Eigen::MatrixXd b = st.schur.solve(st.p.transpose() * z);  // terms x 3
@@ -351,6 +363,9 @@ struct FitPhases {
       stats.iterations = st.sparse->iterations();
       stats.solver_residual = st.sparse->residual();
       if (st.fell_back) {
+        // The solver that took over factorised inside this solve (or the polynomial block's).
+        stats.seconds_factorization = st.fallback_seconds;
+        if (!had_fallen_back) stats.seconds_solve -= st.fallback_seconds;
         stats.fell_back = st.fallback_solver != Solver::Cg;
         stats.solver = st.fallback_solver;
         stats.factor_nonzeros = st.fallback->nonzeros();

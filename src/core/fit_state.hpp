@@ -12,6 +12,7 @@
 #include <Eigen/Cholesky>
 
 #include <atomic>
+#include <chrono>
 #include <memory>
 #include <mutex>
 #include <type_traits>
@@ -88,7 +89,9 @@ struct SpaceMap::Structure {
   /// CG was predicted to need and within kEnvelopeWorkLimit; else CHOLMOD (or Eigen); and where
   /// Auto's direct factor would exceed the memory limit, CG again, without the probe.
   void take_over(double predicted_steps) const {
+    const auto t0 = std::chrono::steady_clock::now();
     const bool automatic = options.solver == Solver::Auto;
+    const std::size_t steps = sparse->iterations();
     if (automatic && stats.envelope_work <= kEnvelopeWorkLimit &&
         kEnvelopeCostRatio * stats.envelope_work < predicted_steps * cg_step_work()) {
       fallback = detail::envelope_factor(a, cg_rows, options.memory_limit_bytes);
@@ -102,10 +105,15 @@ struct SpaceMap::Structure {
         if (!automatic) throw;
         fallback = detail::conjugate_gradients(a, cg_rows, kCgTolerance, kCgMaxIterations);
         fallback_solver = Solver::Cg;
+      } catch (const NotPositiveDefinite& e) {
+        throw NotPositiveDefinite(std::string("conjugate gradients did not converge in ") + std::to_string(steps) +
+                                  " steps, and then " + e.what());
       }
     }
+    fallback_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     fell_back = true;
   }
+  mutable double fallback_seconds = 0;  // the taking over solver's factorisation
   mutable std::once_flag fallback_once;
   mutable std::unique_ptr<detail::SparseFactor> fallback;  // when CG stagnated
   mutable Solver fallback_solver = Solver::Auto;
@@ -128,11 +136,16 @@ struct SpaceMap::Structure {
         lmax = norm;
         v = av / norm;
       }
+      if (warm_starts()) {
+        // No factor to reuse: each inverse step would be a whole CG solve. Lanczos on A gives both
+        // extreme eigenvalues from products alone (the Ritz values of its tridiagonal matrix).
+        const auto [lo, hi] = detail::lanczos_extremes(a, 20261201);
+        condition_ = hi / lo;
+        return;
+      }
       RowMatrix x = RowMatrix::Constant(Eigen::Index(n), 1, 1.0 / std::sqrt(double(n)));
       double lmin_inv = 1.0 / phi0;
-      // Each inverse step is a whole solve: with CG (no factor to reuse) fewer of them, a rougher estimate.
-      const int inverse_steps = stats.solver == Solver::Cg && !fell_back ? 8 : 30;
-      for (int it = 0; it < inverse_steps; ++it) {
+      for (int it = 0; it < 30; ++it) {
         solve_in_place(x);
         const double norm = x.norm();
         if (!(norm > 0) || !std::isfinite(norm)) break;

@@ -3,6 +3,7 @@
 #include "csrbf/errors.hpp"
 #include "csrbf/names.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #ifdef CSRBF_HAVE_CHOLMOD
@@ -18,6 +19,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <random>
 #include <sstream>
 #include <span>
 #include <utility>
@@ -263,15 +265,21 @@ class BatchedCg final : public SparseFactor {
         if (!done[c]) return false;
       return true;
     };
-    std::size_t probe_at = probe_.steps;
+    // Auto's probe: the residual at a third of the probe's steps marks the start of the rate it judges
+    // by (CG's first steps are slower than its later ones).
+    // CG's residual is not monotonic: the probe judges by the smallest seen so far.
+    std::size_t probe_at = probe_.steps, mark_at = probe_at / 3;
+    Sums rr_mark = rr_start, rr_best = rr_start;
     for (; !all_done() && it < max_iterations_; ++it) {
+      for (std::size_t c = 0; c < m; ++c) rr_best[c] = std::min(rr_best[c], rr[c]);
+      if (probe_at > 0 && it == mark_at) rr_mark = rr_best;
       if (probe_at > 0 && it == probe_at) {
-        // The steps this solve needs in all, were the residual to keep falling at its rate so far.
+        // The steps this solve needs in all, were the residual to keep falling at its recent rate.
         double predicted = double(it);
         for (std::size_t c = 0; c < m; ++c) {
           if (done[c]) continue;
-          const double fell = std::sqrt(rr[c] / rr_start[c]), need = tolerance_ * std::sqrt(rr0[c] / rr_start[c]);
-          predicted = std::max(predicted, fell < 1 ? double(it) * std::log(need) / std::log(fell)
+          const double fell = std::sqrt(rr_best[c] / rr_mark[c]), need = tolerance_ * std::sqrt(rr0[c] / rr_best[c]);
+          predicted = std::max(predicted, fell < 1 ? double(it) + double(it - mark_at) * std::log(need) / std::log(fell)
                                                    : std::numeric_limits<double>::infinity());
         }
         if (!probe_.worth_it(predicted)) {
@@ -280,6 +288,8 @@ class BatchedCg final : public SparseFactor {
           os << "conjugate gradients would need about " << predicted << " steps (after " << it << ")";
           throw CgStagnated(os.str(), predicted);
         }
+        mark_at = probe_at;
+        rr_mark = rr_best;
         probe_at *= 3;
       }
       const Sums pq = times_a(p, q, m, reduce);
@@ -337,6 +347,41 @@ std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::ve
   return std::make_unique<BatchedCg>(a, std::move(order), tolerance, max_iterations, std::move(probe));
 }
 
+std::pair<double, double> lanczos_extremes(const KernelMatrix& a, unsigned seed) {
+  const std::size_t n = a.size();
+  const auto en = Eigen::Index(n);
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  RowMatrix v(en, 1), prev = RowMatrix::Zero(en, 1);
+  for (Eigen::Index i = 0; i < en; ++i) v(i, 0) = u(rng);
+  v /= v.norm();
+  std::vector<double> alpha, beta;
+  double lo = a.diagonal(), hi = a.diagonal(), last_lo = 0, last_hi = 0;
+  const std::size_t steps = std::min<std::size_t>(n, 300);
+  for (std::size_t k = 0; k < steps; ++k) {
+    RowMatrix w = a * v;
+    const double al = w.col(0).dot(v.col(0));
+    w -= al * v + (beta.empty() ? 0.0 : beta.back()) * prev;
+    alpha.push_back(al);
+    const double b = w.norm();
+    if ((k + 1) % 10 == 0 || k + 1 == steps || !(b > 1e-14 * std::abs(al))) {
+      Eigen::VectorXd d = Eigen::Map<Eigen::VectorXd>(alpha.data(), Eigen::Index(alpha.size()));
+      Eigen::VectorXd e = Eigen::Map<Eigen::VectorXd>(beta.data(), Eigen::Index(beta.size()));
+      Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> t;
+      t.computeFromTridiagonal(d, e, Eigen::EigenvaluesOnly);
+      lo = t.eigenvalues().minCoeff();
+      hi = t.eigenvalues().maxCoeff();
+      if (k >= 19 && std::abs(lo - last_lo) <= 1e-4 * std::abs(lo) && std::abs(hi - last_hi) <= 1e-4 * hi) break;
+      last_lo = lo, last_hi = hi;
+    }
+    if (!(b > 1e-14 * std::abs(al))) break;  // an invariant subspace: the Ritz values are eigenvalues
+    beta.push_back(b);
+    prev = v;
+    v = w / b;
+  }
+  return {lo, hi};
+}
+
 namespace {
 class EnvelopeFactor final : public SparseFactor {
  public:
@@ -348,7 +393,7 @@ class EnvelopeFactor final : public SparseFactor {
     if (8 * entries > memory_limit_bytes) {
       std::ostringstream os;
       os.precision(3);
-      os << "the envelope holds " << entries << " entries, about " << 8 * entries / double(1ull << 30)
+      os << "the envelope holds " << std::llround(entries) << " entries, about " << 8 * entries / double(1ull << 30)
          << " GiB, above the limit of " << memory_limit_bytes / double(1ull << 30)
          << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`)";
       throw ResourceLimit(os.str());

@@ -60,6 +60,11 @@ struct CgProbe {
 std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
                                                   double tolerance, std::size_t max_iterations, CgProbe probe = {});
 
+/// Estimates of A's smallest and largest eigenvalues: the extreme Ritz values of the Lanczos
+/// tridiagonal matrix after up to 300 steps from a seeded random vector (fewer where they settle to
+/// 1e-4 or the space is exhausted). Products with A only: for the condition estimate without a factor.
+std::pair<double, double> lanczos_extremes(const KernelMatrix& a, unsigned seed);
+
 /// The paper's envelope Cholesky of A in `order` (rows: the sources order[k]) as a SparseFactor that
 /// takes and gives the input order: the direct solver Auto turns to after CG on a small system.
 /// ResourceLimit when the envelope exceeds memory_limit_bytes; NotPositiveDefinite names the source.

@@ -62,7 +62,8 @@ class Checker {
     return j_[key];
   }
   /// A non-negative integer at obj[key] (def where absent and def >= 0), below `limit`.
-  std::uint64_t integer(const json& obj, const char* key, const std::string& where, double limit, std::int64_t def = -1) const {
+  std::uint64_t integer(const json& obj, const char* key, const std::string& where, double limit,
+                        std::int64_t def = -1) const {
     if (!obj.contains(key)) {
       if (def < 0) fail(where, std::string("has no ") + key);
       return std::uint64_t(def);
@@ -94,11 +95,13 @@ class Checker {
       for (std::size_t k = 0; k < req.size(); ++k) {
         const std::string e = req[k].is_string() ? req[k].get<std::string>() : req[k].dump();
         // Materials and texture transforms change how a mesh looks, not where its vertices are.
-        const bool known = e.rfind("KHR_materials_", 0) == 0 || e == "KHR_texture_transform" || e == "KHR_lights_punctual";
+        const bool known =
+            e.rfind("KHR_materials_", 0) == 0 || e == "KHR_texture_transform" || e == "KHR_lights_punctual";
         if (!known)
-          fail("extensionsRequired[" + std::to_string(k) + "]", "'" + detail::cut(e) +
-                                                                   "' is required by the file and not supported "
-                                                                   "(compressed or quantised geometry cannot be read)");
+          fail("extensionsRequired[" + std::to_string(k) + "]",
+               "'" + detail::cut(e) +
+                   "' is required by the file and not supported "
+                   "(compressed or quantised geometry cannot be read)");
       }
     }
   }
@@ -113,7 +116,8 @@ class Checker {
       const std::uint64_t length = integer(b, "byteLength", where, 1e15);
       double have = 0;
       if (!b.contains("uri")) {
-        if (k != 0 || bin_.data() == nullptr) fail(where, "has no uri (only a binary glTF's first buffer may use its BIN chunk)");
+        if (k != 0 || bin_.data() == nullptr)
+          fail(where, "has no uri (only a binary glTF's first buffer may use its BIN chunk)");
         have = double(bin_.size());
       } else if (!b["uri"].is_string()) {
         fail(where + ".uri", "is not a string");
@@ -126,10 +130,14 @@ class Checker {
           std::size_t chars = 0, pad = 0;
           for (std::size_t i = comma + 1; i < uri.size(); ++i) {
             const char c = uri[i];
-            const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '+' || c == '/';
-            if (c == '=') ++pad;
-            else if (!ok || pad > 0) fail(where + ".uri", "is not valid base64 at character " + std::to_string(i - comma));
-            else ++chars;
+            const bool ok =
+                (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '+' || c == '/';
+            if (c == '=')
+              ++pad;
+            else if (!ok || pad > 0)
+              fail(where + ".uri", "is not valid base64 at character " + std::to_string(i - comma));
+            else
+              ++chars;
           }
           have = std::floor(double(chars) * 3 / 4);
         } else {
@@ -145,12 +153,14 @@ class Checker {
         }
       }
       if (double(length) > have)
-        fail(where + ".byteLength", std::to_string(length) + " is more than the " + format_number(have) + " bytes its data holds");
+        fail(where + ".byteLength",
+             std::to_string(length) + " is more than the " + format_number(have) + " bytes its data holds");
       buffer_length_.push_back(double(length));
     }
     if (external + double(data_.size()) > max_bytes_)
       throw FileError(name_ + ": the glTF and its buffers hold " + format_number(external + double(data_.size())) +
-                      " bytes, more than the " + format_number(std::round(max_bytes_)) + " bytes allowed (--memory-limit)");
+                      " bytes, more than the " + format_number(std::round(max_bytes_)) +
+                      " bytes allowed (--memory-limit)");
   }
 
   void check_buffer_views() {
@@ -160,10 +170,11 @@ class Checker {
       const json& v = views[k];
       if (!v.is_object()) fail(where, "is not an object");
       const std::size_t b = index(v, "buffer", where, "buffers");
-      const std::uint64_t offset = integer(v, "byteOffset", where, 1e15, 0), length = integer(v, "byteLength", where, 1e15);
+      const std::uint64_t offset = integer(v, "byteOffset", where, 1e15, 0),
+                          length = integer(v, "byteLength", where, 1e15);
       if (double(offset) + double(length) > buffer_length_[b])
-        fail(where, "runs to byte " + std::to_string(offset + length) + ", past the " + format_number(buffer_length_[b]) +
-                        " bytes of buffers[" + std::to_string(b) + "]");
+        fail(where, "runs to byte " + std::to_string(offset + length) + ", past the " +
+                        format_number(buffer_length_[b]) + " bytes of buffers[" + std::to_string(b) + "]");
       const std::uint64_t stride = integer(v, "byteStride", where, 253, 0);
       if (v.contains("byteStride") && (stride < 4 || stride % 4 != 0))
         fail(where + ".byteStride", std::to_string(stride) + " is not a multiple of 4 from 4 to 252");
@@ -184,12 +195,16 @@ class Checker {
   static int component_bytes(std::uint64_t t) {
     switch (t) {
       case 5120:
-      case 5121: return 1;
+      case 5121:
+        return 1;
       case 5122:
-      case 5123: return 2;
+      case 5123:
+        return 2;
       case 5125:
-      case 5126: return 4;
-      default: return 0;
+      case 5126:
+        return 4;
+      default:
+        return 0;
     }
   }
 
@@ -201,8 +216,8 @@ class Checker {
                       "].byteStride " + format_number(stride));
     const double end = offset + stride * (count - 1) + bytes;
     if (end > view_length_[view])
-      fail(where, "needs bytes up to " + format_number(end) + " of bufferViews[" + std::to_string(view) + "], which holds " +
-                      format_number(view_length_[view]));
+      fail(where, "needs bytes up to " + format_number(end) + " of bufferViews[" + std::to_string(view) +
+                      "], which holds " + format_number(view_length_[view]));
   }
 
   void check_accessors() {
@@ -216,7 +231,9 @@ class Checker {
       if (size == 0) fail(where + ".componentType", std::to_string(type_code) + " is not a glTF component type");
       const std::string type = a.contains("type") && a["type"].is_string() ? a["type"].get<std::string>() : "";
       const int comps = components(type);
-      if (comps == 0) fail(where + ".type", (a.contains("type") ? shown(a["type"]) : std::string("(missing)")) + " is not a glTF type");
+      if (comps == 0)
+        fail(where + ".type",
+             (a.contains("type") ? shown(a["type"]) : std::string("(missing)")) + " is not a glTF type");
       // The smallest element is one byte: a count beyond the bytes of the file and its buffers cannot be real.
       double total = double(data_.size());
       for (double b : buffer_length_) total += b;
@@ -241,7 +258,8 @@ class Checker {
           double bytes = element;
           if (std::string(part) == "indices") {
             const std::uint64_t t = integer(p, "componentType", pw, 1e9);
-            if (t != 5121 && t != 5123 && t != 5125) fail(pw + ".componentType", std::to_string(t) + " is not an unsigned integer type");
+            if (t != 5121 && t != 5123 && t != 5125)
+              fail(pw + ".componentType", std::to_string(t) + " is not an unsigned integer type");
             bytes = component_bytes(t);
           }
           const double offset = double(integer(p, "byteOffset", pw, 1e15, 0));
@@ -284,32 +302,37 @@ class Checker {
             !pr["attributes"].contains("POSITION"))
           fail(pw, "has no attributes.POSITION");
         const json& at = pr["attributes"];
-        const std::size_t pos = typed(at, "POSITION", pw + ".attributes", "VEC3", {5126}, "positions are VEC3 of floats (5126)");
-        if (at.contains("NORMAL")) typed(at, "NORMAL", pw + ".attributes", "VEC3", {5126}, "normals are VEC3 of floats (5126)");
+        const std::size_t pos =
+            typed(at, "POSITION", pw + ".attributes", "VEC3", {5126}, "positions are VEC3 of floats (5126)");
+        if (at.contains("NORMAL"))
+          typed(at, "NORMAL", pw + ".attributes", "VEC3", {5126}, "normals are VEC3 of floats (5126)");
         vertices += count_[pos];
         double elements = count_[pos];
         if (pr.contains("indices")) {
-          const std::size_t ix = typed(pr, "indices", pw, "SCALAR", {5121, 5123, 5125}, "indices are SCALAR unsigned integers");
+          const std::size_t ix =
+              typed(pr, "indices", pw, "SCALAR", {5121, 5123, 5125}, "indices are SCALAR unsigned integers");
           elements = count_[ix];
         }
         std::int64_t mode = 4;
         if (pr.contains("mode")) {
-          if (!pr["mode"].is_number_integer() || pr["mode"].get<std::int64_t>() < 0 || pr["mode"].get<std::int64_t>() > 6)
+          if (!pr["mode"].is_number_integer() || pr["mode"].get<std::int64_t>() < 0 ||
+              pr["mode"].get<std::int64_t>() > 6)
             fail(pw + ".mode", shown(pr["mode"]) + " is not 0..6");
           mode = pr["mode"].get<std::int64_t>();
         }
         // points need 1 element, lines and line strips or loops 2, triangles, strips and fans 3.
         const double least = mode == 0 ? 1 : mode <= 3 ? 2 : 3;
         if (elements < least)
-          fail(pw, "has " + format_number(elements) + " elements; its mode " + std::to_string(mode) + " needs at least " +
-                       format_number(least));
+          fail(pw, "has " + format_number(elements) + " elements; its mode " + std::to_string(mode) +
+                       " needs at least " + format_number(least));
         if (pr.contains("targets")) {
           if (!pr["targets"].is_array()) fail(pw + ".targets", "is not an array");
           for (std::size_t t = 0; t < pr["targets"].size(); ++t) {
             const json& target = pr["targets"][t];
             const std::string tw = pw + ".targets[" + std::to_string(t) + "]";
             if (!target.is_object()) fail(tw, "is not an object");
-            if (target.contains("POSITION")) typed(target, "POSITION", tw, "VEC3", {5126}, "positions are VEC3 of floats (5126)");
+            if (target.contains("POSITION"))
+              typed(target, "POSITION", tw, "VEC3", {5126}, "positions are VEC3 of floats (5126)");
           }
         }
       }
@@ -347,8 +370,8 @@ class Checker {
       std::size_t depth = 0;
       for (std::int64_t p = parent[k]; p >= 0; p = parent[std::size_t(p)])
         if (++depth > kMaxNodeDepth)
-          fail("nodes[" + std::to_string(k) + "]", "lies more than " + std::to_string(kMaxNodeDepth) +
-                                                     " levels deep, or in a cycle of children");
+          fail("nodes[" + std::to_string(k) + "]",
+               "lies more than " + std::to_string(kMaxNodeDepth) + " levels deep, or in a cycle of children");
       if (nodes[k].contains("mesh")) vertices += mesh_vertices_[nodes[k]["mesh"].get<std::size_t>()];
     }
     if (vertices * kBytesPerVertex > max_bytes_)
@@ -382,21 +405,23 @@ void check_gltf(const fs::path& path, bool binary, double max_bytes) {
     std::memcpy(&version, data.data() + 4, 4);
     std::memcpy(&total, data.data() + 8, 4);
     std::memcpy(&n, data.data() + 12, 4);
-    if (version != 2) throw FileError(name + ": binary glTF version " + std::to_string(version) + "; csrbf reads version 2");
+    if (version != 2)
+      throw FileError(name + ": binary glTF version " + std::to_string(version) + "; csrbf reads version 2");
     if (total != data.size())
-      throw FileError(name + ": the binary glTF header gives a length of " + std::to_string(total) + " bytes, the file has " +
-                      std::to_string(data.size()));
+      throw FileError(name + ": the binary glTF header gives a length of " + std::to_string(total) +
+                      " bytes, the file has " + std::to_string(data.size()));
     if (n > data.size() - 20 || data.compare(16, 4, "JSON") != 0)
       throw FileError(name + ": the binary glTF's first chunk is not a JSON chunk of " + std::to_string(n) +
                       " bytes within the file");
     json_text = std::string_view(data).substr(20, n);
     for (std::size_t off = 20 + std::size_t(n); off < data.size();) {
       std::uint32_t len = 0;
-      if (data.size() - off < 8) throw FileError(name + ": a binary glTF chunk header is cut at byte " + std::to_string(off));
+      if (data.size() - off < 8)
+        throw FileError(name + ": a binary glTF chunk header is cut at byte " + std::to_string(off));
       std::memcpy(&len, data.data() + off, 4);
       if (len > data.size() - off - 8)
-        throw FileError(name + ": the binary glTF chunk at byte " + std::to_string(off) + " claims " + std::to_string(len) +
-                        " bytes, beyond the end of the file");
+        throw FileError(name + ": the binary glTF chunk at byte " + std::to_string(off) + " claims " +
+                        std::to_string(len) + " bytes, beyond the end of the file");
       if (bin.data() == nullptr && data.compare(off + 4, 4, std::string_view("BIN\0", 4)) == 0)
         bin = std::string_view(data).substr(off + 8, len);
       off += 8 + std::size_t(len);

@@ -163,6 +163,10 @@ TEST(Hostile, BadFilesAndNumbers) {
       {"a key twice", "deform --mesh " + kFish + " --deformation {dir}/dup.json -o {dir}/out.obj",
        "the key \"radius\" appears twice", 1},
       {"a NUL in controls", deform + "{dir}/nul.controls", "nul.controls:1: '1\\x000' is not a number", 1},
+      {"an ordering for a solver that orders itself",
+       "deform --mesh " + kFish +
+           " --controls {dir}/ok.controls --radius 0.3 --solver eigen --ordering identity -o {dir}/out.obj",
+       "--ordering identity: solver 'eigen' orders the matrix itself", 2},
       {"unknown output format",
        "deform --mesh " + kFish + " --controls {dir}/ok.controls --radius 0.3 -o {dir}/out.foo",
        "unknown output format '.foo'", 2},

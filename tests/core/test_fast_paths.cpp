@@ -6,6 +6,7 @@
 
 #include "../../src/core/evaluator.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
 
 #include "test_points.hpp"
@@ -459,7 +460,8 @@ TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyS
         const SpaceMap env = SpaceMap::fit(s, d, o);
         o.solver = Solver::Cg;
         const SpaceMap cg = SpaceMap::fit(s, d, o);
-        ASSERT_EQ(cg.stats().solver, Solver::Cg) << kernel_name(k);
+        ASSERT_EQ(cg.stats().solver, Solver::Cg)
+            << kernel_name(k) << " " << polynomial_name(p) << " " << cg.stats().iterations;
         EXPECT_FALSE(cg.stats().fell_back);
         EXPECT_GT(cg.stats().iterations, 5u);
         EXPECT_LE(cg.stats().solver_residual, kCgTolerance);
@@ -529,6 +531,39 @@ TEST(FastPaths, WithDestinationsWarmStartsConjugateGradients) {
     const SpaceMap rest = next.with_destinations(s);
     EXPECT_EQ(rest.coefficients().cwiseAbs().maxCoeff(), 0.0);
   }
+}
+
+TEST(FastPaths, ConditionEstimateAgreesAcrossSolvers) {
+  // CG has no factor for inverse iteration: Lanczos on A estimates both ends of the spectrum. It
+  // agrees with the envelope solver's inverse iteration, and with a dense eigen-decomposition.
+  std::mt19937 rng(109);
+  auto s = random_points(600, rng);
+  s.push_back(s[5] + Vec3(1e-7, 0, 0));  // two sources 1e-7 apart: a condition number near 1e12
+  const auto d = displaced(s, rng, 0.0);
+  for (double r : {0.15, 0.3}) {
+    FitOptions o{r, Kernel::C2, Polynomial::None};
+    o.solver = Solver::Envelope;
+    const double env = SpaceMap::fit(s, d, o).condition_estimate();
+    o.solver = Solver::Cg;
+    const SpaceMap cg_map = SpaceMap::fit(s, d, o);
+    const double cg = cg_map.condition_estimate();
+    const auto n = Eigen::Index(s.size());
+    Eigen::MatrixXd dense(n, n);
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index j = 0; j < n; ++j)
+        dense(i, j) = wendland(Kernel::C2, (s[std::size_t(i)] - s[std::size_t(j)]).norm() / r);
+    const Eigen::VectorXd ev = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(dense).eigenvalues();
+    const double exact = ev.maxCoeff() / ev.minCoeff();
+    EXPECT_GT(env, 0.5 * exact) << r;
+    EXPECT_LT(env, 2.0 * exact) << r;
+    EXPECT_GT(cg, 0.5 * exact) << r;
+    EXPECT_LT(cg, 2.0 * exact) << r;
+  }
+  // CG's memory is bounded too: its copy of A and its vectors.
+  FitOptions tiny{0.3, Kernel::C2, Polynomial::None};
+  tiny.solver = Solver::Cg;
+  tiny.memory_limit_bytes = 1024;
+  EXPECT_THROW(SpaceMap::fit(s, d, tiny), ResourceLimit);
 }
 
 TEST(FastPaths, AutoSolverChoosesBySize) {

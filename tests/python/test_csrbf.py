@@ -130,6 +130,44 @@ class AgainstScipy(unittest.TestCase):
         np.testing.assert_allclose(m(x), x + expect, rtol=0, atol=1e-9)
 
 
+    def test_every_solver_and_new_destinations(self):
+        # Each back end solves the same system as scipy.sparse's spsolve; with_destinations re-solves
+        # (CG from the previous solution) and equals a fresh fit; the memory limit raises MemoryError.
+        rng = np.random.default_rng(43)
+        n, radius = 1500, 0.12
+        s = rng.random((n, 3))
+        g = 0.02 * rng.standard_normal((n, 3))
+        tree = scipy.spatial.cKDTree(s)
+        pairs = tree.query_pairs(radius, output_type="ndarray")
+        r = np.linalg.norm(s[pairs[:, 0]] - s[pairs[:, 1]], axis=1) / radius
+        a = scipy.sparse.csc_matrix(
+            (np.concatenate([wendland_c2(r), wendland_c2(r), np.ones(n)]),
+             (np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)]),
+              np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)]))), shape=(n, n))
+        alpha = scipy.sparse.linalg.spsolve(a, g)
+        for solver in ["auto", "envelope", "eigen", "cholmod", "cg"]:
+            m = csrbf.SpaceMap(s, s + g, radius, solver=solver, ordering="rcm")
+            np.testing.assert_allclose(m.coefficients, alpha, rtol=0, atol=1e-8 * np.abs(alpha).max(), err_msg=solver)
+        cg = csrbf.SpaceMap(s, s + g, radius, solver="cg")
+        self.assertEqual(cg.stats["solver"], "cg")
+        g2 = g.copy()
+        g2[::100] += 0.001
+        moved = cg.with_destinations(s + g2)
+        self.assertTrue(moved.stats["warm_start"])
+        self.assertLess(moved.stats["iterations"], cg.stats["iterations"])
+        alpha2 = scipy.sparse.linalg.spsolve(a, g2)
+        np.testing.assert_allclose(moved.coefficients, alpha2, rtol=0, atol=1e-8 * np.abs(alpha2).max())
+        np.testing.assert_array_equal(cg.coefficients, csrbf.SpaceMap(s, s + g, radius, solver="cg").coefficients)
+        with self.assertRaisesRegex(ValueError, "1500 sources but 10 destinations"):
+            cg.with_destinations(s[:10])
+        with self.assertRaisesRegex(ValueError, "destinations"):
+            cg.with_destinations(np.full((n, 3), np.nan))
+        with self.assertRaisesRegex(ValueError, "solver must be one of 'auto', 'envelope', 'eigen', 'cholmod' or 'cg'"):
+            csrbf.SpaceMap(s, s + g, radius, solver="lu")
+        with self.assertRaisesRegex(MemoryError, "above the limit"):
+            csrbf.SpaceMap(s, s + g, 0.9, memory_limit=1e6)
+
+
 class Arrays(unittest.TestCase):
     def setUp(self):
         rng = np.random.default_rng(7)
