@@ -163,6 +163,62 @@ class Checker {
                       " bytes allowed (--memory-limit)");
   }
 
+  /// The bytes of buffers[k] (checked by check_buffers): the BIN chunk, a data: URI decoded, or the file.
+  const std::string& buffer_bytes(std::size_t k) {
+    if (bytes_.size() <= k) bytes_.resize(array("buffers").size());
+    std::string& out = bytes_[k];
+    if (!out.empty()) return out;
+    const json& b = array("buffers")[k];
+    if (!b.contains("uri")) {
+      out.assign(bin_.data(), bin_.size());
+    } else {
+      const std::string uri = b["uri"].get<std::string>();
+      if (uri.rfind("data:", 0) == 0) {
+        static constexpr std::string_view kAlphabet =
+            "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+        std::uint32_t acc = 0;
+        int bits = 0;
+        for (std::size_t i = uri.find(',') + 1; i < uri.size() && uri[i] != '='; ++i) {
+          acc = (acc << 6) | std::uint32_t(kAlphabet.find(uri[i]));
+          bits += 6;
+          if (bits >= 8) {
+            bits -= 8;
+            out.push_back(char((acc >> bits) & 0xff));
+          }
+        }
+      } else {
+        out = read_input(path_.parent_path() / uri, "a glTF buffer", max_bytes_);
+      }
+    }
+    return out;
+  }
+
+  /// Every index of a primitive names one of its vertices: assimp dropped faces with an index beyond
+  /// them, and crashed on such a line loop.
+  void check_indices(std::size_t accessor, double vertices, const std::string& where) {
+    const json& a = array("accessors")[accessor];
+    if (a.contains("sparse"))
+      fail(where + ".indices", "names a sparse accessor; csrbf reads plain index accessors only");
+    if (!a.contains("bufferView")) return;  // all zeros
+    const std::size_t view = a["bufferView"].get<std::size_t>();
+    const json& v = array("bufferViews")[view];
+    const std::string& data = buffer_bytes(v["buffer"].get<std::size_t>());
+    const int size = component_bytes(component_[accessor]);
+    const std::size_t stride = view_stride_[view] > 0 ? std::size_t(view_stride_[view]) : std::size_t(size);
+    const std::size_t start =
+        std::size_t(v.value("byteOffset", std::uint64_t(0)) + a.value("byteOffset", std::uint64_t(0)));
+    const auto count = std::size_t(count_[accessor]);
+    for (std::size_t i = 0; i < count; ++i) {
+      const std::size_t at = start + i * stride;
+      if (at + std::size_t(size) > data.size()) fail(where + ".indices", "runs past the end of its buffer's data");
+      std::uint32_t value = 0;
+      for (int b = 0; b < size; ++b) value |= std::uint32_t(std::uint8_t(data[at + std::size_t(b)])) << (8 * b);
+      if (double(value) >= vertices)
+        fail(where + ".indices", "holds " + std::to_string(value) + " at element " + std::to_string(i) +
+                                     ", beyond the " + format_number(vertices) + " vertices of its POSITION accessor");
+    }
+  }
+
   void check_buffer_views() {
     const json& views = array("bufferViews");
     for (std::size_t k = 0; k < views.size(); ++k) {
@@ -312,6 +368,7 @@ class Checker {
           const std::size_t ix =
               typed(pr, "indices", pw, "SCALAR", {5121, 5123, 5125}, "indices are SCALAR unsigned integers");
           elements = count_[ix];
+          check_indices(ix, count_[pos], pw);
         }
         std::int64_t mode = 4;
         if (pr.contains("mode")) {
@@ -389,6 +446,7 @@ class Checker {
   std::vector<double> buffer_length_, view_length_, view_stride_, count_, mesh_vertices_;
   std::vector<std::string> type_;
   std::vector<std::uint64_t> component_;
+  std::vector<std::string> bytes_;  // buffers' bytes, read when indices are checked
 };
 
 }  // namespace

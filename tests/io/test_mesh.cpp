@@ -361,6 +361,13 @@ TEST(Mesh, GltfStructureIsCheckedBeforeAssimpTrustsIt) {
       << e;
   e = edited([&](nlohmann::json& j) { j["meshes"][0]["primitives"][0]["attributes"]["POSITION"] = ix; });
   EXPECT_NE(e.find("positions are VEC3 of floats"), std::string::npos) << e;
+  // An index beyond the vertices (assimp dropped the face, or crashed on a line loop).
+  e = edited([&](nlohmann::json& j) {
+    j["accessors"][pos]["count"] = 2;
+    j["meshes"][0]["primitives"][0]["mode"] = 2;
+  });
+  EXPECT_NE(e.find("meshes[0].primitives[0].indices holds 2 at element"), std::string::npos) << e;
+  EXPECT_NE(e.find("beyond the 2 vertices of its POSITION accessor"), std::string::npos) << e;
   // Nodes: a child of two nodes (a DAG: 2^40 instances), or itself.
   e = edited([&](nlohmann::json& j) {
     j["nodes"] = {{{"children", {1, 1}}}, {{"mesh", 0}}};
