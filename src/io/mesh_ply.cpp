@@ -1,0 +1,376 @@
+// PLY, ASCII and binary (either byte order): elements bounded by what the file can hold, and
+// positions and normals kept where they sit, so that a save rewrites only those bytes or numbers.
+#include "mesh_impl.hpp"
+
+#include "csrbf/io/controls.hpp"
+#include "text.hpp"
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <string>
+
+namespace fs = std::filesystem;
+
+namespace csrbf::io {
+
+using detail::parse_double;
+using detail::parse_int;
+using detail::split;
+using detail::trim;
+using detail::split_lines;
+
+namespace detail {
+
+std::optional<PlyType> ply_type(std::string_view s) {
+  if (s == "char" || s == "int8") return PlyType::I8;
+  if (s == "uchar" || s == "uint8") return PlyType::U8;
+  if (s == "short" || s == "int16") return PlyType::I16;
+  if (s == "ushort" || s == "uint16") return PlyType::U16;
+  if (s == "int" || s == "int32") return PlyType::I32;
+  if (s == "uint" || s == "uint32") return PlyType::U32;
+  if (s == "float" || s == "float32") return PlyType::F32;
+  if (s == "double" || s == "float64") return PlyType::F64;
+  return std::nullopt;
+}
+std::size_t ply_size(PlyType t) {
+  switch (t) {
+    case PlyType::I8:
+    case PlyType::U8:
+      return 1;
+    case PlyType::I16:
+    case PlyType::U16:
+      return 2;
+    case PlyType::I32:
+    case PlyType::U32:
+    case PlyType::F32:
+      return 4;
+    case PlyType::F64:
+      return 8;
+  }
+  return 0;
+}
+
+static void reverse_bytes(unsigned char* b, std::size_t n) { std::reverse(b, b + n); }
+
+double ply_read(const unsigned char* p, PlyType t, bool swap) {
+  unsigned char b[8];
+  const std::size_t n = ply_size(t);
+  std::memcpy(b, p, n);
+  if (swap) reverse_bytes(b, n);
+  switch (t) {
+    case PlyType::I8: {
+      std::int8_t v;
+      std::memcpy(&v, b, 1);
+      return v;
+    }
+    case PlyType::U8: {
+      std::uint8_t v;
+      std::memcpy(&v, b, 1);
+      return v;
+    }
+    case PlyType::I16: {
+      std::int16_t v;
+      std::memcpy(&v, b, 2);
+      return v;
+    }
+    case PlyType::U16: {
+      std::uint16_t v;
+      std::memcpy(&v, b, 2);
+      return v;
+    }
+    case PlyType::I32: {
+      std::int32_t v;
+      std::memcpy(&v, b, 4);
+      return v;
+    }
+    case PlyType::U32: {
+      std::uint32_t v;
+      std::memcpy(&v, b, 4);
+      return v;
+    }
+    case PlyType::F32: {
+      float v;
+      std::memcpy(&v, b, 4);
+      return v;
+    }
+    case PlyType::F64: {
+      double v;
+      std::memcpy(&v, b, 8);
+      return v;
+    }
+  }
+  return 0;
+}
+
+void ply_write(unsigned char* p, PlyType t, bool swap, double value) {
+  unsigned char b[8];
+  const std::size_t n = ply_size(t);
+  if (t == PlyType::F32) {
+    const float v = float(value);
+    std::memcpy(b, &v, 4);
+  } else {
+    const double v = value;
+    std::memcpy(b, &v, 8);
+  }
+  if (swap) reverse_bytes(b, n);
+  std::memcpy(p, b, n);
+}
+
+}  // namespace detail
+
+using detail::ply_read;
+using detail::ply_size;
+using detail::ply_type;
+
+void MeshDocument::Impl::load_ply(const std::string& text) {
+  const std::string name = path.string();
+  if (text.compare(0, 3, "ply") != 0) throw FileError(name + ": not a PLY file (no 'ply' magic)");
+  const auto end = text.find("end_header");
+  if (end == std::string::npos) throw FileError(name + ": PLY header has no 'end_header'");
+  const auto body_start = text.find('\n', end);
+  if (body_start == std::string::npos) throw FileError(name + ": PLY file ends after its header");
+  ply_header = text.substr(0, body_start + 1);
+  const auto hlines = split_lines(ply_header, path);
+  std::vector<PlyElement> elements;
+  bool format_seen = false;
+  for (std::size_t li = 1; li < hlines.size(); ++li) {
+    const auto tok = split(hlines[li]);
+    if (tok.empty() || tok[0] == "comment" || tok[0] == "obj_info" || tok[0] == "end_header") continue;
+    if (tok[0] == "format") {
+      if (tok.size() < 2) throw FileError(where(li) + "bad format line '" + hlines[li] + "'");
+      if (tok[1] == "ascii")
+        ply_binary = false;
+      else if (tok[1] == "binary_little_endian") {
+        ply_binary = true;
+        ply_swap = std::endian::native != std::endian::little;
+      } else if (tok[1] == "binary_big_endian") {
+        ply_binary = true;
+        ply_swap = std::endian::native != std::endian::big;
+      } else
+        throw FileError(where(li) + "unknown PLY format '" + std::string(tok[1]) + "'");
+      format_seen = true;
+    } else if (tok[0] == "element") {
+      PlyElement e;
+      if (tok.size() != 3 || !parse_int(tok[2], e.count))
+        throw FileError(where(li) + "bad element line '" + hlines[li] + "'");
+      e.name = std::string(tok[1]);
+      elements.push_back(std::move(e));
+    } else if (tok[0] == "property") {
+      if (elements.empty()) throw FileError(where(li) + "property before any element");
+      PlyProperty p;
+      if (tok.size() == 5 && tok[1] == "list") {
+        const auto ct = ply_type(tok[2]), it = ply_type(tok[3]);
+        if (!ct || !it) throw FileError(where(li) + "unknown PLY type in '" + hlines[li] + "'");
+        p.list = true;
+        p.count_type = *ct;
+        p.type = *it;
+        p.name = std::string(tok[4]);
+      } else if (tok.size() == 3) {
+        const auto t = ply_type(tok[1]);
+        if (!t) throw FileError(where(li) + "unknown PLY type '" + std::string(tok[1]) + "'");
+        p.type = *t;
+        p.name = std::string(tok[2]);
+      } else {
+        throw FileError(where(li) + "bad property line '" + hlines[li] + "'");
+      }
+      elements.back().props.push_back(std::move(p));
+    } else {
+      throw FileError(where(li) + "unknown PLY header keyword '" + std::string(tok[0]) + "'");
+    }
+  }
+  if (!format_seen) throw FileError(name + ": PLY header has no 'format' line");
+  // Counts come from the header and are not trusted: each is bounded by what the body can hold
+  // before anything is allocated, and a list's length and indices must be integers.
+  const std::size_t body_bytes = text.size() - (body_start + 1);
+  for (std::size_t a = 0; a < elements.size(); ++a) {
+    const auto& e = elements[a];
+    for (std::size_t b = 0; b < a; ++b)
+      if (elements[b].name == e.name) throw FileError(name + ": PLY header declares element '" + e.name + "' twice");
+    if (e.props.empty() && e.count > 0)
+      throw FileError(name + ": PLY element '" + e.name + "' has " + std::to_string(e.count) +
+                      " entries but no properties");
+    std::size_t least = 0;  // bytes (binary) or tokens (ASCII) of one entry at the least
+    for (const auto& pr : e.props) {
+      if (pr.list) {
+        const auto integral = [](PlyType t) { return t != PlyType::F32 && t != PlyType::F64; };
+        if (!integral(pr.count_type) || !integral(pr.type))
+          throw FileError(name + ": PLY list property '" + pr.name + "' of element '" + e.name +
+                          "' must have integer count and index types");
+        least += ply_binary ? ply_size(pr.count_type) : 1;
+      } else {
+        least += ply_binary ? ply_size(pr.type) : 1;
+      }
+    }
+    // An ASCII token takes at least 2 bytes with its separator.
+    const std::size_t room = ply_binary ? body_bytes : (body_bytes + 1) / 2;
+    if (least > 0 && e.count > room / least)
+      throw FileError(name + ": PLY element '" + e.name + "' declares " + std::to_string(e.count) +
+                      " entries but the file's body (" + std::to_string(body_bytes) + " bytes) can hold at most " +
+                      std::to_string(room / least));
+  }
+  const PlyElement* vertex = nullptr;
+  for (const auto& e : elements) {
+    if (e.name == "vertex") vertex = &e;
+    if (e.name == "face" && e.count > 0 && std::none_of(e.props.begin(), e.props.end(), [](const PlyProperty& p) {
+          return p.list && (p.name == "vertex_indices" || p.name == "vertex_index");
+        }))
+      throw FileError(name + ": PLY element 'face' has no list property 'vertex_indices' (or 'vertex_index')");
+  }
+  if (!vertex) throw FileError(name + ": PLY file has no 'vertex' element");
+  int idx[6] = {-1, -1, -1, -1, -1, -1};
+  const char* names[6] = {"x", "y", "z", "nx", "ny", "nz"};
+  for (int k = 0; k < 6; ++k)
+    for (std::size_t p = 0; p < vertex->props.size(); ++p)
+      if (vertex->props[p].name == names[k] && !vertex->props[p].list) idx[k] = int(p);
+  for (int k = 0; k < 3; ++k)
+    if (idx[k] < 0) throw FileError(name + ": PLY 'vertex' element has no property '" + names[k] + "'");
+  has_normals = idx[3] >= 0 && idx[4] >= 0 && idx[5] >= 0;
+  for (int k = 0; k < (has_normals ? 6 : 3); ++k) {
+    const PlyType t = vertex->props[std::size_t(idx[k])].type;
+    if (t != PlyType::F32 && t != PlyType::F64)
+      throw FileError(name + ": PLY property '" + names[k] + "' must be float or double to be deformed");
+    ply_types[std::size_t(k)] = t;
+  }
+
+  if (ply_binary) {
+    ply_body.assign(text.begin() + std::ptrdiff_t(body_start + 1), text.end());
+    std::size_t off = 0;
+    const std::size_t size = ply_body.size();
+    auto need = [&](std::size_t n, const std::string& what) {
+      if (off + n > size) throw FileError(name + ": PLY body ends early, in " + what);
+    };
+    for (const auto& e : elements) {
+      for (std::size_t i = 0; i < e.count; ++i) {
+        std::array<std::size_t, 6> offs{};
+        std::vector<std::uint32_t> face;
+        for (std::size_t p = 0; p < e.props.size(); ++p) {
+          const auto& pr = e.props[p];
+          const std::string what = e.name + " " + std::to_string(i) + " property '" + pr.name + "'";
+          if (!pr.list) {
+            need(ply_size(pr.type), what);
+            if (&e == vertex)
+              for (int k = 0; k < 6; ++k)
+                if (idx[k] == int(p)) offs[std::size_t(k)] = off;
+            off += ply_size(pr.type);
+          } else {
+            need(ply_size(pr.count_type), what);
+            const double c = ply_read(&ply_body[off], pr.count_type, ply_swap);
+            off += ply_size(pr.count_type);
+            if (c < 0) throw FileError(name + ": negative list length in " + what);
+            if (c > double((size - off) / ply_size(pr.type)))
+              throw FileError(name + ": PLY body ends early, in " + what);
+            const bool face_list = e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
+            if (face_list && c < 3)
+              throw FileError(name + ": face " + std::to_string(i) + " has " + std::to_string(std::size_t(c)) +
+                              " vertices; a face needs at least 3");
+            const bool is_face = e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
+            for (std::size_t j = 0; j < std::size_t(c); ++j) {
+              if (is_face) {
+                const double v = ply_read(&ply_body[off], pr.type, ply_swap);
+                if (v < 0 || v > 4294967295.0)
+                  throw FileError(name + ": vertex index " + std::to_string(std::int64_t(v)) + " out of range in " +
+                                  what);
+                face.push_back(std::uint32_t(v));
+              }
+              off += ply_size(pr.type);
+            }
+          }
+        }
+        if (&e == vertex) {
+          Vec3 p, n = Vec3::Zero();
+          for (int k = 0; k < 3; ++k)
+            p[k] = ply_read(&ply_body[offs[std::size_t(k)]], ply_types[std::size_t(k)], ply_swap);
+          if (has_normals)
+            for (int k = 0; k < 3; ++k)
+              n[k] = ply_read(&ply_body[offs[std::size_t(k + 3)]], ply_types[std::size_t(k + 3)], ply_swap);
+          if (!p.allFinite()) throw FileError(name + ": vertex " + std::to_string(i) + " is not finite");
+          positions.push_back(p);
+          normals.push_back(n);
+          ply_offsets.push_back(offs);
+        } else if (e.name == "face") {
+          faces.push_back(std::move(face));
+        }
+      }
+    }
+    if (off != size)
+      throw FileError(name + ": " + std::to_string(size - off) + " bytes of trailing data after the last PLY element");
+  } else {
+    lines = split_lines(std::string_view(text).substr(body_start + 1), path);
+    std::size_t li = 0, tk = 0;
+    std::vector<std::string_view> tok;
+    auto advance = [&]() -> std::pair<std::string_view, Slot> {
+      while (li < lines.size()) {
+        if (tk == 0) tok = split(lines[li]);
+        if (tk < tok.size()) {
+          Slot s{li, std::uint32_t(tk)};
+          return {tok[tk++], s};
+        }
+        ++li;
+        tk = 0;
+      }
+      throw FileError(name + ": PLY body ends early");
+    };
+    const std::size_t header_lines = hlines.size();
+    auto body_where = [&](const Slot& s) { return name + ":" + std::to_string(header_lines + s.line + 1) + ": "; };
+    for (const auto& e : elements) {
+      for (std::size_t i = 0; i < e.count; ++i) {
+        std::array<Slot, 6> slots{};
+        Vec3 p = Vec3::Zero(), n = Vec3::Zero();
+        std::vector<std::uint32_t> face;
+        for (std::size_t pi = 0; pi < e.props.size(); ++pi) {
+          const auto& pr = e.props[pi];
+          if (!pr.list) {
+            auto [t, s] = advance();
+            double v;
+            if (!parse_double(t, v)) throw FileError(body_where(s) + "'" + detail::cut(t) + "' is not a number");
+            if (&e == vertex)
+              for (int k = 0; k < 6; ++k)
+                if (idx[k] == int(pi)) {
+                  if (!std::isfinite(v))
+                    throw FileError(body_where(s) + "'" + detail::cut(t) + "' is not a finite number");
+                  slots[std::size_t(k)] = s;
+                  (k < 3 ? p[k] : n[k - 3]) = v;
+                }
+          } else {
+            auto [t, s] = advance();
+            std::size_t c = 0;
+            if (!parse_int(t, c)) throw FileError(body_where(s) + "bad list length '" + detail::cut(t) + "'");
+            const bool is_face = e.name == "face" && (pr.name == "vertex_indices" || pr.name == "vertex_index");
+            if (c > body_bytes / 2)
+              throw FileError(body_where(s) + "list length " + detail::cut(t) + " is longer than the file");
+            if (is_face && c < 3)
+              throw FileError(body_where(s) + "a face has " + detail::cut(t) + " vertices; a face needs at least 3");
+            for (std::size_t j = 0; j < c; ++j) {
+              auto [t2, s2] = advance();
+              if (is_face) {
+                std::uint32_t v = 0;
+                if (!parse_int(t2, v)) throw FileError(body_where(s2) + "bad vertex index '" + detail::cut(t2) + "'");
+                face.push_back(v);
+              }
+            }
+          }
+        }
+        if (&e == vertex) {
+          positions.push_back(p);
+          normals.push_back(n);
+          position_slots.push_back({slots[0], slots[1], slots[2]});
+          if (has_normals) normal_slots.push_back({slots[3], slots[4], slots[5]});
+        } else if (e.name == "face") {
+          faces.push_back(std::move(face));
+        }
+      }
+    }
+    for (; li < lines.size(); ++li, tk = 0) {
+      if (tk == 0) tok = split(lines[li]);
+      if (tk < tok.size())
+        throw FileError(name + ":" + std::to_string(header_lines + li + 1) +
+                        ": trailing data after the last PLY element: '" + detail::cut(lines[li]) + "'");
+    }
+  }
+  check_faces();
+}
+
+}  // namespace csrbf::io
