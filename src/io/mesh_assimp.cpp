@@ -238,6 +238,16 @@ void export_scene(const aiScene* scene, const fs::path& out, MeshFormat f) {
 }  // namespace
 
 void MeshDocument::Impl::save_generic(const fs::path& out, MeshFormat f) const {
+  // OFF's and ASCII PLY's body: a line "x y z" a vertex, then "count i j k ..." a polygon.
+  const auto points_and_polygons = [&](std::ostream& os) {
+    for (const auto& p : positions)
+      os << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
+    for (const auto& face : faces) {
+      os << face.size();
+      for (auto v : face) os << ' ' << v;
+      os << '\n';
+    }
+  };
   switch (f) {
     case MeshFormat::Obj:
       write_atomically(out, [&](std::ostream& os) {
@@ -254,13 +264,7 @@ void MeshDocument::Impl::save_generic(const fs::path& out, MeshFormat f) const {
     case MeshFormat::Off:
       write_atomically(out, [&](std::ostream& os) {
         os << "OFF\n" << positions.size() << ' ' << faces.size() << " 0\n";
-        for (const auto& p : positions)
-          os << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
-        for (const auto& face : faces) {
-          os << face.size();
-          for (auto v : face) os << ' ' << v;
-          os << '\n';
-        }
+        points_and_polygons(os);
       });
       return;
     case MeshFormat::Ply:
@@ -268,13 +272,7 @@ void MeshDocument::Impl::save_generic(const fs::path& out, MeshFormat f) const {
         os << "ply\nformat ascii 1.0\ncomment written by csrbf\nelement vertex " << positions.size()
            << "\nproperty double x\nproperty double y\nproperty double z\nelement face " << faces.size()
            << "\nproperty list uchar int vertex_indices\nend_header\n";
-        for (const auto& p : positions)
-          os << format_number(p.x()) << ' ' << format_number(p.y()) << ' ' << format_number(p.z()) << '\n';
-        for (const auto& face : faces) {
-          os << face.size();
-          for (auto v : face) os << ' ' << v;
-          os << '\n';
-        }
+        points_and_polygons(os);
       });
       return;
     case MeshFormat::Xyz:
