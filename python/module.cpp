@@ -108,6 +108,17 @@ csrbf::Polynomial polynomial_of(const std::string& name) {
   return *p;
 }
 
+/// Polygons as a list of lists of vertex indices.
+py::list polygons(const csrbf::PolygonList& list) {
+  py::list out;
+  for (const auto face : list) {
+    py::list f;
+    for (const std::uint32_t v : face) f.append(v);
+    out.append(std::move(f));
+  }
+  return out;
+}
+
 /// The value of an option enum named `text` (any case), or ValueError listing the names.
 template <class E>
 E named(const std::string& text, const char* what) {
@@ -390,7 +401,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       "read_mesh",
       [](const std::filesystem::path& path) {
         const auto mesh = csrbf::io::MeshDocument::load(path);
-        return py::make_tuple(from_vec3(mesh.positions()), mesh.faces());
+        return py::make_tuple(from_vec3(mesh.positions()), polygons(mesh.faces()));
       },
       py::arg("path"), "(positions (n, 3), faces as lists of vertex indices) of a mesh file");
   m.def(
@@ -488,5 +499,6 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
           },
           py::arg("t"), "World positions of every object's vertices at time t: a list of (n, 3) arrays")
       .def(
-          "faces", [](const ScenePlayer& s, std::size_t o) { return s.scene->objects.at(o).faces; }, py::arg("object"));
+          "faces", [](const ScenePlayer& s, std::size_t o) { return polygons(s.scene->objects.at(o).faces); },
+          py::arg("object"));
 }

@@ -158,8 +158,7 @@ void Document::export_mesh(const std::filesystem::path& path) const {
   copy.save(path);
 }
 
-double distance_to_mesh(const std::vector<Vec3>& pos, const std::vector<std::vector<std::uint32_t>>& faces,
-                        const Vec3& p) {
+double distance_to_mesh(const std::vector<Vec3>& pos, const PolygonList& faces, const Vec3& p) {
   // Ericson, Real-Time Collision Detection, 5.1.5: the closest point on a triangle by regions.
   const auto closest = [](const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) -> Vec3 {
     const Vec3 ab = b - a, ac = c - a, ap = p - a;

@@ -90,7 +90,6 @@ class Document {
 
 /// The point of a triangle mesh nearest to p and its distance (brute force over the polygons, fanned
 /// into triangles). For tests and for snapping.
-double distance_to_mesh(const std::vector<Vec3>& positions, const std::vector<std::vector<std::uint32_t>>& faces,
-                        const Vec3& p);
+double distance_to_mesh(const std::vector<Vec3>& positions, const PolygonList& faces, const Vec3& p);
 
 }  // namespace csrbf::picker

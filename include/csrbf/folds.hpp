@@ -36,15 +36,14 @@ double first_fold_phase(const Eigen::Matrix3d& jacobian_at_1);
 
 /// Checks the vertices and, for each polygon (fanned into triangles), 4 points inside each triangle
 /// (the centroid and the points halfway between it and each corner). Runs in parallel.
-FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices,
-                       const std::vector<std::vector<std::uint32_t>>& faces, double phase = 1.0);
+FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices, const PolygonList& faces,
+                       double phase = 1.0);
 
 /// The same for a map that moves only the `area` vertices (sorted indices; the Picker's active area):
 /// the area's vertices, 4 points inside each triangle wholly inside it, and every triangle across its
 /// edge, which folds when it turns over (its normal against the rest normal). fold_free_phase covers
 /// all three; folded_vertices are indices into `vertices`.
-FoldReport check_folds_in_area(const SpaceMap& map, std::span<const Vec3> vertices,
-                               const std::vector<std::vector<std::uint32_t>>& faces,
+FoldReport check_folds_in_area(const SpaceMap& map, std::span<const Vec3> vertices, const PolygonList& faces,
                                const std::vector<std::uint32_t>& area, double phase = 1.0);
 
 }  // namespace csrbf

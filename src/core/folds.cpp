@@ -35,8 +35,7 @@ double first_fold_phase(const Eigen::Matrix3d& j1) {
   return best;
 }
 
-FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices,
-                       const std::vector<std::vector<std::uint32_t>>& faces, double phase) {
+FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices, const PolygonList& faces, double phase) {
   check_phase(phase);
   std::vector<Vec3> points(vertices.begin(), vertices.end());
   for (const auto& f : faces)
@@ -76,8 +75,7 @@ FoldReport check_folds(const SpaceMap& map, std::span<const Vec3> vertices,
   return r;
 }
 
-FoldReport check_folds_in_area(const SpaceMap& map, std::span<const Vec3> vertices,
-                               const std::vector<std::vector<std::uint32_t>>& faces,
+FoldReport check_folds_in_area(const SpaceMap& map, std::span<const Vec3> vertices, const PolygonList& faces,
                                const std::vector<std::uint32_t>& area, double phase) {
   check_phase(phase);
   constexpr std::uint32_t kOut = std::numeric_limits<std::uint32_t>::max();
@@ -90,7 +88,7 @@ FoldReport check_folds_in_area(const SpaceMap& map, std::span<const Vec3> vertic
   }
   std::vector<Vec3> moved(part.size());
   map.apply(part, moved, 1.0);  // displacement at phase 1: moved - part
-  std::vector<std::vector<std::uint32_t>> inside;
+  PolygonList inside;
   std::size_t edge = 0, flipped = 0;
   double first_flip = std::numeric_limits<double>::infinity();
   const auto disp = [&](std::uint32_t v) -> Vec3 {

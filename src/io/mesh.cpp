@@ -59,7 +59,7 @@ const char* format_name(MeshFormat f) noexcept {
   return "?";
 }
 
-Vec3 polygon_normal(const std::vector<Vec3>& p, const std::vector<std::uint32_t>& f) {
+Vec3 polygon_normal(const std::vector<Vec3>& p, std::span<const std::uint32_t> f) {
   Vec3 n = Vec3::Zero();
   for (std::size_t k = 0; k < f.size(); ++k) {
     const Vec3& a = p[f[k]];
@@ -196,7 +196,7 @@ MeshDocument::~MeshDocument() = default;
 MeshFormat MeshDocument::format() const noexcept { return impl_->format; }
 std::vector<Vec3>& MeshDocument::positions() noexcept { return impl_->positions; }
 const std::vector<Vec3>& MeshDocument::positions() const noexcept { return impl_->positions; }
-const std::vector<std::vector<std::uint32_t>>& MeshDocument::faces() const noexcept { return impl_->faces; }
+const PolygonList& MeshDocument::faces() const noexcept { return impl_->faces; }
 bool MeshDocument::has_normals() const noexcept { return impl_->has_normals; }
 const std::map<std::string, std::vector<std::uint32_t>>& MeshDocument::groups() const noexcept { return impl_->groups; }
 const std::map<std::string, std::vector<std::uint32_t>>& MeshDocument::materials() const noexcept {

@@ -108,8 +108,7 @@ void MeshDocument::Impl::load_assimp(double max_bytes) {
 
 namespace {
 
-std::unique_ptr<aiScene> make_scene(const std::vector<Vec3>& p, const std::vector<std::vector<std::uint32_t>>& faces,
-                                    bool triangulate) {
+std::unique_ptr<aiScene> make_scene(const std::vector<Vec3>& p, const PolygonList& faces, bool triangulate) {
   auto scene = std::make_unique<aiScene>();
   scene->mRootNode = new aiNode();
   scene->mRootNode->mNumMeshes = 1;
@@ -124,7 +123,7 @@ std::unique_ptr<aiScene> make_scene(const std::vector<Vec3>& p, const std::vecto
   mesh->mVertices = new aiVector3D[p.size()];
   for (std::size_t i = 0; i < p.size(); ++i)
     mesh->mVertices[i] = aiVector3D(ai_real(p[i].x()), ai_real(p[i].y()), ai_real(p[i].z()));
-  std::vector<std::vector<std::uint32_t>> polys;
+  PolygonList polys;
   for (const auto& f : faces) {
     if (triangulate && f.size() > 3)
       for (std::size_t k = 1; k + 1 < f.size(); ++k) polys.push_back({f[0], f[k], f[k + 1]});

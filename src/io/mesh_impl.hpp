@@ -67,7 +67,7 @@ struct MeshDocument::Impl {
   MeshFormat format = MeshFormat::Obj;
   std::filesystem::path path;
   std::vector<Vec3> positions;
-  std::vector<std::vector<std::uint32_t>> faces;
+  PolygonList faces;
   bool has_normals = false;
 
   // Text formats (OBJ, OFF, XYZ, ASCII PLY body): the original lines and where each number sits.

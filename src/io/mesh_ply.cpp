@@ -19,8 +19,8 @@ namespace csrbf::io {
 using detail::parse_double;
 using detail::parse_int;
 using detail::split;
-using detail::trim;
 using detail::split_lines;
+using detail::trim;
 
 namespace detail {
 

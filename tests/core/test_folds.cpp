@@ -75,7 +75,7 @@ TEST(Folds, TrianglesAcrossAnActiveAreasEdgeTurnOverAsABruteForceFinds) {
   // pushes +x towards the edge, so the displacement stops dead at the edge and the triangles across
   // it are squashed and turned over (det dT/dx stays positive inside the area).
   std::vector<Vec3> grid;
-  std::vector<std::vector<std::uint32_t>> faces;
+  csrbf::PolygonList faces;
   const int n = 11;
   for (int j = 0; j < n; ++j)
     for (int i = 0; i < n; ++i) grid.emplace_back(i / 10.0, j / 10.0, 0.0);

@@ -6,7 +6,10 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <cstdint>
+#include <span>
 #include <string>
+#include <vector>
 #include <sys/wait.h>
 
 namespace csrbf::test {
@@ -25,6 +28,11 @@ struct TempDir {
   }
   std::filesystem::path operator/(const std::string& name) const { return path / name; }
 };
+
+/// A polygon's indices as a vector, to compare with a literal.
+inline std::vector<std::uint32_t> vec(std::span<const std::uint32_t> polygon) {
+  return {polygon.begin(), polygon.end()};
+}
 
 inline void write_text(const std::filesystem::path& p, const std::string& text) {
   std::ofstream(p, std::ios::binary) << text;

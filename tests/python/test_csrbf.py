@@ -340,6 +340,9 @@ class Scenes(unittest.TestCase):
         np.testing.assert_allclose(ball.mean(axis=0), [0.85, 0.55, 0.4], atol=1e-3)
         # The box is dented on the right wall, where the ball presses (x > 1).
         self.assertGreater(box[:, 0].max(), 1.0 + 1e-3)
+        # Its faces are those of the box's mesh file.
+        _, faces = csrbf.read_mesh(os.path.join(EXAMPLES, "box.obj"))
+        self.assertEqual(scene.faces(0), faces)
 
 
 class VtkPython(unittest.TestCase):

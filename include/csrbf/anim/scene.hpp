@@ -66,10 +66,10 @@ struct Part {
 
 struct Object {
   std::string name;
-  std::vector<Vec3> rest;                         ///< model coordinates
-  std::vector<std::vector<std::uint32_t>> faces;  ///< polygons, 0-based
-  std::vector<Part> parts;                        ///< a vertex in several parts takes the last one's deformation
-  Material material;                              ///< faces in no part
+  std::vector<Vec3> rest;   ///< model coordinates
+  PolygonList faces;        ///< polygons, 0-based
+  std::vector<Part> parts;  ///< a vertex in several parts takes the last one's deformation
+  Material material;        ///< faces in no part
   /// World position of the centre of gravity against time; empty: it stays at centre.
   std::optional<PositionTrack> trajectory;
   OrientationTrack orientation;  ///< about the centre of gravity (identity by default)

@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -36,7 +37,7 @@ class MeshDocument {
   MeshFormat format() const noexcept;
   std::vector<Vec3>& positions() noexcept;
   const std::vector<Vec3>& positions() const noexcept;
-  const std::vector<std::vector<std::uint32_t>>& faces() const noexcept;
+  const PolygonList& faces() const noexcept;
   bool has_normals() const noexcept;
   /// Named face groups (OBJ `g` and `o` lines): group name -> indices into faces(). Empty for
   /// other formats.
@@ -57,6 +58,6 @@ class MeshDocument {
 };
 
 /// Area-weighted polygon normal (Newell's method); zero for degenerate polygons.
-Vec3 polygon_normal(const std::vector<Vec3>& positions, const std::vector<std::uint32_t>& face);
+Vec3 polygon_normal(const std::vector<Vec3>& positions, std::span<const std::uint32_t> face);
 
 }  // namespace csrbf::io
