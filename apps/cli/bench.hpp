@@ -7,13 +7,15 @@
 namespace csrbf::cli {
 
 struct BenchOptions {
-  std::string scenario;       ///< fish, face, ball, scale, solvers, peers, all
-  bool json = false;          ///< one JSON object a line instead of a table
-  bool quick = false;         ///< smaller sweeps (for tests and slow machines)
-  int threads = 0;            ///< 0: each scenario's own choice (1 for fish/face/ball, 1 and all for scale)
-  double seconds = 0.3;       ///< time spent on each measured quantity
-  std::string loop = "auto";  ///< evaluation loop: auto, portable or avx512 (set_evaluation_loop)
-  std::string data_dir;       ///< where fish.obj, face.obj and their controls are (default: bundled)
+  std::string scenario;          ///< fish, face, ball, scale, solvers, peers, all
+  bool json = false;             ///< one JSON object a line instead of a table
+  bool quick = false;            ///< smaller sweeps (for tests and slow machines)
+  std::vector<double> controls;  ///< solvers: only these N (empty: the whole sweep)
+  std::string geometry;          ///< solvers: only "sphere" or "cube" (empty: both)
+  int threads = 0;               ///< 0: each scenario's own choice (1 for fish/face/ball, 1 and all for scale)
+  double seconds = 0.3;          ///< time spent on each measured quantity
+  std::string loop = "auto";     ///< evaluation loop: auto, portable or avx512 (set_evaluation_loop)
+  std::string data_dir;          ///< where fish.obj, face.obj and their controls are (default: bundled)
 };
 
 /// Runs the scenario(s), printing rows to stdout. Throws on bad options or missing data.

@@ -187,6 +187,12 @@ int main(int argc, char** argv) {
   bench->add_flag("--json", bench_opts.json, "One JSON object a line");
   bench->add_flag("--quick", bench_opts.quick, "Smaller sweeps (scale, solvers, peers)");
   bench
+      ->add_option("--controls", bench_opts.controls,
+                   "solvers: only these N (e.g. --controls 1e5), default 1e3 ... 1e6")
+      ->check(CLI::Range(10.0, 1e7));
+  bench->add_option("--geometry", bench_opts.geometry, "solvers: only 'sphere' or 'cube' (default both)")
+      ->check(CLI::IsMember({"sphere", "cube"}));
+  bench
       ->add_option("--threads", bench_opts.threads,
                    "Threads (default: 1 for fish/face/ball, all for scale/solvers/peers)")
       ->check(CLI::Range(1, 1024));

@@ -50,17 +50,19 @@ inline constexpr std::size_t kCgMaxIterations = 3000;
 ///   length)^2 / 2, in reverse Cuthill-McKee order) stay below those of kCgStepsEstimate CG steps on
 ///   3 right-hand sides (each step a product with A: 2 * neighbour pairs + N entries) and at most
 ///   kEnvelopeWorkLimit;
-/// - else CG, which after kCgProbeSteps steps (and 3 and 9 times as many) predicts the steps it needs
-///   from its convergence so far, and gives way: to the envelope solver where that is within
-///   kEnvelopeWorkLimit and its work, at kEnvelopeCostRatio of a CG multiply-add, is the smaller;
-///   to CHOLMOD (or Eigen) where CG would need more than kCgDirectSteps (an ill-conditioned system:
-///   points in a volume, many neighbours), unless CHOLMOD's factor would exceed the memory limit;
+/// - else CG, which after kCgProbeSteps steps (and 3, 9, ... times as many) predicts the steps it
+///   still needs from its convergence so far, and gives way: to the envelope solver where that is
+///   within kEnvelopeWorkLimit and its work, at kEnvelopeCostRatio of a CG multiply-add, is the
+///   smaller; to CHOLMOD (or Eigen) where CG would need more than kCgDirectSteps * sqrt(N) steps (an
+///   ill-conditioned system: points in a volume, many neighbours; CHOLMOD's cost in CG steps grew
+///   from about 80 at N = 1e3 to 1800 at N = 1e5 on the solvers sweep), unless CHOLMOD's factor
+///   would exceed the memory limit;
 /// - and CHOLMOD takes over wherever CG stagnates.
 /// CG took 41 to 230 steps on the sphere and 180 to 850 in the cube (N = 1e3 ... 1e6).
 inline constexpr double kEnvelopeWorkLimit = 1.0e8;
 inline constexpr double kCgStepsEstimate = 50.0;
 inline constexpr std::size_t kCgProbeSteps = 10;
-inline constexpr double kCgDirectSteps = 250.0;
+inline constexpr double kCgDirectSteps = 3.0;
 inline constexpr double kEnvelopeCostRatio = 0.6;
 /// The solver a fit uses: `requested`, or for Solver::Auto the rule above.
 Solver resolve_solver(Solver requested, double envelope_work, std::size_t controls = 0,

@@ -278,9 +278,10 @@ struct FitPhases {
       detail::CgProbe probe;
       if (options.solver == Solver::Auto) {
         probe.steps = kCgProbeSteps;
-        probe.worth_it = [work = stats.envelope_work, step = st.cg_step_work()](double steps) {
-          if (steps > kCgDirectSteps) return false;
-          return !(work <= kEnvelopeWorkLimit && kEnvelopeCostRatio * work < steps * step);
+        probe.worth_it = [work = stats.envelope_work, step = st.cg_step_work(), n](double steps, double done) {
+          const double left = steps - done;  // the steps taken are spent either way
+          if (left > kCgDirectSteps * std::sqrt(double(n))) return false;
+          return !(work <= kEnvelopeWorkLimit && kEnvelopeCostRatio * work < left * step);
         };
       }
       // CG holds A's rows in its order (12 bytes an entry) and 4 vectors of 7 columns.

@@ -282,7 +282,7 @@ class BatchedCg final : public SparseFactor {
           predicted = std::max(predicted, fell < 1 ? double(it) + double(it - mark_at) * std::log(need) / std::log(fell)
                                                    : std::numeric_limits<double>::infinity());
         }
-        if (!probe_.worth_it(predicted)) {
+        if (!probe_.worth_it(predicted, double(it))) {
           iterations_ = it;
           std::ostringstream os;
           os << "conjugate gradients would need about " << predicted << " steps (after " << it << ")";

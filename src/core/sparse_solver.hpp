@@ -44,12 +44,13 @@ class CgStagnated : public std::runtime_error {
   double predicted_;
 };
 
-/// Auto's check on CG: after `steps` steps of a solve (and again after 3 and 9 times as many), CG
+/// Auto's check on CG: after `steps` steps of a solve (and again after 3, 9, ... times as many), CG
 /// predicts the steps it needs in all from the residual's decrease so far (geometric, for the
-/// slowest right-hand side) and gives up, throwing CgStagnated, unless worth_it(predicted) holds.
+/// slowest right-hand side) and gives up, throwing CgStagnated, unless worth_it(predicted, done)
+/// holds (done: the steps taken, a sunk cost).
 struct CgProbe {
   std::size_t steps = 0;  ///< 0: no probe
-  std::function<bool(double predicted_steps)> worth_it;
+  std::function<bool(double predicted_steps, double done)> worth_it;
 };
 
 /// Conjugate gradients on A, the right-hand sides of a solve together: one parallel pass over A a
