@@ -294,8 +294,8 @@ may take, in bytes (default 4 GiB; beyond it MemoryError). The fit releases the 
           },
           py::arg("destinations"),
           "The same sources, radius, kernel and polynomial with new destinations ((n, 3), n as fitted): only the "
-          "solve is redone, conjugate gradients starting from this map's solution (stats['warm_start']). For "
-          "animation frames.")
+          "solve is redone, with the matrix and its factor kept; where the solver is conjugate gradients they "
+          "start from this map's solution (stats['warm_start']). For animation frames.")
       .def(
           "__call__",
           [](const csrbf::SpaceMap& map, const py::array& points, double phase, const py::object& out) {
@@ -334,7 +334,13 @@ may take, in bytes (default 4 GiB; beyond it MemoryError). The fit releases the 
             return out;
           },
           py::arg("points"), py::arg("phase") = 1.0, "dT/dx at each point: an (n, 3, 3) array, [i, a, b] = dT_a/dx_b")
-      .def_property_readonly("stats", &stats_dict, "What the fit did and cost (a dict)")
+      .def_property_readonly("stats", &stats_dict,
+                             "What the fit did and cost (a dict): controls, neighbor_pairs, mean_neighbors, ordering, "
+                             "bandwidth, envelope_entries, envelope_bytes, dense_bytes, envelope_work, solver, "
+                             "iterations and solver_residual (CG), fell_back, warm_start, factor_nonzeros, "
+                             "residual_max, residual_relative (at the controls), seconds_total and seconds (a "
+                             "dict of the phases: index, graph, ordering, assembly, factorization, solve, "
+                             "residual)")
       .def_property_readonly("radius", &csrbf::SpaceMap::radius)
       .def_property_readonly("kernel",
                              [](const csrbf::SpaceMap& m) { return std::string(csrbf::kernel_name(m.kernel())); })

@@ -528,7 +528,7 @@ void solvers_scenario(const BenchOptions& o, const Printer& out) {
               if (solver == Solver::Cg) row["cg_steps"] = m.stats().iterations;
               if (solver == Solver::Auto)
                 row["auto_solver"] =
-                    std::string(solver_name(m.stats().solver)) + (m.stats().fell_back ? " (after cg)" : "");
+                    std::string(solver_name(m.stats().solver)) + (m.stats().fell_back ? "-after-cg" : "");
             }
           } catch (const ResourceLimit&) {
             row[name + "_fit_us"] = "memory limit";

@@ -66,12 +66,12 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
                      ->check(positive_finite("--radius"));
   auto* kernel =
       cmd->add_option("--kernel,-k", a.kernel, "Wendland kernel: c0 = psi20, c2 = psi31, c4 = psi42, c6 = psi53")
-          ->check(CLI::IsMember(csrbf::names<csrbf::Kernel>()))
+          ->transform(CLI::IsMember(csrbf::names<csrbf::Kernel>(), CLI::ignore_case))
           ->capture_default_str();
   auto* polynomial =
       cmd->add_option("--polynomial,-p", a.polynomial,
                       "Polynomial part: none (strictly local), constant, linear (reproduces affine maps)")
-          ->check(CLI::IsMember(csrbf::names<csrbf::Polynomial>()))
+          ->transform(CLI::IsMember(csrbf::names<csrbf::Polynomial>(), CLI::ignore_case))
           ->capture_default_str();
   cmd->add_option("--memory-limit", a.memory_limit_gib,
                   "Refuse fits whose neighbour graph and factor would need more than this many GiB (a radius near "
@@ -88,12 +88,13 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
   cmd->add_option("--ordering", a.ordering,
                   "Matrix ordering: auto (smallest envelope), breadth-first (paper Fig. 3), reverse-breadth-first, "
                   "rcm, identity")
-      ->check(CLI::IsMember(csrbf::names<csrbf::Ordering>()))
+      ->transform(CLI::IsMember(csrbf::names<csrbf::Ordering>(), CLI::ignore_case))
       ->capture_default_str();
   cmd->add_option("--solver", a.solver,
-                  "Solver: auto (envelope while small, then by size), envelope (paper), eigen, cholmod, cg "
-                  "(conjugate gradients; a direct solver takes over where it stagnates)")
-      ->check(CLI::IsMember(csrbf::names<csrbf::Solver>()))
+                  "Solver: auto (the envelope while small, else conjugate gradients, which give way to the envelope "
+                  "or CHOLMOD where those are predicted faster), envelope (paper), eigen, cholmod, cg (conjugate "
+                  "gradients; CHOLMOD takes over if they have not converged in 3000 steps)")
+      ->transform(CLI::IsMember(csrbf::names<csrbf::Solver>(), CLI::ignore_case))
       ->capture_default_str();
 }
 
@@ -147,7 +148,8 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
     if (e.row() >= controls.sources.size()) throw csrbf::io::FileError(controls.name + ": " + e.what());
     throw csrbf::io::FileError(
         where(e.row()) + ": the interpolation matrix is not numerically positive definite at this control (pivot " +
-        std::to_string(e.pivot()) + "); sources too close together for R = " + std::to_string(o.radius));
+        csrbf::io::format_number(e.pivot()) + "); sources too close together for R = " +
+        csrbf::io::format_number(o.radius) + ": merge or separate them, or use a smaller radius");
   } catch (const csrbf::Error& e) {  // bad input, or the memory limit
     throw csrbf::io::FileError(controls.name + ": " + e.what());
   }

@@ -70,6 +70,10 @@ struct FitPhases {
       os << "memory_limit_bytes must be a number > 0, got " << options.memory_limit_bytes;
       throw InvalidInput(os.str());
     }
+    if (options.ordering != Ordering::Auto && (options.solver == Solver::Eigen || options.solver == Solver::Cholmod))
+      throw InvalidInput("ordering '" + std::string(ordering_name(options.ordering)) + "': solver '" +
+                         std::string(solver_name(options.solver)) +
+                         "' orders the matrix itself; an ordering applies to the envelope solver and cg");
     check_points(sources, "source");
     check_points(destinations, "destination");
     // The same limit NeighborIndex applies, checked here because small fits build it only later.
@@ -360,13 +364,22 @@ struct FitPhases {
       for (int c = 0; c < 3; ++c) s.poly.b[r][c] = s.beta(r, c);
     stats.seconds_solve += seconds_since(t0);
     stats.warm_start = warm && !st.fell_back;
+    if (previous && previous->alpha.rows() == Eigen::Index(n)) {
+      // with_destinations: only the solve (and the residual check) ran for this map.
+      stats.seconds_index = stats.seconds_graph = stats.seconds_ordering = stats.seconds_assembly = 0;
+      stats.seconds_factorization = 0;
+      stats.seconds_solve = seconds_since(t0);
+    }
     if (st.sparse) {
       stats.iterations = st.sparse->iterations();
       stats.solver_residual = st.sparse->residual();
       if (st.fell_back) {
-        // The solver that took over factorised inside this solve (or the polynomial block's).
-        stats.seconds_factorization = st.fallback_seconds;
-        if (!had_fallen_back) stats.seconds_solve -= st.fallback_seconds;
+        // The solver that took over factorised inside this solve (else in the polynomial block's,
+        // which counted it, or in an earlier map's).
+        if (!had_fallen_back) {
+          stats.seconds_factorization = st.fallback_seconds;
+          stats.seconds_solve -= st.fallback_seconds;
+        }
         stats.fell_back = st.fallback_solver != Solver::Cg;
         stats.solver = st.fallback_solver;
         stats.factor_nonzeros = st.fallback->nonzeros();

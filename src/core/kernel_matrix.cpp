@@ -12,26 +12,39 @@ KernelMatrix::KernelMatrix(AdjacencyGraph graph, Kernel kernel, double radius)
   values_ = std::move(pattern_.dist2);
   pattern_.dist2 = {};
   const double inv_r = 1.0 / radius;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values_.size(), 1 << 16),
-                    [&](const tbb::blocked_range<std::size_t>& r) {
-                      for (std::size_t e = r.begin(); e < r.end(); ++e)
-                        values_[e] = wendland(kernel, std::sqrt(values_[e]) * inv_r);
-                    });
+  const auto entries = [&](std::size_t b, std::size_t e) {
+    for (; b < e; ++b) values_[b] = wendland(kernel, std::sqrt(values_[b]) * inv_r);
+  };
+  // A small matrix in the calling thread: TBB's first use starts its threads (milliseconds, which
+  // csrbf info reported as the fish's assembly).
+  constexpr std::size_t grain = std::size_t(1) << 16;
+  if (values_.size() <= grain)
+    entries(0, values_.size());
+  else
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, values_.size(), grain),
+                      [&](const tbb::blocked_range<std::size_t>& r) { entries(r.begin(), r.end()); });
 }
 
 RowMatrix KernelMatrix::operator*(const RowMatrix& x) const {
   const std::size_t n = size();
   const auto m = x.cols();
   RowMatrix y(x.rows(), m);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+  const auto rows = [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) {
       const auto k = Eigen::Index(i);
       y.row(k) = diagonal_ * x.row(k);
       const auto nb = pattern_.neighbors_of(i);
       const auto v = values_of(i);
-      for (std::size_t e = 0; e < nb.size(); ++e) y.row(k) += v[e] * x.row(Eigen::Index(nb[e]));
+      for (std::size_t j = 0; j < nb.size(); ++j) y.row(k) += v[j] * x.row(Eigen::Index(nb[j]));
     }
-  });
+  };
+  constexpr std::size_t grain = 4096;
+  if (n <= grain) {
+    rows(0, n);
+    return y;
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain),
+                    [&](const tbb::blocked_range<std::size_t>& r) { rows(r.begin(), r.end()); });
   return y;
 }
 

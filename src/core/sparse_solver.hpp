@@ -63,7 +63,7 @@ std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::ve
 
 /// Estimates of A's smallest and largest eigenvalues: the extreme Ritz values of the Lanczos
 /// tridiagonal matrix after up to 300 steps from a seeded random vector (fewer where they settle to
-/// 1e-4 or the space is exhausted). Products with A only: for the condition estimate without a factor.
+/// 1e-6 or the space is exhausted). Products with A only: for the condition estimate without a factor.
 std::pair<double, double> lanczos_extremes(const KernelMatrix& a, unsigned seed);
 
 /// The paper's envelope Cholesky of A in `order` (rows: the sources order[k]) as a SparseFactor that

@@ -517,6 +517,9 @@ TEST(FastPaths, WithDestinationsWarmStartsConjugateGradients) {
     for (std::size_t i = 0; i < s.size(); i += 100) moved[i] += Vec3(0.001, -0.002, 0.001);
     const SpaceMap next = first.with_destinations(moved);
     EXPECT_TRUE(next.stats().warm_start);
+    // Its times are its own: a solve and the residual check, no graph or factorisation.
+    EXPECT_EQ(next.stats().seconds_graph + next.stats().seconds_assembly + next.stats().seconds_factorization, 0.0);
+    EXPECT_GT(next.stats().seconds_solve, 0.0);
     const SpaceMap fresh = SpaceMap::fit(s, moved, o);
     EXPECT_LT(next.stats().iterations, fresh.stats().iterations) << polynomial_name(p);
     EXPECT_LE(next.stats().solver_residual, kCgTolerance);

@@ -146,7 +146,8 @@ class AgainstScipy(unittest.TestCase):
               np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)]))), shape=(n, n))
         alpha = scipy.sparse.linalg.spsolve(a, g)
         for solver in ["auto", "envelope", "eigen", "cholmod", "cg"]:
-            m = csrbf.SpaceMap(s, s + g, radius, solver=solver, ordering="rcm")
+            ordering = "auto" if solver in ("eigen", "cholmod") else "rcm"
+            m = csrbf.SpaceMap(s, s + g, radius, solver=solver, ordering=ordering)
             np.testing.assert_allclose(m.coefficients, alpha, rtol=0, atol=1e-8 * np.abs(alpha).max(), err_msg=solver)
         cg = csrbf.SpaceMap(s, s + g, radius, solver="cg")
         self.assertEqual(cg.stats["solver"], "cg")
@@ -164,6 +165,8 @@ class AgainstScipy(unittest.TestCase):
             cg.with_destinations(np.full((n, 3), np.nan))
         with self.assertRaisesRegex(ValueError, "solver must be one of 'auto', 'envelope', 'eigen', 'cholmod' or 'cg'"):
             csrbf.SpaceMap(s, s + g, radius, solver="lu")
+        with self.assertRaisesRegex(ValueError, "solver 'cholmod' orders the matrix itself"):
+            csrbf.SpaceMap(s, s + g, radius, solver="CHOLMOD", ordering="rcm")
         with self.assertRaisesRegex(MemoryError, "above the limit"):
             csrbf.SpaceMap(s, s + g, 0.9, memory_limit=1e6)
 
