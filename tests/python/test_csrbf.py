@@ -31,6 +31,17 @@ def wendland_c2(r):
     return np.where(r < 1, (1 - r) ** 4 * (4 * r + 1), 0.0)
 
 
+def csrbf_matrix(s, radius):
+    """The CSRBF matrix A of points s (Wendland C2), built by SciPy: cKDTree pairs, a sparse matrix."""
+    n = len(s)
+    pairs = scipy.spatial.cKDTree(s).query_pairs(radius, output_type="ndarray")
+    r = np.linalg.norm(s[pairs[:, 0]] - s[pairs[:, 1]], axis=1) / radius
+    rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
+    cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
+    vals = np.concatenate([wendland_c2(r), wendland_c2(r), np.ones(n)])
+    return scipy.sparse.csc_matrix((vals, (rows, cols)), shape=(n, n))
+
+
 class SameAsTheCommandLine(unittest.TestCase):
     def test_deform_fish_bit_for_bit(self):
         sources, destinations = csrbf.read_controls(os.path.join(EXAMPLES, "fish.controls"))
@@ -108,13 +119,7 @@ class AgainstScipy(unittest.TestCase):
         s = rng.random((n, 3))
         g = 0.05 * rng.standard_normal((n, 3))
         tree = scipy.spatial.cKDTree(s)
-        pairs = tree.query_pairs(radius, output_type="ndarray")
-        r = np.linalg.norm(s[pairs[:, 0]] - s[pairs[:, 1]], axis=1) / radius
-        rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
-        cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
-        vals = np.concatenate([wendland_c2(r), wendland_c2(r), np.ones(n)])
-        a = scipy.sparse.csc_matrix((vals, (rows, cols)), shape=(n, n))
-        alpha = scipy.sparse.linalg.spsolve(a, g)
+        alpha = scipy.sparse.linalg.spsolve(csrbf_matrix(s, radius), g)
         m = csrbf.SpaceMap(s, s + g, radius)
         np.testing.assert_allclose(m.coefficients, alpha, rtol=0, atol=1e-9)
         # The interpolant at random points, evaluated by SciPy from alpha.
@@ -137,13 +142,7 @@ class AgainstScipy(unittest.TestCase):
         n, radius = 1500, 0.12
         s = rng.random((n, 3))
         g = 0.02 * rng.standard_normal((n, 3))
-        tree = scipy.spatial.cKDTree(s)
-        pairs = tree.query_pairs(radius, output_type="ndarray")
-        r = np.linalg.norm(s[pairs[:, 0]] - s[pairs[:, 1]], axis=1) / radius
-        a = scipy.sparse.csc_matrix(
-            (np.concatenate([wendland_c2(r), wendland_c2(r), np.ones(n)]),
-             (np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)]),
-              np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)]))), shape=(n, n))
+        a = csrbf_matrix(s, radius)
         alpha = scipy.sparse.linalg.spsolve(a, g)
         for solver in ["auto", "envelope", "eigen", "cholmod", "cg"]:
             ordering = "auto" if solver in ("eigen", "cholmod") else "rcm"
