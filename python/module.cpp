@@ -95,19 +95,6 @@ py::array_t<double> from_vec3(const std::vector<Vec3>& v) {
   return out;
 }
 
-csrbf::Kernel kernel_of(const std::string& name) {
-  const auto k = csrbf::parse_kernel(name);
-  if (!k) throw py::value_error("kernel must be one of " + csrbf::names_text<csrbf::Kernel>() + ", got '" + name + "'");
-  return *k;
-}
-csrbf::Polynomial polynomial_of(const std::string& name) {
-  const auto p = csrbf::parse_polynomial(name);
-  if (!p)
-    throw py::value_error("polynomial must be one of " + csrbf::names_text<csrbf::Polynomial>() + ", got '" + name +
-                          "'");
-  return *p;
-}
-
 /// Polygons as a list of lists of vertex indices.
 py::list polygons(const csrbf::PolygonList& list) {
   py::list out;
@@ -275,7 +262,8 @@ may take, in bytes (default 4 GiB; beyond it MemoryError). The fit releases the 
              if (s.size() != d.size())
                throw py::value_error("sources has " + std::to_string(s.size()) + " points but destinations has " +
                                      std::to_string(d.size()));
-             csrbf::FitOptions o{radius, kernel_of(kernel), polynomial_of(polynomial)};
+             csrbf::FitOptions o{radius, named<csrbf::Kernel>(kernel, "kernel"),
+                                 named<csrbf::Polynomial>(polynomial, "polynomial")};
              o.solver = named<csrbf::Solver>(solver, "solver");
              o.ordering = named<csrbf::Ordering>(ordering, "ordering");
              o.memory_limit_bytes = memory_limit;

@@ -85,7 +85,8 @@ struct OrderingChoice {
   std::vector<std::uint32_t> order;
   Profile identity, breadth_first, reverse_breadth_first, reverse_cuthill_mckee;
 };
-/// Computes the requested ordering; the three profiles are always reported.
-OrderingChoice choose_ordering(const AdjacencyGraph& g, Ordering requested);
+/// Computes the requested ordering; the four profiles are always reported. `rcm`: the reverse
+/// Cuthill-McKee order where the caller has already computed it (else it is computed here).
+OrderingChoice choose_ordering(const AdjacencyGraph& g, Ordering requested, std::vector<std::uint32_t> rcm = {});
 
 }  // namespace csrbf

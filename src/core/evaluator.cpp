@@ -145,31 +145,31 @@ void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::si
       }
     });
   };
-  offsets.assign(n + 1, 0);
-  for_each_group([&](std::uint32_t i, const Run& run) {
+  // f(entry of the run, squared distance) for every other source within R of source i.
+  const auto for_each_neighbor = [&](std::uint32_t i, const Run& run, auto&& f) {
     const Vec3& p = sources[i];
-    std::size_t c = 0;
     for (std::size_t t = 0; t < run.j.size(); ++t) {
       const double dx = run.x[t] - p.x(), dy = run.y[t] - p.y(), dz = run.z[t] - p.z();
-      c += std::size_t(dx * dx + dy * dy + dz * dz < R2);
+      const double d2 = dx * dx + dy * dy + dz * dz;
+      if (d2 < R2 && run.j[t] != i) f(t, d2);
     }
-    offsets[i + 1] = c - 1;  // not itself
+  };
+  offsets.assign(n + 1, 0);
+  for_each_group([&](std::uint32_t i, const Run& run) {
+    std::size_t c = 0;
+    for_each_neighbor(i, run, [&](std::size_t, double) { ++c; });
+    offsets[i + 1] = c;
   });
   for (std::size_t i = 0; i < n; ++i) offsets[i + 1] += offsets[i];
   neighbors.resize(offsets[n]);
   dist2.resize(offsets[n]);
   for_each_group([&](std::uint32_t i, const Run& run) {
-    const Vec3& p = sources[i];
     std::size_t at = offsets[i];
-    for (std::size_t t = 0; t < run.j.size(); ++t) {
-      const double dx = run.x[t] - p.x(), dy = run.y[t] - p.y(), dz = run.z[t] - p.z();
-      const double d2 = dx * dx + dy * dy + dz * dz;
-      if (d2 < R2 && run.j[t] != i) {
-        neighbors[at] = run.j[t];
-        dist2[at] = d2;
-        ++at;
-      }
-    }
+    for_each_neighbor(i, run, [&](std::size_t t, double d2) {
+      neighbors[at] = run.j[t];
+      dist2[at] = d2;
+      ++at;
+    });
   });
 }
 

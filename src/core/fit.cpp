@@ -199,25 +199,14 @@ struct FitPhases {
       solver = resolve_solver(solver, stats.envelope_work, n, stats.neighbor_pairs);
     }
     if (solver == Solver::Envelope && options.ordering == Ordering::Auto) {
-      // The paper's choice: the smallest envelope of the four orderings (ties: RCM, reverse
-      // breadth-first, breadth-first, identity).
-      if (st.order.empty()) {
-        st.order = compute_ordering(g, Ordering::ReverseCuthillMcKee);
-        stats.reverse_cuthill_mckee = profile(g, st.order);
-      }
-      stats.ordering = Ordering::ReverseCuthillMcKee;
-      std::vector<std::uint32_t> bf = breadth_first_order(g), rbf = reversed_order(bf), id = identity_order(n);
-      stats.reverse_breadth_first = profile(g, rbf);
-      stats.breadth_first = profile(g, bf);
-      stats.identity = profile(g, id);
-      std::size_t best = stats.reverse_cuthill_mckee.envelope;
-      for (auto [o, order] : {std::pair{Ordering::ReverseBreadthFirst, &rbf}, std::pair{Ordering::BreadthFirst, &bf},
-                              std::pair{Ordering::Identity, &id}})
-        if (profile_slot(stats, o).envelope < best) {
-          best = profile_slot(stats, o).envelope;
-          stats.ordering = o;
-          st.order = std::move(*order);
-        }
+      // The paper's choice: the smallest envelope of the four orderings, RCM's reused.
+      OrderingChoice c = choose_ordering(g, Ordering::Auto, std::move(st.order));
+      st.order = std::move(c.order);
+      stats.ordering = c.chosen;
+      stats.identity = c.identity;
+      stats.breadth_first = c.breadth_first;
+      stats.reverse_breadth_first = c.reverse_breadth_first;
+      stats.reverse_cuthill_mckee = c.reverse_cuthill_mckee;
       stats.orderings_compared = true;
       first = envelope_first_columns(g, st.order);
       stats.envelope_work = envelope_work(first);
@@ -242,30 +231,14 @@ struct FitPhases {
     const std::size_t n = st.sources.size();
     FitStats& stats = st.stats;
     if (solver == Solver::Envelope) {
-      // The envelope of the chosen order is known exactly now, before it is allocated.
-      double entries = double(n);
-      for (std::size_t k = 0; k < n; ++k) entries += double(k - st.first_columns[k]);
-      if (8 * entries > options.memory_limit_bytes) {
-        std::ostringstream os;
-        os.precision(3);
-        os << "the envelope of the " << ordering_name(stats.ordering) << " ordering holds " << std::llround(entries)
-           << " entries, about " << gib(8 * entries) << ", above the limit of " << gib(options.memory_limit_bytes)
-           << " (FitOptions::memory_limit_bytes, `--memory-limit`). Use another ordering or solver, or a smaller "
-              "radius";
-        throw ResourceLimit(os.str());
-      }
+      detail::check_envelope_size(st.first_columns, options.memory_limit_bytes, ordering_name(stats.ordering));
       auto t0 = Clock::now();
       EnvelopeMatrix env = envelope_matrix(st.a, st.order, std::move(st.first_columns));
       stats.envelope_bytes = env.paper_bytes();
       stats.dense_bytes = env.dense_bytes();
       stats.seconds_assembly += seconds_since(t0);
       t0 = Clock::now();
-      try {
-        env.cholesky_in_place();
-      } catch (const NotPositiveDefinite& e) {
-        // Report the control's input index, not its row in the ordered matrix.
-        throw NotPositiveDefinite(st.order[e.row()], e.pivot());
-      }
+      detail::envelope_cholesky(env, st.order);
       st.factor = std::move(env);
       stats.factor_nonzeros = stats.envelope_entries + n;
       stats.seconds_factorization = seconds_since(t0);

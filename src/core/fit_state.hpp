@@ -94,7 +94,7 @@ struct SpaceMap::Structure {
     const std::size_t steps = sparse->iterations();
     if (automatic && stats.envelope_work <= kEnvelopeWorkLimit &&
         kEnvelopeCostRatio * stats.envelope_work < predicted_steps * cg_step_work()) {
-      fallback = detail::envelope_factor(a, cg_rows, options.memory_limit_bytes);
+      fallback = detail::envelope_factor(a, cg_rows, options.memory_limit_bytes, ordering_name(stats.ordering));
       fallback_solver = Solver::Envelope;
     } else {
       const Solver direct = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
@@ -126,7 +126,7 @@ struct SpaceMap::Structure {
   double condition() const {
     std::call_once(condition_once, [this] {
       const std::size_t n = sources.size();
-      const double phi0 = wendland(options.kernel, 0.0);
+      const double phi0 = a.diagonal();
       RowMatrix v = RowMatrix::Constant(Eigen::Index(n), 1, 1.0 / std::sqrt(double(n)));
       double lmax = phi0;
       for (int it = 0; it < 30; ++it) {

@@ -213,12 +213,12 @@ Profile profile(const AdjacencyGraph& g, std::span<const std::uint32_t> order) {
   return p;
 }
 
-OrderingChoice choose_ordering(const AdjacencyGraph& g, Ordering requested) {
+OrderingChoice choose_ordering(const AdjacencyGraph& g, Ordering requested, std::vector<std::uint32_t> rcm) {
   OrderingChoice c;
   auto id = identity_order(g.size());
   auto bf = breadth_first_order(g);
   auto rbf = reversed_order(bf);
-  auto rcm = reverse_cuthill_mckee_order(g);
+  if (rcm.empty()) rcm = reverse_cuthill_mckee_order(g);
   c.identity = profile(g, id);
   c.reverse_cuthill_mckee = profile(g, rcm);
   c.breadth_first = profile(g, bf);

@@ -60,6 +60,15 @@ Sparse lower_matrix(const KernelMatrix& m, std::span<const std::uint32_t> order 
   return a;
 }
 
+/// b (input order) = solve(b permuted into `order`), where solve works in place on a matrix of type M.
+template <class M, class Solve>
+void solve_permuted(RowMatrix& b, std::span<const std::uint32_t> order, Solve&& solve) {
+  M bp(b.rows(), b.cols());
+  for (Eigen::Index k = 0; k < b.rows(); ++k) bp.row(k) = b.row(Eigen::Index(order[std::size_t(k)]));
+  solve(bp);
+  for (Eigen::Index k = 0; k < b.rows(); ++k) b.row(Eigen::Index(order[std::size_t(k)])) = bp.row(k);
+}
+
 template <class Decomposition>
 class EigenFactor final : public SparseFactor {
  public:
@@ -92,10 +101,10 @@ class EigenFactor final : public SparseFactor {
       b = x;
       return;
     }
-    Eigen::MatrixXd bp(b.rows(), b.cols());
-    for (Eigen::Index k = 0; k < b.rows(); ++k) bp.row(k) = b.row(Eigen::Index(order_[std::size_t(k)]));
-    const Eigen::MatrixXd x = llt_.solve(bp);
-    for (Eigen::Index k = 0; k < b.rows(); ++k) b.row(Eigen::Index(order_[std::size_t(k)])) = x.row(k);
+    solve_permuted<Eigen::MatrixXd>(b, order_, [&](Eigen::MatrixXd& bp) {
+      const Eigen::MatrixXd x = llt_.solve(bp);
+      bp = x;
+    });
   }
   std::size_t nonzeros() const override { return count(); }
 
@@ -398,31 +407,16 @@ std::pair<double, double> lanczos_extremes(const KernelMatrix& a, unsigned seed)
 namespace {
 class EnvelopeFactor final : public SparseFactor {
  public:
-  EnvelopeFactor(const KernelMatrix& a, std::vector<std::uint32_t> order, double memory_limit_bytes)
+  EnvelopeFactor(const KernelMatrix& a, std::vector<std::uint32_t> order, double memory_limit_bytes,
+                 std::string_view ordering)
       : order_(std::move(order)) {
     std::vector<std::size_t> first = envelope_first_columns(a.pattern(), order_);
-    double entries = double(order_.size());
-    for (std::size_t k = 0; k < first.size(); ++k) entries += double(k - first[k]);
-    if (8 * entries > memory_limit_bytes) {
-      std::ostringstream os;
-      os.precision(3);
-      os << "the envelope holds " << std::llround(entries) << " entries, about " << 8 * entries / double(1ull << 30)
-         << " GiB, above the limit of " << memory_limit_bytes / double(1ull << 30)
-         << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`)";
-      throw ResourceLimit(os.str());
-    }
+    check_envelope_size(first, memory_limit_bytes, ordering);
     factor_ = envelope_matrix(a, order_, std::move(first));
-    try {
-      factor_.cholesky_in_place();
-    } catch (const NotPositiveDefinite& e) {
-      throw NotPositiveDefinite(order_[e.row()], e.pivot());
-    }
+    envelope_cholesky(factor_, order_);
   }
   void solve_in_place(RowMatrix& b, const RowMatrix* = nullptr) const override {
-    RowMatrix bp(b.rows(), b.cols());
-    for (Eigen::Index k = 0; k < b.rows(); ++k) bp.row(k) = b.row(Eigen::Index(order_[std::size_t(k)]));
-    factor_.solve_in_place(bp);
-    for (Eigen::Index k = 0; k < b.rows(); ++k) b.row(Eigen::Index(order_[std::size_t(k)])) = bp.row(k);
+    solve_permuted<RowMatrix>(b, order_, [&](RowMatrix& bp) { factor_.solve_in_place(bp); });
   }
   std::size_t nonzeros() const override { return factor_.envelope_entries() + order_.size(); }
 
@@ -432,9 +426,32 @@ class EnvelopeFactor final : public SparseFactor {
 };
 }  // namespace
 
+void check_envelope_size(std::span<const std::size_t> first_columns, double memory_limit_bytes,
+                         std::string_view ordering) {
+  double entries = double(first_columns.size());
+  for (std::size_t k = 0; k < first_columns.size(); ++k) entries += double(k - first_columns[k]);
+  if (8 * entries > memory_limit_bytes) {
+    std::ostringstream os;
+    os.precision(3);
+    os << "the envelope of the " << ordering << " ordering holds " << std::llround(entries) << " entries, about "
+       << 8 * entries / double(1ull << 30) << " GiB, above the limit of " << memory_limit_bytes / double(1ull << 30)
+       << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use another ordering or solver, or a smaller "
+          "radius";
+    throw ResourceLimit(os.str());
+  }
+}
+
+void envelope_cholesky(EnvelopeMatrix& env, std::span<const std::uint32_t> order) {
+  try {
+    env.cholesky_in_place();
+  } catch (const NotPositiveDefinite& e) {
+    throw NotPositiveDefinite(order[e.row()], e.pivot());
+  }
+}
+
 std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
-                                              double memory_limit_bytes) {
-  return std::make_unique<EnvelopeFactor>(a, std::move(order), memory_limit_bytes);
+                                              double memory_limit_bytes, std::string_view ordering) {
+  return std::make_unique<EnvelopeFactor>(a, std::move(order), memory_limit_bytes, ordering);
 }
 
 std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,

@@ -9,6 +9,8 @@
 #include "csrbf/types.hpp"
 
 #include <functional>
+#include <span>
+#include <string_view>
 #include <memory>
 #include <stdexcept>
 #include <string>
@@ -66,11 +68,20 @@ std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::ve
 /// 1e-6 or the space is exhausted). Products with A only: for the condition estimate without a factor.
 std::pair<double, double> lanczos_extremes(const KernelMatrix& a, unsigned seed);
 
+/// The envelope solver's two steps, shared by the fit and by the solver Auto turns to after CG:
+/// ResourceLimit (naming `ordering`) when the envelope of these first columns, known exactly before
+/// it is allocated, passes memory_limit_bytes;
+void check_envelope_size(std::span<const std::size_t> first_columns, double memory_limit_bytes,
+                         std::string_view ordering);
+/// and the Cholesky factorisation in place of A in `order`, NotPositiveDefinite naming the source
+/// (order[row]) rather than the row.
+void envelope_cholesky(EnvelopeMatrix& env, std::span<const std::uint32_t> order);
+
 /// The paper's envelope Cholesky of A in `order` (rows: the sources order[k]) as a SparseFactor that
 /// takes and gives the input order: the direct solver Auto turns to after CG on a small system.
 /// ResourceLimit when the envelope exceeds memory_limit_bytes; NotPositiveDefinite names the source.
 std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
-                                              double memory_limit_bytes);
+                                              double memory_limit_bytes, std::string_view ordering);
 
 /// Assembles A in compressed columns and factorises it with Solver::Eigen (AMD ordering) or
 /// Solver::Cholmod (in nested_dissection_order of the sources). Throws NotPositiveDefinite on

@@ -127,19 +127,9 @@ class Checker {
           const auto comma = uri.find(',');
           if (comma == std::string::npos || comma < 12 || uri.compare(comma - 7, 7, ";base64") != 0)
             fail(where + ".uri", "is a data: URI without ';base64,'");
-          std::size_t chars = 0, pad = 0;
-          for (std::size_t i = comma + 1; i < uri.size(); ++i) {
-            const char c = uri[i];
-            const bool ok =
-                (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '+' || c == '/';
-            if (c == '=')
-              ++pad;
-            else if (!ok || pad > 0)
-              fail(where + ".uri", "is not valid base64 at character " + std::to_string(i - comma));
-            else
-              ++chars;
-          }
-          have = std::floor(double(chars) * 3 / 4);
+          bytes_.resize(buffers.size());
+          bytes_[k] = decode_base64(std::string_view(uri).substr(comma + 1), where + ".uri");
+          have = double(bytes_[k].size());
         } else {
           const fs::path file = path_.parent_path() / uri;
           std::error_code ec;
@@ -163,33 +153,46 @@ class Checker {
                       " bytes allowed (--memory-limit)");
   }
 
+  /// The bytes of base64 `text` (a data: URI's payload); not valid base64 is refused at `where`.
+  std::string decode_base64(std::string_view text, const std::string& where) const {
+    std::string out;
+    std::uint32_t acc = 0;
+    int bits = 0;
+    bool padding = false;
+    for (std::size_t i = 0; i < text.size(); ++i) {
+      const char c = text[i];
+      const int v = c >= 'A' && c <= 'Z'   ? c - 'A'
+                    : c >= 'a' && c <= 'z' ? c - 'a' + 26
+                    : c >= '0' && c <= '9' ? c - '0' + 52
+                    : c == '+'             ? 62
+                    : c == '/'             ? 63
+                                           : -1;
+      if (c == '=') {
+        padding = true;
+        continue;
+      }
+      if (v < 0 || padding) fail(where, "is not valid base64 at character " + std::to_string(i + 1));
+      acc = (acc << 6) | std::uint32_t(v);
+      bits += 6;
+      if (bits >= 8) {
+        bits -= 8;
+        out.push_back(char((acc >> bits) & 0xff));
+      }
+    }
+    return out;
+  }
+
   /// The bytes of buffers[k] (checked by check_buffers): the BIN chunk, a data: URI decoded, or the file.
   const std::string& buffer_bytes(std::size_t k) {
     if (bytes_.size() <= k) bytes_.resize(array("buffers").size());
     std::string& out = bytes_[k];
     if (!out.empty()) return out;
     const json& b = array("buffers")[k];
-    if (!b.contains("uri")) {
+    if (!b.contains("uri"))
       out.assign(bin_.data(), bin_.size());
-    } else {
-      const std::string uri = b["uri"].get<std::string>();
-      if (uri.rfind("data:", 0) == 0) {
-        static constexpr std::string_view kAlphabet =
-            "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-        std::uint32_t acc = 0;
-        int bits = 0;
-        for (std::size_t i = uri.find(',') + 1; i < uri.size() && uri[i] != '='; ++i) {
-          acc = (acc << 6) | std::uint32_t(kAlphabet.find(uri[i]));
-          bits += 6;
-          if (bits >= 8) {
-            bits -= 8;
-            out.push_back(char((acc >> bits) & 0xff));
-          }
-        }
-      } else {
-        out = read_input(path_.parent_path() / uri, "a glTF buffer", max_bytes_);
-      }
-    }
+    else if (const std::string uri = b["uri"].get<std::string>(); uri.rfind("data:", 0) != 0)
+      out = read_input(path_.parent_path() / uri, "a glTF buffer", max_bytes_);
+    // (a data: URI's bytes were decoded by check_buffers)
     return out;
   }
 
@@ -278,6 +281,9 @@ class Checker {
 
   void check_accessors() {
     const json& accessors = array("accessors");
+    // The smallest element is one byte: a count beyond the bytes of the file and its buffers cannot be real.
+    double total = double(data_.size());
+    for (double b : buffer_length_) total += b;
     for (std::size_t k = 0; k < accessors.size(); ++k) {
       const std::string where = "accessors[" + std::to_string(k) + "]";
       const json& a = accessors[k];
@@ -290,9 +296,6 @@ class Checker {
       if (comps == 0)
         fail(where + ".type",
              (a.contains("type") ? shown(a["type"]) : std::string("(missing)")) + " is not a glTF type");
-      // The smallest element is one byte: a count beyond the bytes of the file and its buffers cannot be real.
-      double total = double(data_.size());
-      for (double b : buffer_length_) total += b;
       const std::uint64_t count = integer(a, "count", where, total + 1);
       if (count == 0) fail(where + ".count", "is 0");
       const double element = double(size) * comps;
