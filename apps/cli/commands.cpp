@@ -24,10 +24,7 @@ FitStats report_stats(const SpaceMap& map) {
   s.reverse_cuthill_mckee = c.reverse_cuthill_mckee;
   if (s.envelope_work == 0) s.envelope_work = envelope_work(envelope_first_columns(map.matrix().pattern(), c.order));
   if (s.bandwidth == 0 && s.envelope_entries == 0) {
-    const Profile& p = c.chosen == Ordering::Identity              ? c.identity
-                       : c.chosen == Ordering::BreadthFirst        ? c.breadth_first
-                       : c.chosen == Ordering::ReverseBreadthFirst ? c.reverse_breadth_first
-                                                                   : c.reverse_cuthill_mckee;
+    const Profile& p = profile_of(c, c.chosen);
     s.bandwidth = p.bandwidth;
     s.envelope_entries = p.envelope;
     s.envelope_bytes = 4 * (s.controls + p.envelope) + 4 * s.controls;

@@ -85,6 +85,22 @@ struct OrderingChoice {
   std::vector<std::uint32_t> order;
   Profile identity, breadth_first, reverse_breadth_first, reverse_cuthill_mckee;
 };
+/// The profile of ordering o (Auto: RCM's) in anything that holds the four, as OrderingChoice and
+/// FitStats do.
+template <class Profiles>
+auto& profile_of(Profiles& p, Ordering o) noexcept {
+  switch (o) {
+    case Ordering::Identity:
+      return p.identity;
+    case Ordering::BreadthFirst:
+      return p.breadth_first;
+    case Ordering::ReverseBreadthFirst:
+      return p.reverse_breadth_first;
+    default:
+      return p.reverse_cuthill_mckee;
+  }
+}
+
 /// Computes the requested ordering; the four profiles are always reported. `rcm`: the reverse
 /// Cuthill-McKee order where the caller has already computed it (else it is computed here).
 OrderingChoice choose_ordering(const AdjacencyGraph& g, Ordering requested, std::vector<std::uint32_t> rcm = {});

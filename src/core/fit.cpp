@@ -193,7 +193,7 @@ struct FitPhases {
       const Ordering one = options.ordering == Ordering::Auto ? Ordering::ReverseCuthillMcKee : options.ordering;
       st.order = compute_ordering(g, one);
       stats.ordering = one;
-      profile_slot(stats, one) = profile(g, st.order);
+      profile_of(stats, one) = profile(g, st.order);
       first = envelope_first_columns(g, st.order);
       stats.envelope_work = envelope_work(first);
       solver = resolve_solver(solver, stats.envelope_work, n, stats.neighbor_pairs);
@@ -212,7 +212,7 @@ struct FitPhases {
       stats.envelope_work = envelope_work(first);
     }
     if (!st.order.empty()) {
-      const Profile chosen = profile_slot(stats, stats.ordering);
+      const Profile chosen = profile_of(stats, stats.ordering);
       stats.bandwidth = chosen.bandwidth;
       stats.envelope_entries = chosen.envelope;
       stats.envelope_bytes = 4 * (n + chosen.envelope) + 4 * n;
@@ -427,18 +427,6 @@ struct FitPhases {
         return reversed_order(breadth_first_order(g));
       default:
         return reverse_cuthill_mckee_order(g);
-    }
-  }
-  static Profile& profile_slot(FitStats& s, Ordering o) {
-    switch (o) {
-      case Ordering::Identity:
-        return s.identity;
-      case Ordering::BreadthFirst:
-        return s.breadth_first;
-      case Ordering::ReverseBreadthFirst:
-        return s.reverse_breadth_first;
-      default:
-        return s.reverse_cuthill_mckee;
     }
   }
 };
