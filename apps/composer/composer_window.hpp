@@ -1,13 +1,15 @@
 // The Animation Composer's main window (Qt 5 + VTK 9): build a scene by hand (objects, trajectory
-// keys dragged in 3D, orientation keys, deformations on a schedule), play it, export a movie.
+// keys dragged in 3D, orientation keys, deformations on a schedule), play it, export a movie. Its
+// members are defined by part: composer_window.cpp (menus, files, undo, playback), composer_view.cpp
+// (the 3D view), composer_panel.cpp (the side panel).
 #pragma once
 
 #include "composer_document.hpp"
+#include "composer_timeline.hpp"
 #include "gui_common.hpp"
 
 #include <QMainWindow>
 #include <QUndoStack>
-#include <QWidget>
 
 #include <vtkSmartPointer.h>
 
@@ -19,6 +21,7 @@
 class QAction;
 class QCheckBox;
 class QComboBox;
+class QGroupBox;
 class QLineEdit;
 class QScrollArea;
 class QDoubleSpinBox;
@@ -27,6 +30,7 @@ class QListWidget;
 class QPushButton;
 class QSlider;
 class QTimer;
+class QVBoxLayout;
 class QVTKOpenGLNativeWidget;
 class vtkActor;
 class vtkCameraActor;
@@ -44,38 +48,7 @@ class SceneRenderer;
 namespace csrbf::composer {
 
 class ComposerStyle;
-class ComposerWindow;
 class JsonCommand;
-
-/// Rows of key marks (position, orientation, each deformation's phase) against time, with the
-/// current time as a line. Click: scrub; drag a mark: move that key in time.
-class Timeline : public QWidget {
-  Q_OBJECT
- public:
-  explicit Timeline(ComposerWindow* w);
-  QSize sizeHint() const override { return {600, 110}; }
-  /// x pixel of time t, and back.
-  double x_of(double t) const;
-  double t_of(double x) const;
-  /// Row y centre of a track row (0: position, 1: orientation, 2 + d: deformation d).
-  int y_of(int row) const { return 30 + 20 * row; }
-  /// Height that shows every row of the selected object and the seconds ruler.
-  int needed_height() const;
-  /// The time a dragged mark of `row`, key `key`, may take at x: on a frame, and stopped one frame
-  /// short of its neighbours (a mark never jumps over another).
-  double drag_limit(int row, int key, double x) const;
-
- protected:
-  void paintEvent(QPaintEvent*) override;
-  void mousePressEvent(QMouseEvent*) override;
-  void mouseMoveEvent(QMouseEvent*) override;
-  void mouseReleaseEvent(QMouseEvent*) override;
-
- private:
-  ComposerWindow* w_;
-  int drag_row_ = -1, drag_key_ = -1;
-  double drag_time_ = 0;
-};
 
 class ComposerWindow : public QMainWindow {
   Q_OBJECT
@@ -141,6 +114,15 @@ class ComposerWindow : public QMainWindow {
   friend class Timeline;
   friend class JsonCommand;
   void build_ui();
+  void build_view();    // the 3D view, its mouse and its overlays
+  void build_centre();  // the view above the timeline and the play / scrub bar
+  // The side panel, a part at a time (objects, then a group box each).
+  void build_object_list(QWidget* panel, QVBoxLayout* layout);
+  QGroupBox* build_key_box(QWidget* panel);
+  QGroupBox* build_orientation_box(QWidget* panel);
+  QGroupBox* build_scene_box(QWidget* panel);
+  QGroupBox* build_deformation_box(QWidget* panel);
+  QGroupBox* build_look_box(QWidget* panel);
   void build_menus();
   void rebuild();     // scene from the document: renderer, player, overlays
   void show_frame();  // evaluate at time_, draw

@@ -1,5 +1,6 @@
 // The Picker's main window (Qt 5 + VTK 9): pick control points on a mesh, drag their destinations,
-// see the deformation live. Mouse and keyboard reference: README, "Picker".
+// see the deformation live. Mouse and keyboard reference: README, "Picker". Its members are defined
+// by part: picker_window.cpp (menus, files, undo), picker_view.cpp (3D view), picker_panel.cpp (side panel).
 #pragma once
 
 #include "gui_common.hpp"
