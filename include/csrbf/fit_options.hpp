@@ -45,24 +45,27 @@ inline constexpr double kFloatTolerance = 1e-4;
 /// gives up (a direct solver takes over) after kCgMaxIterations steps.
 inline constexpr double kCgTolerance = 1e-12;
 inline constexpr std::size_t kCgMaxIterations = 3000;
-/// Auto's rule, by estimated and then measured cost (docs/PERFORMANCE.md, "Solvers"):
-/// - the envelope solver while the multiply-adds of its factorisation (sum over rows of (row
-///   length)^2 / 2, in reverse Cuthill-McKee order) stay below those of kCgStepsEstimate CG steps on
-///   3 right-hand sides (each step a product with A: 2 * neighbour pairs + N entries) and at most
-///   kEnvelopeWorkLimit;
-/// - else CG, which after kCgProbeSteps steps (and 3, 9, ... times as many) predicts the steps it
-///   still needs from its convergence so far, and gives way: to the envelope solver where that is
-///   within kEnvelopeWorkLimit and its work, at kEnvelopeCostRatio of a CG multiply-add, is the
-///   smaller; to CHOLMOD (or Eigen) where CG would need more than kCgDirectSteps * sqrt(N) steps (an
-///   ill-conditioned system: points in a volume, many neighbours; CHOLMOD's cost in CG steps grew
-///   from about 80 at N = 1e3 to 1800 at N = 1e5 on the solvers sweep), unless CHOLMOD's factor
-///   would exceed the memory limit;
-/// - and CHOLMOD takes over wherever CG stagnates.
-/// CG took 41 to 230 steps on the sphere and 180 to 850 in the cube (N = 1e3 ... 1e6).
+/// Auto's rule, by estimated and then measured cost (docs/PERFORMANCE.md, "Solvers"). Costs are
+/// counted in CG multiply-adds: a CG step on 3 right-hand sides is 3 * (2 * neighbour pairs + N).
+/// - The envelope solver where its factorisation's multiply-adds (sum over rows of (row length)^2 /
+///   2, in reverse Cuthill-McKee order), at kEnvelopeCostRatio each, cost less than kCgStepsEstimate
+///   CG steps, and are at most kEnvelopeWorkLimit.
+/// - Else CG, which every kCgProbeSteps steps predicts the steps it still needs from the rate its
+///   residual fell over the last half of its steps, and gives way to the envelope solver where that
+///   is cheaper (and within kEnvelopeWorkLimit). Once CG predicts more than kCgAnalyseSteps * sqrt(N)
+///   steps to go, the general direct solver (CHOLMOD, else Eigen) is analysed: its ordering and
+///   symbolic factorisation give its flops, at kDirectFlopCost each, and CG gives way to it where it
+///   is cheaper by a margin of 1 + kCgProbeSteps / steps taken (CG's early predictions are the least
+///   sure). A direct factor that would pass the memory limit is never chosen.
+/// - A direct solver takes over wherever CG stagnates.
+/// CG took 41 to 230 steps on the sphere and 180 to 1600 in the cube (N = 1e3 ... 1e6). The ratios
+/// were measured on the solvers sweep: an envelope multiply-add costs 0.3-0.6 of a CG one, a
+/// CHOLMOD flop (its ordering and analysis included) 0.18-0.26.
 inline constexpr double kEnvelopeWorkLimit = 1.0e8;
-inline constexpr double kCgStepsEstimate = 50.0;
+inline constexpr double kCgStepsEstimate = 100.0;
 inline constexpr std::size_t kCgProbeSteps = 10;
-inline constexpr double kCgDirectSteps = 3.0;
+inline constexpr double kCgAnalyseSteps = 1.0;
+inline constexpr double kDirectFlopCost = 0.2;
 inline constexpr double kEnvelopeCostRatio = 0.6;
 /// The solver a fit uses: `requested`, or for Solver::Auto the rule above.
 Solver resolve_solver(Solver requested, double envelope_work, std::size_t controls = 0,

@@ -249,16 +249,28 @@ struct FitPhases {
     st.order = identity_order(n);  // the sparse solvers take and give the input order
     const auto t0 = Clock::now();
     if (solver == Solver::Cg) {
-      // Chosen by Auto, CG checks after kCgProbeSteps steps how many it will need, and gives way
+      // Chosen by Auto, CG checks every kCgProbeSteps steps how many it will need, and gives way
       // where a direct solver is predicted to be faster (fit_options.hpp). Asked for by name, it runs
-      // until it converges or stagnates (kCgMaxIterations).
+      // until it converges or stagnates (kCgMaxIterations): its early predictions can be far too
+      // high as well as too low (900 points in a cube: more than 3000 predicted after 10 steps, of
+      // fewer than 3000).
       detail::CgProbe probe;
       if (options.solver == Solver::Auto) {
         probe.steps = kCgProbeSteps;
-        probe.worth_it = [work = stats.envelope_work, step = st.cg_step_work(), n](double steps, double done) {
-          const double left = steps - done;  // the steps taken are spent either way
-          if (left > kCgDirectSteps * std::sqrt(double(n))) return false;
-          return !(work <= kEnvelopeWorkLimit && kEnvelopeCostRatio * work < left * step);
+        probe.worth_it = [&st, n](double steps, double done) {
+          // Costs in CG multiply-adds; the steps taken are spent either way.
+          const double left = (steps - done) * st.cg_step_work();
+          const double envelope = kEnvelopeCostRatio * st.stats.envelope_work;
+          if (st.stats.envelope_work <= kEnvelopeWorkLimit && envelope < left) return false;
+          // The general direct solver is analysed (its ordering and symbolic factorisation, no
+          // numbers) once CG looks long enough for it to win: its flops are then known.
+          if (steps - done > kCgAnalyseSteps * std::sqrt(double(n))) {
+            const double direct = st.direct_cost();
+            // CG's prediction is least sure after its first steps: the direct solver must win by a
+            // margin that shrinks as CG goes on (2x after 10 steps, 1.25x after 40).
+            if (direct * (1 + kCgProbeSteps / done) < left) return false;
+          }
+          return true;
         };
       }
       // CG holds A's rows in its order (12 bytes an entry) and 4 vectors of 7 columns.
@@ -444,7 +456,9 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   FitPhases::polynomial_block(*st);
   auto structure_only = std::make_shared<State>();
   structure_only->st = std::move(st);
-  return SpaceMap(std::move(structure_only)).solve_destinations(destinations);
+  SpaceMap map = SpaceMap(std::move(structure_only)).solve_destinations(destinations);
+  map.s_->st->drop_unused_analysis();
+  return map;
 }
 
 SpaceMap SpaceMap::with_destinations(std::span<const Vec3> destinations) const {

@@ -32,7 +32,8 @@ Solver resolve_solver(Solver requested, double envelope_work, std::size_t contro
                       std::size_t neighbor_pairs) noexcept {
   if (requested != Solver::Auto) return requested;
   const double cg_work = kCgStepsEstimate * 3.0 * (2.0 * double(neighbor_pairs) + double(controls));
-  if (envelope_work <= kEnvelopeWorkLimit && (controls == 0 || envelope_work <= cg_work)) return Solver::Envelope;
+  if (envelope_work <= kEnvelopeWorkLimit && (controls == 0 || kEnvelopeCostRatio * envelope_work <= cg_work))
+    return Solver::Envelope;
   return Solver::Cg;
 }
 

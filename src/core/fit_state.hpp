@@ -13,6 +13,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <type_traits>
@@ -85,22 +86,70 @@ struct SpaceMap::Structure {
   double cg_step_work() const {
     return (2.0 * double(stats.neighbor_pairs) + double(sources.size())) * double(3 + terms);
   }
+  /// Auto's direct solver (CHOLMOD, else Eigen), analysed while CG runs: its factorisation's cost in
+  /// CG multiply-adds (kDirectFlopCost a flop), or infinity where the memory limit refuses it.
+  double direct_cost() const {
+    std::lock_guard lock(direct_mutex);  // CG's probe in one solve, take_over after another's
+    return direct_cost_locked();
+  }
+  /// After the fit's solves: an analysis that CG kept going past is dropped (its memory), to be made
+  /// again should CG stagnate in a later solve.
+  void drop_unused_analysis() const {
+    std::lock_guard lock(direct_mutex);
+    if (!fell_back.load()) {
+      direct.reset();
+      direct_analysed = false;
+      direct_seconds = 0;
+    }
+  }
+  mutable std::mutex direct_mutex;
+  mutable bool direct_analysed = false;
+  mutable std::unique_ptr<detail::SparseAnalysis> direct;
+  mutable double direct_seconds = 0;
+  double direct_cost_locked() const {
+    if (!direct_analysed) {
+      direct_analysed = true;
+      const auto t0 = std::chrono::steady_clock::now();
+      try {
+        direct = detail::analyse_sparse(a, sources, cholmod_available() ? Solver::Cholmod : Solver::Eigen,
+                                        options.memory_limit_bytes);
+      } catch (const ResourceLimit&) {
+        direct.reset();
+      }
+      direct_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    }
+    return direct ? kDirectFlopCost * direct->flops() : std::numeric_limits<double>::infinity();
+  }
+
   /// After CG: under Auto, the envelope solver where its work (at kEnvelopeCostRatio) is below what
-  /// CG was predicted to need and within kEnvelopeWorkLimit; else CHOLMOD (or Eigen); and where
-  /// Auto's direct factor would exceed the memory limit, CG again, without the probe.
+  /// CG was predicted to need and within kEnvelopeWorkLimit; else the direct solver CG's probe
+  /// analysed (or CHOLMOD, or Eigen, where CG stagnated first); and where Auto's direct factor would
+  /// exceed the memory limit, CG again, without the probe.
   void take_over(double predicted_steps) const {
+    std::lock_guard lock(direct_mutex);
     const auto t0 = std::chrono::steady_clock::now();
     const bool automatic = options.solver == Solver::Auto;
     const std::size_t steps = sparse->iterations();
-    if (automatic && stats.envelope_work <= kEnvelopeWorkLimit &&
-        kEnvelopeCostRatio * stats.envelope_work < predicted_steps * cg_step_work()) {
+    const double left = (predicted_steps - double(steps)) * cg_step_work();
+    if (automatic && stats.envelope_work <= kEnvelopeWorkLimit && kEnvelopeCostRatio * stats.envelope_work < left &&
+        !(direct && direct_cost_locked() < kEnvelopeCostRatio * stats.envelope_work)) {
       fallback = detail::envelope_factor(a, cg_rows, options.memory_limit_bytes, ordering_name(stats.ordering));
       fallback_solver = Solver::Envelope;
     } else {
-      const Solver direct = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+      const Solver general = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
       try {
-        fallback = detail::factor_sparse(a, sources, direct, options.memory_limit_bytes);
-        fallback_solver = direct;
+        if (!direct_analysed || !automatic) {
+          direct_analysed = true;
+          direct = detail::analyse_sparse(a, sources, general, options.memory_limit_bytes);
+        }
+        if (!direct) {
+          fallback = detail::conjugate_gradients(a, cg_rows, kCgTolerance, kCgMaxIterations);
+          fallback_solver = Solver::Cg;
+        } else {
+          fallback = direct->factorise();
+          direct.reset();
+          fallback_solver = general;
+        }
       } catch (const ResourceLimit&) {
         if (!automatic) throw;
         fallback = detail::conjugate_gradients(a, cg_rows, kCgTolerance, kCgMaxIterations);
@@ -110,7 +159,7 @@ struct SpaceMap::Structure {
                                   " steps, and then " + e.what());
       }
     }
-    fallback_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    fallback_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() + direct_seconds;
     fell_back = true;
   }
   mutable double fallback_seconds = 0;  // the taking over solver's factorisation

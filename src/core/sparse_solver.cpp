@@ -36,27 +36,36 @@ using Sparse = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 Sparse lower_matrix(const KernelMatrix& m, std::span<const std::uint32_t> order = {}) {
   const std::size_t n = m.size();
   const AdjacencyGraph& g = m.pattern();
-  const auto en = Eigen::Index(n);
   std::vector<std::uint32_t> position(n);  // of each source
   for (std::size_t k = 0; k < n; ++k) position[order.empty() ? k : order[k]] = std::uint32_t(k);
   const auto source = [&](std::size_t k) { return order.empty() ? k : std::size_t(order[k]); };
-  Sparse a(en, en);
-  Eigen::VectorXi per_col(en);
+  // The compressed arrays are written directly, each column sorted by row: Eigen's insert() shifts
+  // the entries of a column at each out-of-order row (30-50 ms at N = 1e4 with 100 neighbours).
+  std::vector<int> outer(n + 1, 0);
   for (std::size_t k = 0; k < n; ++k) {
     int c = 1;
     for (std::uint32_t i : g.neighbors_of(source(k))) c += position[i] > k;
-    per_col(Eigen::Index(k)) = c;
+    outer[k + 1] = outer[k] + c;
   }
-  a.reserve(per_col);
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t j = source(k);
-    a.insert(Eigen::Index(k), Eigen::Index(k)) = m.diagonal();
-    const auto nb = g.neighbors_of(j);
-    const auto v = m.values_of(j);
-    for (std::size_t e = 0; e < nb.size(); ++e)
-      if (position[nb[e]] > k) a.insert(Eigen::Index(position[nb[e]]), Eigen::Index(k)) = v[e];
-  }
-  a.makeCompressed();
+  Sparse a{Eigen::Index(n), Eigen::Index(n)};
+  a.resizeNonZeros(outer[n]);
+  std::copy(outer.begin(), outer.end(), a.outerIndexPtr());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 1024), [&](const tbb::blocked_range<std::size_t>& r) {
+    std::vector<std::pair<int, double>> column;
+    for (std::size_t k = r.begin(); k < r.end(); ++k) {
+      const std::size_t j = source(k);
+      const auto nb = g.neighbors_of(j);
+      const auto v = m.values_of(j);
+      column.assign(1, {int(k), m.diagonal()});
+      for (std::size_t e = 0; e < nb.size(); ++e)
+        if (position[nb[e]] > k) column.emplace_back(int(position[nb[e]]), v[e]);
+      std::sort(column.begin(), column.end());
+      for (std::size_t e = 0; e < column.size(); ++e) {
+        a.innerIndexPtr()[outer[k] + int(e)] = column[e].first;
+        a.valuePtr()[outer[k] + int(e)] = column[e].second;
+      }
+    }
+  });
   return a;
 }
 
@@ -69,15 +78,17 @@ void solve_permuted(RowMatrix& b, std::span<const std::uint32_t> order, Solve&& 
   for (Eigen::Index k = 0; k < b.rows(); ++k) b.row(Eigen::Index(order[std::size_t(k)])) = bp.row(k);
 }
 
+/// A general sparse Cholesky in two steps: the constructor analyses (ordering, symbolic factorisation,
+/// the memory check), factorise() computes. Auto weighs the analysis's flops before it factorises.
 template <class Decomposition>
 class EigenFactor final : public SparseFactor {
  public:
   /// order: row k of a is the source order[k] (empty: the input order).
   /// memory_limit_bytes: the factor's size, as the symbolic analysis predicts it, is checked before
   /// the numeric factorisation (ResourceLimit beyond it).
-  EigenFactor(const Sparse& a, const char* name, double memory_limit_bytes, std::vector<std::uint32_t> order = {})
-      : order_(std::move(order)) {
-    init(a);
+  EigenFactor(Sparse a, const char* name, double memory_limit_bytes, std::vector<std::uint32_t> order = {})
+      : order_(std::move(order)), a_(std::move(a)), name_(name) {
+    init(a_);
     // Values and row indices of L (CHOLMOD's supernodes hold dense blocks: its own count).
     const double bytes = 12.0 * predicted_entries();
     if (bytes > memory_limit_bytes) {
@@ -89,9 +100,15 @@ class EigenFactor final : public SparseFactor {
             "is what keeps the system sparse";
       throw ResourceLimit(os.str());
     }
-    llt_.factorize(a);
+  }
+  /// Flops of the numeric factorisation, from the analysis (the sum of L's column counts squared).
+  double flops() const;
+  void factorise() {
+    finish_analysis();
+    llt_.factorize(a_);
+    a_ = Sparse();
     if (llt_.info() != Eigen::Success)
-      throw NotPositiveDefinite(std::string("the interpolation matrix is not numerically positive definite (") + name +
+      throw NotPositiveDefinite(std::string("the interpolation matrix is not numerically positive definite (") + name_ +
                                 " factorisation failed)");
   }
   void solve_in_place(RowMatrix& b, const RowMatrix* = nullptr) const override {
@@ -110,21 +127,52 @@ class EigenFactor final : public SparseFactor {
 
  private:
   void init(const Sparse& a) { llt_.analyzePattern(a); }
+  void finish_analysis() {}
   double predicted_entries() const;
   std::size_t count() const;
   std::vector<std::uint32_t> order_;
+  Sparse a_;  // until factorised
+  const char* name_;
   mutable Decomposition llt_;
   mutable std::mutex mutex_;
+};
+
+template <class Decomposition>
+class EigenAnalysis final : public SparseAnalysis {
+ public:
+  explicit EigenAnalysis(std::unique_ptr<EigenFactor<Decomposition>> f) : f_(std::move(f)) {}
+  double flops() const override { return f_->flops(); }
+  std::unique_ptr<SparseFactor> factorise() override {
+    f_->factorise();
+    return std::move(f_);
+  }
+
+ private:
+  std::unique_ptr<EigenFactor<Decomposition>> f_;
 };
 
 /// SimplicialLLT, with the size of L that analyzePattern has computed (and reserved, untouched).
 class Simplicial : public Eigen::SimplicialLLT<Sparse, Eigen::Lower, Eigen::AMDOrdering<int>> {
  public:
   Eigen::Index reserved() const { return m_matrix.nonZeros(); }
+  /// The sum over L's columns of their entry counts squared, from the counts analyzePattern has
+  /// reserved: the factorisation's flops as CHOLMOD's analysis counts them.
+  double flops() const {
+    double f = 0;
+    for (Eigen::Index j = 0; j < m_matrix.outerSize(); ++j) {
+      const double c = double(m_matrix.outerIndexPtr()[j + 1] - m_matrix.outerIndexPtr()[j]);
+      f += c * c;
+    }
+    return f;
+  }
 };
 template <>
 double EigenFactor<Simplicial>::predicted_entries() const {
   return double(llt_.reserved());
+}
+template <>
+double EigenFactor<Simplicial>::flops() const {
+  return llt_.flops();
 }
 template <>
 std::size_t EigenFactor<Simplicial>::count() const {
@@ -134,7 +182,6 @@ std::size_t EigenFactor<Simplicial>::count() const {
 using Supernodal = Eigen::CholmodSupernodalLLT<Sparse, Eigen::Lower>;
 template <>
 void EigenFactor<Supernodal>::init(const Sparse& a) {
-  llt_.cholmod().supernodal = CHOLMOD_SUPERNODAL;
   llt_.cholmod().print = 0;  // csrbf reports a failed factorisation itself; no CHOLMOD lines on stderr
   // The matrix comes in csrbf's geometric nested dissection order (nested_dissection_order); CHOLMOD
   // keeps it (and postorders its elimination tree). Its own choices measured slower on the scale
@@ -142,11 +189,24 @@ void EigenFactor<Supernodal>::init(const Sparse& a) {
   // ordering alone costs about 0.9 s.
   llt_.cholmod().nmethods = 1;
   llt_.cholmod().method[0].ordering = CHOLMOD_NATURAL;
+  // First the simplicial analysis (elimination tree and column counts: the factor's entries and
+  // flops) for the memory check and Auto's weighing; the supernodal one, several times dearer (it
+  // lays out the supernodes), only when the factorisation follows.
+  llt_.cholmod().supernodal = CHOLMOD_SIMPLICIAL;
   llt_.analyzePattern(a);
+}
+template <>
+void EigenFactor<Supernodal>::finish_analysis() {
+  llt_.cholmod().supernodal = CHOLMOD_SUPERNODAL;
+  llt_.analyzePattern(a_);
 }
 template <>
 double EigenFactor<Supernodal>::predicted_entries() const {
   return llt_.cholmod().lnz;  // set by cholmod_analyze
+}
+template <>
+double EigenFactor<Supernodal>::flops() const {
+  return llt_.cholmod().fl;  // set by cholmod_analyze: the factorisation's floating-point operations
 }
 template <>
 std::size_t EigenFactor<Supernodal>::count() const {
@@ -274,21 +334,26 @@ class BatchedCg final : public SparseFactor {
         if (!done[c]) return false;
       return true;
     };
-    // Auto's probe: the residual at a third of the probe's steps marks the start of the rate it judges
-    // by (CG's first steps are slower than its later ones).
-    // CG's residual is not monotonic: the probe judges by the smallest seen so far.
-    std::size_t probe_at = probe_.steps, mark_at = probe_at / 3;
-    Sums rr_mark = rr_start, rr_best = rr_start;
+    // Auto's probe: every probe_.steps steps, the rate at which the residual fell over the last half
+    // of the steps taken predicts the steps still needed. CG slows down as it goes (its first steps
+    // remove the easy components), so the recent rate is the better guide. CG's residual is not
+    // monotonic: the probe judges by the smallest seen so far.
+    std::vector<Sums> best;  // best[k]: the smallest residuals up to step k
+    if (probe_.steps > 0) best.reserve(max_iterations_ + 1);
+    Sums rr_best = rr_start;
     for (; !all_done() && it < max_iterations_; ++it) {
-      for (std::size_t c = 0; c < m; ++c) rr_best[c] = std::min(rr_best[c], rr[c]);
-      if (probe_at > 0 && it == mark_at) rr_mark = rr_best;
-      if (probe_at > 0 && it == probe_at) {
+      if (probe_.steps > 0) {
+        for (std::size_t c = 0; c < m; ++c) rr_best[c] = std::min(rr_best[c], rr[c]);
+        best.push_back(rr_best);
+      }
+      if (probe_.steps > 0 && it > 0 && it % probe_.steps == 0) {
         // The steps this solve needs in all, were the residual to keep falling at its recent rate.
+        const std::size_t mark = it / 3;
         double predicted = double(it);
         for (std::size_t c = 0; c < m; ++c) {
           if (done[c]) continue;
-          const double fell = std::sqrt(rr_best[c] / rr_mark[c]), need = tolerance_ * std::sqrt(rr0[c] / rr_best[c]);
-          predicted = std::max(predicted, fell < 1 ? double(it) + double(it - mark_at) * std::log(need) / std::log(fell)
+          const double fell = std::sqrt(rr_best[c] / best[mark][c]), need = tolerance_ * std::sqrt(rr0[c] / rr_best[c]);
+          predicted = std::max(predicted, fell < 1 ? double(it) + double(it - mark) * std::log(need) / std::log(fell)
                                                    : std::numeric_limits<double>::infinity());
         }
         if (!probe_.worth_it(predicted, double(it))) {
@@ -297,9 +362,6 @@ class BatchedCg final : public SparseFactor {
           os << "conjugate gradients would need about " << predicted << " steps (after " << it << ")";
           throw CgStagnated(os.str(), predicted);
         }
-        mark_at = probe_at;
-        rr_mark = rr_best;
-        probe_at *= 3;
       }
       const Sums pq = times_a(p, q, m, reduce);
       for (std::size_t c = 0; c < m; ++c) alpha[c] = done[c] || !(pq[c] > 0) ? 0.0 : rr[c] / pq[c];
@@ -454,21 +516,28 @@ std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector
   return std::make_unique<EnvelopeFactor>(a, std::move(order), memory_limit_bytes, ordering);
 }
 
-std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
-                                            double memory_limit_bytes) {
+std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
+                                               double memory_limit_bytes) {
   if (which == Solver::Eigen)
-    return std::make_unique<EigenFactor<Simplicial>>(lower_matrix(a), "Eigen SimplicialLLT", memory_limit_bytes);
+    return std::make_unique<EigenAnalysis<Simplicial>>(
+        std::make_unique<EigenFactor<Simplicial>>(lower_matrix(a), "Eigen SimplicialLLT", memory_limit_bytes));
 #ifdef CSRBF_HAVE_CHOLMOD
   if (which == Solver::Cholmod) {
     std::vector<std::uint32_t> order = nested_dissection_order(a.pattern(), sources, a.radius());
-    return std::make_unique<EigenFactor<Supernodal>>(lower_matrix(a, order), "CHOLMOD", memory_limit_bytes,
-                                                     std::move(order));
+    Sparse lower = lower_matrix(a, order);
+    return std::make_unique<EigenAnalysis<Supernodal>>(
+        std::make_unique<EigenFactor<Supernodal>>(std::move(lower), "CHOLMOD", memory_limit_bytes, std::move(order)));
   }
 #else
   (void)sources;
 #endif
   throw InvalidInput(std::string("solver '") + std::string(solver_name(which)) +
                      "' is not available in this build of csrbf");
+}
+
+std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
+                                            double memory_limit_bytes) {
+  return analyse_sparse(a, sources, which, memory_limit_bytes)->factorise();
 }
 
 }  // namespace csrbf::detail

@@ -83,6 +83,20 @@ void envelope_cholesky(EnvelopeMatrix& env, std::span<const std::uint32_t> order
 std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
                                               double memory_limit_bytes, std::string_view ordering);
 
+/// A general sparse Cholesky factorisation analysed (ordering, symbolic factorisation, memory check)
+/// but not yet computed: Auto weighs its flops against CG's remaining steps before it factorises.
+class SparseAnalysis {
+ public:
+  virtual ~SparseAnalysis() = default;
+  /// Floating-point operations of the numeric factorisation, as the analysis predicts them.
+  virtual double flops() const = 0;
+  /// The numeric factorisation (once): NotPositiveDefinite on failure.
+  virtual std::unique_ptr<SparseFactor> factorise() = 0;
+};
+/// factor_sparse's first step: ResourceLimit already here when the factor would pass the limit.
+std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
+                                               double memory_limit_bytes);
+
 /// Assembles A in compressed columns and factorises it with Solver::Eigen (AMD ordering) or
 /// Solver::Cholmod (in nested_dissection_order of the sources). Throws NotPositiveDefinite on
 /// failure, InvalidInput when CHOLMOD is asked for but not built in, ResourceLimit when the

@@ -5,6 +5,7 @@
 #include "csrbf/space_map.hpp"
 
 #include "../../src/core/evaluator.hpp"
+#include "../../src/core/sparse_solver.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <gtest/gtest.h>
@@ -474,7 +475,7 @@ TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyS
         for (std::size_t i = 0; i < s.size(); i += 37) EXPECT_LT((m2.map(s[i]) - d2[i]).norm(), 1e-8);
       }
   // Sources 1e-4 apart on a line, R = 1: thousands of neighbours each and a condition number far
-  // beyond what CG can reach 1e-10 in kCgMaxIterations steps. A direct solver takes over, says so,
+  // beyond what CG can reach 1e-12 in kCgMaxIterations steps. A direct solver takes over, says so,
   // and the fit is exact.
   std::vector<Vec3> line, dline;
   for (int i = 0; i < 400; ++i) {
@@ -499,6 +500,38 @@ TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyS
   EXPECT_TRUE(auto_dense.stats().fell_back);
   EXPECT_LE(auto_dense.stats().iterations, 50u);
   EXPECT_LE(auto_dense.stats().residual_relative, kResidualLimit);
+}
+
+TEST(FastPaths, DirectSolverAnalysisCountsTheFactorisationFlops) {
+  // What Auto weighs against CG: the flops of the factorisation, from the analysis alone, here
+  // against closed forms. Sources farther apart than R: A is the identity, a column of one entry
+  // each (N). All within R of each other: L is full, its column j holds N - j entries, and the sum
+  // of their squares is N (N + 1) (2N + 1) / 6.
+  std::vector<Vec3> apart, close;
+  for (int i = 0; i < 60; ++i) {
+    apart.emplace_back(double(i), 0, 0);
+    close.emplace_back(0.001 * std::cos(i), 0.001 * std::sin(i), 0.0001 * i);
+  }
+  const KernelMatrix identity(AdjacencyGraph::from_index(NeighborIndex(apart, 0.5), apart), Kernel::C2, 0.5);
+  const KernelMatrix full(AdjacencyGraph::from_index(NeighborIndex(close, 1.0), close), Kernel::C2, 1.0);
+  const double n = 60, dense = n * (n + 1) * (2 * n + 1) / 6;
+  EXPECT_EQ(detail::analyse_sparse(identity, apart, Solver::Eigen, 1e9)->flops(), n);
+  EXPECT_EQ(detail::analyse_sparse(full, close, Solver::Eigen, 1e9)->flops(), dense);
+  if (cholmod_available()) {
+    // CHOLMOD counts the same sums (its fl: the column counts squared, and the diagonal).
+    const double id = detail::analyse_sparse(identity, apart, Solver::Cholmod, 1e9)->flops();
+    const double d = detail::analyse_sparse(full, close, Solver::Cholmod, 1e9)->flops();
+    EXPECT_GE(id, n);
+    EXPECT_LE(id, 2 * n);
+    EXPECT_GE(d, dense);
+    EXPECT_LE(d, 2 * dense);
+    // The analysis then factorises: the solve matches the dense one.
+    RowMatrix b = RowMatrix::Ones(60, 1);
+    detail::analyse_sparse(full, close, Solver::Cholmod, 1e9)->factorise()->solve_in_place(b);
+    EXPECT_LT((full * b - RowMatrix::Ones(60, 1)).norm(), 1e-8);
+  }
+  // A factor beyond the memory limit is refused by the analysis, before any factorisation.
+  EXPECT_THROW(detail::analyse_sparse(full, close, Solver::Eigen, 100.0), ResourceLimit);
 }
 
 TEST(FastPaths, WithDestinationsWarmStartsConjugateGradients) {
@@ -600,8 +633,9 @@ TEST(FastPaths, AutoSolverChoosesBySize) {
   // choice is kept.
   EXPECT_EQ(resolve_solver(Solver::Auto, kEnvelopeWorkLimit), Solver::Envelope);
   EXPECT_EQ(resolve_solver(Solver::Auto, 2 * kEnvelopeWorkLimit), Solver::Cg);
-  EXPECT_EQ(resolve_solver(Solver::Auto, 1e6, 1000, 12000), Solver::Envelope);  // CG: 50 * 3 * 25000 = 3.75e6
-  EXPECT_EQ(resolve_solver(Solver::Auto, 7e6, 1000, 12000), Solver::Cg);
+  // CG: 100 steps * 3 * 25000 = 7.5e6 multiply-adds; the envelope's at 0.6 of one each.
+  EXPECT_EQ(resolve_solver(Solver::Auto, 1.2e7, 1000, 12000), Solver::Envelope);
+  EXPECT_EQ(resolve_solver(Solver::Auto, 1.3e7, 1000, 12000), Solver::Cg);
   EXPECT_EQ(resolve_solver(Solver::Cg, 1.0, 10, 10), Solver::Cg);
   EXPECT_EQ(parse_solver("cg"), Solver::Cg);
   EXPECT_EQ(resolve_solver(Solver::Envelope, 1e30), Solver::Envelope);
