@@ -10,9 +10,11 @@
 #include "sparse_solver.hpp"
 
 #include <Eigen/Cholesky>
+#include <tbb/task_arena.h>
 
 #include <atomic>
 #include <chrono>
+#include <cmath>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -67,15 +69,17 @@ struct SpaceMap::Structure {
     }
     if (!fell_back.load()) {
       double predicted = 0;
+      std::size_t taken = 0;
       try {
         sparse->solve_in_place(b, initial);  // CG writes b only when it converged
         return;
       } catch (const detail::CgStagnated& e) {
         predicted = e.predicted_steps();
+        taken = e.steps_taken();
       }
       // CG stagnated, or Auto's probe found it slower than a direct solve: another solver takes
       // over, once, for this fit and every later solve with these sources.
-      std::call_once(fallback_once, [this, predicted] { take_over(predicted); });
+      std::call_once(fallback_once, [this, predicted, taken] { take_over(predicted, taken); });
     }
     fallback->solve_in_place(b, initial);
   }
@@ -87,50 +91,48 @@ struct SpaceMap::Structure {
     return (2.0 * double(stats.neighbor_pairs) + double(sources.size())) * double(3 + terms);
   }
   /// Auto's direct solver (CHOLMOD, else Eigen), analysed while CG runs: its factorisation's cost in
-  /// CG multiply-adds (kDirectFlopCost a flop), or infinity where the memory limit refuses it.
+  /// CG multiply-adds (kDirectFlopCost a flop), or infinity where the memory limit refuses it. The
+  /// analysis's time stays in the solve that made it.
   double direct_cost() const {
     std::lock_guard lock(direct_mutex);  // CG's probe in one solve, take_over after another's
-    return direct_cost_locked();
+    return tbb::this_task_arena::isolate([&] { return direct_cost_locked(); });
   }
-  /// After the fit's solves: an analysis that CG kept going past is dropped (its memory), to be made
-  /// again should CG stagnate in a later solve.
+  /// After the fit's solves: an analysis not used is dropped (its memory), to be made again should CG
+  /// give way in a later solve.
   void drop_unused_analysis() const {
     std::lock_guard lock(direct_mutex);
-    if (!fell_back.load()) {
-      direct.reset();
-      direct_analysed = false;
-      direct_seconds = 0;
-    }
+    direct.reset();
+    direct_analysed = false;
   }
   mutable std::mutex direct_mutex;
-  mutable bool direct_analysed = false;
+  mutable bool direct_analysed = false;  // with `direct` null: refused by the memory limit
   mutable std::unique_ptr<detail::SparseAnalysis> direct;
-  mutable double direct_seconds = 0;
   double direct_cost_locked() const {
     if (!direct_analysed) {
-      direct_analysed = true;
-      const auto t0 = std::chrono::steady_clock::now();
       try {
         direct = detail::analyse_sparse(a, sources, cholmod_available() ? Solver::Cholmod : Solver::Eigen,
                                         options.memory_limit_bytes);
       } catch (const ResourceLimit&) {
         direct.reset();
       }
-      direct_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      direct_analysed = true;  // not where anything else was thrown: then it is tried again
     }
     return direct ? kDirectFlopCost * direct->flops() : std::numeric_limits<double>::infinity();
   }
 
-  /// After CG: under Auto, the envelope solver where its work (at kEnvelopeCostRatio) is below what
-  /// CG was predicted to need and within kEnvelopeWorkLimit; else the direct solver CG's probe
-  /// analysed (or CHOLMOD, or Eigen, where CG stagnated first); and where Auto's direct factor would
-  /// exceed the memory limit, CG again, without the probe.
-  void take_over(double predicted_steps) const {
+  /// After CG took `taken` steps: under Auto, the envelope solver where its work (at
+  /// kEnvelopeCostRatio) is below what CG was predicted to need, within kEnvelopeWorkLimit and below
+  /// the analysed direct solver's; else the direct solver (the one CG's probe analysed, or CHOLMOD,
+  /// or Eigen); and where Auto's direct factor would exceed the memory limit, CG again, without the
+  /// probe.
+  void take_over(double predicted_steps, std::size_t taken) const {
     std::lock_guard lock(direct_mutex);
+    tbb::this_task_arena::isolate([&] { take_over_locked(predicted_steps, taken); });
+  }
+  void take_over_locked(double predicted_steps, std::size_t taken) const {
     const auto t0 = std::chrono::steady_clock::now();
     const bool automatic = options.solver == Solver::Auto;
-    const std::size_t steps = sparse->iterations();
-    const double left = (predicted_steps - double(steps)) * cg_step_work();
+    const double left = (predicted_steps - double(taken)) * cg_step_work();
     if (automatic && stats.envelope_work <= kEnvelopeWorkLimit && kEnvelopeCostRatio * stats.envelope_work < left &&
         !(direct && direct_cost_locked() < kEnvelopeCostRatio * stats.envelope_work)) {
       fallback = detail::envelope_factor(a, cg_rows, options.memory_limit_bytes, ordering_name(stats.ordering));
@@ -138,16 +140,18 @@ struct SpaceMap::Structure {
     } else {
       const Solver general = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
       try {
-        if (!direct_analysed || !automatic) {
-          direct_analysed = true;
+        if (!automatic) {  // explicit CG stagnated: its direct solver, the memory limit an error
           direct = detail::analyse_sparse(a, sources, general, options.memory_limit_bytes);
+          direct_analysed = true;
         }
-        if (!direct) {
+        if (!std::isfinite(direct_cost_locked())) {  // the memory limit refused the direct factor
           fallback = detail::conjugate_gradients(a, cg_rows, kCgTolerance, kCgMaxIterations);
           fallback_solver = Solver::Cg;
         } else {
-          fallback = direct->factorise();
-          direct.reset();
+          // Taken out first: a factorisation that fails leaves no analysis behind to be reused.
+          const std::unique_ptr<detail::SparseAnalysis> analysis = std::move(direct);
+          direct_analysed = false;
+          fallback = analysis->factorise();
           fallback_solver = general;
         }
       } catch (const ResourceLimit&) {
@@ -155,11 +159,14 @@ struct SpaceMap::Structure {
         fallback = detail::conjugate_gradients(a, cg_rows, kCgTolerance, kCgMaxIterations);
         fallback_solver = Solver::Cg;
       } catch (const NotPositiveDefinite& e) {
-        throw NotPositiveDefinite(std::string("conjugate gradients did not converge in ") + std::to_string(steps) +
-                                  " steps, and then " + e.what());
+        throw NotPositiveDefinite(std::string("conjugate gradients ") +
+                                  (std::isfinite(predicted_steps) ? "gave way" : "did not converge") + " after " +
+                                  std::to_string(taken) + " steps, and then " + e.what());
       }
     }
-    fallback_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() + direct_seconds;
+    direct.reset();
+    direct_analysed = false;
+    fallback_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     fell_back = true;
   }
   mutable double fallback_seconds = 0;  // the taking over solver's factorisation

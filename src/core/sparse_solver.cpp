@@ -13,6 +13,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
+#include <tbb/task_arena.h>
 
 #include <algorithm>
 #include <array>
@@ -106,10 +107,10 @@ class EigenFactor final : public SparseFactor {
   void factorise() {
     finish_analysis();
     llt_.factorize(a_);
-    a_ = Sparse();
     if (llt_.info() != Eigen::Success)
       throw NotPositiveDefinite(std::string("the interpolation matrix is not numerically positive definite (") + name_ +
                                 " factorisation failed)");
+    a_ = Sparse();
   }
   void solve_in_place(RowMatrix& b, const RowMatrix* = nullptr) const override {
     std::lock_guard lock(mutex_);  // CHOLMOD's workspace is shared by solves
@@ -180,6 +181,14 @@ std::size_t EigenFactor<Simplicial>::count() const {
 }
 #ifdef CSRBF_HAVE_CHOLMOD
 using Supernodal = Eigen::CholmodSupernodalLLT<Sparse, Eigen::Lower>;
+/// CHOLMOD's analysis out of memory leaves no factor (and fl = lnz = -1) while Eigen reports success.
+void check_cholmod_analysis(const cholmod_common& c) {
+  if (c.status < CHOLMOD_OK || !(c.fl >= 0) || !(c.lnz >= 0)) {
+    std::ostringstream os;
+    os << "CHOLMOD's analysis failed (status " << c.status << ": out of memory)";
+    throw ResourceLimit(os.str());
+  }
+}
 template <>
 void EigenFactor<Supernodal>::init(const Sparse& a) {
   llt_.cholmod().print = 0;  // csrbf reports a failed factorisation itself; no CHOLMOD lines on stderr
@@ -191,14 +200,16 @@ void EigenFactor<Supernodal>::init(const Sparse& a) {
   llt_.cholmod().method[0].ordering = CHOLMOD_NATURAL;
   // First the simplicial analysis (elimination tree and column counts: the factor's entries and
   // flops) for the memory check and Auto's weighing; the supernodal one, several times dearer (it
-  // lays out the supernodes), only when the factorisation follows.
+  // repeats the simplicial one and lays out the supernodes), only when the factorisation follows.
   llt_.cholmod().supernodal = CHOLMOD_SIMPLICIAL;
   llt_.analyzePattern(a);
+  check_cholmod_analysis(llt_.cholmod());
 }
 template <>
 void EigenFactor<Supernodal>::finish_analysis() {
   llt_.cholmod().supernodal = CHOLMOD_SUPERNODAL;
   llt_.analyzePattern(a_);
+  check_cholmod_analysis(llt_.cholmod());
 }
 template <>
 double EigenFactor<Supernodal>::predicted_entries() const {
@@ -249,7 +260,9 @@ class BatchedCg final : public SparseFactor {
     if (b.cols() > 8) throw InvalidInput("conjugate gradients: at most 8 right-hand sides at once");
     if (initial && (initial->rows() != b.rows() || initial->cols() != b.cols()))
       throw InvalidInput("conjugate gradients: the initial guess has another shape than the right-hand sides");
-    solve_columns(b, initial);
+    // Isolated: a thread waiting in the parallel loops below must not take another task that would
+    // lock mutex_ again (with_destinations called from the caller's own TBB tasks).
+    tbb::this_task_arena::isolate([&] { solve_columns(b, initial); });
   }
   bool iterative() const override { return true; }
   std::size_t nonzeros() const override { return order_.size() + val_.size(); }
@@ -360,7 +373,7 @@ class BatchedCg final : public SparseFactor {
           iterations_ = it;
           std::ostringstream os;
           os << "conjugate gradients would need about " << predicted << " steps (after " << it << ")";
-          throw CgStagnated(os.str(), predicted);
+          throw CgStagnated(os.str(), predicted, it);
         }
       }
       const Sums pq = times_a(p, q, m, reduce);
@@ -393,7 +406,7 @@ class BatchedCg final : public SparseFactor {
     if (!all_done() || !std::isfinite(worst)) {
       std::ostringstream os;
       os << "conjugate gradients stagnated at a relative residual of " << worst << " after " << it << " steps";
-      throw CgStagnated(os.str(), std::numeric_limits<double>::infinity());
+      throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
     }
     for (std::size_t k = 0; k < n; ++k)
       for (std::size_t c = 0; c < m; ++c) b(Eigen::Index(order_[k]), Eigen::Index(c)) = x[k * m + c];

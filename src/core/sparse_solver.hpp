@@ -36,18 +36,21 @@ class SparseFactor {
 /// CG did not reach its tolerance within its step limit (the caller falls back to a direct solver).
 class CgStagnated : public std::runtime_error {
  public:
-  CgStagnated(const std::string& what, double predicted_steps)
-      : std::runtime_error(what), predicted_(predicted_steps) {}
+  CgStagnated(const std::string& what, double predicted_steps, std::size_t steps_taken)
+      : std::runtime_error(what), predicted_(predicted_steps), taken_(steps_taken) {}
   /// The steps the solve was predicted to need in all, from its convergence so far (infinity where
   /// it made no progress).
   double predicted_steps() const noexcept { return predicted_; }
+  /// The steps it took before it gave up.
+  std::size_t steps_taken() const noexcept { return taken_; }
 
  private:
   double predicted_;
+  std::size_t taken_;
 };
 
-/// Auto's check on CG: after `steps` steps of a solve (and again after 3, 9, ... times as many), CG
-/// predicts the steps it needs in all from the residual's decrease so far (geometric, for the
+/// Auto's check on CG: every `steps` steps of a solve, CG predicts the steps it needs in all from the
+/// residual's decrease over its last two thirds of steps (geometric, for the
 /// slowest right-hand side) and gives up, throwing CgStagnated, unless worth_it(predicted, done)
 /// holds (done: the steps taken, a sunk cost).
 struct CgProbe {
