@@ -518,9 +518,11 @@ void solvers_scenario(const BenchOptions& o, const Printer& out) {
         std::map<Solver, std::vector<double>> times;
         for (int r = n < 100000 ? -1 : 0; r < reps; ++r)
           for (std::size_t j = 0; j < run.size(); ++j) {
-            // Each repetition starts one back end later: the one after CG pays for fresh pages
-            // (1.5 ms of 4 at N = 1e3), and every back end takes that place in turn.
-            const Solver solver = run[(j + std::size_t(r + 1)) % run.size()];
+            // Each repetition runs the back ends in another (seeded) order: the fit right after CG
+            // pays for fresh pages (1.5 ms of 4 at N = 1e3), and a rotation would keep that place
+            // for the same back end.
+            if (j == 0) std::shuffle(run.begin(), run.end(), std::mt19937(unsigned(r + 2)));
+            const Solver solver = run[j];
             if (row.contains(std::string(solver_name(solver)) + "_fit_us")) continue;  // refused
             FitOptions fo{radius, Kernel::C2, Polynomial::None};
             fo.solver = solver;
