@@ -51,12 +51,13 @@ inline constexpr std::size_t kCgMaxIterations = 3000;
 ///   2, in reverse Cuthill-McKee order), at kEnvelopeCostRatio each, cost less than kCgStepsEstimate
 ///   CG steps, and are at most kEnvelopeWorkLimit.
 /// - Else CG, which every kCgProbeSteps steps predicts the steps it still needs from the rate its
-///   residual fell over the last half of its steps, and gives way to the envelope solver where that
-///   is cheaper (and within kEnvelopeWorkLimit). Once CG predicts more than kCgAnalyseSteps * sqrt(N)
-///   steps to go, the general direct solver (CHOLMOD, else Eigen) is analysed: its ordering and
-///   symbolic factorisation give its flops, at kDirectFlopCost each, and CG gives way to it where it
-///   is cheaper by a margin of 1 + kCgProbeSteps / steps taken (CG's early predictions are the least
-///   sure). A direct factor that would pass the memory limit is never chosen.
+///   residual fell over the last two thirds of its steps, and gives way to the envelope solver where
+///   that is cheaper (and within kEnvelopeWorkLimit). Once CG predicts more than kCgAnalyseSteps * sqrt(N)
+///   steps to go, the general direct solver (CHOLMOD, else Eigen) is weighed: the column counts of
+///   its factor in csrbf's nested dissection order (cholesky_factor_count) give its flops, at
+///   kDirectFlopCost each, and CG gives way to it where it is cheaper by a margin of
+///   1 + kCgProbeSteps / steps taken (CG's early predictions are the least sure). A direct factor
+///   that would pass the memory limit is never chosen.
 /// - A direct solver takes over wherever CG stagnates.
 /// CG took 41 to 230 steps on the sphere and 180 to 1600 in the cube (N = 1e3 ... 1e6). The ratios
 /// were measured on the solvers sweep: an envelope multiply-add costs 0.3-0.6 of a CG one, a

@@ -66,6 +66,16 @@ std::vector<std::uint32_t> reversed_order(std::span<const std::uint32_t> order);
 std::vector<std::uint32_t> nested_dissection_order(const AdjacencyGraph& g, std::span<const Vec3> points, double radius,
                                                    std::size_t leaf = 16);
 
+/// The Cholesky factor L of the graph's matrix (plus the diagonal) in `order`, counted from its
+/// elimination tree (Liu 1990), each row's subtree walked once, no numbers: its entries and the
+/// flops of the factorisation as CHOLMOD's analysis counts them (the column counts squared, summed).
+/// What Auto weighs a direct solver by, at a small part of CHOLMOD's analysis's cost.
+struct FactorCount {
+  double entries = 0;
+  double flops = 0;
+};
+FactorCount cholesky_factor_count(const AdjacencyGraph& g, std::span<const std::uint32_t> order);
+
 /// First column of each row's envelope, row k being the point order[k]: min(k, positions of its
 /// neighbours). The Jennings profile of the graph's matrix in that order.
 std::vector<std::size_t> envelope_first_columns(const AdjacencyGraph& g, std::span<const std::uint32_t> order);

@@ -262,7 +262,7 @@ struct FitPhases {
           const double left = (steps - done) * st.cg_step_work();
           const double envelope = kEnvelopeCostRatio * st.stats.envelope_work;
           if (st.stats.envelope_work <= kEnvelopeWorkLimit && envelope < left) return false;
-          // The general direct solver is analysed (its ordering and symbolic factorisation, no
+          // The general direct solver is weighed (its ordering and its factor's column counts, no
           // numbers) once CG looks long enough for it to win: its flops are then known.
           if (steps - done > kCgAnalyseSteps * std::sqrt(double(n))) {
             const double direct = st.direct_cost();
@@ -456,9 +456,7 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   FitPhases::polynomial_block(*st);
   auto structure_only = std::make_shared<State>();
   structure_only->st = std::move(st);
-  SpaceMap map = SpaceMap(std::move(structure_only)).solve_destinations(destinations);
-  map.s_->st->drop_unused_analysis();
-  return map;
+  return SpaceMap(std::move(structure_only)).solve_destinations(destinations);
 }
 
 SpaceMap SpaceMap::with_destinations(std::span<const Vec3> destinations) const {

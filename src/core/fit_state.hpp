@@ -90,41 +90,31 @@ struct SpaceMap::Structure {
   double cg_step_work() const {
     return (2.0 * double(stats.neighbor_pairs) + double(sources.size())) * double(3 + terms);
   }
-  /// Auto's direct solver (CHOLMOD, else Eigen), analysed while CG runs: its factorisation's cost in
-  /// CG multiply-adds (kDirectFlopCost a flop), or infinity where the memory limit refuses it. The
-  /// analysis's time stays in the solve that made it.
+  /// Auto's direct solver (CHOLMOD, else Eigen), weighed while CG runs: its factorisation's cost in
+  /// CG multiply-adds (kDirectFlopCost a flop), from the factor's column counts in csrbf's nested
+  /// dissection order, or infinity where the factor would pass the memory limit. The count's time
+  /// stays in the solve that made it.
   double direct_cost() const {
     std::lock_guard lock(direct_mutex);  // CG's probe in one solve, take_over after another's
     return tbb::this_task_arena::isolate([&] { return direct_cost_locked(); });
   }
-  /// After the fit's solves: an analysis not used is dropped (its memory), to be made again should CG
-  /// give way in a later solve.
-  void drop_unused_analysis() const {
-    std::lock_guard lock(direct_mutex);
-    direct.reset();
-    direct_analysed = false;
-  }
   mutable std::mutex direct_mutex;
-  mutable bool direct_analysed = false;  // with `direct` null: refused by the memory limit
-  mutable std::unique_ptr<detail::SparseAnalysis> direct;
+  mutable double direct_cost_ = -1;  // < 0: not counted yet
   double direct_cost_locked() const {
-    if (!direct_analysed) {
-      try {
-        direct = detail::analyse_sparse(a, sources, cholmod_available() ? Solver::Cholmod : Solver::Eigen,
-                                        options.memory_limit_bytes);
-      } catch (const ResourceLimit&) {
-        direct.reset();
-      }
-      direct_analysed = true;  // not where anything else was thrown: then it is tried again
+    if (direct_cost_ < 0) {
+      const FactorCount f =
+          cholesky_factor_count(a.pattern(), nested_dissection_order(a.pattern(), sources, options.radius));
+      // Values and row indices of L, as the solvers' own analyses check them.
+      direct_cost_ = 12.0 * f.entries > options.memory_limit_bytes ? std::numeric_limits<double>::infinity()
+                                                                   : kDirectFlopCost * f.flops;
     }
-    return direct ? kDirectFlopCost * direct->flops() : std::numeric_limits<double>::infinity();
+    return direct_cost_;
   }
 
   /// After CG took `taken` steps: under Auto, the envelope solver where its work (at
   /// kEnvelopeCostRatio) is below what CG was predicted to need, within kEnvelopeWorkLimit and below
-  /// the analysed direct solver's; else the direct solver (the one CG's probe analysed, or CHOLMOD,
-  /// or Eigen); and where Auto's direct factor would exceed the memory limit, CG again, without the
-  /// probe.
+  /// the direct solver's as weighed; else the direct solver (CHOLMOD, or Eigen); and where Auto's
+  /// direct factor would exceed the memory limit, CG again, without the probe.
   void take_over(double predicted_steps, std::size_t taken) const {
     std::lock_guard lock(direct_mutex);
     tbb::this_task_arena::isolate([&] { take_over_locked(predicted_steps, taken); });
@@ -134,24 +124,17 @@ struct SpaceMap::Structure {
     const bool automatic = options.solver == Solver::Auto;
     const double left = (predicted_steps - double(taken)) * cg_step_work();
     if (automatic && stats.envelope_work <= kEnvelopeWorkLimit && kEnvelopeCostRatio * stats.envelope_work < left &&
-        !(direct && direct_cost_locked() < kEnvelopeCostRatio * stats.envelope_work)) {
+        !(direct_cost_ >= 0 && direct_cost_ < kEnvelopeCostRatio * stats.envelope_work)) {
       fallback = detail::envelope_factor(a, cg_rows, options.memory_limit_bytes, ordering_name(stats.ordering));
       fallback_solver = Solver::Envelope;
     } else {
       const Solver general = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
       try {
-        if (!automatic) {  // explicit CG stagnated: its direct solver, the memory limit an error
-          direct = detail::analyse_sparse(a, sources, general, options.memory_limit_bytes);
-          direct_analysed = true;
-        }
-        if (!std::isfinite(direct_cost_locked())) {  // the memory limit refused the direct factor
+        if (automatic && !std::isfinite(direct_cost_locked())) {  // the memory limit refuses the factor
           fallback = detail::conjugate_gradients(a, cg_rows, kCgTolerance, kCgMaxIterations);
           fallback_solver = Solver::Cg;
         } else {
-          // Taken out first: a factorisation that fails leaves no analysis behind to be reused.
-          const std::unique_ptr<detail::SparseAnalysis> analysis = std::move(direct);
-          direct_analysed = false;
-          fallback = analysis->factorise();
+          fallback = detail::factor_sparse(a, sources, general, options.memory_limit_bytes);
           fallback_solver = general;
         }
       } catch (const ResourceLimit&) {
@@ -164,8 +147,6 @@ struct SpaceMap::Structure {
                                   std::to_string(taken) + " steps, and then " + e.what());
       }
     }
-    direct.reset();
-    direct_analysed = false;
     fallback_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     fell_back = true;
   }

@@ -194,6 +194,38 @@ std::vector<std::size_t> envelope_first_columns(const AdjacencyGraph& g, std::sp
   return first;
 }
 
+FactorCount cholesky_factor_count(const AdjacencyGraph& g, std::span<const std::uint32_t> order) {
+  const std::size_t n = g.size();
+  constexpr std::uint32_t none = ~std::uint32_t(0);
+  std::vector<std::uint32_t> position(n), parent(n, none), ancestor(n, none), mark(n, none), count(n, 1);
+  for (std::size_t k = 0; k < n; ++k) position[order[k]] = std::uint32_t(k);
+  // The elimination tree: for each entry (k, i) below the diagonal, i's root so far (path
+  // compressed) gets parent k.
+  for (std::uint32_t k = 0; k < n; ++k)
+    for (std::uint32_t nb : g.neighbors_of(order[k]))
+      for (std::uint32_t i = position[nb]; i != none && i < k;) {
+        const std::uint32_t next = ancestor[i];
+        ancestor[i] = k;
+        if (next == none) parent[i] = k;
+        i = next;
+      }
+  // Row k of L holds the nodes on the tree's paths from each i (A(k, i) != 0, i < k) up to k.
+  for (std::uint32_t k = 0; k < n; ++k) {
+    mark[k] = k;
+    for (std::uint32_t nb : g.neighbors_of(order[k]))
+      for (std::uint32_t j = position[nb]; j < k && mark[j] != k; j = parent[j]) {
+        ++count[j];
+        mark[j] = k;
+      }
+  }
+  FactorCount f;
+  for (std::uint32_t c : count) {
+    f.entries += double(c);
+    f.flops += double(c) * double(c);
+  }
+  return f;
+}
+
 double envelope_work(std::span<const std::size_t> first_columns) noexcept {
   double work = 0.0;
   for (std::size_t k = 0; k < first_columns.size(); ++k) {

@@ -530,6 +530,21 @@ TEST(FastPaths, DirectSolverAnalysisCountsTheFactorisationFlops) {
     detail::analyse_sparse(full, close, Solver::Cholmod, 1e9)->factorise()->solve_in_place(b);
     EXPECT_LT((full * b - RowMatrix::Ones(60, 1)).norm(), 1e-8);
   }
+  // Auto weighs the direct solver by csrbf's own count of the factor (its elimination tree), without
+  // CHOLMOD's analysis: the same closed forms, and CHOLMOD's own count in the same order.
+  EXPECT_EQ(cholesky_factor_count(identity.pattern(), identity_order(60)).flops, n);
+  EXPECT_EQ(cholesky_factor_count(full.pattern(), identity_order(60)).flops, dense);
+  EXPECT_EQ(cholesky_factor_count(full.pattern(), identity_order(60)).entries, n * (n + 1) / 2);
+  std::mt19937 rng(109);
+  const auto cloud = random_points(2000, rng);
+  const KernelMatrix sparse(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.12), cloud), Kernel::C2, 0.12);
+  const auto nd = nested_dissection_order(sparse.pattern(), cloud, 0.12);
+  const FactorCount counted = cholesky_factor_count(sparse.pattern(), nd);
+  EXPECT_GT(counted.flops, 10 * 2000.0);  // fill: far from diagonal
+  if (cholmod_available()) {
+    const double fl = detail::analyse_sparse(sparse, cloud, Solver::Cholmod, 1e10)->flops();
+    EXPECT_EQ(counted.flops, fl);
+  }
   // A factor beyond the memory limit is refused by the analysis, before any factorisation.
   EXPECT_THROW(detail::analyse_sparse(full, close, Solver::Eigen, 100.0), ResourceLimit);
 }
