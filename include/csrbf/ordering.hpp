@@ -10,6 +10,7 @@
 #include "csrbf/neighbor_index.hpp"
 
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <string_view>
 #include <optional>
@@ -69,12 +70,14 @@ std::vector<std::uint32_t> nested_dissection_order(const AdjacencyGraph& g, std:
 /// The Cholesky factor L of the graph's matrix (plus the diagonal) in `order`, counted from its
 /// elimination tree (Liu 1990), each row's subtree walked once, no numbers: its entries and the
 /// flops of the factorisation as CHOLMOD's analysis counts them (the column counts squared, summed).
-/// What Auto weighs a direct solver by, at a small part of CHOLMOD's analysis's cost.
+/// What Auto weighs a direct solver by, at a small part of CHOLMOD's analysis's cost. The work is one
+/// step per entry of L: past `max_entries` the count stops, and both figures are infinite.
 struct FactorCount {
   double entries = 0;
   double flops = 0;
 };
-FactorCount cholesky_factor_count(const AdjacencyGraph& g, std::span<const std::uint32_t> order);
+FactorCount cholesky_factor_count(const AdjacencyGraph& g, std::span<const std::uint32_t> order,
+                                  double max_entries = std::numeric_limits<double>::infinity());
 
 /// First column of each row's envelope, row k being the point order[k]: min(k, positions of its
 /// neighbours). The Jennings profile of the graph's matrix in that order.

@@ -102,11 +102,12 @@ struct SpaceMap::Structure {
   mutable double direct_cost_ = -1;  // < 0: not counted yet
   double direct_cost_locked() const {
     if (direct_cost_ < 0) {
+      // Values and row indices of L (12 bytes an entry), as the solvers' own analyses check them: the
+      // count stops where the factor passes the memory limit (infinite cost).
       const FactorCount f =
-          cholesky_factor_count(a.pattern(), nested_dissection_order(a.pattern(), sources, options.radius));
-      // Values and row indices of L, as the solvers' own analyses check them.
-      direct_cost_ = 12.0 * f.entries > options.memory_limit_bytes ? std::numeric_limits<double>::infinity()
-                                                                   : kDirectFlopCost * f.flops;
+          cholesky_factor_count(a.pattern(), nested_dissection_order(a.pattern(), sources, options.radius),
+                                options.memory_limit_bytes / 12.0);
+      direct_cost_ = kDirectFlopCost * f.flops;
     }
     return direct_cost_;
   }

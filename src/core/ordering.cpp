@@ -8,6 +8,7 @@
 #include "csrbf/errors.hpp"
 
 #include <algorithm>
+#include <limits>
 #include <cctype>
 #include <cmath>
 #include <numeric>
@@ -194,7 +195,7 @@ std::vector<std::size_t> envelope_first_columns(const AdjacencyGraph& g, std::sp
   return first;
 }
 
-FactorCount cholesky_factor_count(const AdjacencyGraph& g, std::span<const std::uint32_t> order) {
+FactorCount cholesky_factor_count(const AdjacencyGraph& g, std::span<const std::uint32_t> order, double max_entries) {
   const std::size_t n = g.size();
   constexpr std::uint32_t none = ~std::uint32_t(0);
   std::vector<std::uint32_t> position(n), parent(n, none), ancestor(n, none), mark(n, none), count(n, 1);
@@ -210,13 +211,19 @@ FactorCount cholesky_factor_count(const AdjacencyGraph& g, std::span<const std::
         i = next;
       }
   // Row k of L holds the nodes on the tree's paths from each i (A(k, i) != 0, i < k) up to k.
+  double entries = double(n);
   for (std::uint32_t k = 0; k < n; ++k) {
     mark[k] = k;
     for (std::uint32_t nb : g.neighbors_of(order[k]))
       for (std::uint32_t j = position[nb]; j < k && mark[j] != k; j = parent[j]) {
         ++count[j];
         mark[j] = k;
+        entries += 1;
       }
+    if (entries > max_entries) {
+      constexpr double inf = std::numeric_limits<double>::infinity();
+      return {inf, inf};
+    }
   }
   FactorCount f;
   for (std::uint32_t c : count) {

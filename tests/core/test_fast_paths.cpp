@@ -535,6 +535,9 @@ TEST(FastPaths, DirectSolverAnalysisCountsTheFactorisationFlops) {
   EXPECT_EQ(cholesky_factor_count(identity.pattern(), identity_order(60)).flops, n);
   EXPECT_EQ(cholesky_factor_count(full.pattern(), identity_order(60)).flops, dense);
   EXPECT_EQ(cholesky_factor_count(full.pattern(), identity_order(60)).entries, n * (n + 1) / 2);
+  // Past its limit of entries the count stops: the factor is out of reach, its cost infinite.
+  EXPECT_EQ(cholesky_factor_count(full.pattern(), identity_order(60), n * (n + 1) / 2).flops, dense);
+  EXPECT_TRUE(std::isinf(cholesky_factor_count(full.pattern(), identity_order(60), n * (n + 1) / 2 - 1).flops));
   std::mt19937 rng(109);
   const auto cloud = random_points(2000, rng);
   const KernelMatrix sparse(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.12), cloud), Kernel::C2, 0.12);
