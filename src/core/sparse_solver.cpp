@@ -80,7 +80,7 @@ void solve_permuted(RowMatrix& b, std::span<const std::uint32_t> order, Solve&& 
 }
 
 /// A general sparse Cholesky in two steps: the constructor analyses (ordering, symbolic factorisation,
-/// the memory check), factorise() computes. Auto weighs the analysis's flops before it factorises.
+/// the memory check), factorise() computes; flops() in between is the analysis's count.
 template <class Decomposition>
 class EigenFactor final : public SparseFactor {
  public:
@@ -105,7 +105,6 @@ class EigenFactor final : public SparseFactor {
   /// Flops of the numeric factorisation, from the analysis (the sum of L's column counts squared).
   double flops() const;
   void factorise() {
-    finish_analysis();
     llt_.factorize(a_);
     if (llt_.info() != Eigen::Success)
       throw NotPositiveDefinite(std::string("the interpolation matrix is not numerically positive definite (") + name_ +
@@ -128,7 +127,6 @@ class EigenFactor final : public SparseFactor {
 
  private:
   void init(const Sparse& a) { llt_.analyzePattern(a); }
-  void finish_analysis() {}
   double predicted_entries() const;
   std::size_t count() const;
   std::vector<std::uint32_t> order_;
@@ -198,17 +196,8 @@ void EigenFactor<Supernodal>::init(const Sparse& a) {
   // ordering alone costs about 0.9 s.
   llt_.cholmod().nmethods = 1;
   llt_.cholmod().method[0].ordering = CHOLMOD_NATURAL;
-  // First the simplicial analysis (elimination tree and column counts: the factor's entries and
-  // flops) for the memory check and Auto's weighing; the supernodal one, several times dearer (it
-  // repeats the simplicial one and lays out the supernodes), only when the factorisation follows.
-  llt_.cholmod().supernodal = CHOLMOD_SIMPLICIAL;
-  llt_.analyzePattern(a);
-  check_cholmod_analysis(llt_.cholmod());
-}
-template <>
-void EigenFactor<Supernodal>::finish_analysis() {
   llt_.cholmod().supernodal = CHOLMOD_SUPERNODAL;
-  llt_.analyzePattern(a_);
+  llt_.analyzePattern(a);
   check_cholmod_analysis(llt_.cholmod());
 }
 template <>
@@ -347,8 +336,8 @@ class BatchedCg final : public SparseFactor {
         if (!done[c]) return false;
       return true;
     };
-    // Auto's probe: every probe_.steps steps, the rate at which the residual fell over the last half
-    // of the steps taken predicts the steps still needed. CG slows down as it goes (its first steps
+    // Auto's probe: every probe_.steps steps, the rate at which the residual fell over the last two
+    // thirds of the steps taken predicts the steps still needed. CG slows down as it goes (its first steps
     // remove the easy components), so the recent rate is the better guide. CG's residual is not
     // monotonic: the probe judges by the smallest seen so far.
     std::vector<Sums> best;  // best[k]: the smallest residuals up to step k

@@ -87,7 +87,8 @@ std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector
                                               double memory_limit_bytes, std::string_view ordering);
 
 /// A general sparse Cholesky factorisation analysed (ordering, symbolic factorisation, memory check)
-/// but not yet computed: Auto weighs its flops against CG's remaining steps before it factorises.
+/// but not yet computed: its flops are known before it factorises (the tests check csrbf's own
+/// cholesky_factor_count, which Auto weighs by, against them).
 class SparseAnalysis {
  public:
   virtual ~SparseAnalysis() = default;
