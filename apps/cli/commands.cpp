@@ -1,10 +1,31 @@
 #include "commands.hpp"
 
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 
 namespace csrbf::cli {
+
+/// A finite number in [lo, hi]; NaN and infinities are refused (CLI::Range lets NaN through).
+CLI::Validator finite_in(double lo, double hi, const std::string& what) {
+  std::ostringstream range;
+  range << "[" << lo << ", " << hi << "]";
+  return CLI::Validator(
+      [lo, hi, what, r = range.str()](std::string& s) -> std::string {
+        double v = 0;
+        const char* b = s.data();
+        const char* e = s.data() + s.size();
+        if (b != e && *b == '+') ++b;
+        const auto res = std::from_chars(b, e, v);
+        if (res.ptr != e || (res.ec != std::errc() && res.ec != std::errc::result_out_of_range))
+          return what + " must be a number, got '" + s + "'";
+        if (res.ec == std::errc::result_out_of_range || !std::isfinite(v) || v < lo || v > hi)
+          return what + " must be a finite number in " + r + ", got '" + s + "'";
+        return {};
+      },
+      "in " + range.str());
+}
 
 namespace {
 nlohmann::json profile_json(const Profile& p) { return {{"bandwidth", p.bandwidth}, {"envelope_entries", p.envelope}}; }

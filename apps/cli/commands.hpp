@@ -3,11 +3,15 @@
 #include "csrbf/folds.hpp"
 #include "csrbf/space_map.hpp"
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
 #include <string>
 
 namespace csrbf::cli {
+
+/// A finite number in [lo, hi]; NaN and infinities are refused (CLI::Range lets NaN through).
+CLI::Validator finite_in(double lo, double hi, const std::string& what);
 
 /// The stats of a fit as JSON (keys named as in FitStats; times in microseconds).
 nlohmann::json stats_json(const SpaceMap& map);

@@ -2,6 +2,7 @@
 #include "animate.hpp"
 #include "bench.hpp"
 #include "commands.hpp"
+#include "morph.hpp"
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/deformation.hpp"
@@ -23,32 +24,14 @@
 
 namespace {
 
+using csrbf::cli::finite_in;
+
 struct FitArgs {
   std::string controls, deformation;
   double radius = 0;
   std::string kernel = "c2", polynomial = "none", ordering = "auto", solver = "auto";
   double memory_limit_gib = 4.0;
 };
-
-/// A finite number in [lo, hi]; NaN and infinities are refused (CLI::Range lets NaN through).
-CLI::Validator finite_in(double lo, double hi, const std::string& what) {
-  std::ostringstream range;
-  range << "[" << lo << ", " << hi << "]";
-  return CLI::Validator(
-      [lo, hi, what, r = range.str()](std::string& s) -> std::string {
-        double v = 0;
-        const char* b = s.data();
-        const char* e = s.data() + s.size();
-        if (b != e && *b == '+') ++b;
-        const auto res = std::from_chars(b, e, v);
-        if (res.ptr != e || (res.ec != std::errc() && res.ec != std::errc::result_out_of_range))
-          return what + " must be a number, got '" + s + "'";
-        if (res.ec == std::errc::result_out_of_range || !std::isfinite(v) || v < lo || v > hi)
-          return what + " must be a finite number in " + r + ", got '" + s + "'";
-        return {};
-      },
-      "in " + range.str());
-}
 
 CLI::Validator positive_finite(const char* what) {
   // The radius is limited as SpaceMap::fit limits it, so that a bad value is a usage error (2).
@@ -243,6 +226,9 @@ int main(int argc, char** argv) {
   folds_flag->needs(info->get_option("--mesh"));
   info->get_option("--mesh")->needs(folds_flag);  // a mesh is read only to check it for folds
 
+  csrbf::cli::MorphArgs morph_args;
+  auto* morph = csrbf::cli::add_morph_command(app, morph_args);
+
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -274,6 +260,8 @@ int main(int argc, char** argv) {
                 << (f.area ? ", active area of " + std::to_string(f.area->vertices.size()) + " vertices"
                            : std::string())
                 << " -> " << mesh_out << " (" << std::chrono::duration<double, std::milli>(t1 - t0).count() << " ms)\n";
+    } else if (*morph) {
+      return csrbf::cli::run_morph(morph_args);
     } else if (*animate) {
       return csrbf::cli::run_animate(anim_opts);
     } else if (*bench) {

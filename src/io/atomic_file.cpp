@@ -7,6 +7,7 @@
 #include <csignal>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
@@ -55,14 +56,11 @@ std::string partial_name(const fs::path& target, const std::string& ext) {
   return s;
 }
 
-/// Removes a stale partial folder: the regular files it holds (all written by csrbf), then itself.
+/// Removes a partial folder and everything csrbf wrote into it (a copied case holds folders and
+/// symbolic links too; links are removed, never followed).
 void remove_partial_folder(const fs::path& dir) noexcept {
   std::error_code ec;
-  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
-    std::error_code e2;
-    if (it->is_regular_file(e2)) fs::remove(it->path(), e2);
-  }
-  fs::remove(dir, ec);  // fails, and keeps the folder, if anything else is inside
+  fs::remove_all(dir, ec);
 }
 
 /// Partial files of this process, for a signal handler to remove (fixed storage: a handler may
@@ -212,6 +210,18 @@ void Partial::commit(const fs::path& target) {
   fs::rename(path_, target, ec);
   if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
   // Only now: a signal handler that runs in between unlinks a name that is gone, harmlessly.
+  unregister_partial(slot_);
+  slot_ = -1;
+  committed_ = true;
+}
+
+void Partial::commit_new(const fs::path& target) {
+  // RENAME_NOREPLACE: an existing target, even an empty folder that rename(2) would replace, is
+  // never replaced.
+  if (::renameat2(AT_FDCWD, path_.c_str(), AT_FDCWD, target.c_str(), RENAME_NOREPLACE) != 0)
+    throw FileError("cannot write '" + target.string() + "': " +
+                    (errno == EEXIST ? std::string("it exists (csrbf writes a new one, and never replaces it)")
+                                     : errno_text()));
   unregister_partial(slot_);
   slot_ = -1;
   committed_ = true;

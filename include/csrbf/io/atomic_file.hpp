@@ -47,6 +47,9 @@ class Partial {
   const std::filesystem::path& path() const noexcept { return path_; }
   /// Renames the partial file over target (which check_output_path accepted). Throws FileError.
   void commit(const std::filesystem::path& target);
+  /// Renames the partial (a file or a folder) to target, which must not exist: nothing is ever
+  /// replaced, not even an empty folder. Throws FileError.
+  void commit_new(const std::filesystem::path& target);
   /// The partial is gone or has been moved by the caller: nothing to remove.
   void release() noexcept { committed_ = true; }
 

@@ -1,0 +1,64 @@
+// The morph of a volume mesh by its boundaries: the points of the patches the motion names are
+// the controls (each moves as its patch prescribes, or stays), a CSRBF space mapping fitted to
+// them carries every other point along, and the prescribed points land exactly where prescribed.
+#pragma once
+
+#include "csrbf/fit_options.hpp"
+#include "csrbf/fit_stats.hpp"
+#include "csrbf/morph/motion.hpp"
+#include "csrbf/morph/quality.hpp"
+#include "csrbf/morph/volume_mesh.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace csrbf::morph {
+
+/// Every point a motion prescribes: its id and displacement, and whether it stays (fixed).
+struct Prescribed {
+  std::vector<std::uint32_t> points;  ///< ascending
+  std::vector<Vec3> displacements;
+  std::vector<char> fixed;
+  std::size_t moving() const;
+};
+
+/// Resolves the motion's patches against the mesh. A point on a moving patch and a fixed one
+/// moves; two moving patches that disagree at a shared point (by more than 1e-12 of the mesh's
+/// size) are an error naming both and the point. Unknown and empty patches, point ids outside the
+/// patch, and patch points missing from a displacements file are errors. Throws io::FileError.
+Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion);
+
+struct MorphOptions {
+  FitOptions fit;     ///< radius > 0 required; kernel, polynomial, solver, memory limit
+  double phase = 1.0;  ///< the fraction of the motion applied, in [0, 1] normally
+  /// > 0: greedy reduction (Rendall & Allen 2009): controls are added, worst first, until every
+  /// prescribed point is interpolated within greedy x the largest displacement.
+  double greedy = 0.0;
+};
+
+struct MorphReport {
+  std::size_t prescribed = 0, moving = 0, fixed = 0;
+  std::size_t controls = 0;       ///< sources of the fit (all prescribed points, or greedy's subset)
+  std::size_t greedy_rounds = 0;
+  double max_displacement = 0;    ///< largest prescribed, at phase 1
+  /// Largest distance between a prescribed point's interpolated and prescribed position, before
+  /// the prescribed points are placed exactly (greedy's measure; ~1e-12 without greedy).
+  double max_boundary_error = 0;
+  FitStats fit;
+  double seconds_fit = 0, seconds_evaluate = 0;
+};
+
+struct MorphResult {
+  std::vector<Vec3> points;
+  MorphReport report;
+};
+
+/// Morphs mesh.points. Prescribed points are placed at x + phase d exactly, fixed ones are copied
+/// bit for bit, every other point is x + phase d(x) of the fitted mapping.
+MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options);
+
+/// The largest phase s in [0, phase] at which the morph (positions linear in s between points
+/// and moved) inverts no cell that was not inverted before, found by bisection to 1e-4 of phase.
+double largest_safe_phase(const VolumeMesh& mesh, std::span<const Vec3> moved, double phase, std::size_t inverted_before);
+
+}  // namespace csrbf::morph

@@ -1,0 +1,54 @@
+// OpenFOAM polyMesh: read points, faces, owner, neighbour and boundary (ASCII or binary, gzip'd or
+// not, as OpenFOAM writes them) and write the points back in the input's own format and
+// compression, every other byte as it was.
+#pragma once
+
+#include "csrbf/morph/volume_mesh.hpp"
+
+#include <filesystem>
+#include <span>
+#include <string>
+
+namespace csrbf::morph {
+
+/// The points file as read, kept to write new points the same way.
+struct FoamPointsFile {
+  std::filesystem::path path;  ///< as found: ".../points" or ".../points.gz"
+  bool binary = false;
+  bool gzip = false;
+  int scalar_bytes = 8;     ///< binary: 4 or 8 (arch "scalar=32|64")
+  std::string text;         ///< the whole file, uncompressed
+  std::size_t body_begin = 0;  ///< just past the list's '('
+  std::size_t body_end = 0;    ///< at the list's ')'
+};
+
+struct FoamCase {
+  std::filesystem::path root;       ///< the folder given: a case, or a polyMesh folder
+  std::filesystem::path poly_mesh;  ///< root/constant/polyMesh, or root itself
+  VolumeMesh mesh;
+  FoamPointsFile points_file;
+};
+
+/// Whether path is an OpenFOAM case folder (with constant/polyMesh) or a polyMesh folder.
+bool is_openfoam(const std::filesystem::path& path);
+
+/// Reads the polyMesh of a case folder or of a polyMesh folder. Every file is checked against the
+/// others (point labels against the points, owner against faces, patches against faces) and any
+/// error names the file, its line (ASCII) or the entry, and the value. Files are refused past
+/// max_file_bytes (uncompressed). Throws io::FileError.
+FoamCase read_openfoam(const std::filesystem::path& path, double max_file_bytes = 8.0 * (1ull << 30));
+
+/// The points file's bytes (uncompressed) with points in place of the old ones: the header, the
+/// layout and every coordinate that did not change are kept byte for byte; a changed one is
+/// written in the shortest form that reads back exactly.
+std::string foam_points_bytes(const FoamCase& c, std::span<const Vec3> points);
+
+/// Writes a copy of the case (or polyMesh folder) to out, a new folder, with the new points; out
+/// must not exist and must not be inside the case. Atomic: a partial folder beside out is renamed
+/// to out only when complete. Throws io::FileError.
+void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const std::filesystem::path& out);
+
+/// Rewrites the points file alone, atomically (other files untouched).
+void write_openfoam_in_place(const FoamCase& c, std::span<const Vec3> points);
+
+}  // namespace csrbf::morph

@@ -1,0 +1,250 @@
+#include "csrbf/morph/morph.hpp"
+
+#include "csrbf/errors.hpp"
+#include "csrbf/io/error.hpp"
+#include "csrbf/space_map.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+#include <optional>
+#include <sstream>
+#include <unordered_map>
+
+namespace csrbf::morph {
+
+namespace {
+
+using io::FileError;
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::string show(const Vec3& v) {
+  std::ostringstream s;
+  s.precision(9);
+  s << '[' << v.x() << ", " << v.y() << ", " << v.z() << ']';
+  return s.str();
+}
+
+double mesh_size(const VolumeMesh& mesh) {
+  if (mesh.points.empty()) return 0;
+  Vec3 lo = mesh.points[0], hi = lo;
+  for (const Vec3& p : mesh.points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  return (hi - lo).norm();
+}
+
+std::string patch_list(const VolumeMesh& mesh) {
+  std::string s;
+  for (const auto& p : mesh.patches) s += (s.empty() ? "" : ", ") + p.name;
+  return s.empty() ? "(none)" : s;
+}
+
+/// Points added in one greedy round are at least R apart: each one's correction then reaches no
+/// other one's neighbourhood, and a round can add many.
+class SpacedSet {
+ public:
+  explicit SpacedSet(double r) : r_(r) {}
+  bool try_add(const Vec3& p) {
+    const auto cell = key(p);
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const auto it = cells_.find(pack(cell[0] + dx, cell[1] + dy, cell[2] + dz));
+          if (it == cells_.end()) continue;
+          for (const Vec3& q : it->second)
+            if ((q - p).squaredNorm() < r_ * r_) return false;
+        }
+    cells_[pack(cell[0], cell[1], cell[2])].push_back(p);
+    return true;
+  }
+
+ private:
+  std::array<std::int64_t, 3> key(const Vec3& p) const {
+    return {std::int64_t(std::floor(p.x() / r_)), std::int64_t(std::floor(p.y() / r_)), std::int64_t(std::floor(p.z() / r_))};
+  }
+  static std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
+    return (std::uint64_t(x) * 73856093ull) ^ (std::uint64_t(y) * 19349663ull) ^ (std::uint64_t(z) * 83492791ull);
+  }
+  double r_;
+  std::unordered_map<std::uint64_t, std::vector<Vec3>> cells_;
+};
+
+}  // namespace
+
+std::size_t Prescribed::moving() const { return std::size_t(std::count(fixed.begin(), fixed.end(), char(0))); }
+
+Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
+  const std::size_t np = mesh.points.size();
+  const double tol = 1e-12 * std::max(mesh_size(mesh), 1e-300);
+  std::vector<std::int32_t> who(np, -1);  // the motion that set a point
+  std::vector<Vec3> d(np, Vec3::Zero());
+  for (std::size_t m = 0; m < motion.patches.size(); ++m) {
+    const PatchMotion& pm = motion.patches[m];
+    const Patch* patch = mesh.patch(pm.patch);
+    if (!patch) throw FileError(pm.where + ": the mesh has no patch '" + pm.patch + "'; its patches: " + patch_list(mesh));
+    if (patch->points.empty()) throw FileError(pm.where + ": patch '" + pm.patch + "' has no points");
+    std::vector<Vec3> given;
+    if (pm.kind == PatchMotion::Kind::Displacements) {
+      given.assign(patch->points.size(), Vec3::Constant(std::nan("")));
+      std::vector<std::size_t> line(patch->points.size(), 0);
+      for (const auto& g : pm.given) {
+        const std::string at = pm.file.string() + ":" + std::to_string(g.line) + ": ";
+        if (g.point >= np)
+          throw FileError(at + "point " + std::to_string(g.point) + " is out of range: the mesh has " + std::to_string(np) +
+                          " points (0 to " + std::to_string(np ? np - 1 : 0) + ")");
+        const auto it = std::lower_bound(patch->points.begin(), patch->points.end(), std::uint32_t(g.point));
+        if (it == patch->points.end() || *it != g.point)
+          throw FileError(at + "point " + std::to_string(g.point) + " is not on patch '" + pm.patch + "'");
+        const auto k = std::size_t(it - patch->points.begin());
+        if (line[k]) throw FileError(at + "point " + std::to_string(g.point) + " is given twice (also on line " + std::to_string(line[k]) + ")");
+        line[k] = g.line;
+        given[k] = g.d;
+      }
+      for (std::size_t k = 0; k < line.size(); ++k)
+        if (!line[k]) {
+          const std::size_t missing = std::size_t(std::count(line.begin(), line.end(), std::size_t(0)));
+          throw FileError(pm.file.string() + ": " + std::to_string(missing) + " of the " + std::to_string(line.size()) +
+                          " points of patch '" + pm.patch + "' have no displacement; the first is point " +
+                          std::to_string(patch->points[k]));
+        }
+    }
+    const bool fixed = pm.kind == PatchMotion::Kind::Fixed;
+    for (std::size_t k = 0; k < patch->points.size(); ++k) {
+      const std::uint32_t p = patch->points[k];
+      const Vec3 dp = fixed ? Vec3::Zero() : (given.empty() ? pm.displacement(mesh.points[p]) : given[k]);
+      if (!dp.allFinite())
+        throw FileError(pm.where + ": the displacement of point " + std::to_string(p) + " is not finite");
+      if (who[p] < 0) {
+        who[p] = std::int32_t(m);
+        d[p] = dp;
+        continue;
+      }
+      const PatchMotion& other = motion.patches[std::size_t(who[p])];
+      const bool other_fixed = other.kind == PatchMotion::Kind::Fixed;
+      if (fixed) continue;  // a moving patch's point moves
+      if (other_fixed) {
+        who[p] = std::int32_t(m);
+        d[p] = dp;
+        continue;
+      }
+      if ((d[p] - dp).norm() > tol)
+        throw FileError(motion.file + ": point " + std::to_string(p) + " " + show(mesh.points[p]) + " is on patch '" +
+                        other.patch + "', which moves it by " + show(d[p]) + ", and on patch '" + pm.patch +
+                        "', which moves it by " + show(dp) + ": give the two patches the same motion at their shared points");
+    }
+  }
+  Prescribed out;
+  for (std::size_t p = 0; p < np; ++p) {
+    if (who[p] < 0) continue;
+    out.points.push_back(std::uint32_t(p));
+    out.displacements.push_back(d[p]);
+    out.fixed.push_back(motion.patches[std::size_t(who[p])].kind == PatchMotion::Kind::Fixed);
+  }
+  return out;
+}
+
+MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options) {
+  if (!(options.fit.radius > 0) || !std::isfinite(options.fit.radius))
+    throw InvalidInput("the radius must be a finite number > 0, got " + std::to_string(options.fit.radius));
+  if (!std::isfinite(options.phase)) throw InvalidInput("the phase must be finite");
+  if (!(options.greedy >= 0) || !std::isfinite(options.greedy))
+    throw InvalidInput("the greedy tolerance must be a finite number >= 0, got " + std::to_string(options.greedy));
+  const Prescribed pres = prescribe(mesh, motion);
+  MorphResult r;
+  MorphReport& rep = r.report;
+  rep.prescribed = pres.points.size();
+  rep.moving = pres.moving();
+  rep.fixed = rep.prescribed - rep.moving;
+  r.points = mesh.points;
+  const std::size_t n = pres.points.size();
+  for (const Vec3& dv : pres.displacements) rep.max_displacement = std::max(rep.max_displacement, dv.norm());
+  if (rep.moving == 0 || rep.max_displacement == 0 || options.phase == 0) return r;  // nothing moves
+
+  std::vector<Vec3> sources(n), targets(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    sources[i] = mesh.points[pres.points[i]];
+    targets[i] = sources[i] + pres.displacements[i];
+  }
+  const auto t_fit = Clock::now();
+  std::vector<Vec3> at(n);
+  const auto worst = [&](const SpaceMap& map, std::vector<double>& err) {
+    map.apply(sources, at, 1.0);
+    err.resize(n);
+    double e = 0;
+    for (std::size_t i = 0; i < n; ++i) e = std::max(e, err[i] = (at[i] - targets[i]).norm());
+    return e;
+  };
+  std::vector<double> err;
+  std::optional<SpaceMap> map;
+  if (options.greedy > 0 && n > 1) {
+    const double limit = options.greedy * rep.max_displacement;
+    std::vector<char> chosen(n, 0);
+    std::vector<std::uint32_t> subset;
+    std::size_t first = 0;
+    for (std::size_t i = 1; i < n; ++i)
+      if (pres.displacements[i].squaredNorm() > pres.displacements[first].squaredNorm()) first = i;
+    subset.push_back(std::uint32_t(first));
+    chosen[first] = 1;
+    std::vector<std::uint32_t> by_error(n);
+    for (;;) {
+      ++rep.greedy_rounds;
+      std::sort(subset.begin(), subset.end());
+      std::vector<Vec3> s(subset.size()), t(subset.size());
+      for (std::size_t k = 0; k < subset.size(); ++k) {
+        s[k] = sources[subset[k]];
+        t[k] = targets[subset[k]];
+      }
+      map = SpaceMap::fit(s, t, options.fit);
+      rep.max_boundary_error = worst(*map, err);
+      if (rep.max_boundary_error <= limit || subset.size() == n) break;
+      std::iota(by_error.begin(), by_error.end(), 0u);
+      std::sort(by_error.begin(), by_error.end(), [&](std::uint32_t a, std::uint32_t b) { return err[a] > err[b]; });
+      SpacedSet spaced(options.fit.radius);
+      for (const std::uint32_t i : by_error) {
+        if (err[i] <= limit) break;
+        if (chosen[i] || !spaced.try_add(sources[i])) continue;
+        chosen[i] = 1;
+        subset.push_back(i);
+      }
+    }
+    rep.controls = subset.size();
+  } else {
+    map = SpaceMap::fit(sources, targets, options.fit);
+    rep.max_boundary_error = worst(*map, err);
+    rep.controls = n;
+  }
+  rep.fit = map->stats();
+  rep.seconds_fit = seconds_since(t_fit);
+
+  const auto t_eval = Clock::now();
+  map->apply(mesh.points, r.points, options.phase);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t p = pres.points[i];
+    r.points[p] = pres.fixed[i] ? mesh.points[p] : Vec3(mesh.points[p] + options.phase * pres.displacements[i]);
+  }
+  rep.seconds_evaluate = seconds_since(t_eval);
+  return r;
+}
+
+double largest_safe_phase(const VolumeMesh& mesh, std::span<const Vec3> moved, double phase, std::size_t inverted_before) {
+  std::vector<Vec3> at(mesh.points.size());
+  const auto ok = [&](double s) {
+    const double w = s / phase;
+    for (std::size_t i = 0; i < at.size(); ++i) at[i] = mesh.points[i] + w * (moved[i] - mesh.points[i]);
+    return poly_quality(mesh.poly, at).inverted_cells <= inverted_before;
+  };
+  double lo = 0, hi = phase;
+  while (hi - lo > 1e-4 * std::abs(phase)) {
+    const double mid = 0.5 * (lo + hi);
+    (ok(mid) ? lo : hi) = mid;
+  }
+  return lo;
+}
+
+}  // namespace csrbf::morph

@@ -1,0 +1,176 @@
+#include "csrbf/morph/quality.hpp"
+
+#include <Eigen/Geometry>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <vector>
+
+namespace csrbf::morph {
+
+namespace {
+
+constexpr double kVSmall = 1e-300;
+constexpr double kRootVSmall = 1e-150;
+
+/// OpenFOAM's face centre and area vector (primitiveMeshFaceCentresAndAreas): a triangle is exact;
+/// a polygon is split into triangles about its points' mean, the centre weighted by their areas.
+void face_geometry(const PolyTopology& t, std::span<const Vec3> p, std::size_t f, Vec3& centre, Vec3& area) {
+  const std::uint64_t b = t.face_start[f], e = t.face_start[f + 1];
+  const std::size_t n = std::size_t(e - b);
+  const std::uint32_t* v = t.face_points.data() + b;
+  if (n == 3) {
+    centre = (p[v[0]] + p[v[1]] + p[v[2]]) / 3.0;
+    area = 0.5 * (p[v[1]] - p[v[0]]).cross(p[v[2]] - p[v[0]]);
+    return;
+  }
+  Vec3 mean = Vec3::Zero();
+  for (std::size_t i = 0; i < n; ++i) mean += p[v[i]];
+  mean /= double(n);
+  Vec3 sum_n = Vec3::Zero(), sum_ac = Vec3::Zero();
+  double sum_a = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3& a = p[v[i]];
+    const Vec3& next = p[v[(i + 1) % n]];
+    const Vec3 c = a + next + mean;
+    const Vec3 nn = (next - a).cross(mean - a);
+    const double mag = nn.norm();
+    sum_n += nn;
+    sum_a += mag;
+    sum_ac += mag * c;
+  }
+  if (sum_a < kRootVSmall) {
+    centre = mean;
+    area = Vec3::Zero();
+  } else {
+    centre = sum_ac / (3.0 * sum_a);
+    area = 0.5 * sum_n;
+  }
+}
+
+}  // namespace
+
+PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points) {
+  PolyQuality q;
+  const std::size_t nf = t.faces(), ni = t.internal_faces(), nc = t.cells;
+  q.cells = nc;
+  q.faces = nf;
+  q.internal_faces = ni;
+  std::vector<Vec3> fc(nf), fa(nf);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t f = r.begin(); f < r.end(); ++f) face_geometry(t, points, f, fc[f], fa[f]);
+  });
+  // Cell centres and volumes (primitiveMeshCellCentresAndVols): an estimated centre, the mean of
+  // the cell's face centres, then pyramids from it to each face.
+  std::vector<Vec3> est(nc, Vec3::Zero()), cc(nc, Vec3::Zero());
+  std::vector<double> vol(nc, 0.0);
+  std::vector<std::uint32_t> nfaces(nc, 0);
+  for (std::size_t f = 0; f < nf; ++f) {
+    est[t.owner[f]] += fc[f];
+    ++nfaces[t.owner[f]];
+  }
+  for (std::size_t f = 0; f < ni; ++f) {
+    est[t.neighbour[f]] += fc[f];
+    ++nfaces[t.neighbour[f]];
+  }
+  for (std::size_t c = 0; c < nc; ++c)
+    if (nfaces[c]) est[c] /= double(nfaces[c]);
+  for (std::size_t f = 0; f < nf; ++f) {
+    const std::uint32_t o = t.owner[f];
+    const double v = fa[f].dot(fc[f] - est[o]);
+    cc[o] += v * (0.75 * fc[f] + 0.25 * est[o]);
+    vol[o] += v;
+  }
+  for (std::size_t f = 0; f < ni; ++f) {
+    const std::uint32_t n = t.neighbour[f];
+    const double v = fa[f].dot(est[n] - fc[f]);
+    cc[n] += v * (0.75 * fc[f] + 0.25 * est[n]);
+    vol[n] += v;
+  }
+  q.min_volume = nc ? std::numeric_limits<double>::infinity() : 0.0;
+  std::vector<char> inverted(nc, 0);
+  for (std::size_t c = 0; c < nc; ++c) {
+    if (std::abs(vol[c]) > kVSmall)
+      cc[c] /= vol[c];
+    else
+      cc[c] = est[c];
+    vol[c] /= 3.0;
+    q.min_volume = std::min(q.min_volume, vol[c]);
+    q.total_volume += vol[c];
+    if (vol[c] <= kVSmall) {
+      ++q.negative_volumes;
+      inverted[c] = 1;
+    }
+  }
+  // Non-orthogonality: the angle between the face's area vector and the line between the centres
+  // of its cells (internal faces). Skewness: how far the face centre lies from where that line
+  // crosses the face, over the distance from the face centre to its edge in that direction.
+  struct Acc {
+    double min_cos = 1, sum_cos = 0, max_skew = 0;
+  };
+  const Acc acc = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, nf, 4096), Acc{},
+      [&](const tbb::blocked_range<std::size_t>& r, Acc a) {
+        for (std::size_t f = r.begin(); f < r.end(); ++f) {
+          const Vec3& own = cc[t.owner[f]];
+          const Vec3 cpf = fc[f] - own;
+          Vec3 d;
+          double fd0;
+          if (f < ni) {
+            d = cc[t.neighbour[f]] - own;
+            const double cosine = d.dot(fa[f]) / (d.norm() * fa[f].norm() + kVSmall);
+            a.min_cos = std::min(a.min_cos, cosine);
+            a.sum_cos += cosine;
+            fd0 = 0.2 * d.norm();
+          } else {
+            const Vec3 normal = fa[f] / (fa[f].norm() + kRootVSmall);
+            d = normal * normal.dot(cpf);
+            fd0 = 0.4 * d.norm();
+          }
+          const Vec3 sv = cpf - (fa[f].dot(cpf) / (fa[f].dot(d) + kRootVSmall)) * d;
+          const Vec3 sv_hat = sv / (sv.norm() + kRootVSmall);
+          double fd = fd0 + kRootVSmall;
+          for (std::uint64_t k = t.face_start[f]; k < t.face_start[f + 1]; ++k)
+            fd = std::max(fd, std::abs(sv_hat.dot(points[t.face_points[k]] - fc[f])));
+          a.max_skew = std::max(a.max_skew, sv.norm() / fd);
+        }
+        return a;
+      },
+      [](Acc x, const Acc& y) {
+        x.min_cos = std::min(x.min_cos, y.min_cos);
+        x.sum_cos += y.sum_cos;
+        x.max_skew = std::max(x.max_skew, y.max_skew);
+        return x;
+      });
+  // checkMesh's "average" is the angle of the mean cosine.
+  const auto degrees = [](double c) { return std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / std::numbers::pi; };
+  q.max_non_orthogonality = ni ? degrees(acc.min_cos) : 0.0;
+  q.mean_non_orthogonality = ni ? degrees(acc.sum_cos / double(ni)) : 0.0;
+  q.max_skewness = acc.max_skew;
+  // Face pyramids (checkFacePyramids): the pyramid from each face to its owner's centre, and to
+  // its neighbour's, must not have negative volume (below -1e-15, checkMesh's threshold), the
+  // face's normal pointing away from the cell. Each bad pyramid counts, as in checkMesh.
+  constexpr double kMinPyramid = -1e-15;
+  for (std::size_t f = 0; f < nf; ++f) {
+    const double own = fa[f].dot(fc[f] - cc[t.owner[f]]) / 3.0;
+    if (own < kMinPyramid) {
+      ++q.bad_pyramids;
+      inverted[t.owner[f]] = 1;
+    }
+    if (f < ni) {
+      const double nei = fa[f].dot(cc[t.neighbour[f]] - fc[f]) / 3.0;
+      if (nei < kMinPyramid) {
+        ++q.bad_pyramids;
+        inverted[t.neighbour[f]] = 1;
+      }
+    }
+  }
+  q.inverted_cells = std::size_t(std::count(inverted.begin(), inverted.end(), char(1)));
+  return q;
+}
+
+}  // namespace csrbf::morph
