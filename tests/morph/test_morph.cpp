@@ -1,0 +1,459 @@
+// csrbf::morph: the OpenFOAM reader and writer, the motion file, the morph and its quality measures.
+// OpenFOAM's own tools judge the results in tests/morph/test_openfoam.py.
+#include "box_case.hpp"
+#include "csrbf/io/error.hpp"
+#include "csrbf/kernels.hpp"
+#include "csrbf/morph/morph.hpp"
+#include "csrbf/morph/openfoam.hpp"
+#include "csrbf/morph/quality.hpp"
+#include "io/test_helpers.hpp"
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cmath>
+#include <numbers>
+
+namespace fs = std::filesystem;
+using csrbf::Vec3;
+using csrbf::io::FileError;
+using namespace csrbf::morph;
+using csrbf::test::BoxSpec;
+using csrbf::test::TempDir;
+
+namespace {
+
+/// The message of the FileError f throws ("" if it throws none).
+template <class F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const FileError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+Motion motion_from(const TempDir& dir, const std::string& json) {
+  csrbf::test::write_text(dir / "motion.json", json);
+  return read_motion(dir / "motion.json");
+}
+
+std::uint64_t bits(double v) { return std::bit_cast<std::uint64_t>(v); }
+
+}  // namespace
+
+class Encodings : public ::testing::TestWithParam<std::pair<bool, bool>> {};
+
+TEST_P(Encodings, ReadsTheBoxAsWritten) {
+  TempDir dir;
+  BoxSpec s;
+  s.binary = GetParam().first;
+  s.gzip = GetParam().second;
+  const auto box = csrbf::test::write_box_case(dir.path / "case", s);
+  const FoamCase c = read_openfoam(dir.path / "case");
+  EXPECT_EQ(c.points_file.binary, s.binary);
+  EXPECT_EQ(c.points_file.gzip, s.gzip);
+  ASSERT_EQ(c.mesh.points.size(), box.points.size() / 3);
+  for (std::size_t i = 0; i < c.mesh.points.size(); ++i)
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(c.mesh.points[i][k], box.points[3 * i + std::size_t(k)]);
+  EXPECT_EQ(c.mesh.poly.cells, 24u);
+  EXPECT_EQ(c.mesh.poly.faces(), box.faces.size());
+  EXPECT_EQ(c.mesh.poly.internal_faces(), box.neighbour.size());
+  ASSERT_EQ(c.mesh.patches.size(), 6u);
+  EXPECT_EQ(c.mesh.patches[0].name, "xmin");
+  EXPECT_EQ(c.mesh.patches[0].points.size(), 4u * 3u);  // (ny + 1)(nz + 1)
+  EXPECT_EQ(c.mesh.patches[5].name, "zmax");
+  EXPECT_EQ(c.mesh.patches[5].points.size(), 5u * 4u);
+  // Unchanged points give back the file byte for byte; the polyMesh folder itself reads the same.
+  EXPECT_EQ(foam_points_bytes(c, c.mesh.points), c.points_file.text);
+  EXPECT_EQ(read_openfoam(dir.path / "case" / "constant" / "polyMesh").mesh.points, c.mesh.points);
+}
+
+TEST_P(Encodings, MovedPointsReadBackExactlyAndTheRestIsKept) {
+  TempDir dir;
+  BoxSpec s;
+  s.binary = GetParam().first;
+  s.gzip = GetParam().second;
+  csrbf::test::write_box_case(dir.path / "case", s);
+  const FoamCase c = read_openfoam(dir.path / "case");
+  std::vector<Vec3> moved = c.mesh.points;
+  for (std::size_t i = 0; i < moved.size(); i += 3) moved[i] += Vec3(1.0 / 3.0, -1e-7 * double(i), std::numbers::pi);
+  write_openfoam_copy(c, moved, dir.path / "out");
+  const FoamCase back = read_openfoam(dir.path / "out");
+  ASSERT_EQ(back.mesh.points.size(), moved.size());
+  for (std::size_t i = 0; i < moved.size(); ++i)
+    for (int k = 0; k < 3; ++k) ASSERT_EQ(bits(back.mesh.points[i][k]), bits(moved[i][k])) << i;
+  EXPECT_EQ(back.points_file.gzip, s.gzip);
+  EXPECT_EQ(back.points_file.binary, s.binary);
+  // Every other file is a byte-for-byte copy, and nothing else is left beside the output.
+  for (const auto& e : fs::recursive_directory_iterator(dir.path / "case")) {
+    if (!e.is_regular_file() || e.path().filename().string().rfind("points", 0) == 0) continue;
+    const auto rel = fs::relative(e.path(), dir.path / "case");
+    EXPECT_EQ(csrbf::test::read_text(dir.path / "out" / rel), csrbf::test::read_text(e.path())) << rel;
+  }
+  EXPECT_EQ(csrbf::test::files_in(dir.path), 2u);
+  // The header and the footer of the points file are kept.
+  const std::string& t = back.points_file.text;
+  EXPECT_EQ(t.substr(0, back.points_file.body_begin), c.points_file.text.substr(0, c.points_file.body_begin));
+  EXPECT_NE(t.find("// end"), std::string::npos);
+}
+
+INSTANTIATE_TEST_SUITE_P(Morph, Encodings,
+                         ::testing::Values(std::pair{false, false}, std::pair{true, false}, std::pair{false, true},
+                                           std::pair{true, true}),
+                         [](const auto& info) {
+                           return std::string(info.param.first ? "Binary" : "Ascii") + (info.param.second ? "Gzip" : "");
+                         });
+
+TEST(OpenFoam, InPlaceRewritesThePointsAlone) {
+  TempDir dir;
+  csrbf::test::write_box_case(dir.path / "case", {});
+  const FoamCase c = read_openfoam(dir.path / "case");
+  const std::string faces = csrbf::test::read_text(c.poly_mesh / "faces");
+  std::vector<Vec3> moved = c.mesh.points;
+  moved[0] = Vec3(-0.25, 0.125, 1e-300);
+  write_openfoam_in_place(c, moved);
+  EXPECT_EQ(read_openfoam(dir.path / "case").mesh.points, moved);
+  EXPECT_EQ(csrbf::test::read_text(c.poly_mesh / "faces"), faces);
+  EXPECT_EQ(csrbf::test::files_in(c.poly_mesh), 5u);
+}
+
+TEST(OpenFoam, RefusesOutputsThatExistOrLieInsideTheCase) {
+  TempDir dir;
+  csrbf::test::write_box_case(dir.path / "case", {});
+  const FoamCase c = read_openfoam(dir.path / "case");
+  fs::create_directories(dir.path / "empty");
+  EXPECT_NE(error_of([&] { write_openfoam_copy(c, c.mesh.points, dir.path / "empty"); }).find("it exists"), std::string::npos);
+  EXPECT_TRUE(fs::is_empty(dir.path / "empty"));
+  EXPECT_NE(error_of([&] { write_openfoam_copy(c, c.mesh.points, dir.path / "case" / "copy"); }).find("inside the case"),
+            std::string::npos);
+  EXPECT_FALSE(fs::exists(dir.path / "case" / "copy"));
+  EXPECT_NE(error_of([&] { write_openfoam_copy(c, c.mesh.points, dir.path / "no" / "such"); }), "");
+}
+
+TEST(OpenFoam, BadFilesAreClearErrorsNamingTheFile) {
+  TempDir dir;
+  const auto poly = dir.path / "case" / "constant" / "polyMesh";
+  const auto fresh = [&](BoxSpec s = {}) {
+    fs::remove_all(dir.path / "case");
+    csrbf::test::write_box_case(dir.path / "case", s);
+  };
+  const auto read_error = [&] { return error_of([&] { read_openfoam(dir.path / "case"); }); };
+  const auto edit = [&](const char* file, const std::string& from, const std::string& to) {
+    std::string t = csrbf::test::read_text(poly / file);
+    const auto at = t.find(from);
+    ASSERT_NE(at, std::string::npos) << from;
+    t.replace(at, from.size(), to);
+    csrbf::test::write_text(poly / file, t);
+  };
+
+  fresh();
+  fs::remove(poly / "owner");
+  EXPECT_NE(read_error().find("no 'owner' or 'owner.gz'"), std::string::npos);
+
+  fresh();
+  edit("points", "60\n(", "6000000000\n(");  // a count that lies: refused before anything is allocated
+  EXPECT_NE(read_error().find("cannot fit in the"), std::string::npos) << read_error();
+
+  fresh();
+  edit("points", "60\n(", "61\n(");  // one more than there are
+  EXPECT_NE(read_error().find("points:"), std::string::npos);
+  EXPECT_NE(read_error().find("expected '('"), std::string::npos) << read_error();
+
+  fresh();
+  edit("points", "60\n(", "59\n(");  // one fewer
+  EXPECT_NE(read_error().find("more points than the count"), std::string::npos) << read_error();
+
+  fresh();
+  edit("faces", "4(1 6 26 21)", "4(1 6 26 600)");  // a label past the points
+  EXPECT_NE(read_error().find("uses point 600, but there are 60 points"), std::string::npos) << read_error();
+
+  fresh();
+  edit("points", "(0 0 0)", "(0 nan 0)");
+  EXPECT_NE(read_error().find("is not finite"), std::string::npos) << read_error();
+
+  fresh();
+  edit("boundary", "nFaces 6;", "nFaces 7;");  // xmin then overlaps xmax
+  EXPECT_NE(read_error().find("patch 'xmax': startFace 52, expected 53"), std::string::npos) << read_error();
+  fresh();
+  edit("boundary", "startFace 52;", "startFace 5200;");
+  EXPECT_NE(read_error().find("patch 'xmax': startFace 5200 + nFaces 6 passes the 98 faces"), std::string::npos) << read_error();
+
+  fresh();
+  edit("owner", "format      ascii", "format      binary");  // a header that lies about the format
+  EXPECT_NE(read_error().find("owner"), std::string::npos) << read_error();
+
+  fresh();
+  edit("points", "FoamFile", "/* never closed FoamFile");
+  EXPECT_NE(read_error().find("never ends"), std::string::npos) << read_error();
+
+  // Binary: truncated data, and a header that claims more than the file holds.
+  BoxSpec b;
+  b.binary = true;
+  fresh(b);
+  {
+    std::string t = csrbf::test::read_text(poly / "points");
+    csrbf::test::write_text(poly / "points", t.substr(0, t.size() - 200));
+  }
+  EXPECT_NE(read_error().find("truncated"), std::string::npos) << read_error();
+  fresh(b);
+  edit("owner", "\n(", "0\n(");  // 78 owners become 780
+  EXPECT_NE(read_error().find("owner"), std::string::npos) << read_error();
+
+  // gzip: corrupt and truncated streams.
+  BoxSpec g;
+  g.gzip = true;
+  fresh(g);
+  {
+    std::string t = csrbf::test::read_text(poly / "points.gz");
+    csrbf::test::write_text(poly / "points.gz", t.substr(0, t.size() / 2));
+  }
+  EXPECT_NE(read_error().find("truncated gzip"), std::string::npos) << read_error();
+  fresh(g);
+  {
+    std::string t = csrbf::test::read_text(poly / "faces.gz");
+    for (std::size_t i = 20; i < 60; ++i) t[i] = char(t[i] ^ 0x5a);
+    csrbf::test::write_text(poly / "faces.gz", t);
+  }
+  EXPECT_NE(read_error().find("faces.gz"), std::string::npos) << read_error();
+
+  EXPECT_NE(error_of([&] { read_openfoam(dir.path / "nowhere"); }).find("not a folder"), std::string::npos);
+  fs::create_directories(dir.path / "plain");
+  EXPECT_NE(error_of([&] { read_openfoam(dir.path / "plain"); }).find("not an OpenFOAM case"), std::string::npos);
+}
+
+// Quality: closed forms on boxes.
+TEST(Quality, UnitCellsHaveTheirVolumeAndNoNonOrthogonality) {
+  const auto box = csrbf::test::make_box({});
+  TempDir dir;
+  csrbf::test::write_box_case(dir.path / "case", {});
+  const FoamCase c = read_openfoam(dir.path / "case");
+  const PolyQuality q = poly_quality(c.mesh.poly, c.mesh.points);
+  EXPECT_EQ(q.cells, 24u);
+  EXPECT_NEAR(q.min_volume, 0.125, 1e-15);
+  EXPECT_NEAR(q.total_volume, 24 * 0.125, 1e-13);
+  EXPECT_NEAR(q.max_non_orthogonality, 0.0, 1e-6);
+  EXPECT_NEAR(q.max_skewness, 0.0, 1e-12);
+  EXPECT_EQ(q.inverted_cells, 0u);
+  EXPECT_EQ(q.bad_pyramids, 0u);
+  (void)box;
+}
+
+TEST(Quality, ShearGivesItsAngleAsNonOrthogonality) {
+  for (const double shear : {0.1, 0.5, 1.0}) {
+    TempDir dir;
+    BoxSpec s;
+    s.warp = [shear](int, int, int, double& x, double& y, double&) { x += shear * y; };
+    csrbf::test::write_box_case(dir.path / "case", s);
+    const FoamCase c = read_openfoam(dir.path / "case");
+    const PolyQuality q = poly_quality(c.mesh.poly, c.mesh.points);
+    EXPECT_NEAR(q.max_non_orthogonality, std::atan(shear) * 180 / std::numbers::pi, 1e-9) << shear;
+    EXPECT_NEAR(q.min_volume, 0.125, 1e-14);  // a shear keeps volumes
+    EXPECT_EQ(q.inverted_cells, 0u);
+  }
+}
+
+TEST(Quality, APointPushedThroughItsCellInvertsIt) {
+  TempDir dir;
+  BoxSpec s;
+  s.nx = s.ny = s.nz = 3;
+  csrbf::test::write_box_case(dir.path / "case", s);
+  const FoamCase c = read_openfoam(dir.path / "case");
+  std::vector<Vec3> p = c.mesh.points;
+  p[1 + 4 * (1 + 4 * 1)] += Vec3(0.9, 0.9, 0.9);  // interior point (1,1,1) past (2,2,2)'s cell
+  const PolyQuality q = poly_quality(c.mesh.poly, p);
+  EXPECT_GT(q.inverted_cells, 0u);
+  EXPECT_GT(q.bad_pyramids, 0u);
+}
+
+// Motion files.
+TEST(Motion, ReadsEveryKindAndRefusesBadValuesByPath) {
+  TempDir dir;
+  csrbf::test::write_text(dir / "d.txt", "# id dx dy dz\n3 0.1 0 0\n7 0 0.2 0 # trailing comment\n");
+  const Motion m = motion_from(dir, R"({"radius": 2, "kernel": "c4", "polynomial": "linear", "patches": {
+      "a": "fixed", "b": {"translate": [1, 2, 3]}, "c": {"rotate": {"axis": [0, 0, 2], "degrees": 90, "origin": [1, 0, 0]}},
+      "d": {"displacements": "d.txt"}}})");
+  EXPECT_EQ(*m.radius, 2.0);
+  EXPECT_EQ(*m.kernel, csrbf::Kernel::C4);
+  EXPECT_EQ(*m.polynomial, csrbf::Polynomial::Linear);
+  ASSERT_EQ(m.patches.size(), 4u);
+  EXPECT_EQ(m.patches[0].kind, PatchMotion::Kind::Fixed);
+  EXPECT_EQ(m.patches[1].displacement(Vec3(5, 5, 5)), Vec3(1, 2, 3));
+  // 90 degrees about z through (1, 0, 0): (2, 0, 0) goes to (1, 1, 0).
+  EXPECT_NEAR((m.patches[2].displacement(Vec3(2, 0, 0)) - Vec3(-1, 1, 0)).norm(), 0.0, 1e-15);
+  ASSERT_EQ(m.patches[3].given.size(), 2u);
+  EXPECT_EQ(m.patches[3].given[1].point, 7u);
+  EXPECT_EQ(m.patches[3].given[1].line, 3u);
+
+  const auto err = [&](const std::string& json) { return error_of([&] { motion_from(dir, json); }); };
+  EXPECT_NE(err(R"({"patches": {"w": {"rotate": {"axis": [0, 0, 0], "degrees": 5}}}})").find("patches.w.rotate.axis"),
+            std::string::npos);
+  EXPECT_NE(err(R"({"patches": {"w": "moving"}})").find("patches.w"), std::string::npos);
+  EXPECT_NE(err(R"({"patches": {"w": {"translate": [0, 1]}}})").find("patches.w.translate"), std::string::npos);
+  EXPECT_NE(err(R"({"patches": {}})").find("patches"), std::string::npos);
+  EXPECT_NE(err(R"({"radius": -1, "patches": {"w": "fixed"}})").find("radius"), std::string::npos);
+  EXPECT_NE(err(R"({"kernel": "c3", "patches": {"w": "fixed"}})").find("kernel"), std::string::npos);
+  EXPECT_NE(err(R"({"patches": {"w": "fixed"}, "extra": 1})").find("extra"), std::string::npos);
+  csrbf::test::write_text(dir / "bad.txt", "3 0.1 0\n");
+  EXPECT_NE(err(R"({"patches": {"w": {"displacements": "bad.txt"}}})").find("bad.txt:1"), std::string::npos);
+  csrbf::test::write_text(dir / "bad.txt", "3 0.1 0 inf\n");
+  EXPECT_NE(err(R"({"patches": {"w": {"displacements": "bad.txt"}}})").find("not a finite number"), std::string::npos);
+  EXPECT_NE(err(R"({"patches": {"w": {"displacements": "missing.txt"}}})").find("missing.txt"), std::string::npos);
+}
+
+class BoxMorph : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    BoxSpec s;
+    s.nx = s.ny = s.nz = 6;
+    s.h = 1.0 / 6;
+    csrbf::test::write_box_case(dir.path / "case", s);
+    c = read_openfoam(dir.path / "case");
+  }
+  TempDir dir;
+  FoamCase c;
+};
+
+TEST_F(BoxMorph, PatchesResolveWithTheirRules) {
+  // zmin moves, xmin is fixed: their shared edge moves.
+  const Motion m = motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, 0.01]}, "xmin": "fixed"}})");
+  const Prescribed p = prescribe(c.mesh, m);
+  EXPECT_EQ(p.points.size(), 49u + 49u - 7u);
+  EXPECT_EQ(p.moving(), 49u);
+  for (std::size_t i = 0; i < p.points.size(); ++i)
+    if (c.mesh.points[p.points[i]].z() == 0) EXPECT_FALSE(p.fixed[i]) << p.points[i];
+
+  // Two moving patches that disagree at their shared edge.
+  const std::string e = error_of([&] {
+    prescribe(c.mesh, motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, 0.01]}, "xmin": {"translate": [0.01, 0, 0]}}})"));
+  });
+  EXPECT_NE(e.find("patch 'xmin'"), std::string::npos) << e;
+  EXPECT_NE(e.find("patch 'zmin'"), std::string::npos) << e;
+  EXPECT_NE(e.find("point 0 "), std::string::npos) << e;
+  // Agreeing ones are fine.
+  EXPECT_EQ(prescribe(c.mesh, motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, 0.01]}, "xmin": {"translate": [0, 0, 0.01]}}})"))
+                .moving(),
+            91u);
+
+  EXPECT_NE(error_of([&] { prescribe(c.mesh, motion_from(dir, R"({"patches": {"wing": "fixed"}})")); }).find("its patches: xmin, xmax"),
+            std::string::npos);
+}
+
+TEST_F(BoxMorph, DisplacementFilesAreCheckedAgainstThePatch) {
+  const Patch& zmin = *c.mesh.patch("zmin");
+  std::string all;
+  for (const auto p : zmin.points) all += std::to_string(p) + " 0 0 0.01\n";
+  csrbf::test::write_text(dir / "z.txt", all);
+  const std::string json = R"({"patches": {"zmin": {"displacements": "z.txt"}}})";
+  EXPECT_EQ(prescribe(c.mesh, motion_from(dir, json)).moving(), 49u);
+  const auto err = [&](const std::string& text) {
+    csrbf::test::write_text(dir / "z.txt", text);
+    return error_of([&] { prescribe(c.mesh, motion_from(dir, json)); });
+  };
+  EXPECT_NE(err(all + "343 0 0 0\n").find("out of range: the mesh has 343 points"), std::string::npos);
+  EXPECT_NE(err(all + "342 0 0 0\n").find("z.txt:50: point 342 is not on patch 'zmin'"), std::string::npos);
+  EXPECT_NE(err(all + "0 0 0 0\n").find("given twice (also on line 1)"), std::string::npos);
+  EXPECT_NE(err("0 0 0 0.01\n").find("48 of the 49 points of patch 'zmin' have no displacement"), std::string::npos);
+}
+
+TEST_F(BoxMorph, InteriorPointsFollowTheDenseInterpolantAndBoundariesLandExactly) {
+  const Motion m = motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},
+                                                    "zmax": "fixed", "xmin": "fixed"}})");
+  MorphOptions o;
+  o.fit.radius = 0.6;
+  const MorphResult r = morph(c.mesh, m, o);
+  const Prescribed p = prescribe(c.mesh, m);
+  // The dense solve of the whole system: A alpha = d over the prescribed points (C2, no polynomial).
+  const std::size_t n = p.points.size();
+  Eigen::MatrixXd A(n, n);
+  Eigen::MatrixXd d(n, 3);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t j = 0; j < n; ++j)
+      A(Eigen::Index(i), Eigen::Index(j)) =
+          csrbf::wendland(csrbf::Kernel::C2, (c.mesh.points[p.points[i]] - c.mesh.points[p.points[j]]).norm() / 0.6);
+    d.row(Eigen::Index(i)) = p.displacements[i].transpose();
+  }
+  const Eigen::MatrixXd alpha = A.llt().solve(d);
+  std::vector<char> prescribed(c.mesh.points.size(), 0);
+  for (const auto q : p.points) prescribed[q] = 1;
+  const double scale = r.report.max_displacement;
+  EXPECT_GT(scale, 0.02);
+  std::size_t moved = 0;
+  for (std::size_t q = 0; q < c.mesh.points.size(); ++q) {
+    if (prescribed[q]) continue;
+    Vec3 want = c.mesh.points[q];
+    for (std::size_t j = 0; j < n; ++j)
+      want += alpha.row(Eigen::Index(j)).transpose() *
+              csrbf::wendland(csrbf::Kernel::C2, (c.mesh.points[q] - c.mesh.points[p.points[j]]).norm() / 0.6);
+    EXPECT_NEAR((r.points[q] - want).norm(), 0.0, 1e-10 * scale) << q;
+    moved += r.points[q] != c.mesh.points[q];
+  }
+  EXPECT_GT(moved, 50u);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t q = p.points[i];
+    if (p.fixed[i]) {
+      for (int k = 0; k < 3; ++k) EXPECT_EQ(bits(r.points[q][k]), bits(c.mesh.points[q][k]));
+    } else {
+      EXPECT_NEAR((r.points[q] - (c.mesh.points[q] + p.displacements[i])).norm(), 0.0, 1e-15);
+    }
+  }
+  EXPECT_LT(r.report.max_boundary_error, 1e-12);
+  EXPECT_EQ(r.report.controls, n);
+  // The phase scales the whole motion.
+  o.phase = 0.5;
+  const MorphResult half = morph(c.mesh, m, o);
+  for (std::size_t q = 0; q < c.mesh.points.size(); ++q)
+    EXPECT_NEAR((half.points[q] - c.mesh.points[q] - 0.5 * (r.points[q] - c.mesh.points[q])).norm(), 0.0, 1e-14);
+}
+
+TEST_F(BoxMorph, GreedyUsesFewerControlsWithinItsTolerance) {
+  const Motion m = motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},
+                                                    "zmax": "fixed", "xmin": "fixed", "xmax": "fixed"}})");
+  MorphOptions o;
+  o.fit.radius = 0.8;
+  o.greedy = 0.05;
+  const MorphResult r = morph(c.mesh, m, o);
+  const Prescribed p = prescribe(c.mesh, m);
+  EXPECT_LT(r.report.controls, p.points.size());
+  EXPECT_GE(r.report.greedy_rounds, 2u);
+  EXPECT_LE(r.report.max_boundary_error, 0.05 * r.report.max_displacement);
+  for (std::size_t i = 0; i < p.points.size(); ++i)
+    EXPECT_NEAR((r.points[p.points[i]] - (c.mesh.points[p.points[i]] + p.displacements[i])).norm(), 0.0, 1e-15);
+  // A tighter tolerance takes more controls.
+  o.greedy = 1e-3;
+  const MorphResult tight = morph(c.mesh, m, o);
+  EXPECT_GT(tight.report.controls, r.report.controls);
+  EXPECT_LE(tight.report.max_boundary_error, 1e-3 * r.report.max_displacement);
+}
+
+TEST_F(BoxMorph, TheLargestSafePhaseInvertsNothing) {
+  // zmin pushed up by more than a cell layer: the first layer inverts.
+  const Motion m = motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, 0.4]}, "zmax": "fixed"}})");
+  MorphOptions o;
+  o.fit.radius = 0.3;
+  const MorphResult r = morph(c.mesh, m, o);
+  const PolyQuality after = poly_quality(c.mesh.poly, r.points);
+  ASSERT_GT(after.inverted_cells, 0u);
+  const double s = largest_safe_phase(c.mesh, r.points, 1.0, 0);
+  EXPECT_GT(s, 0.1);
+  EXPECT_LT(s, 1.0);
+  const auto at = [&](double t) {
+    std::vector<Vec3> p(r.points.size());
+    for (std::size_t i = 0; i < p.size(); ++i) p[i] = c.mesh.points[i] + t * (r.points[i] - c.mesh.points[i]);
+    return poly_quality(c.mesh.poly, p).inverted_cells;
+  };
+  EXPECT_EQ(at(s), 0u);
+  EXPECT_GT(at(s + 2e-4), 0u);
+}
+
+TEST_F(BoxMorph, ThePatchesOfAnEmptyPatchAreRefused) {
+  TempDir d2;
+  BoxSpec s;
+  s.empty_patch = true;
+  csrbf::test::write_box_case(d2.path / "case", s);
+  const FoamCase e = read_openfoam(d2.path / "case");
+  EXPECT_NE(error_of([&] { prescribe(e.mesh, motion_from(dir, R"({"patches": {"nothing": "fixed"}})")); }).find("has no points"),
+            std::string::npos);
+}
