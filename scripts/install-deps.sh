@@ -25,6 +25,8 @@ packages=(
   clang libclang-rt-14-dev   # scripts/fuzz.sh: libFuzzer targets (not needed to build or test)
   clang-format           # scripts/check-format.sh: CI checks the tree's formatting
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png
+  zlib1g-dev             # morph: gzip'd OpenFOAM meshes
+  openfoam openfoam-examples   # tests: checkMesh, blockMesh, foamFormatConvert judge `csrbf morph`; the airFoil2D and pitzDaily tutorials
 )
 
 SUDO=""

@@ -74,9 +74,10 @@ std::string motion_summary(const morph::Motion& m) {
 }  // namespace
 
 CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
-  auto* cmd = app.add_subcommand(
-      "morph", "Move the patches of a volume mesh as a motion file says and carry every other point along "
-               "(docs/morphing.md)");
+  auto* cmd =
+      app.add_subcommand("morph",
+                         "Move the patches of a volume mesh as a motion file says and carry every other point along "
+                         "(docs/morphing.md)");
   cmd->add_option("case", a.mesh, "An OpenFOAM case folder, or its constant/polyMesh")->required();
   auto* out = cmd->add_option("-o,--output", a.out, "A new case folder: a copy of the case with the moved points");
   auto* in_place = cmd->add_flag("--in-place", a.in_place, "Rewrite the case's points file alone (atomically)");
@@ -113,7 +114,8 @@ int run_morph(const MorphArgs& a) {
   if (!a.out.empty()) {
     std::error_code ec;
     if (fs::symlink_status(a.out, ec).type() != fs::file_type::not_found)
-      throw io::FileError("cannot write '" + a.out + "': it exists (csrbf morph writes a new case folder; "
+      throw io::FileError("cannot write '" + a.out +
+                          "': it exists (csrbf morph writes a new case folder; "
                           "--in-place rewrites the input's points alone)");
     const fs::path parent = fs::path(a.out).has_parent_path() ? fs::path(a.out).parent_path() : fs::path(".");
     if (!fs::is_directory(parent, ec))
@@ -195,8 +197,13 @@ int run_morph(const MorphArgs& a) {
                      {"solver", rep.controls ? std::string(name_of(rep.fit.solver)) : std::string("none")},
                      {"phase", a.phase},
                      {"quality", {{"before", quality_json(before)}, {"after", quality_json(after)}}},
-                     {"ms", {{"read", read_ms}, {"fit", rep.seconds_fit * 1e3}, {"evaluate", rep.seconds_evaluate * 1e3},
-                             {"quality", quality_ms}, {"write", write_ms}, {"total", total_ms}}}};
+                     {"ms",
+                      {{"read", read_ms},
+                       {"fit", rep.seconds_fit * 1e3},
+                       {"evaluate", rep.seconds_evaluate * 1e3},
+                       {"quality", quality_ms},
+                       {"write", write_ms},
+                       {"total", total_ms}}}};
     if (inverts) j["safe_phase"] = safe_phase;
     std::cout << j.dump(2) << '\n';
   } else {
@@ -214,7 +221,8 @@ int run_morph(const MorphArgs& a) {
               << quality_table(before, after) << "  time: read " << read_ms << " ms, fit " << rep.seconds_fit * 1e3
               << " ms, evaluate " << rep.seconds_evaluate * 1e3 << " ms, quality " << quality_ms << " ms, write "
               << write_ms << " ms, total " << total_ms << " ms\n";
-    if (write) std::cout << "  -> " << target << (inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
+    if (write)
+      std::cout << "  -> " << target << (inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
   }
   if (!write) {
     std::cerr << "csrbf: error: the morph inverts " << after.inverted_cells - before.inverted_cells << " cells ("

@@ -219,9 +219,9 @@ void Partial::commit_new(const fs::path& target) {
   // RENAME_NOREPLACE: an existing target, even an empty folder that rename(2) would replace, is
   // never replaced.
   if (::renameat2(AT_FDCWD, path_.c_str(), AT_FDCWD, target.c_str(), RENAME_NOREPLACE) != 0)
-    throw FileError("cannot write '" + target.string() + "': " +
-                    (errno == EEXIST ? std::string("it exists (csrbf writes a new one, and never replaces it)")
-                                     : errno_text()));
+    throw FileError(
+        "cannot write '" + target.string() + "': " +
+        (errno == EEXIST ? std::string("it exists (csrbf writes a new one, and never replaces it)") : errno_text()));
   unregister_partial(slot_);
   slot_ = -1;
   committed_ = true;

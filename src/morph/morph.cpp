@@ -66,7 +66,8 @@ class SpacedSet {
 
  private:
   std::array<std::int64_t, 3> key(const Vec3& p) const {
-    return {std::int64_t(std::floor(p.x() / r_)), std::int64_t(std::floor(p.y() / r_)), std::int64_t(std::floor(p.z() / r_))};
+    return {std::int64_t(std::floor(p.x() / r_)), std::int64_t(std::floor(p.y() / r_)),
+            std::int64_t(std::floor(p.z() / r_))};
   }
   static std::uint64_t pack(std::int64_t x, std::int64_t y, std::int64_t z) {
     return (std::uint64_t(x) * 73856093ull) ^ (std::uint64_t(y) * 19349663ull) ^ (std::uint64_t(z) * 83492791ull);
@@ -87,7 +88,8 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
   for (std::size_t m = 0; m < motion.patches.size(); ++m) {
     const PatchMotion& pm = motion.patches[m];
     const Patch* patch = mesh.patch(pm.patch);
-    if (!patch) throw FileError(pm.where + ": the mesh has no patch '" + pm.patch + "'; its patches: " + patch_list(mesh));
+    if (!patch)
+      throw FileError(pm.where + ": the mesh has no patch '" + pm.patch + "'; its patches: " + patch_list(mesh));
     if (patch->points.empty()) throw FileError(pm.where + ": patch '" + pm.patch + "' has no points");
     std::vector<Vec3> given;
     if (pm.kind == PatchMotion::Kind::Displacements) {
@@ -96,13 +98,15 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
       for (const auto& g : pm.given) {
         const std::string at = pm.file.string() + ":" + std::to_string(g.line) + ": ";
         if (g.point >= np)
-          throw FileError(at + "point " + std::to_string(g.point) + " is out of range: the mesh has " + std::to_string(np) +
-                          " points (0 to " + std::to_string(np ? np - 1 : 0) + ")");
+          throw FileError(at + "point " + std::to_string(g.point) + " is out of range: the mesh has " +
+                          std::to_string(np) + " points (0 to " + std::to_string(np ? np - 1 : 0) + ")");
         const auto it = std::lower_bound(patch->points.begin(), patch->points.end(), std::uint32_t(g.point));
         if (it == patch->points.end() || *it != g.point)
           throw FileError(at + "point " + std::to_string(g.point) + " is not on patch '" + pm.patch + "'");
         const auto k = std::size_t(it - patch->points.begin());
-        if (line[k]) throw FileError(at + "point " + std::to_string(g.point) + " is given twice (also on line " + std::to_string(line[k]) + ")");
+        if (line[k])
+          throw FileError(at + "point " + std::to_string(g.point) + " is given twice (also on line " +
+                          std::to_string(line[k]) + ")");
         line[k] = g.line;
         given[k] = g.d;
       }
@@ -136,7 +140,8 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
       if ((d[p] - dp).norm() > tol)
         throw FileError(motion.file + ": point " + std::to_string(p) + " " + show(mesh.points[p]) + " is on patch '" +
                         other.patch + "', which moves it by " + show(d[p]) + ", and on patch '" + pm.patch +
-                        "', which moves it by " + show(dp) + ": give the two patches the same motion at their shared points");
+                        "', which moves it by " + show(dp) +
+                        ": give the two patches the same motion at their shared points");
     }
   }
   Prescribed out;
@@ -232,7 +237,8 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   return r;
 }
 
-double largest_safe_phase(const VolumeMesh& mesh, std::span<const Vec3> moved, double phase, std::size_t inverted_before) {
+double largest_safe_phase(const VolumeMesh& mesh, std::span<const Vec3> moved, double phase,
+                          std::size_t inverted_before) {
   std::vector<Vec3> at(mesh.points.size());
   const auto ok = [&](double s) {
     const double w = s / phase;

@@ -101,7 +101,8 @@ Motion read_motion(const fs::path& path) {
     pm.patch = name;
     pm.where = m.file + ": " + node.path();
     if (value.is_string()) {
-      if (value.get<std::string>() != "fixed") node.expected("\"fixed\", or an object with translate, rotate or displacements");
+      if (value.get<std::string>() != "fixed")
+        node.expected("\"fixed\", or an object with translate, rotate or displacements");
       pm.kind = PatchMotion::Kind::Fixed;
     } else if (value.is_object() && value.size() == 1) {
       node.only({"translate", "rotate", "displacements", "fixed"});

@@ -128,7 +128,8 @@ class Parser {
 
   [[noreturn]] void fail(const std::string& message) const { fail_at(pos, message); }
   [[noreturn]] void fail_at(std::size_t at, const std::string& message) const {
-    const std::size_t line = 1 + std::size_t(std::count(t_.begin(), t_.begin() + std::ptrdiff_t(std::min(at, t_.size())), '\n'));
+    const std::size_t line =
+        1 + std::size_t(std::count(t_.begin(), t_.begin() + std::ptrdiff_t(std::min(at, t_.size())), '\n'));
     throw FileError(name_ + ":" + std::to_string(line) + ": " + message);
   }
   const std::string& name() const { return name_; }
@@ -196,7 +197,8 @@ class Parser {
     const auto w = word();
     double v = 0;
     const auto r = std::from_chars(w.data(), w.data() + w.size(), v);
-    if (r.ec != std::errc() || r.ptr != w.data() + w.size()) fail_at(at, std::string("expected ") + what + ", got " + quote(w));
+    if (r.ec != std::errc() || r.ptr != w.data() + w.size())
+      fail_at(at, std::string("expected ") + what + ", got " + quote(w));
     if (!std::isfinite(v)) fail_at(at, std::string(what) + " " + quote(w) + " is not finite");
     return v;
   }
@@ -205,7 +207,8 @@ class Parser {
     const auto w = word();
     std::int64_t v = 0;
     const auto r = std::from_chars(w.data(), w.data() + w.size(), v);
-    if (r.ec != std::errc() || r.ptr != w.data() + w.size()) fail_at(at, std::string("expected ") + what + ", got " + quote(w));
+    if (r.ec != std::errc() || r.ptr != w.data() + w.size())
+      fail_at(at, std::string("expected ") + what + ", got " + quote(w));
     return v;
   }
   /// Raw bytes of a binary list body, which starts right after '('.
@@ -238,7 +241,9 @@ class Parser {
 
  private:
   static bool is_space(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\f' || c == '\v'; }
-  static bool is_punct(char c) { return c == '(' || c == ')' || c == '{' || c == '}' || c == ';' || c == '[' || c == ']'; }
+  static bool is_punct(char c) {
+    return c == '(' || c == ')' || c == '{' || c == '}' || c == ';' || c == '[' || c == ']';
+  }
   std::string_view word_at(std::size_t at) const {
     if (at >= t_.size()) return "end of file";
     std::size_t e = at + 1;
@@ -274,7 +279,8 @@ Header read_header(Parser& p) {
     for (;;) {
       const auto w = p.word();
       if (w == ";") break;
-      if (w == "{" || w == "}" || w == "(" || w == ")") p.fail("unexpected " + quote(w) + " in FoamFile entry " + quote(key));
+      if (w == "{" || w == "}" || w == "(" || w == ")")
+        p.fail("unexpected " + quote(w) + " in FoamFile entry " + quote(key));
       if (!value.empty()) value += ' ';
       value += w;
     }
@@ -291,11 +297,13 @@ Header read_header(Parser& p) {
   if (const auto a = h.entries.find("arch"); a != h.entries.end()) {
     const std::string& arch = a->second;
     if (arch.find("MSB") != std::string::npos) p.fail("arch " + quote(arch) + ": big-endian binary files are not read");
-    for (const auto& [key, bytes] : {std::pair<std::string, int*>{"label=", &h.label_bytes}, {"scalar=", &h.scalar_bytes}}) {
+    for (const auto& [key, bytes] :
+         {std::pair<std::string, int*>{"label=", &h.label_bytes}, {"scalar=", &h.scalar_bytes}}) {
       const auto at = arch.find(key);
       if (at == std::string::npos) continue;
       const int bits = std::atoi(arch.c_str() + at + key.size());
-      if (bits != 32 && bits != 64) p.fail("arch " + quote(arch) + ": " + key + std::to_string(bits) + " is not 32 or 64");
+      if (bits != 32 && bits != 64)
+        p.fail("arch " + quote(arch) + ": " + key + std::to_string(bits) + " is not 32 or 64");
       *bytes = bits / 8;
     }
   }
@@ -308,7 +316,8 @@ std::vector<std::uint32_t> read_labels(Parser& p, const Header& h, const std::st
   std::vector<std::uint32_t> out;
   const auto check = [&](std::int64_t v, std::uint64_t i) -> std::uint32_t {
     if (v < 0 || std::uint64_t(v) >= bound)
-      p.fail(what + "[" + std::to_string(i) + "] = " + std::to_string(v) + ": out of range [0, " + std::to_string(bound) + ")");
+      p.fail(what + "[" + std::to_string(i) + "] = " + std::to_string(v) + ": out of range [0, " +
+             std::to_string(bound) + ")");
     return std::uint32_t(v);
   };
   if (p.peek() == '{') {  // uniform: N{value}
@@ -387,8 +396,8 @@ void read_faces(Parser& p, const Header& h, PolyTopology& t, std::size_t points)
              ", but there are " + std::to_string(labels.size()) + " point labels");
     for (std::size_t f = 0; f + 1 < start.size(); ++f)
       if (start[f + 1] < start[f] + 3)
-        p.fail("face " + std::to_string(f) + " has " + std::to_string(std::int64_t(start[f + 1]) - std::int64_t(start[f])) +
-               " points (at least 3)");
+        p.fail("face " + std::to_string(f) + " has " +
+               std::to_string(std::int64_t(start[f + 1]) - std::int64_t(start[f])) + " points (at least 3)");
     t.face_start.assign(start.begin(), start.end());
     t.face_points = labels;
     return;
@@ -434,14 +443,16 @@ void read_faces(Parser& p, const Header& h, PolyTopology& t, std::size_t points)
   p.expect(')', ("to close the list of " + std::to_string(n) + " faces").c_str());
 }
 
-void read_boundary(Parser& p, std::vector<Patch>& patches, std::vector<std::pair<std::uint64_t, std::uint64_t>>& ranges) {
+void read_boundary(Parser& p, std::vector<Patch>& patches,
+                   std::vector<std::pair<std::uint64_t, std::uint64_t>>& ranges) {
   const std::uint64_t n = p.count("patches", p.remaining() / 4 + 1);
   p.expect('(', "to open the list of patches");
   for (std::uint64_t i = 0; i < n; ++i) {
     Patch patch;
     patch.name = std::string(p.word());
     if (patch.name == ")" || patch.name == "(" || patch.name == "{")
-      p.fail("patch " + std::to_string(i) + ": expected a name, got " + quote(patch.name) + " (fewer patches than the count?)");
+      p.fail("patch " + std::to_string(i) + ": expected a name, got " + quote(patch.name) +
+             " (fewer patches than the count?)");
     p.expect('{', ("after patch name " + quote(patch.name)).c_str());
     std::optional<std::int64_t> n_faces, start_face;
     for (;;) {
@@ -579,7 +590,9 @@ std::string foam_points_bytes(const FoamCase& c, std::span<const Vec3> points) {
           out.append(reinterpret_cast<const char*>(&p[k]), 8);
         } else {
           const float x = float(p[k]);
-          if (!std::isfinite(x)) throw FileError(f.path.string() + ": a coordinate " + std::to_string(p[k]) + " does not fit a 32-bit scalar");
+          if (!std::isfinite(x))
+            throw FileError(f.path.string() + ": a coordinate " + std::to_string(p[k]) +
+                            " does not fit a 32-bit scalar");
           out.append(reinterpret_cast<const char*>(&x), 4);
         }
       }
@@ -633,7 +646,8 @@ void write_bytes(const fs::path& file, const std::string& bytes) {
   o.close();
   std::error_code ec;
   if (!o || fs::file_size(file, ec) != bytes.size() || ec)
-    throw FileError("cannot write '" + file.string() + "': the disk did not take all " + std::to_string(bytes.size()) + " bytes");
+    throw FileError("cannot write '" + file.string() + "': the disk did not take all " + std::to_string(bytes.size()) +
+                    " bytes");
 }
 
 }  // namespace
@@ -641,13 +655,15 @@ void write_bytes(const fs::path& file, const std::string& bytes) {
 void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const fs::path& out) {
   std::error_code ec;
   if (fs::symlink_status(out, ec).type() != fs::file_type::not_found)
-    throw FileError("cannot write '" + out.string() + "': it exists (csrbf morph writes a new case folder; --in-place "
+    throw FileError("cannot write '" + out.string() +
+                    "': it exists (csrbf morph writes a new case folder; --in-place "
                     "rewrites the input's points alone)");
   const fs::path root = fs::weakly_canonical(c.root, ec);
   const fs::path target = fs::weakly_canonical(fs::absolute(out), ec);
   const auto [r_end, t_it] = std::mismatch(root.begin(), root.end(), target.begin(), target.end());
   if (r_end == root.end())
-    throw FileError("cannot write '" + out.string() + "': it is inside the case '" + c.root.string() + "' being copied");
+    throw FileError("cannot write '" + out.string() + "': it is inside the case '" + c.root.string() +
+                    "' being copied");
   const std::string bytes = encoded_points(c, points);
   io::Partial partial(out, io::Partial::Kind::Folder);
   fs::copy(c.root, partial.path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
@@ -666,7 +682,8 @@ void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const 
 
 void write_openfoam_in_place(const FoamCase& c, std::span<const Vec3> points) {
   const std::string bytes = encoded_points(c, points);
-  io::write_atomically(c.points_file.path, [&](std::ostream& o) { o.write(bytes.data(), std::streamsize(bytes.size())); });
+  io::write_atomically(c.points_file.path,
+                       [&](std::ostream& o) { o.write(bytes.data(), std::streamsize(bytes.size())); });
 }
 
 }  // namespace csrbf::morph

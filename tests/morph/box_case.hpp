@@ -44,29 +44,56 @@ inline BoxMesh make_box(const BoxSpec& s) {
         m.points.insert(m.points.end(), {x, y, z});
       }
   // Faces normal to +x at i, +y at j, +z at k (right-handed loops).
-  const auto fx = [&](int i, int j, int k) { return std::vector<std::uint32_t>{P(i, j, k), P(i, j + 1, k), P(i, j + 1, k + 1), P(i, j, k + 1)}; };
-  const auto fy = [&](int i, int j, int k) { return std::vector<std::uint32_t>{P(i, j, k), P(i, j, k + 1), P(i + 1, j, k + 1), P(i + 1, j, k)}; };
-  const auto fz = [&](int i, int j, int k) { return std::vector<std::uint32_t>{P(i, j, k), P(i + 1, j, k), P(i + 1, j + 1, k), P(i, j + 1, k)}; };
+  const auto fx = [&](int i, int j, int k) {
+    return std::vector<std::uint32_t>{P(i, j, k), P(i, j + 1, k), P(i, j + 1, k + 1), P(i, j, k + 1)};
+  };
+  const auto fy = [&](int i, int j, int k) {
+    return std::vector<std::uint32_t>{P(i, j, k), P(i, j, k + 1), P(i + 1, j, k + 1), P(i + 1, j, k)};
+  };
+  const auto fz = [&](int i, int j, int k) {
+    return std::vector<std::uint32_t>{P(i, j, k), P(i + 1, j, k), P(i + 1, j + 1, k), P(i, j + 1, k)};
+  };
   const auto flip = [](std::vector<std::uint32_t> f) { return std::vector<std::uint32_t>{f[0], f[3], f[2], f[1]}; };
   for (int k = 0; k < s.nz; ++k)
     for (int j = 0; j < s.ny; ++j)
       for (int i = 0; i < s.nx; ++i) {
         const int c = C(i, j, k);
-        if (i + 1 < s.nx) m.faces.push_back(fx(i + 1, j, k)), m.owner.push_back(c), m.neighbour.push_back(C(i + 1, j, k));
-        if (j + 1 < s.ny) m.faces.push_back(fy(i, j + 1, k)), m.owner.push_back(c), m.neighbour.push_back(C(i, j + 1, k));
-        if (k + 1 < s.nz) m.faces.push_back(fz(i, j, k + 1)), m.owner.push_back(c), m.neighbour.push_back(C(i, j, k + 1));
+        if (i + 1 < s.nx)
+          m.faces.push_back(fx(i + 1, j, k)), m.owner.push_back(c), m.neighbour.push_back(C(i + 1, j, k));
+        if (j + 1 < s.ny)
+          m.faces.push_back(fy(i, j + 1, k)), m.owner.push_back(c), m.neighbour.push_back(C(i, j + 1, k));
+        if (k + 1 < s.nz)
+          m.faces.push_back(fz(i, j, k + 1)), m.owner.push_back(c), m.neighbour.push_back(C(i, j, k + 1));
       }
   const auto patch = [&](const char* name, auto each) {
     const std::size_t before = m.faces.size();
     each();
     m.patches.emplace_back(name, m.faces.size() - before);
   };
-  patch("xmin", [&] { for (int k = 0; k < s.nz; ++k) for (int j = 0; j < s.ny; ++j) m.faces.push_back(flip(fx(0, j, k))), m.owner.push_back(C(0, j, k)); });
-  patch("xmax", [&] { for (int k = 0; k < s.nz; ++k) for (int j = 0; j < s.ny; ++j) m.faces.push_back(fx(s.nx, j, k)), m.owner.push_back(C(s.nx - 1, j, k)); });
-  patch("ymin", [&] { for (int k = 0; k < s.nz; ++k) for (int i = 0; i < s.nx; ++i) m.faces.push_back(flip(fy(i, 0, k))), m.owner.push_back(C(i, 0, k)); });
-  patch("ymax", [&] { for (int k = 0; k < s.nz; ++k) for (int i = 0; i < s.nx; ++i) m.faces.push_back(fy(i, s.ny, k)), m.owner.push_back(C(i, s.ny - 1, k)); });
-  patch("zmin", [&] { for (int j = 0; j < s.ny; ++j) for (int i = 0; i < s.nx; ++i) m.faces.push_back(flip(fz(i, j, 0))), m.owner.push_back(C(i, j, 0)); });
-  patch("zmax", [&] { for (int j = 0; j < s.ny; ++j) for (int i = 0; i < s.nx; ++i) m.faces.push_back(fz(i, j, s.nz)), m.owner.push_back(C(i, j, s.nz - 1)); });
+  patch("xmin", [&] {
+    for (int k = 0; k < s.nz; ++k)
+      for (int j = 0; j < s.ny; ++j) m.faces.push_back(flip(fx(0, j, k))), m.owner.push_back(C(0, j, k));
+  });
+  patch("xmax", [&] {
+    for (int k = 0; k < s.nz; ++k)
+      for (int j = 0; j < s.ny; ++j) m.faces.push_back(fx(s.nx, j, k)), m.owner.push_back(C(s.nx - 1, j, k));
+  });
+  patch("ymin", [&] {
+    for (int k = 0; k < s.nz; ++k)
+      for (int i = 0; i < s.nx; ++i) m.faces.push_back(flip(fy(i, 0, k))), m.owner.push_back(C(i, 0, k));
+  });
+  patch("ymax", [&] {
+    for (int k = 0; k < s.nz; ++k)
+      for (int i = 0; i < s.nx; ++i) m.faces.push_back(fy(i, s.ny, k)), m.owner.push_back(C(i, s.ny - 1, k));
+  });
+  patch("zmin", [&] {
+    for (int j = 0; j < s.ny; ++j)
+      for (int i = 0; i < s.nx; ++i) m.faces.push_back(flip(fz(i, j, 0))), m.owner.push_back(C(i, j, 0));
+  });
+  patch("zmax", [&] {
+    for (int j = 0; j < s.ny; ++j)
+      for (int i = 0; i < s.nx; ++i) m.faces.push_back(fz(i, j, s.nz)), m.owner.push_back(C(i, j, s.nz - 1));
+  });
   if (s.empty_patch) m.patches.emplace_back("nothing", 0);
   m.cells = s.nx * s.ny * s.nz;
   return m;
@@ -106,7 +133,8 @@ inline BoxMesh write_box_case(const std::filesystem::path& dir, const BoxSpec& s
   const auto poly = dir / "constant" / "polyMesh";
   std::filesystem::create_directories(poly);
   std::filesystem::create_directories(dir / "system");
-  std::ofstream(dir / "system" / "controlDict") << "FoamFile { version 2.0; format ascii; class dictionary; object controlDict; }\n";
+  std::ofstream(dir / "system" / "controlDict")
+      << "FoamFile { version 2.0; format ascii; class dictionary; object controlDict; }\n";
   char buf[128];
   std::string pts = foam_header("vectorField", "points", s.binary) + std::to_string(m.points.size() / 3) + "\n(";
   if (s.binary) {
@@ -127,8 +155,8 @@ inline BoxMesh write_box_case(const std::filesystem::path& dir, const BoxSpec& s
       labels.insert(labels.end(), f.begin(), f.end());
       start.push_back(std::int32_t(labels.size()));
     }
-    faces = foam_header("faceCompactList", "faces", true) + std::to_string(start.size()) + "\n(" + raw(start) + ")\n\n" +
-            std::to_string(labels.size()) + "\n(" + raw(labels) + ")\n";
+    faces = foam_header("faceCompactList", "faces", true) + std::to_string(start.size()) + "\n(" + raw(start) +
+            ")\n\n" + std::to_string(labels.size()) + "\n(" + raw(labels) + ")\n";
   } else {
     faces = foam_header("faceList", "faces", false) + std::to_string(m.faces.size()) + "\n(\n";
     for (const auto& f : m.faces) {
@@ -139,7 +167,8 @@ inline BoxMesh write_box_case(const std::filesystem::path& dir, const BoxSpec& s
     faces += ")\n";
   }
   write_file(poly / "faces", faces, s.gzip);
-  for (const auto& [name, list] : {std::pair<const char*, const std::vector<std::int32_t>*>{"owner", &m.owner}, {"neighbour", &m.neighbour}}) {
+  for (const auto& [name, list] :
+       {std::pair<const char*, const std::vector<std::int32_t>*>{"owner", &m.owner}, {"neighbour", &m.neighbour}}) {
     std::string t = foam_header("labelList", name, s.binary) + std::to_string(list->size()) + "\n(";
     if (s.binary) {
       t += raw(*list);

@@ -104,7 +104,8 @@ INSTANTIATE_TEST_SUITE_P(Morph, Encodings,
                          ::testing::Values(std::pair{false, false}, std::pair{true, false}, std::pair{false, true},
                                            std::pair{true, true}),
                          [](const auto& info) {
-                           return std::string(info.param.first ? "Binary" : "Ascii") + (info.param.second ? "Gzip" : "");
+                           return std::string(info.param.first ? "Binary" : "Ascii") +
+                                  (info.param.second ? "Gzip" : "");
                          });
 
 TEST(OpenFoam, InPlaceRewritesThePointsAlone) {
@@ -125,10 +126,12 @@ TEST(OpenFoam, RefusesOutputsThatExistOrLieInsideTheCase) {
   csrbf::test::write_box_case(dir.path / "case", {});
   const FoamCase c = read_openfoam(dir.path / "case");
   fs::create_directories(dir.path / "empty");
-  EXPECT_NE(error_of([&] { write_openfoam_copy(c, c.mesh.points, dir.path / "empty"); }).find("it exists"), std::string::npos);
-  EXPECT_TRUE(fs::is_empty(dir.path / "empty"));
-  EXPECT_NE(error_of([&] { write_openfoam_copy(c, c.mesh.points, dir.path / "case" / "copy"); }).find("inside the case"),
+  EXPECT_NE(error_of([&] { write_openfoam_copy(c, c.mesh.points, dir.path / "empty"); }).find("it exists"),
             std::string::npos);
+  EXPECT_TRUE(fs::is_empty(dir.path / "empty"));
+  EXPECT_NE(
+      error_of([&] { write_openfoam_copy(c, c.mesh.points, dir.path / "case" / "copy"); }).find("inside the case"),
+      std::string::npos);
   EXPECT_FALSE(fs::exists(dir.path / "case" / "copy"));
   EXPECT_NE(error_of([&] { write_openfoam_copy(c, c.mesh.points, dir.path / "no" / "such"); }), "");
 }
@@ -179,7 +182,8 @@ TEST(OpenFoam, BadFilesAreClearErrorsNamingTheFile) {
   EXPECT_NE(read_error().find("patch 'xmax': startFace 52, expected 53"), std::string::npos) << read_error();
   fresh();
   edit("boundary", "startFace 52;", "startFace 5200;");
-  EXPECT_NE(read_error().find("patch 'xmax': startFace 5200 + nFaces 6 passes the 98 faces"), std::string::npos) << read_error();
+  EXPECT_NE(read_error().find("patch 'xmax': startFace 5200 + nFaces 6 passes the 98 faces"), std::string::npos)
+      << read_error();
 
   fresh();
   edit("owner", "format      ascii", "format      binary");  // a header that lies about the format
@@ -327,17 +331,24 @@ TEST_F(BoxMorph, PatchesResolveWithTheirRules) {
 
   // Two moving patches that disagree at their shared edge.
   const std::string e = error_of([&] {
-    prescribe(c.mesh, motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, 0.01]}, "xmin": {"translate": [0.01, 0, 0]}}})"));
+    prescribe(
+        c.mesh,
+        motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, 0.01]}, "xmin": {"translate": [0.01, 0, 0]}}})"));
   });
   EXPECT_NE(e.find("patch 'xmin'"), std::string::npos) << e;
   EXPECT_NE(e.find("patch 'zmin'"), std::string::npos) << e;
   EXPECT_NE(e.find("point 0 "), std::string::npos) << e;
   // Agreeing ones are fine.
-  EXPECT_EQ(prescribe(c.mesh, motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, 0.01]}, "xmin": {"translate": [0, 0, 0.01]}}})"))
-                .moving(),
-            91u);
+  EXPECT_EQ(
+      prescribe(c.mesh,
+                motion_from(
+                    dir, R"({"patches": {"zmin": {"translate": [0, 0, 0.01]}, "xmin": {"translate": [0, 0, 0.01]}}})"))
+          .moving(),
+      91u);
 
-  EXPECT_NE(error_of([&] { prescribe(c.mesh, motion_from(dir, R"({"patches": {"wing": "fixed"}})")); }).find("its patches: xmin, xmax"),
+  EXPECT_NE(error_of([&] {
+              prescribe(c.mesh, motion_from(dir, R"({"patches": {"wing": "fixed"}})"));
+            }).find("its patches: xmin, xmax"),
             std::string::npos);
 }
 
@@ -359,7 +370,8 @@ TEST_F(BoxMorph, DisplacementFilesAreCheckedAgainstThePatch) {
 }
 
 TEST_F(BoxMorph, InteriorPointsFollowTheDenseInterpolantAndBoundariesLandExactly) {
-  const Motion m = motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},
+  const Motion m =
+      motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},
                                                     "zmax": "fixed", "xmin": "fixed"}})");
   MorphOptions o;
   o.fit.radius = 0.6;
@@ -409,7 +421,8 @@ TEST_F(BoxMorph, InteriorPointsFollowTheDenseInterpolantAndBoundariesLandExactly
 }
 
 TEST_F(BoxMorph, GreedyUsesFewerControlsWithinItsTolerance) {
-  const Motion m = motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},
+  const Motion m =
+      motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},
                                                     "zmax": "fixed", "xmin": "fixed", "xmax": "fixed"}})");
   MorphOptions o;
   o.fit.radius = 0.8;
@@ -454,6 +467,8 @@ TEST_F(BoxMorph, ThePatchesOfAnEmptyPatchAreRefused) {
   s.empty_patch = true;
   csrbf::test::write_box_case(d2.path / "case", s);
   const FoamCase e = read_openfoam(d2.path / "case");
-  EXPECT_NE(error_of([&] { prescribe(e.mesh, motion_from(dir, R"({"patches": {"nothing": "fixed"}})")); }).find("has no points"),
+  EXPECT_NE(error_of([&] {
+              prescribe(e.mesh, motion_from(dir, R"({"patches": {"nothing": "fixed"}})"));
+            }).find("has no points"),
             std::string::npos);
 }

@@ -29,7 +29,7 @@ struct Prescribed {
 Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion);
 
 struct MorphOptions {
-  FitOptions fit;     ///< radius > 0 required; kernel, polynomial, solver, memory limit
+  FitOptions fit;      ///< radius > 0 required; kernel, polynomial, solver, memory limit
   double phase = 1.0;  ///< the fraction of the motion applied, in [0, 1] normally
   /// > 0: greedy reduction (Rendall & Allen 2009): controls are added, worst first, until every
   /// prescribed point is interpolated within greedy x the largest displacement.
@@ -38,9 +38,9 @@ struct MorphOptions {
 
 struct MorphReport {
   std::size_t prescribed = 0, moving = 0, fixed = 0;
-  std::size_t controls = 0;       ///< sources of the fit (all prescribed points, or greedy's subset)
+  std::size_t controls = 0;  ///< sources of the fit (all prescribed points, or greedy's subset)
   std::size_t greedy_rounds = 0;
-  double max_displacement = 0;    ///< largest prescribed, at phase 1
+  double max_displacement = 0;  ///< largest prescribed, at phase 1
   /// Largest distance between a prescribed point's interpolated and prescribed position, before
   /// the prescribed points are placed exactly (greedy's measure; ~1e-12 without greedy).
   double max_boundary_error = 0;
@@ -59,6 +59,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
 
 /// The largest phase s in [0, phase] at which the morph (positions linear in s between points
 /// and moved) inverts no cell that was not inverted before, found by bisection to 1e-4 of phase.
-double largest_safe_phase(const VolumeMesh& mesh, std::span<const Vec3> moved, double phase, std::size_t inverted_before);
+double largest_safe_phase(const VolumeMesh& mesh, std::span<const Vec3> moved, double phase,
+                          std::size_t inverted_before);
 
 }  // namespace csrbf::morph

@@ -16,8 +16,8 @@ struct FoamPointsFile {
   std::filesystem::path path;  ///< as found: ".../points" or ".../points.gz"
   bool binary = false;
   bool gzip = false;
-  int scalar_bytes = 8;     ///< binary: 4 or 8 (arch "scalar=32|64")
-  std::string text;         ///< the whole file, uncompressed
+  int scalar_bytes = 8;        ///< binary: 4 or 8 (arch "scalar=32|64")
+  std::string text;            ///< the whole file, uncompressed
   std::size_t body_begin = 0;  ///< just past the list's '('
   std::size_t body_end = 0;    ///< at the list's ')'
 };

@@ -1,0 +1,288 @@
+"""csrbf morph judged by OpenFOAM's own tools (Debian's openfoam 1912): checkMesh on the morphed
+bundled example, the airFoil2D tutorial and pitzDaily after blockMesh, in ASCII, binary and gzip;
+every byte but the coordinates kept; csrbf's quality figures equal to checkMesh's; bad input
+refused with nothing written.
+
+    CSRBF_CLI=build/bin/csrbf CSRBF_SOURCE_DIR=. /usr/bin/python3 -m unittest -v test_openfoam
+"""
+import gzip
+import json
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import unittest
+
+CLI = os.environ.get("CSRBF_CLI", "csrbf")
+SOURCE = os.environ.get("CSRBF_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", ".."))
+TUTORIALS = "/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam"
+ENV = dict(os.environ, WM_PROJECT_DIR="/usr/share/openfoam", OMPI_ALLOW_RUN_AS_ROOT="1",
+           OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_plm_rsh_agent="")
+
+
+def run(args, cwd=None):
+    return subprocess.run(args, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=600)
+
+
+def check_mesh(case):
+    """checkMesh's figures and its verdict."""
+    r = run(["checkMesh"], cwd=case)
+    out = r.stdout + r.stderr
+    m = re.search(r"Mesh non-orthogonality Max: (\S+) average: (\S+)", out)
+    s = re.search(r"Max skewness = ([-+.0-9eE]+)", out)
+    v = re.search(r"Min volume = (\S+)\.\s", out) or re.search(r"Minimum negative volume: (\S+),", out)
+    failed = re.search(r"Failed (\d+) mesh checks", out)
+    # The geometry section alone: "***" marks a failed check.
+    geometry = out.split("Checking geometry...")[-1]
+    return {"ok": "Mesh OK." in out, "failed": int(failed.group(1)) if failed else 0,
+            "max_non_orth": float(m.group(1)), "mean_non_orth": float(m.group(2)),
+            "max_skewness": float(s.group(1)), "min_volume": float(v.group(1)),
+            "geometry_errors": geometry.count("***"), "text": out}
+
+
+def read_text(path):
+    opener = gzip.open if path.endswith(".gz") else open
+    with opener(path, "rb") as f:
+        return f.read()
+
+
+def morph(case, out, motion, *extra):
+    return run([CLI, "morph", case, "-o", out, "--motion", motion, "--json", *extra])
+
+
+def tree_files(root):
+    out = {}
+    for d, _, files in os.walk(root):
+        for f in files:
+            p = os.path.join(d, f)
+            out[os.path.relpath(p, root)] = p
+    return out
+
+
+class OpenFoamCases(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix="csrbf-openfoam-")
+
+    def tearDown(self):
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def motion(self, data):
+        path = os.path.join(self.tmp, "motion-%d.json" % len(os.listdir(self.tmp)))
+        with open(path, "w") as f:
+            json.dump(data, f)
+        return path
+
+    def assert_kept(self, case, out, changed=("points", "points.gz")):
+        """Every file but points is a byte-for-byte copy; points keeps its header."""
+        a, b = tree_files(case), tree_files(out)
+        self.assertEqual(sorted(a), sorted(b))
+        for rel, p in a.items():
+            if os.path.basename(rel) in changed and "polyMesh" in rel:
+                old, new = read_text(p), read_text(b[rel])
+                head = old.index(b"(")
+                self.assertEqual(old[:head], new[:head], rel)
+                continue
+            with open(p, "rb") as x, open(b[rel], "rb") as y:
+                self.assertEqual(x.read(), y.read(), rel)
+
+    def assert_quality_matches(self, report, cm):
+        q = report["quality"]["after"]
+        self.assertAlmostEqual(q["max_non_orthogonality"], cm["max_non_orth"], delta=1e-4 * max(1, cm["max_non_orth"]))
+        self.assertAlmostEqual(q["mean_non_orthogonality"], cm["mean_non_orth"], delta=1e-4 * max(1, cm["mean_non_orth"]))
+        self.assertAlmostEqual(q["max_skewness"], cm["max_skewness"], delta=1e-4 * max(1, cm["max_skewness"]))
+        self.assertAlmostEqual(q["min_volume"], cm["min_volume"], delta=1e-5 * abs(cm["min_volume"]))
+
+    def test_bundled_airfoil_pitches_and_passes_check_mesh(self):
+        case = os.path.join(SOURCE, "examples", "airfoil", "case")
+        out = os.path.join(self.tmp, "pitched")
+        r = morph(case, out, os.path.join(SOURCE, "examples", "airfoil", "motion.json"))
+        self.assertEqual(r.returncode, 0, r.stderr)
+        report = json.loads(r.stdout)
+        self.assertTrue(report["written"])
+        self.assertEqual(report["points"], 7872)
+        self.assertEqual(report["cells"], 3840)
+        cm = check_mesh(out)
+        self.assertTrue(cm["ok"], cm["text"])
+        self.assert_quality_matches(report, cm)
+        self.assert_kept(case, out)
+        # The airfoil's points are rotated by exactly -5 degrees about (0.25, 0, 0), to 1e-12 of the
+        # domain; the far field's are unchanged bit for bit (the same text).
+        old = read_text(os.path.join(case, "constant/polyMesh/points")).decode().split("\n")
+        new = read_text(os.path.join(out, "constant/polyMesh/points")).decode().split("\n")
+        first = old.index("(") + 1
+        import math
+        c, s = math.cos(math.radians(-5)), math.sin(math.radians(-5))
+        ring = 96
+        for k in range(2):  # back and front planes
+            for i in range(ring):
+                row = first + k * ring * 41 + i
+                x, y, z = map(float, old[row].strip("()").split())
+                nx, ny, nz = map(float, new[row].strip("()").split())
+                ex, ey = 0.25 + c * (x - 0.25) - s * y, s * (x - 0.25) + c * y
+                self.assertLess(math.hypot(nx - ex, ny - ey), 1e-12 * 40, (x, y))
+                self.assertEqual(nz, z)
+                far = first + k * ring * 41 + 40 * ring + i
+                self.assertEqual(old[far], new[far])
+
+    def test_airfoil2d_gzip_keeps_its_format_and_its_checks(self):
+        case = os.path.join(self.tmp, "airFoil2D")
+        shutil.copytree(os.path.join(TUTORIALS, "airFoil2D"), case)
+        before = check_mesh(case)
+        out = os.path.join(self.tmp, "airFoil2D-pitched")
+        motion = self.motion({"radius": 20, "patches": {
+            "walls": {"rotate": {"axis": [0, 0, 1], "degrees": -3, "origin": [-8.75, 0, 0]}},
+            "inlet": "fixed", "outlet": "fixed"}})
+        r = morph(case, out, motion)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        report = json.loads(r.stdout)
+        self.assertTrue(report["gzip"])
+        self.assertLess(report["ms"]["total"], 5000)
+        self.assertTrue(os.path.exists(os.path.join(out, "constant/polyMesh/points.gz")))
+        self.assertFalse(os.path.exists(os.path.join(out, "constant/polyMesh/points")))
+        cm = check_mesh(out)
+        # The tutorial's faces are not in upper triangular order (a topology check it fails as
+        # shipped, which no morph changes): every geometry check passes, as before.
+        self.assertEqual(before["geometry_errors"], 0)
+        self.assertEqual(cm["geometry_errors"], 0, cm["text"])
+        self.assertEqual(cm["failed"], before["failed"])
+        self.assertIn("Faces not in upper triangular order", before["text"])
+        self.assert_quality_matches(report, cm)
+        self.assert_kept(case, out)
+
+    def pitz_daily(self, binary=False, compress=False):
+        case = os.path.join(self.tmp, "pitzDaily" + ("-binary" if binary else "") + ("-gz" if compress else ""))
+        shutil.copytree(os.path.join(TUTORIALS, "pitzDaily"), case)
+        r = run(["blockMesh"], cwd=case)
+        self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        if binary:
+            control = os.path.join(case, "system", "controlDict")
+            with open(control) as f:
+                text = f.read()
+            with open(control, "w") as f:
+                f.write(re.sub(r"writeFormat\s+\w+;", "writeFormat binary;", text))
+            r = run(["foamFormatConvert", "-constant"], cwd=case)
+            self.assertEqual(r.returncode, 0, r.stdout + r.stderr)
+        if compress:
+            poly = os.path.join(case, "constant", "polyMesh")
+            for name in ("points", "faces", "owner", "neighbour"):
+                subprocess.run(["gzip", os.path.join(poly, name)], check=True)
+        return case
+
+    def test_pitz_daily_in_every_encoding_passes_check_mesh_and_agrees(self):
+        motion = self.motion({"radius": 0.03, "patches": {
+            "lowerWall": {"translate": [0, 0.0003, 0]}, "upperWall": "fixed", "inlet": "fixed", "outlet": "fixed"}})
+        results = {}
+        for binary, compress in ((False, False), (True, False), (False, True), (True, True)):
+            case = self.pitz_daily(binary, compress)
+            if binary:
+                self.assertIn(b"format      binary", read_text(os.path.join(
+                    case, "constant/polyMesh/points" + (".gz" if compress else ""))))
+            out = case + "-morphed"
+            r = morph(case, out, motion)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            report = json.loads(r.stdout)
+            self.assertEqual(report["encoding"], "binary" if binary else "ascii")
+            self.assertEqual(report["gzip"], compress)
+            cm = check_mesh(out)
+            self.assertTrue(cm["ok"], cm["text"])
+            self.assert_quality_matches(report, cm)
+            self.assert_kept(case, out)
+            results[(binary, compress)] = report["quality"]["after"]
+        # The same mesh in four encodings morphs to the same quality.
+        first = results[(False, False)]
+        for q in results.values():
+            self.assertAlmostEqual(q["max_non_orthogonality"], first["max_non_orthogonality"], places=9)
+            self.assertAlmostEqual(q["min_volume"], first["min_volume"], delta=1e-12 * abs(first["min_volume"]))
+
+    def test_inverting_motion_writes_nothing_and_names_the_safe_phase(self):
+        case = self.pitz_daily()
+        motion = self.motion({"radius": 0.02, "patches": {
+            "lowerWall": {"translate": [0, 0.002, 0]}, "upperWall": "fixed", "inlet": "fixed", "outlet": "fixed"}})
+        out = os.path.join(self.tmp, "inverted")
+        r = morph(case, out, motion)
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("inverts", r.stderr)
+        self.assertIn("nothing written", r.stderr)
+        report = json.loads(r.stdout)
+        self.assertFalse(report["written"])
+        self.assertGreater(report["quality"]["after"]["inverted_cells"], 0)
+        self.assertFalse(os.path.exists(out))
+        self.assertEqual([f for f in os.listdir(self.tmp) if "partial" in f], [])
+        safe = report["safe_phase"]
+        self.assertGreater(safe, 0.0)
+        self.assertLess(safe, 1.0)
+        # At the safe phase the morph passes checkMesh's volume and pyramid checks.
+        r = morph(case, out, motion, "--phase", repr(safe))
+        self.assertEqual(r.returncode, 0, r.stderr)
+        cm = check_mesh(out)
+        self.assertNotIn("negative volume", cm["text"])
+        self.assertIn("Face pyramids OK", cm["text"])
+        # --force writes the inverted mesh, and checkMesh then agrees it is inverted.
+        forced = os.path.join(self.tmp, "forced")
+        r = morph(case, forced, motion, "--force")
+        self.assertEqual(r.returncode, 0, r.stderr)
+        cm = check_mesh(forced)
+        self.assertFalse(cm["ok"])
+        self.assertIn("Number of negative volume cells: %d" % json.loads(r.stdout)["quality"]["after"]["negative_volumes"],
+                      cm["text"])
+
+    def test_in_place_rewrites_points_alone(self):
+        case = self.pitz_daily()
+        poly = os.path.join(case, "constant", "polyMesh")
+        faces = read_text(os.path.join(poly, "faces"))
+        motion = self.motion({"radius": 0.03, "patches": {"lowerWall": {"translate": [0, 0.0003, 0]}, "upperWall": "fixed"}})
+        r = run([CLI, "morph", case, "--in-place", "--motion", motion])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(read_text(os.path.join(poly, "faces")), faces)
+        self.assertEqual(sorted(os.listdir(poly)), ["boundary", "faces", "neighbour", "owner", "points"])
+        self.assertTrue(check_mesh(case)["ok"])
+
+    def test_bad_input_is_refused_with_nothing_written(self):
+        case = os.path.join(SOURCE, "examples", "airfoil", "case")
+        out = os.path.join(self.tmp, "out")
+        cases = [
+            ({"radius": 4, "patches": {"wing": "fixed"}}, 1, "no patch 'wing'; its patches: airfoil, farfield, frontAndBack"),
+            ({"patches": {"airfoil": "fixed"}}, 2, "no radius"),
+            ({"radius": 4, "patches": {"airfoil": {"rotate": {"axis": [0, 0, 0], "degrees": 5}}}}, 1,
+             "patches.airfoil.rotate.axis"),
+            ({"radius": 4, "patches": {"airfoil": {"translate": [0, 0.1, 0]}, "frontAndBack": {"translate": [0, 0, 0.1]}}},
+             1, "give the two patches the same motion"),
+        ]
+        for motion, code, text in cases:
+            r = morph(case, out, self.motion(motion))
+            self.assertEqual(r.returncode, code, (motion, r.stdout, r.stderr))
+            self.assertIn(text, r.stderr)
+            self.assertFalse(os.path.exists(out))
+        good = os.path.join(SOURCE, "examples", "airfoil", "motion.json")
+        r = run([CLI, "morph", case, "--motion", good])
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("-o OUT", r.stderr)
+        r = run([CLI, "morph", case, "-o", out, "--in-place", "--motion", good])
+        self.assertEqual(r.returncode, 2)
+        os.makedirs(out)
+        r = run([CLI, "morph", case, "-o", out, "--motion", good])
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("it exists", r.stderr)
+        self.assertEqual(os.listdir(out), [])
+        # A truncated points file, a count that disagrees with faces.
+        broken = os.path.join(self.tmp, "broken")
+        shutil.copytree(case, broken)
+        points = os.path.join(broken, "constant", "polyMesh", "points")
+        text = read_text(points)
+        with open(points, "wb") as f:
+            f.write(text[: len(text) // 2])
+        r = morph(broken, os.path.join(self.tmp, "o2"), good)
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("points", r.stderr)
+        with open(points, "wb") as f:
+            f.write(text.replace(b"7872\n(", b"7000\n(", 1))
+        r = morph(broken, os.path.join(self.tmp, "o3"), good)
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("more points than the count", r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "o2")))
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "o3")))
+
+
+if __name__ == "__main__":
+    unittest.main()
