@@ -161,7 +161,10 @@ inline BoxMesh write_box_case(const std::filesystem::path& dir, const BoxSpec& s
     faces = foam_header("faceList", "faces", false) + std::to_string(m.faces.size()) + "\n(\n";
     for (const auto& f : m.faces) {
       faces += std::to_string(f.size()) + "(";
-      for (std::size_t i = 0; i < f.size(); ++i) faces += (i ? " " : "") + std::to_string(f[i]);
+      for (std::size_t i = 0; i < f.size(); ++i) {
+        if (i) faces += ' ';
+        faces += std::to_string(f[i]);
+      }
       faces += ")\n";
     }
     faces += ")\n";

@@ -327,7 +327,9 @@ TEST_F(BoxMorph, PatchesResolveWithTheirRules) {
   EXPECT_EQ(p.points.size(), 49u + 49u - 7u);
   EXPECT_EQ(p.moving(), 49u);
   for (std::size_t i = 0; i < p.points.size(); ++i)
-    if (c.mesh.points[p.points[i]].z() == 0) EXPECT_FALSE(p.fixed[i]) << p.points[i];
+    if (c.mesh.points[p.points[i]].z() == 0) {
+      EXPECT_FALSE(p.fixed[i]) << p.points[i];
+    }
 
   // Two moving patches that disagree at their shared edge.
   const std::string e = error_of([&] {
