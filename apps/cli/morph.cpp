@@ -5,7 +5,7 @@
 #include "csrbf/errors.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/morph/morph.hpp"
-#include "csrbf/morph/openfoam.hpp"
+#include "csrbf/morph/volume_file.hpp"
 #include "csrbf/morph/quality.hpp"
 #include "csrbf/names.hpp"
 
@@ -26,8 +26,20 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
-nlohmann::json quality_json(const morph::PolyQuality& q) {
-  return {{"cells", q.cells},
+nlohmann::json quality_json(const morph::MeshQuality& m) {
+  nlohmann::json j = nlohmann::json::object();
+  j["inverted_cells"] = m.inverted_cells();
+  if (m.cells) {
+    const morph::CellQuality& c = *m.cells;
+    j["cells"] = {{"measured", c.cells},         {"tetrahedra", c.tetrahedra},
+                  {"hexahedra", c.hexahedra},    {"prisms", c.prisms},
+                  {"pyramids", c.pyramids},      {"triangles", c.triangles},
+                  {"quads", c.quads},            {"min_scaled_jacobian", c.min_scaled_jacobian},
+                  {"mean_scaled_jacobian", c.mean_scaled_jacobian}, {"inverted_cells", c.inverted_cells}};
+  }
+  if (!m.poly) return j;
+  const morph::PolyQuality& q = *m.poly;
+  j["polyhedra"] = {{"cells", q.cells},
           {"faces", q.faces},
           {"max_non_orthogonality", q.max_non_orthogonality},
           {"mean_non_orthogonality", q.mean_non_orthogonality},
@@ -37,9 +49,10 @@ nlohmann::json quality_json(const morph::PolyQuality& q) {
           {"inverted_cells", q.inverted_cells},
           {"min_volume", q.min_volume},
           {"total_volume", q.total_volume}};
+  return j;
 }
 
-std::string quality_table(const morph::PolyQuality& a, const morph::PolyQuality& b) {
+std::string quality_table(const morph::MeshQuality& qa, const morph::MeshQuality& qb) {
   std::ostringstream s;
   char line[160];
   const auto row = [&](const char* name, const std::string& x, const std::string& y) {
@@ -52,6 +65,14 @@ std::string quality_table(const morph::PolyQuality& a, const morph::PolyQuality&
     return std::string(b);
   };
   row("quality", "before", "after");
+  if (qa.cells && qb.cells) {
+    const morph::CellQuality &a = *qa.cells, &b = *qb.cells;
+    row("min scaled Jacobian", num(a.min_scaled_jacobian, "%.4f"), num(b.min_scaled_jacobian, "%.4f"));
+    row("mean scaled Jacobian", num(a.mean_scaled_jacobian, "%.4f"), num(b.mean_scaled_jacobian, "%.4f"));
+    row("inverted cells", std::to_string(a.inverted_cells), std::to_string(b.inverted_cells));
+  }
+  if (!qa.poly || !qb.poly) return s.str();
+  const morph::PolyQuality &a = *qa.poly, &b = *qb.poly;
   row("max non-orthogonality", num(a.max_non_orthogonality, "%.3f deg"), num(b.max_non_orthogonality, "%.3f deg"));
   row("mean non-orthogonality", num(a.mean_non_orthogonality, "%.3f deg"), num(b.mean_non_orthogonality, "%.3f deg"));
   row("max skewness", num(a.max_skewness, "%.4f"), num(b.max_skewness, "%.4f"));
@@ -78,8 +99,13 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
       app.add_subcommand("morph",
                          "Move the patches of a volume mesh as a motion file says and carry every other point along "
                          "(docs/morphing.md)");
-  cmd->add_option("case", a.mesh, "An OpenFOAM case folder, or its constant/polyMesh")->required();
-  auto* out = cmd->add_option("-o,--output", a.out, "A new case folder: a copy of the case with the moved points");
+  cmd->add_option("mesh", a.mesh,
+                  "An OpenFOAM case folder (or its constant/polyMesh), a .vtu or .vtk unstructured grid, a Gmsh .msh "
+                  "(2.2 or 4.1) or a .cgns file")
+      ->required();
+  auto* out = cmd->add_option("-o,--output", a.out,
+                              "A new case folder (OpenFOAM: a copy of the case with the moved points) or a new file of "
+                              "the input's format");
   auto* in_place = cmd->add_flag("--in-place", a.in_place, "Rewrite the case's points file alone (atomically)");
   out->excludes(in_place);
   cmd->add_option("--motion", a.motion, "Motion JSON: what each patch does (docs/morphing.md)")->required();
@@ -110,19 +136,29 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
 
 int run_morph(const MorphArgs& a) {
   const auto t0 = Clock::now();
-  if (a.out.empty() && !a.in_place) throw UsageError("morph: give -o OUT (a new case folder) or --in-place");
+  if (a.out.empty() && !a.in_place) throw UsageError("morph: give -o OUT (a new case folder or file) or --in-place");
   if (!a.out.empty()) {
     std::error_code ec;
     if (fs::symlink_status(a.out, ec).type() != fs::file_type::not_found)
       throw io::FileError("cannot write '" + a.out +
-                          "': it exists (csrbf morph writes a new case folder; "
-                          "--in-place rewrites the input's points alone)");
+                          "': it exists (csrbf morph writes a new case folder or file; --in-place rewrites the input's "
+                          "points alone)");
     const fs::path parent = fs::path(a.out).has_parent_path() ? fs::path(a.out).parent_path() : fs::path(".");
     if (!fs::is_directory(parent, ec))
       throw io::FileError("cannot write '" + a.out + "': folder '" + parent.string() + "' does not exist");
+    std::error_code e1, e2;
+    const bool in_folder = fs::is_directory(a.mesh, e1);
+    if (!in_folder) {
+      const auto ext = [](const std::string& p) {
+        std::string e = fs::path(p).extension().string();
+        for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+        return e;
+      };
+      if (ext(a.out) != ext(a.mesh))
+        throw UsageError("morph: -o " + a.out + ": the output is written in the input's format, so it needs the extension '" +
+                         ext(a.mesh) + "'");
+    }
   }
-  if (!morph::is_openfoam(a.mesh))
-    throw io::FileError(a.mesh + ": not an OpenFOAM case (a folder with constant/polyMesh, or a polyMesh folder)");
   const morph::Motion motion = morph::read_motion(a.motion);
   morph::MorphOptions o;
   if (a.radius)
@@ -140,14 +176,22 @@ int run_morph(const MorphArgs& a) {
   o.greedy = a.greedy.value_or(0.0);
 
   const auto t_read = Clock::now();
-  const morph::FoamCase c = morph::read_openfoam(a.mesh);
+  morph::OpenOptions open;
+  open.patch_array = motion.patch_array;
+  const auto file = morph::open_volume(a.mesh, open);
+  const morph::VolumeMesh& mesh = file->mesh();
+  if (mesh.patches.empty())
+    throw io::FileError(a.mesh + ": the mesh has no patches" +
+                        (file->format() == "vtu" || file->format() == "vtk"
+                             ? std::string(": name an integer point or cell data array as \"patch_array\" in ") + a.motion
+                             : std::string()));
   const double read_ms = ms_since(t_read);
   const auto t_q = Clock::now();
-  const morph::PolyQuality before = morph::poly_quality(c.mesh.poly, c.mesh.points);
+  const morph::MeshQuality before = morph::mesh_quality(mesh, mesh.points);
   double quality_ms = ms_since(t_q);
   morph::MorphResult r;
   try {
-    r = morph::morph(c.mesh, motion, o);
+    r = morph::morph(mesh, motion, o);
   } catch (const DuplicateSource& e) {
     throw io::FileError(a.mesh + ": two prescribed points are at the same place (sources " + std::to_string(e.first()) +
                         " and " + std::to_string(e.second()) + " of the controls): " + e.what());
@@ -157,33 +201,33 @@ int run_morph(const MorphArgs& a) {
     throw io::FileError(a.mesh + ": " + e.what());
   }
   const auto t_q2 = Clock::now();
-  const morph::PolyQuality after = morph::poly_quality(c.mesh.poly, r.points);
+  const morph::MeshQuality after = morph::mesh_quality(mesh, r.points);
   quality_ms += ms_since(t_q2);
-  const bool inverts = after.inverted_cells > before.inverted_cells;
+  const bool inverts = after.inverted_cells() > before.inverted_cells();
   double safe_phase = a.phase;
-  if (inverts) safe_phase = morph::largest_safe_phase(c.mesh, r.points, a.phase, before.inverted_cells);
+  if (inverts) safe_phase = morph::largest_safe_phase(mesh, r.points, a.phase, before.inverted_cells());
   const bool write = !inverts || a.force;
   double write_ms = 0;
   if (write) {
     const auto t_w = Clock::now();
     if (a.in_place)
-      morph::write_openfoam_in_place(c, r.points);
+      file->write_in_place(r.points);
     else
-      morph::write_openfoam_copy(c, r.points, a.out);
+      file->write_copy(r.points, a.out);
     write_ms = ms_since(t_w);
   }
   const double total_ms = ms_since(t0);
   const morph::MorphReport& rep = r.report;
-  const std::string target = a.in_place ? c.points_file.path.string() : a.out;
+  const std::string target = a.in_place ? a.mesh : a.out;
+  const std::size_t cells = mesh.poly.faces() ? mesh.poly.cells : mesh.cells.size();
   if (a.json) {
     nlohmann::json j{{"case", a.mesh},
-                     {"format", "openfoam"},
-                     {"encoding", c.points_file.binary ? "binary" : "ascii"},
-                     {"gzip", c.points_file.gzip},
+                     {"format", file->format()},
+                     {"encoding", file->encoding()},
                      {"output", target},
                      {"written", write},
-                     {"points", c.mesh.points.size()},
-                     {"cells", c.mesh.poly.cells},
+                     {"points", mesh.points.size()},
+                     {"cells", cells},
                      {"prescribed", rep.prescribed},
                      {"moving", rep.moving},
                      {"fixed", rep.fixed},
@@ -207,9 +251,9 @@ int run_morph(const MorphArgs& a) {
     if (inverts) j["safe_phase"] = safe_phase;
     std::cout << j.dump(2) << '\n';
   } else {
-    std::cout << "csrbf morph: " << a.mesh << " (OpenFOAM, " << (c.points_file.binary ? "binary" : "ascii")
-              << (c.points_file.gzip ? ", gzip" : "") << "): " << c.mesh.points.size() << " points, "
-              << c.mesh.poly.cells << " cells\n"
+    std::cout << "csrbf morph: " << a.mesh << " (" << file->format() << ", " << file->encoding()
+              << "): " << mesh.points.size() << " points, " << cells << " cells, " << mesh.patches.size()
+              << " patches\n"
               << "  motion " << a.motion << ": " << motion_summary(motion) << "\n"
               << "  " << rep.prescribed << " prescribed points (" << rep.moving << " moving, " << rep.fixed
               << " fixed), " << rep.controls << " controls";
@@ -221,12 +265,11 @@ int run_morph(const MorphArgs& a) {
               << quality_table(before, after) << "  time: read " << read_ms << " ms, fit " << rep.seconds_fit * 1e3
               << " ms, evaluate " << rep.seconds_evaluate * 1e3 << " ms, quality " << quality_ms << " ms, write "
               << write_ms << " ms, total " << total_ms << " ms\n";
-    if (write)
-      std::cout << "  -> " << target << (inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
+    if (write) std::cout << "  -> " << target << (inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
   }
   if (!write) {
-    std::cerr << "csrbf: error: the morph inverts " << after.inverted_cells - before.inverted_cells << " cells ("
-              << after.inverted_cells << " inverted, " << before.inverted_cells
+    std::cerr << "csrbf: error: the morph inverts " << after.inverted_cells() - before.inverted_cells() << " cells ("
+              << after.inverted_cells() << " inverted, " << before.inverted_cells()
               << " before); the largest phase <= " << a.phase << " that inverts none is " << safe_phase
               << "; nothing written (--force writes anyway)\n";
     return 1;

@@ -85,6 +85,18 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
   const double tol = 1e-12 * std::max(mesh_size(mesh), 1e-300);
   std::vector<std::int32_t> who(np, -1);  // the motion that set a point
   std::vector<Vec3> d(np, Vec3::Zero());
+  std::unordered_map<std::uint64_t, std::uint32_t> ids;
+  std::uint64_t min_id = 0, max_id = 0;
+  if (!mesh.point_ids.empty()) {
+    ids.reserve(np);
+    min_id = max_id = mesh.point_ids[0];
+    for (std::size_t i = 0; i < np; ++i) {
+      ids.emplace(mesh.point_ids[i], std::uint32_t(i));
+      min_id = std::min(min_id, mesh.point_ids[i]);
+      max_id = std::max(max_id, mesh.point_ids[i]);
+    }
+  }
+  const auto number = [&](std::uint32_t p) { return mesh.point_ids.empty() ? std::uint64_t(p) : mesh.point_ids[p]; };
   for (std::size_t m = 0; m < motion.patches.size(); ++m) {
     const PatchMotion& pm = motion.patches[m];
     const Patch* patch = mesh.patch(pm.patch);
@@ -97,11 +109,19 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
       std::vector<std::size_t> line(patch->points.size(), 0);
       for (const auto& g : pm.given) {
         const std::string at = pm.file.string() + ":" + std::to_string(g.line) + ": ";
-        if (g.point >= np)
-          throw FileError(at + "point " + std::to_string(g.point) + " is out of range: the mesh has " +
-                          std::to_string(np) + " points (0 to " + std::to_string(np ? np - 1 : 0) + ")");
-        const auto it = std::lower_bound(patch->points.begin(), patch->points.end(), std::uint32_t(g.point));
-        if (it == patch->points.end() || *it != g.point)
+        std::uint64_t index = g.point;
+        if (!mesh.point_ids.empty()) {  // the file's own numbers (Gmsh node tags)
+          const auto id = ids.find(g.point);
+          if (id == ids.end())
+            throw FileError(at + "point " + std::to_string(g.point) + " is not a node of the mesh (its nodes are numbered " +
+                            std::to_string(min_id) + " to " + std::to_string(max_id) + ")");
+          index = id->second;
+        } else if (g.point >= np) {
+          throw FileError(at + "point " + std::to_string(g.point) + " is out of range: the mesh has " + std::to_string(np) +
+                          " points (0 to " + std::to_string(np ? np - 1 : 0) + ")");
+        }
+        const auto it = std::lower_bound(patch->points.begin(), patch->points.end(), std::uint32_t(index));
+        if (it == patch->points.end() || *it != index)
           throw FileError(at + "point " + std::to_string(g.point) + " is not on patch '" + pm.patch + "'");
         const auto k = std::size_t(it - patch->points.begin());
         if (line[k])
@@ -115,7 +135,7 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
           const std::size_t missing = std::size_t(std::count(line.begin(), line.end(), std::size_t(0)));
           throw FileError(pm.file.string() + ": " + std::to_string(missing) + " of the " + std::to_string(line.size()) +
                           " points of patch '" + pm.patch + "' have no displacement; the first is point " +
-                          std::to_string(patch->points[k]));
+                          std::to_string(number(patch->points[k])));
         }
     }
     const bool fixed = pm.kind == PatchMotion::Kind::Fixed;
@@ -123,7 +143,7 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
       const std::uint32_t p = patch->points[k];
       const Vec3 dp = fixed ? Vec3::Zero() : (given.empty() ? pm.displacement(mesh.points[p]) : given[k]);
       if (!dp.allFinite())
-        throw FileError(pm.where + ": the displacement of point " + std::to_string(p) + " is not finite");
+        throw FileError(pm.where + ": the displacement of point " + std::to_string(number(p)) + " is not finite");
       if (who[p] < 0) {
         who[p] = std::int32_t(m);
         d[p] = dp;
@@ -138,7 +158,7 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
         continue;
       }
       if ((d[p] - dp).norm() > tol)
-        throw FileError(motion.file + ": point " + std::to_string(p) + " " + show(mesh.points[p]) + " is on patch '" +
+        throw FileError(motion.file + ": point " + std::to_string(number(p)) + " " + show(mesh.points[p]) + " is on patch '" +
                         other.patch + "', which moves it by " + show(d[p]) + ", and on patch '" + pm.patch +
                         "', which moves it by " + show(dp) +
                         ": give the two patches the same motion at their shared points");
@@ -243,7 +263,7 @@ double largest_safe_phase(const VolumeMesh& mesh, std::span<const Vec3> moved, d
   const auto ok = [&](double s) {
     const double w = s / phase;
     for (std::size_t i = 0; i < at.size(); ++i) at[i] = mesh.points[i] + w * (moved[i] - mesh.points[i]);
-    return poly_quality(mesh.poly, at).inverted_cells <= inverted_before;
+    return mesh_quality(mesh, at).inverted_cells() <= inverted_before;
   };
   double lo = 0, hi = phase;
   while (hi - lo > 1e-4 * std::abs(phase)) {

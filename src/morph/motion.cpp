@@ -79,7 +79,11 @@ Motion read_motion(const fs::path& path) {
   m.file = path.string();
   const JsonNode root(j, m.file);
   if (!j.is_object()) root.expected("an object with \"patches\"");
-  root.only({"radius", "kernel", "polynomial", "patches"});
+  root.only({"radius", "kernel", "polynomial", "patch_array", "patches"});
+  if (root.has("patch_array")) {
+    m.patch_array = root["patch_array"].string();
+    if (m.patch_array.empty()) root["patch_array"].expected("the name of an integer point or cell data array");
+  }
   if (root.has("radius")) m.radius = root["radius"].number(1e-150, 1e150);
   if (root.has("kernel")) {
     const auto k = parse_name<Kernel>(root["kernel"].string());

@@ -6,7 +6,8 @@
 //                "lower": {"translate": [0, 0.02, 0]},
 //                "flap": {"displacements": "flap.txt"}}}
 //
-// flap.txt: one line a point, "point_id dx dy dz" in the mesh's point numbering; '#' comments.
+// flap.txt: one line a point, "point_id dx dy dz" in the mesh's point numbering (Gmsh: node tags);
+// '#' comments. A VTK mesh's patches are the values of an integer data array: "patch_array": "NAME".
 #pragma once
 
 #include "csrbf/fit_options.hpp"
@@ -47,6 +48,8 @@ struct Motion {
   std::optional<double> radius;
   std::optional<Kernel> kernel;
   std::optional<Polynomial> polynomial;
+  /// VTK meshes: the integer point or cell data array whose values name the patches.
+  std::string patch_array;
   std::vector<PatchMotion> patches;  ///< by name
 };
 

@@ -1,12 +1,20 @@
-// Cell quality of a volume mesh, before and after a morph. For polyhedra (OpenFOAM), the measures
-// OpenFOAM's checkMesh computes, with its formulas (primitiveMeshTools: face centres and areas by
-// triangles about the face's mean point, cell centres and volumes by pyramids about an estimated
-// centre, non-orthogonality, skewness, face pyramids).
+// Cell quality of a volume mesh, before and after a morph.
+// - Polyhedra (OpenFOAM): the measures OpenFOAM's checkMesh computes, with its formulas
+//   (primitiveMeshTools: face centres and areas by triangles about the face's mean point, cell
+//   centres and volumes by pyramids about an estimated centre, non-orthogonality, skewness, face
+//   pyramids).
+// - Standard cells (VTK, Gmsh, CGNS): the scaled Jacobian, by Verdict through vtkMeshQuality for
+//   tetrahedra and hexahedra; for prisms and pyramids (which VTK 9.1's vtkMeshQuality does not
+//   measure) the same quantity computed here: the smallest corner Jacobian, each corner's three
+//   edges normalised. A cell with any corner Jacobian <= 0 is inverted. A mesh with no 3-D cells
+//   (a 2-D mesh) is measured by its triangles and quadrilaterals, signed against their normals
+//   before the morph.
 #pragma once
 
 #include "csrbf/morph/volume_mesh.hpp"
 
 #include <cstddef>
+#include <optional>
 #include <span>
 
 namespace csrbf::morph {
@@ -24,5 +32,33 @@ struct PolyQuality {
 
 /// The checkMesh measures of t over points. Parallel over faces; deterministic.
 PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points);
+
+struct CellQuality {
+  std::size_t cells = 0;  ///< cells measured (3-D ones; 2-D ones in a 2-D mesh)
+  std::size_t tetrahedra = 0, hexahedra = 0, prisms = 0, pyramids = 0, triangles = 0, quads = 0;
+  double min_scaled_jacobian = 1;  ///< in [-1, 1]; 1 for a perfect cell
+  double mean_scaled_jacobian = 1;
+  std::size_t inverted_cells = 0;  ///< cells with a corner Jacobian <= 0
+};
+
+/// reference: the points before the morph, which give 2-D cells their normals (may be points).
+CellQuality cell_quality(const CellTopology& t, std::span<const Vec3> points, std::span<const Vec3> reference);
+
+/// Puts each standard cell's corners in VTK's orientation where a file's convention differs (CGNS
+/// and Gmsh order a prism's corners the other way round): for each cell type, if most cells are
+/// mirrored in VTK's convention, all of that type are reordered. A mesh's own inverted cells stay
+/// inverted.
+void orient_cells(CellTopology& t, std::span<const Vec3> points);
+
+struct MeshQuality {
+  std::optional<PolyQuality> poly;
+  std::optional<CellQuality> cells;
+  std::size_t inverted_cells() const {
+    return (poly ? poly->inverted_cells : 0) + (cells ? cells->inverted_cells : 0);
+  }
+};
+
+/// The measures that apply to mesh's topology, over points.
+MeshQuality mesh_quality(const VolumeMesh& mesh, std::span<const Vec3> points);
 
 }  // namespace csrbf::morph

@@ -6,6 +6,7 @@
 #include "csrbf/types.hpp"
 
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -32,10 +33,30 @@ struct PolyTopology {
   std::size_t internal_faces() const { return neighbour.size(); }
 };
 
+/// Standard cells (VTK, Gmsh, CGNS) by their corner points, in VTK's cell types and corner order
+/// (VTK_TETRA 10, VTK_HEXAHEDRON 12, VTK_WEDGE 13, VTK_PYRAMID 14, and the 2-D VTK_TRIANGLE 5 and
+/// VTK_QUAD 9). Higher-order cells are kept by their corners.
+struct CellTopology {
+  std::vector<std::uint8_t> type;
+  std::vector<std::uint64_t> start{0};  ///< cells + 1 offsets into points
+  std::vector<std::uint32_t> points;
+
+  std::size_t size() const { return type.size(); }
+  void add(std::uint8_t t, std::span<const std::uint32_t> corners) {
+    type.push_back(t);
+    points.insert(points.end(), corners.begin(), corners.end());
+    start.push_back(points.size());
+  }
+};
+
 struct VolumeMesh {
   std::vector<Vec3> points;
+  /// The file's own number of each point, where it is not its index (Gmsh node tags): the ids a
+  /// displacements file uses. Empty: point i is number i.
+  std::vector<std::uint64_t> point_ids;
   std::vector<Patch> patches;
-  PolyTopology poly;
+  PolyTopology poly;  ///< OpenFOAM
+  CellTopology cells;  ///< the other formats
 
   /// The patch named name, or nullptr.
   const Patch* patch(const std::string& name) const {

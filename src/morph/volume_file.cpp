@@ -1,0 +1,58 @@
+#include "csrbf/morph/volume_file.hpp"
+
+#include "csrbf/io/error.hpp"
+#include "csrbf/morph/openfoam.hpp"
+#include "volume_formats.hpp"
+
+#include <algorithm>
+
+namespace fs = std::filesystem;
+
+namespace csrbf::morph {
+
+namespace detail {
+
+namespace {
+
+class FoamFile final : public VolumeFile {
+ public:
+  FoamFile(const fs::path& path, const OpenOptions& o) : case_(read_openfoam(path, o.max_file_bytes)) {}
+  const VolumeMesh& mesh() const override { return case_.mesh; }
+  std::string format() const override { return "openfoam"; }
+  std::string encoding() const override {
+    return std::string(case_.points_file.binary ? "binary" : "ascii") + (case_.points_file.gzip ? ", gzip" : "");
+  }
+  void write_copy(std::span<const Vec3> points, const fs::path& out) const override { write_openfoam_copy(case_, points, out); }
+  void write_in_place(std::span<const Vec3> points) const override { write_openfoam_in_place(case_, points); }
+  const FoamCase& foam() const { return case_; }
+
+ private:
+  FoamCase case_;
+};
+
+}  // namespace
+
+std::unique_ptr<VolumeFile> open_openfoam(const fs::path& path, const OpenOptions& o) {
+  return std::make_unique<FoamFile>(path, o);
+}
+
+}  // namespace detail
+
+std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions& options) {
+  std::error_code ec;
+  if (fs::is_directory(path, ec)) {
+    if (!is_openfoam(path))
+      throw io::FileError(path.string() + ": a folder, but not an OpenFOAM case (no constant/polyMesh, and no faces or "
+                                          "owner file)");
+    return detail::open_openfoam(path, options);
+  }
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (ext == ".vtu" || ext == ".vtk") return detail::open_vtk(path, options);
+  if (ext == ".msh") return detail::open_gmsh(path, options);
+  if (ext == ".cgns") return detail::open_cgns(path, options);
+  if (!fs::exists(path, ec)) throw io::FileError(path.string() + ": no such file or folder");
+  throw io::FileError(path.string() + ": unknown volume mesh format '" + ext + "' (csrbf morph reads " + kVolumeFormats + ")");
+}
+
+}  // namespace csrbf::morph

@@ -1,0 +1,13 @@
+// The readers and writers behind open_volume (private to csrbf::morph).
+#pragma once
+
+#include "csrbf/morph/volume_file.hpp"
+
+namespace csrbf::morph::detail {
+
+std::unique_ptr<VolumeFile> open_openfoam(const std::filesystem::path& path, const OpenOptions& o);
+std::unique_ptr<VolumeFile> open_vtk(const std::filesystem::path& path, const OpenOptions& o);
+std::unique_ptr<VolumeFile> open_gmsh(const std::filesystem::path& path, const OpenOptions& o);
+std::unique_ptr<VolumeFile> open_cgns(const std::filesystem::path& path, const OpenOptions& o);
+
+}  // namespace csrbf::morph::detail

@@ -1,0 +1,290 @@
+// .vtu and legacy .vtk unstructured grids, through VTK's own readers and writers: every point and
+// cell data array is kept, and so are the encoding (ASCII, binary, appended, the compressor) and
+// the points' data type; only the coordinates change.
+#include "volume_formats.hpp"
+
+#include "csrbf/io/atomic_file.hpp"
+#include "csrbf/io/error.hpp"
+
+#include <vtkCellData.h>
+#include <vtkCellType.h>
+#include <vtkCommand.h>
+#include <vtkDataArray.h>
+#include <vtkDoubleArray.h>
+#include <vtkExecutive.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkSmartPointer.h>
+#include <vtkUnstructuredGrid.h>
+#include <vtkUnstructuredGridReader.h>
+#include <vtkUnstructuredGridWriter.h>
+#include <vtkXMLUnstructuredGridReader.h>
+#include <vtkXMLUnstructuredGridWriter.h>
+
+#include <algorithm>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <map>
+#include <set>
+
+namespace fs = std::filesystem;
+
+namespace csrbf::morph::detail {
+
+namespace {
+
+using io::FileError;
+
+/// Collects the errors VTK reports on an algorithm (instead of printing them and going on).
+class ErrorCatcher : public vtkCommand {
+ public:
+  static ErrorCatcher* New() { return new ErrorCatcher; }
+  void Execute(vtkObject*, unsigned long, void* data) override {
+    if (message.empty() && data) message = static_cast<const char*>(data);
+  }
+  std::string message;
+};
+
+/// The first bytes of a file, to read the encoding VTK does not report.
+std::string head_of(const fs::path& p, std::size_t bytes) {
+  std::ifstream in(p, std::ios::binary);
+  std::string s(bytes, '\0');
+  in.read(s.data(), std::streamsize(bytes));
+  s.resize(std::size_t(in.gcount()));
+  return s;
+}
+
+/// A count stated in the file's text (an XML attribute or a legacy keyword line), checked before
+/// VTK allocates for it.
+void check_count(const std::string& head, const std::string& key, std::size_t bytes_each, double limit, const fs::path& file) {
+  for (std::size_t at = head.find(key); at != std::string::npos; at = head.find(key, at + 1)) {
+    std::size_t b = at + key.size();
+    while (b < head.size() && (head[b] == '"' || head[b] == ' ' || head[b] == '=')) ++b;
+    std::uint64_t n = 0;
+    const auto r = std::from_chars(head.data() + b, head.data() + head.size(), n);
+    if (r.ec == std::errc::result_out_of_range || (r.ec == std::errc() && double(n) * double(bytes_each) > limit))
+      throw FileError(file.string() + ": " + key + " " + head.substr(b, std::size_t(r.ptr - head.data()) - b) +
+                      " needs more than the " + std::to_string(std::uint64_t(limit)) + "-byte limit; refused");
+  }
+}
+
+class VtkFile final : public VolumeFile {
+ public:
+  VtkFile(const fs::path& path, const OpenOptions& o) : path_(path), xml_(path.extension() == ".vtu") {
+    io::check_readable(path, "a VTK unstructured grid");
+    std::error_code ec;
+    const double size = double(fs::file_size(path, ec));
+    if (size > o.max_file_bytes)
+      throw FileError(path.string() + ": " + std::to_string(std::uint64_t(size)) + " bytes, more than the limit of " +
+                      std::to_string(std::uint64_t(o.max_file_bytes)));
+    const std::string head = head_of(path, 1 << 16);
+    vtkNew<ErrorCatcher> errors;
+    if (xml_) {
+      if (head.find("<VTKFile") == std::string::npos || head.find("UnstructuredGrid") == std::string::npos)
+        throw FileError(path.string() + ": not a VTK XML unstructured grid (.vtu)");
+      check_count(head, "NumberOfPoints", 24, o.max_file_bytes, path);
+      check_count(head, "NumberOfCells", 16, o.max_file_bytes, path);
+      appended_ = head.find("format=\"appended\"") != std::string::npos;
+      ascii_ = !appended_ && head.find("format=\"binary\"") == std::string::npos;
+      uint64_headers_ = head.find("header_type=\"UInt64\"") != std::string::npos;
+      for (const char* c : {"vtkZLibDataCompressor", "vtkLZ4DataCompressor", "vtkLZMADataCompressor"})
+        if (head.find(c) != std::string::npos) compressor_ = c;
+      vtkNew<vtkXMLUnstructuredGridReader> reader;
+      reader->AddObserver(vtkCommand::ErrorEvent, errors);
+      reader->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, errors);
+      reader->SetFileName(path.c_str());
+      reader->Update();
+      grid_ = reader->GetOutput();
+    } else {
+      if (head.rfind("# vtk DataFile", 0) != 0) throw FileError(path.string() + ": not a legacy VTK file (no '# vtk DataFile' line)");
+      if (head.find("UNSTRUCTURED_GRID") == std::string::npos)
+        throw FileError(path.string() + ": a legacy VTK file, but not an UNSTRUCTURED_GRID");
+      ascii_ = head.find("\nASCII") != std::string::npos;
+      legacy_42_ = head.rfind("# vtk DataFile Version 4", 0) == 0 || head.rfind("# vtk DataFile Version 3", 0) == 0 ||
+                   head.rfind("# vtk DataFile Version 2", 0) == 0;
+      // At least 2 bytes a coordinate in ASCII, 4 in binary; 2 a cell entry.
+      check_count(head, "POINTS ", ascii_ ? 6 : 12, std::max(size, 1.0), path);
+      check_count(head, "CELLS ", 2, std::max(size, 1.0), path);
+      vtkNew<vtkUnstructuredGridReader> reader;
+      reader->AddObserver(vtkCommand::ErrorEvent, errors);
+      reader->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, errors);
+      reader->SetFileName(path.c_str());
+      reader->ReadAllScalarsOn();
+      reader->ReadAllVectorsOn();
+      reader->ReadAllNormalsOn();
+      reader->ReadAllTensorsOn();
+      reader->ReadAllColorScalarsOn();
+      reader->ReadAllTCoordsOn();
+      reader->ReadAllFieldsOn();
+      reader->Update();
+      grid_ = reader->GetOutput();
+    }
+    if (!errors->message.empty())
+      throw FileError(path.string() + ": VTK cannot read it: " + first_line(errors->message));
+    if (!grid_ || !grid_->GetPoints() || grid_->GetNumberOfPoints() == 0)
+      throw FileError(path.string() + ": no points (empty, truncated or not an unstructured grid)");
+    fill_mesh(o);
+  }
+
+  const VolumeMesh& mesh() const override { return mesh_; }
+  std::string format() const override { return xml_ ? "vtu" : "vtk"; }
+  std::string encoding() const override {
+    if (!xml_) return ascii_ ? "ascii" : "binary";
+    std::string e = ascii_ ? "ascii" : appended_ ? "appended" : "binary";
+    if (!compressor_.empty() && !ascii_) e += ", " + compressor_;
+    return e;
+  }
+
+  void write_copy(std::span<const Vec3> points, const fs::path& out) const override {
+    io::check_output_path(out);
+    std::error_code ec;
+    if (fs::exists(out, ec)) throw FileError("cannot write '" + out.string() + "': it exists (use --in-place to rewrite the input)");
+    write(points, out);
+  }
+  void write_in_place(std::span<const Vec3> points) const override { write(points, path_); }
+
+ private:
+  static std::string first_line(const std::string& s) {
+    std::string t = s.substr(0, s.find('\n', s.find('\n') + 1));
+    std::replace(t.begin(), t.end(), '\n', ' ');
+    return t.substr(0, 300);
+  }
+
+  void fill_mesh(const OpenOptions& o) {
+    const vtkIdType n = grid_->GetNumberOfPoints();
+    mesh_.points.resize(std::size_t(n));
+    for (vtkIdType i = 0; i < n; ++i) {
+      grid_->GetPoint(i, mesh_.points[std::size_t(i)].data());
+      if (!mesh_.points[std::size_t(i)].allFinite())
+        throw FileError(path_.string() + ": point " + std::to_string(i) + " has a coordinate that is not finite");
+    }
+    const vtkIdType cells = grid_->GetNumberOfCells();
+    std::vector<std::uint32_t> corners;
+    for (vtkIdType c = 0; c < cells; ++c) {
+      const int type = grid_->GetCellType(c);
+      vtkIdType npts = 0;
+      const vtkIdType* ids = nullptr;
+      grid_->GetCellPoints(c, npts, ids);
+      int keep = 0;
+      std::uint8_t as = std::uint8_t(type);
+      switch (type) {
+        case VTK_TETRA: keep = 4; break;
+        case VTK_QUADRATIC_TETRA: keep = 4, as = VTK_TETRA; break;
+        case VTK_HEXAHEDRON: keep = 8; break;
+        case VTK_QUADRATIC_HEXAHEDRON: case VTK_TRIQUADRATIC_HEXAHEDRON: keep = 8, as = VTK_HEXAHEDRON; break;
+        case VTK_WEDGE: keep = 6; break;
+        case VTK_QUADRATIC_WEDGE: keep = 6, as = VTK_WEDGE; break;
+        case VTK_PYRAMID: keep = 5; break;
+        case VTK_QUADRATIC_PYRAMID: keep = 5, as = VTK_PYRAMID; break;
+        case VTK_TRIANGLE: keep = 3; break;
+        case VTK_QUADRATIC_TRIANGLE: keep = 3, as = VTK_TRIANGLE; break;
+        case VTK_QUAD: keep = 4; break;
+        case VTK_QUADRATIC_QUAD: case VTK_BIQUADRATIC_QUAD: keep = 4, as = VTK_QUAD; break;
+        default: break;  // lines, vertices, polyhedra: moved, not measured
+      }
+      if (keep == 0 || npts < keep) continue;
+      corners.assign(ids, ids + keep);
+      mesh_.cells.add(as, corners);
+    }
+    if (o.patch_array.empty()) return;  // no patches: the motion file must name the array
+    vtkDataArray* array = grid_->GetPointData()->GetArray(o.patch_array.c_str());
+    const bool on_points = array != nullptr;
+    if (!array) array = grid_->GetCellData()->GetArray(o.patch_array.c_str());
+    if (!array) {
+      std::string names;
+      for (vtkFieldData* d : {static_cast<vtkFieldData*>(grid_->GetPointData()), static_cast<vtkFieldData*>(grid_->GetCellData())})
+        for (int i = 0; i < d->GetNumberOfArrays(); ++i)
+          if (d->GetArrayName(i)) names += (names.empty() ? "" : ", ") + std::string(d->GetArrayName(i));
+      throw FileError(path_.string() + ": no point or cell data array named '" + o.patch_array +
+                      "' (the motion file's patch_array); its arrays: " + (names.empty() ? "(none)" : names));
+    }
+    if (array->GetNumberOfComponents() != 1 || array->GetDataType() == VTK_FLOAT || array->GetDataType() == VTK_DOUBLE)
+      throw FileError(path_.string() + ": array '" + o.patch_array + "' must be one integer a " +
+                      (on_points ? "point" : "cell") + " to name patches");
+    std::map<long long, std::set<std::uint32_t>> groups;
+    if (on_points) {
+      for (vtkIdType i = 0; i < n; ++i) groups[static_cast<long long>(array->GetTuple1(i))].insert(std::uint32_t(i));
+    } else {
+      for (vtkIdType c = 0; c < cells; ++c) {
+        vtkIdType npts = 0;
+        const vtkIdType* ids = nullptr;
+        grid_->GetCellPoints(c, npts, ids);
+        auto& g = groups[static_cast<long long>(array->GetTuple1(c))];
+        for (vtkIdType k = 0; k < npts; ++k) g.insert(std::uint32_t(ids[k]));
+      }
+    }
+    for (const auto& [value, pts] : groups) {
+      Patch p;
+      p.name = std::to_string(value);
+      p.points.assign(pts.begin(), pts.end());
+      mesh_.patches.push_back(std::move(p));
+    }
+  }
+
+  void write(std::span<const Vec3> points, const fs::path& target) const {
+    // The grid is shared with its reader's output: a shallow copy with new points of the same type.
+    vtkNew<vtkUnstructuredGrid> grid;
+    grid->ShallowCopy(grid_);
+    vtkNew<vtkPoints> pts;
+    pts->SetDataType(grid_->GetPoints()->GetDataType());
+    pts->SetNumberOfPoints(vtkIdType(points.size()));
+    for (std::size_t i = 0; i < points.size(); ++i) pts->SetPoint(vtkIdType(i), points[i].data());
+    grid->SetPoints(pts);
+    io::write_atomically_via_folder(target, [&](const fs::path& path) {
+      vtkNew<ErrorCatcher> errors;
+      int ok = 0;
+      if (xml_) {
+        vtkNew<vtkXMLUnstructuredGridWriter> w;
+        w->AddObserver(vtkCommand::ErrorEvent, errors);
+        w->SetFileName(path.c_str());
+        w->SetInputData(grid);
+        if (ascii_)
+          w->SetDataModeToAscii();
+        else if (appended_)
+          w->SetDataModeToAppended();
+        else
+          w->SetDataModeToBinary();
+        if (uint64_headers_) w->SetHeaderTypeToUInt64();
+        if (compressor_.empty())
+          w->SetCompressorTypeToNone();
+        else if (compressor_ == "vtkLZ4DataCompressor")
+          w->SetCompressorTypeToLZ4();
+        else if (compressor_ == "vtkLZMADataCompressor")
+          w->SetCompressorTypeToLZMA();
+        else
+          w->SetCompressorTypeToZLib();
+        ok = w->Write();
+      } else {
+        vtkNew<vtkUnstructuredGridWriter> w;
+        w->AddObserver(vtkCommand::ErrorEvent, errors);
+        w->SetFileName(path.c_str());
+        w->SetInputData(grid);
+        if (ascii_)
+          w->SetFileTypeToASCII();
+        else
+          w->SetFileTypeToBinary();
+        if (legacy_42_) w->SetFileVersion(vtkUnstructuredGridWriter::VTK_LEGACY_READER_VERSION_4_2);
+        ok = w->Write();
+      }
+      std::error_code ec;
+      if (!ok || !errors->message.empty() || fs::file_size(path, ec) == 0 || ec)
+        throw FileError("cannot write '" + target.string() + "': VTK's writer failed" +
+                        (errors->message.empty() ? std::string() : ": " + first_line(errors->message)));
+    });
+  }
+
+  fs::path path_;
+  bool xml_;
+  bool ascii_ = false, appended_ = false, uint64_headers_ = false, legacy_42_ = false;
+  std::string compressor_;
+  vtkSmartPointer<vtkUnstructuredGrid> grid_;
+  VolumeMesh mesh_;
+};
+
+}  // namespace
+
+std::unique_ptr<VolumeFile> open_vtk(const fs::path& path, const OpenOptions& o) { return std::make_unique<VtkFile>(path, o); }
+
+}  // namespace csrbf::morph::detail
