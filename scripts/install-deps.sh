@@ -26,6 +26,8 @@ packages=(
   clang-format           # scripts/check-format.sh: CI checks the tree's formatting
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png
   zlib1g-dev             # morph: gzip'd OpenFOAM meshes
+  libgmsh-dev libcgns-dev   # morph: Gmsh .msh and CGNS meshes
+  python3-gmsh python3-meshio python3-h5py gmsh   # tests: Gmsh, meshio (h5py: its CGNS reader) read the morphed meshes
   openfoam openfoam-examples   # tests: checkMesh, blockMesh, foamFormatConvert judge `csrbf morph`; the airFoil2D and pitzDaily tutorials
 )
 

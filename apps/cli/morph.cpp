@@ -31,24 +31,29 @@ nlohmann::json quality_json(const morph::MeshQuality& m) {
   j["inverted_cells"] = m.inverted_cells();
   if (m.cells) {
     const morph::CellQuality& c = *m.cells;
-    j["cells"] = {{"measured", c.cells},         {"tetrahedra", c.tetrahedra},
-                  {"hexahedra", c.hexahedra},    {"prisms", c.prisms},
-                  {"pyramids", c.pyramids},      {"triangles", c.triangles},
-                  {"quads", c.quads},            {"min_scaled_jacobian", c.min_scaled_jacobian},
-                  {"mean_scaled_jacobian", c.mean_scaled_jacobian}, {"inverted_cells", c.inverted_cells}};
+    j["cells"] = {{"measured", c.cells},
+                  {"tetrahedra", c.tetrahedra},
+                  {"hexahedra", c.hexahedra},
+                  {"prisms", c.prisms},
+                  {"pyramids", c.pyramids},
+                  {"triangles", c.triangles},
+                  {"quads", c.quads},
+                  {"min_scaled_jacobian", c.min_scaled_jacobian},
+                  {"mean_scaled_jacobian", c.mean_scaled_jacobian},
+                  {"inverted_cells", c.inverted_cells}};
   }
   if (!m.poly) return j;
   const morph::PolyQuality& q = *m.poly;
   j["polyhedra"] = {{"cells", q.cells},
-          {"faces", q.faces},
-          {"max_non_orthogonality", q.max_non_orthogonality},
-          {"mean_non_orthogonality", q.mean_non_orthogonality},
-          {"max_skewness", q.max_skewness},
-          {"negative_volumes", q.negative_volumes},
-          {"bad_face_pyramids", q.bad_pyramids},
-          {"inverted_cells", q.inverted_cells},
-          {"min_volume", q.min_volume},
-          {"total_volume", q.total_volume}};
+                    {"faces", q.faces},
+                    {"max_non_orthogonality", q.max_non_orthogonality},
+                    {"mean_non_orthogonality", q.mean_non_orthogonality},
+                    {"max_skewness", q.max_skewness},
+                    {"negative_volumes", q.negative_volumes},
+                    {"bad_face_pyramids", q.bad_pyramids},
+                    {"inverted_cells", q.inverted_cells},
+                    {"min_volume", q.min_volume},
+                    {"total_volume", q.total_volume}};
   return j;
 }
 
@@ -155,8 +160,9 @@ int run_morph(const MorphArgs& a) {
         return e;
       };
       if (ext(a.out) != ext(a.mesh))
-        throw UsageError("morph: -o " + a.out + ": the output is written in the input's format, so it needs the extension '" +
-                         ext(a.mesh) + "'");
+        throw UsageError("morph: -o " + a.out +
+                         ": the output is written in the input's format, so it needs the extension '" + ext(a.mesh) +
+                         "'");
     }
   }
   const morph::Motion motion = morph::read_motion(a.motion);
@@ -181,10 +187,11 @@ int run_morph(const MorphArgs& a) {
   const auto file = morph::open_volume(a.mesh, open);
   const morph::VolumeMesh& mesh = file->mesh();
   if (mesh.patches.empty())
-    throw io::FileError(a.mesh + ": the mesh has no patches" +
-                        (file->format() == "vtu" || file->format() == "vtk"
-                             ? std::string(": name an integer point or cell data array as \"patch_array\" in ") + a.motion
-                             : std::string()));
+    throw io::FileError(
+        a.mesh + ": the mesh has no patches" +
+        (file->format() == "vtu" || file->format() == "vtk"
+             ? std::string(": name an integer point or cell data array as \"patch_array\" in ") + a.motion
+             : std::string()));
   const double read_ms = ms_since(t_read);
   const auto t_q = Clock::now();
   const morph::MeshQuality before = morph::mesh_quality(mesh, mesh.points);
@@ -265,7 +272,8 @@ int run_morph(const MorphArgs& a) {
               << quality_table(before, after) << "  time: read " << read_ms << " ms, fit " << rep.seconds_fit * 1e3
               << " ms, evaluate " << rep.seconds_evaluate * 1e3 << " ms, quality " << quality_ms << " ms, write "
               << write_ms << " ms, total " << total_ms << " ms\n";
-    if (write) std::cout << "  -> " << target << (inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
+    if (write)
+      std::cout << "  -> " << target << (inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
   }
   if (!write) {
     std::cerr << "csrbf: error: the morph inverts " << after.inverted_cells() - before.inverted_cells() << " cells ("

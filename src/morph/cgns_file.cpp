@@ -25,7 +25,8 @@ using io::FileError;
 class Handle {
  public:
   Handle(const fs::path& p, int mode, const std::string& what) {
-    if (cg_open(p.c_str(), mode, &fn_) != CG_OK) throw FileError(what + ": the CGNS library cannot open it: " + cg_get_error());
+    if (cg_open(p.c_str(), mode, &fn_) != CG_OK)
+      throw FileError(what + ": the CGNS library cannot open it: " + cg_get_error());
   }
   ~Handle() {
     if (fn_ >= 0) cg_close(fn_);
@@ -46,13 +47,30 @@ class Handle {
 /// VTK's cell type and the number of corners of a CGNS element type (0 for others).
 std::pair<std::uint8_t, int> cell_of(CGNS_ENUMT(ElementType_t) t) {
   switch (t) {
-    case CGNS_ENUMV(TETRA_4): case CGNS_ENUMV(TETRA_10): return {VTK_TETRA, 4};
-    case CGNS_ENUMV(PYRA_5): case CGNS_ENUMV(PYRA_13): case CGNS_ENUMV(PYRA_14): return {VTK_PYRAMID, 5};
-    case CGNS_ENUMV(PENTA_6): case CGNS_ENUMV(PENTA_15): case CGNS_ENUMV(PENTA_18): return {VTK_WEDGE, 6};
-    case CGNS_ENUMV(HEXA_8): case CGNS_ENUMV(HEXA_20): case CGNS_ENUMV(HEXA_27): return {VTK_HEXAHEDRON, 8};
-    case CGNS_ENUMV(TRI_3): case CGNS_ENUMV(TRI_6): return {VTK_TRIANGLE, 3};
-    case CGNS_ENUMV(QUAD_4): case CGNS_ENUMV(QUAD_8): case CGNS_ENUMV(QUAD_9): return {VTK_QUAD, 4};
-    default: return {0, 0};
+    case CGNS_ENUMV(TETRA_4):
+    case CGNS_ENUMV(TETRA_10):
+      return {VTK_TETRA, 4};
+    case CGNS_ENUMV(PYRA_5):
+    case CGNS_ENUMV(PYRA_13):
+    case CGNS_ENUMV(PYRA_14):
+      return {VTK_PYRAMID, 5};
+    case CGNS_ENUMV(PENTA_6):
+    case CGNS_ENUMV(PENTA_15):
+    case CGNS_ENUMV(PENTA_18):
+      return {VTK_WEDGE, 6};
+    case CGNS_ENUMV(HEXA_8):
+    case CGNS_ENUMV(HEXA_20):
+    case CGNS_ENUMV(HEXA_27):
+      return {VTK_HEXAHEDRON, 8};
+    case CGNS_ENUMV(TRI_3):
+    case CGNS_ENUMV(TRI_6):
+      return {VTK_TRIANGLE, 3};
+    case CGNS_ENUMV(QUAD_4):
+    case CGNS_ENUMV(QUAD_8):
+    case CGNS_ENUMV(QUAD_9):
+      return {VTK_QUAD, 4};
+    default:
+      return {0, 0};
   }
 }
 
@@ -85,7 +103,8 @@ class CgnsFile final : public VolumeFile {
         cgsize_t size[9] = {};
         check(cg_zone_read(fn, b, z, zname, size), "zone " + std::to_string(z));
         const std::string where = path.string() + ": zone '" + zname + "'";
-        if (zt != CGNS_ENUMV(Unstructured)) throw FileError(where + ": a structured zone (csrbf reads unstructured zones)");
+        if (zt != CGNS_ENUMV(Unstructured))
+          throw FileError(where + ": a structured zone (csrbf reads unstructured zones)");
         const std::size_t nv = std::size_t(size[0]);
         if (double(nv) * 24.0 > o.max_file_bytes || double(mesh_.points.size() + nv) >= 4294967295.0)
           throw FileError(where + ": " + std::to_string(nv) + " vertices pass the memory limit");
@@ -119,11 +138,13 @@ class CgnsFile final : public VolumeFile {
           CGNS_ENUMT(ElementType_t) et;
           cgsize_t start = 0, end = 0;
           int nbndry = 0, parent = 0;
-          check(cg_section_read(fn, b, z, s, sname, &et, &start, &end, &nbndry, &parent), where + ": section " + std::to_string(s));
+          check(cg_section_read(fn, b, z, s, sname, &et, &start, &end, &nbndry, &parent),
+                where + ": section " + std::to_string(s));
           cgsize_t data = 0;
           check(cg_ElementDataSize(fn, b, z, s, &data), where + ": section '" + sname + "'");
           if (double(data) * 4.0 > o.max_file_bytes || data < 0 || end < start)
-            throw FileError(where + ": section '" + std::string(sname) + "': " + std::to_string(data) + " entries pass the limit");
+            throw FileError(where + ": section '" + std::string(sname) + "': " + std::to_string(data) +
+                            " entries pass the limit");
           std::vector<cgsize_t> conn(static_cast<std::size_t>(data));
           if (et == CGNS_ENUMV(NGON_n) || et == CGNS_ENUMV(NFACE_n)) continue;  // polyhedra: moved, not measured
           check(cg_elements_read(fn, b, z, s, conn.data(), nullptr), where + ": section '" + sname + "'");
@@ -136,13 +157,14 @@ class CgnsFile final : public VolumeFile {
             }
             int npe = 0;
             if (cg_npe(t, &npe) != CG_OK || npe <= 0 || at + std::size_t(npe) > conn.size())
-              throw FileError(where + ": section '" + std::string(sname) + "': element " + std::to_string(e) + " has an unknown type or ends early");
+              throw FileError(where + ": section '" + std::string(sname) + "': element " + std::to_string(e) +
+                              " has an unknown type or ends early");
             std::vector<std::uint32_t> nodes(static_cast<std::size_t>(npe));
             for (int k = 0; k < npe; ++k) {
               const cgsize_t v = conn[at + std::size_t(k)];
               if (v < 1 || std::size_t(v) > nv)
-                throw FileError(where + ": section '" + std::string(sname) + "': element " + std::to_string(e) + " uses vertex " +
-                                std::to_string(v) + ", but the zone has " + std::to_string(nv));
+                throw FileError(where + ": section '" + std::string(sname) + "': element " + std::to_string(e) +
+                                " uses vertex " + std::to_string(v) + ", but the zone has " + std::to_string(nv));
               nodes[std::size_t(k)] = std::uint32_t(zone.first + std::size_t(v) - 1);
             }
             at += std::size_t(npe);
@@ -166,9 +188,11 @@ class CgnsFile final : public VolumeFile {
                 where + ": boundary condition " + std::to_string(bc));
           CGNS_ENUMT(GridLocation_t) loc = CGNS_ENUMV(Vertex);
           cg_boco_gridlocation_read(fn, b, z, bc, &loc);
-          if (npnts < 0 || double(npnts) * 4.0 > o.max_file_bytes) throw FileError(where + ": boundary condition '" + bname + "' is too large");
+          if (npnts < 0 || double(npnts) * 4.0 > o.max_file_bytes)
+            throw FileError(where + ": boundary condition '" + bname + "' is too large");
           std::vector<cgsize_t> pnts(static_cast<std::size_t>(npnts));
-          check(cg_boco_read(fn, b, z, bc, pnts.data(), nullptr), where + ": boundary condition '" + std::string(bname) + "'");
+          check(cg_boco_read(fn, b, z, bc, pnts.data(), nullptr),
+                where + ": boundary condition '" + std::string(bname) + "'");
           std::vector<cgsize_t> ids;
           const bool range = ptset == CGNS_ENUMV(PointRange) || ptset == CGNS_ENUMV(ElementRange);
           if (range && pnts.size() == 2) {
@@ -176,26 +200,27 @@ class CgnsFile final : public VolumeFile {
           } else {
             ids = pnts;
           }
-          const bool by_element = ptset == CGNS_ENUMV(ElementList) || ptset == CGNS_ENUMV(ElementRange) ||
-                                  (loc != CGNS_ENUMV(Vertex));
+          const bool by_element =
+              ptset == CGNS_ENUMV(ElementList) || ptset == CGNS_ENUMV(ElementRange) || (loc != CGNS_ENUMV(Vertex));
           std::set<std::uint32_t> pts;
           for (const cgsize_t id : ids) {
             if (by_element) {
               const auto it = elements.find(id);
               if (it == elements.end())
-                throw FileError(where + ": boundary condition '" + std::string(bname) + "' names element " + std::to_string(id) + ", which no section holds");
+                throw FileError(where + ": boundary condition '" + std::string(bname) + "' names element " +
+                                std::to_string(id) + ", which no section holds");
               pts.insert(it->second.begin(), it->second.end());
             } else {
               if (id < 1 || std::size_t(id) > nv)
-                throw FileError(where + ": boundary condition '" + std::string(bname) + "' names vertex " + std::to_string(id) +
-                                ", but the zone has " + std::to_string(nv));
+                throw FileError(where + ": boundary condition '" + std::string(bname) + "' names vertex " +
+                                std::to_string(id) + ", but the zone has " + std::to_string(nv));
               pts.insert(std::uint32_t(zone.first + std::size_t(id) - 1));
             }
           }
           patches[bname].insert(pts.begin(), pts.end());
           char family[64] = {};
-          if (cg_goto(fn, b, "Zone_t", z, "ZoneBC_t", 1, "BC_t", bc, "end") == CG_OK && cg_famname_read(family) == CG_OK &&
-              family[0] && std::string(family) != bname)
+          if (cg_goto(fn, b, "Zone_t", z, "ZoneBC_t", 1, "BC_t", bc, "end") == CG_OK &&
+              cg_famname_read(family) == CG_OK && family[0] && std::string(family) != bname)
             patches[family].insert(pts.begin(), pts.end());
         }
         zones_.push_back(zone);
@@ -219,7 +244,8 @@ class CgnsFile final : public VolumeFile {
   void write_copy(std::span<const Vec3> points, const fs::path& out) const override {
     io::check_output_path(out);
     std::error_code ec;
-    if (fs::exists(out, ec)) throw FileError("cannot write '" + out.string() + "': it exists (use --in-place to rewrite the input)");
+    if (fs::exists(out, ec))
+      throw FileError("cannot write '" + out.string() + "': it exists (use --in-place to rewrite the input)");
     write(points, out);
   }
   void write_in_place(std::span<const Vec3> points) const override { write(points, path_); }
@@ -262,6 +288,8 @@ class CgnsFile final : public VolumeFile {
 
 }  // namespace
 
-std::unique_ptr<VolumeFile> open_cgns(const fs::path& path, const OpenOptions& o) { return std::make_unique<CgnsFile>(path, o); }
+std::unique_ptr<VolumeFile> open_cgns(const fs::path& path, const OpenOptions& o) {
+  return std::make_unique<CgnsFile>(path, o);
+}
 
 }  // namespace csrbf::morph::detail

@@ -1,5 +1,6 @@
-// Gmsh .msh 2.2 and 4.1, ASCII or binary, through Gmsh's library (libgmsh): physical groups are
-// the patches, node tags the point numbers; the output keeps the version and the encoding.
+// Gmsh .msh 2.2 and 4.1, ASCII or binary, read through Gmsh's library (libgmsh): physical groups
+// are the patches, node tags the point numbers. The output is the input with the coordinates of
+// its $Nodes section replaced, every other byte kept (version, encoding, numbering, elements).
 #include "volume_formats.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
@@ -9,7 +10,9 @@
 #include <gmsh.h>
 #include <vtkCellType.h>
 
+#include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <mutex>
@@ -56,7 +59,8 @@ Header check_header(const fs::path& path, double max_bytes) {
   if (size > max_bytes)
     throw FileError(path.string() + ": " + std::to_string(std::uint64_t(size)) + " bytes, more than the limit of " +
                     std::to_string(std::uint64_t(max_bytes)));
-  if (head.rfind("$MeshFormat", 0) != 0) throw FileError(path.string() + ": not a Gmsh mesh (no $MeshFormat at the start)");
+  if (head.rfind("$MeshFormat", 0) != 0)
+    throw FileError(path.string() + ": not a Gmsh mesh (no $MeshFormat at the start)");
   Header h;
   const char* p = head.data() + std::strlen("$MeshFormat");
   while (*p == '\n' || *p == '\r') ++p;
@@ -125,7 +129,8 @@ class GmshFile final : public VolumeFile {
   void write_copy(std::span<const Vec3> points, const fs::path& out) const override {
     io::check_output_path(out);
     std::error_code ec;
-    if (fs::exists(out, ec)) throw FileError("cannot write '" + out.string() + "': it exists (use --in-place to rewrite the input)");
+    if (fs::exists(out, ec))
+      throw FileError("cannot write '" + out.string() + "': it exists (use --in-place to rewrite the input)");
     write(points, out);
   }
   void write_in_place(std::span<const Vec3> points) const override { write(points, path_); }
@@ -136,7 +141,7 @@ class GmshFile final : public VolumeFile {
     std::vector<double> coord, param;
     gmsh::model::mesh::getNodes(tags, coord, param, -1, -1, false, false);
     if (tags.empty()) throw FileError(path_.string() + ": no nodes");
-    std::unordered_map<std::size_t, std::uint32_t> index;
+    auto& index = index_;
     index.reserve(tags.size());
     mesh_.points.resize(tags.size());
     mesh_.point_ids.resize(tags.size());
@@ -163,7 +168,8 @@ class GmshFile final : public VolumeFile {
           const auto it = index.find(node_tags[t][e * std::size_t(nodes) + std::size_t(k)]);
           if (it == index.end())
             throw FileError(path_.string() + ": element " + std::to_string(element_tags[t][e]) + " uses node " +
-                            std::to_string(node_tags[t][e * std::size_t(nodes) + std::size_t(k)]) + ", which is not defined");
+                            std::to_string(node_tags[t][e * std::size_t(nodes) + std::size_t(k)]) +
+                            ", which is not defined");
           corners.push_back(it->second);
         }
         mesh_.cells.add(vt, corners);
@@ -200,36 +206,151 @@ class GmshFile final : public VolumeFile {
     }
   }
 
-  void write(std::span<const Vec3> points, const fs::path& target) const {
-    io::write_atomically_via_folder(target, [&](const fs::path& path) {
-      std::lock_guard<std::mutex> lock(gmsh_lock());
-      start_gmsh();
-      gmsh::clear();
-      try {
-        gmsh::open(path_.string());
-        for (std::size_t i = 0; i < points.size(); ++i)
-          gmsh::model::mesh::setNode(mesh_.point_ids[i], {points[i].x(), points[i].y(), points[i].z()}, {});
-        gmsh::option::setNumber("Mesh.MshFileVersion", header_.version >= 4.0 ? 4.1 : 2.2);
-        gmsh::option::setNumber("Mesh.Binary", header_.binary ? 1 : 0);
-        gmsh::option::setNumber("Mesh.SaveAll", 1);
-        gmsh::write(path.string());
-      } catch (const std::string& e) {
-        gmsh::clear();
-        throw FileError("cannot write '" + target.string() + "': Gmsh: " + e);
+  /// The file with its $Nodes coordinates replaced: every other byte as it was (Gmsh's own writer
+  /// renumbers the nodes of a 2.2 file and drops the elements outside physical groups).
+  std::string rewritten(std::span<const Vec3> points) const {
+    std::string t = io::read_input(path_, "a Gmsh mesh");
+    const std::string name = path_.string();
+    std::size_t at = t.rfind("$Nodes", 0) == 0 ? 0 : t.find("\n$Nodes");
+    if (at == std::string::npos) throw FileError(name + ": no $Nodes section");
+    at = t.find('\n', at + 1) + 1;
+    std::size_t written = 0;
+    const auto place = [&](std::uint64_t tag) -> const Vec3& {
+      const auto it = index_.find(tag);
+      if (it == index_.end()) throw FileError(name + ": $Nodes: node " + std::to_string(tag) + " was not read");
+      ++written;
+      return points[it->second];
+    };
+    const auto need = [&](std::size_t bytes) {
+      if (at + bytes > t.size()) throw FileError(name + ": $Nodes ends early (the file changed since it was read?)");
+    };
+    char buf[64];
+    // ASCII: the line's first three numbers after skip tokens are replaced where their value changed.
+    const auto ascii_line = [&](std::size_t skip, const Vec3& p) {
+      const std::size_t end = t.find('\n', at);
+      if (end == std::string::npos) throw FileError(name + ": $Nodes ends early");
+      std::string line;
+      std::size_t i = at, token = 0;
+      while (i < end) {
+        if (t[i] == ' ' || t[i] == '\t' || t[i] == '\r') {
+          line += t[i++];
+          continue;
+        }
+        std::size_t e = i;
+        while (e < end && t[e] != ' ' && t[e] != '\t' && t[e] != '\r') ++e;
+        if (token >= skip && token < skip + 3) {
+          double old = 0;
+          std::from_chars(t.data() + i, t.data() + e, old);
+          const double v = p[int(token - skip)];
+          if (old == v && std::signbit(old) == std::signbit(v)) {
+            line.append(t, i, e - i);
+          } else {
+            line.append(buf, std::size_t(std::to_chars(buf, buf + sizeof buf, v).ptr - buf));
+          }
+        } else {
+          line.append(t, i, e - i);
+        }
+        ++token;
+        i = e;
       }
-      gmsh::clear();
-      std::error_code ec;
-      if (fs::file_size(path, ec) == 0 || ec) throw FileError("cannot write '" + target.string() + "': Gmsh wrote nothing");
-    });
+      if (token < skip + 3) throw FileError(name + ": $Nodes: a line with fewer than 3 coordinates");
+      t.replace(at, end - at, line);
+      at += line.size() + 1;
+    };
+    const auto read_line_numbers = [&](std::size_t count) {
+      const std::size_t end = t.find('\n', at);
+      std::vector<std::uint64_t> v;
+      const char* q = t.data() + at;
+      for (std::size_t k = 0; k < count; ++k) {
+        while (q < t.data() + end && (*q == ' ' || *q == '\t')) ++q;
+        std::uint64_t x = 0;
+        const auto r = std::from_chars(q, t.data() + end, x);
+        if (r.ec != std::errc()) throw FileError(name + ": $Nodes: a malformed line");
+        v.push_back(x);
+        q = r.ptr;
+      }
+      at = end + 1;
+      return v;
+    };
+    const auto put = [&](const Vec3& p) {
+      need(24);
+      std::memcpy(t.data() + at, p.data(), 24);
+      at += 24;
+    };
+    if (header_.version < 4.0) {
+      const std::uint64_t n = read_line_numbers(1)[0];
+      for (std::uint64_t k = 0; k < n; ++k) {
+        if (header_.binary) {
+          need(4);
+          std::int32_t tag;
+          std::memcpy(&tag, t.data() + at, 4);
+          at += 4;
+          put(place(std::uint64_t(tag)));
+        } else {
+          std::uint64_t tag = 0;
+          std::from_chars(t.data() + at, t.data() + t.size(), tag);
+          ascii_line(1, place(tag));
+        }
+      }
+    } else {
+      std::uint64_t blocks = 0;
+      if (header_.binary) {
+        need(32);
+        std::memcpy(&blocks, t.data() + at, 8);
+        at += 32;
+      } else {
+        blocks = read_line_numbers(4)[0];
+      }
+      for (std::uint64_t b = 0; b < blocks; ++b) {
+        std::int32_t dim = 0, parametric = 0;
+        std::uint64_t n = 0;
+        if (header_.binary) {
+          need(20);
+          std::memcpy(&dim, t.data() + at, 4);
+          std::memcpy(&parametric, t.data() + at + 8, 4);
+          std::memcpy(&n, t.data() + at + 12, 8);
+          at += 20;
+          need(8 * n);
+          std::vector<std::uint64_t> tags(n);
+          std::memcpy(tags.data(), t.data() + at, 8 * n);
+          at += 8 * n;
+          const std::size_t extra = parametric ? std::size_t(std::max(dim, 0)) : 0;
+          for (std::uint64_t k = 0; k < n; ++k) {
+            put(place(tags[k]));
+            need(8 * extra);
+            at += 8 * extra;
+          }
+        } else {
+          const auto h = read_line_numbers(4);
+          n = h[3];
+          std::vector<std::uint64_t> tags;
+          tags.reserve(n);
+          for (std::uint64_t k = 0; k < n; ++k) tags.push_back(read_line_numbers(1)[0]);
+          for (std::uint64_t k = 0; k < n; ++k) ascii_line(0, place(tags[k]));
+        }
+      }
+    }
+    if (written != points.size())
+      throw FileError(name + ": $Nodes holds " + std::to_string(written) + " nodes, " + std::to_string(points.size()) +
+                      " were read");
+    return t;
+  }
+
+  void write(std::span<const Vec3> points, const fs::path& target) const {
+    const std::string bytes = rewritten(points);
+    io::write_atomically(target, [&](std::ostream& o) { o.write(bytes.data(), std::streamsize(bytes.size())); });
   }
 
   fs::path path_;
   Header header_;
   VolumeMesh mesh_;
+  std::unordered_map<std::uint64_t, std::uint32_t> index_;  // node tag -> point
 };
 
 }  // namespace
 
-std::unique_ptr<VolumeFile> open_gmsh(const fs::path& path, const OpenOptions& o) { return std::make_unique<GmshFile>(path, o); }
+std::unique_ptr<VolumeFile> open_gmsh(const fs::path& path, const OpenOptions& o) {
+  return std::make_unique<GmshFile>(path, o);
+}
 
 }  // namespace csrbf::morph::detail

@@ -113,12 +113,13 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
         if (!mesh.point_ids.empty()) {  // the file's own numbers (Gmsh node tags)
           const auto id = ids.find(g.point);
           if (id == ids.end())
-            throw FileError(at + "point " + std::to_string(g.point) + " is not a node of the mesh (its nodes are numbered " +
-                            std::to_string(min_id) + " to " + std::to_string(max_id) + ")");
+            throw FileError(at + "point " + std::to_string(g.point) +
+                            " is not a node of the mesh (its nodes are numbered " + std::to_string(min_id) + " to " +
+                            std::to_string(max_id) + ")");
           index = id->second;
         } else if (g.point >= np) {
-          throw FileError(at + "point " + std::to_string(g.point) + " is out of range: the mesh has " + std::to_string(np) +
-                          " points (0 to " + std::to_string(np ? np - 1 : 0) + ")");
+          throw FileError(at + "point " + std::to_string(g.point) + " is out of range: the mesh has " +
+                          std::to_string(np) + " points (0 to " + std::to_string(np ? np - 1 : 0) + ")");
         }
         const auto it = std::lower_bound(patch->points.begin(), patch->points.end(), std::uint32_t(index));
         if (it == patch->points.end() || *it != index)
@@ -158,9 +159,9 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
         continue;
       }
       if ((d[p] - dp).norm() > tol)
-        throw FileError(motion.file + ": point " + std::to_string(number(p)) + " " + show(mesh.points[p]) + " is on patch '" +
-                        other.patch + "', which moves it by " + show(d[p]) + ", and on patch '" + pm.patch +
-                        "', which moves it by " + show(dp) +
+        throw FileError(motion.file + ": point " + std::to_string(number(p)) + " " + show(mesh.points[p]) +
+                        " is on patch '" + other.patch + "', which moves it by " + show(d[p]) + ", and on patch '" +
+                        pm.patch + "', which moves it by " + show(dp) +
                         ": give the two patches the same motion at their shared points");
     }
   }

@@ -24,7 +24,8 @@ namespace {
 /// that the ideal cell (equilateral triangles, square base with equilateral sides) has 1.
 double corner_jacobian(int type, const std::uint32_t* v, std::span<const Vec3> p) {
   // For each corner, three neighbours in the order whose determinant is positive for a valid cell.
-  static constexpr int wedge[6][4] = {{0, 2, 1, 3}, {1, 0, 2, 4}, {2, 1, 0, 5}, {3, 4, 5, 0}, {4, 5, 3, 1}, {5, 3, 4, 2}};
+  static constexpr int wedge[6][4] = {{0, 2, 1, 3}, {1, 0, 2, 4}, {2, 1, 0, 5},
+                                      {3, 4, 5, 0}, {4, 5, 3, 1}, {5, 3, 4, 2}};
   static constexpr int pyramid[4][4] = {{0, 1, 3, 4}, {1, 2, 0, 4}, {2, 3, 1, 4}, {3, 0, 2, 4}};
   const bool is_wedge = type == VTK_WEDGE;
   const int corners = is_wedge ? 6 : 4;
@@ -65,7 +66,8 @@ struct Cells {
 CellQuality cell_quality(const CellTopology& t, std::span<const Vec3> points, std::span<const Vec3> reference) {
   CellQuality q;
   bool solid = false;
-  for (const auto type : t.type) solid |= type == VTK_TETRA || type == VTK_HEXAHEDRON || type == VTK_WEDGE || type == VTK_PYRAMID;
+  for (const auto type : t.type)
+    solid |= type == VTK_TETRA || type == VTK_HEXAHEDRON || type == VTK_WEDGE || type == VTK_PYRAMID;
   tbb::enumerable_thread_specific<Cells> cells;
   struct Acc {
     std::size_t measured = 0, inverted = 0, tet = 0, hex = 0, prism = 0, pyramid = 0, tri = 0, quad = 0;
@@ -144,8 +146,8 @@ void orient_cells(CellTopology& t, std::span<const Vec3> points) {
   // One corner's determinant, positive in VTK's order; and the mirror that reverses it.
   struct Rule {
     std::uint8_t type;
-    int a, b, c, o;               // det[p_a - p_o, p_b - p_o, p_c - p_o] > 0
-    std::vector<int> mirror;      // new corner k = old corner mirror[k]
+    int a, b, c, o;           // det[p_a - p_o, p_b - p_o, p_c - p_o] > 0
+    std::vector<int> mirror;  // new corner k = old corner mirror[k]
   };
   static const Rule rules[] = {{VTK_TETRA, 1, 2, 3, 0, {0, 2, 1, 3}},
                                {VTK_HEXAHEDRON, 1, 3, 4, 0, {4, 5, 6, 7, 0, 1, 2, 3}},

@@ -22,7 +22,9 @@ class FoamFile final : public VolumeFile {
   std::string encoding() const override {
     return std::string(case_.points_file.binary ? "binary" : "ascii") + (case_.points_file.gzip ? ", gzip" : "");
   }
-  void write_copy(std::span<const Vec3> points, const fs::path& out) const override { write_openfoam_copy(case_, points, out); }
+  void write_copy(std::span<const Vec3> points, const fs::path& out) const override {
+    write_openfoam_copy(case_, points, out);
+  }
   void write_in_place(std::span<const Vec3> points) const override { write_openfoam_in_place(case_, points); }
   const FoamCase& foam() const { return case_; }
 
@@ -42,8 +44,9 @@ std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions&
   std::error_code ec;
   if (fs::is_directory(path, ec)) {
     if (!is_openfoam(path))
-      throw io::FileError(path.string() + ": a folder, but not an OpenFOAM case (no constant/polyMesh, and no faces or "
-                                          "owner file)");
+      throw io::FileError(path.string() +
+                          ": a folder, but not an OpenFOAM case (no constant/polyMesh, and no faces or "
+                          "owner file)");
     return detail::open_openfoam(path, options);
   }
   std::string ext = path.extension().string();
@@ -52,7 +55,8 @@ std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions&
   if (ext == ".msh") return detail::open_gmsh(path, options);
   if (ext == ".cgns") return detail::open_cgns(path, options);
   if (!fs::exists(path, ec)) throw io::FileError(path.string() + ": no such file or folder");
-  throw io::FileError(path.string() + ": unknown volume mesh format '" + ext + "' (csrbf morph reads " + kVolumeFormats + ")");
+  throw io::FileError(path.string() + ": unknown volume mesh format '" + ext + "' (csrbf morph reads " +
+                      kVolumeFormats + ")");
 }
 
 }  // namespace csrbf::morph

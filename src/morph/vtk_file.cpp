@@ -58,7 +58,8 @@ std::string head_of(const fs::path& p, std::size_t bytes) {
 
 /// A count stated in the file's text (an XML attribute or a legacy keyword line), checked before
 /// VTK allocates for it.
-void check_count(const std::string& head, const std::string& key, std::size_t bytes_each, double limit, const fs::path& file) {
+void check_count(const std::string& head, const std::string& key, std::size_t bytes_each, double limit,
+                 const fs::path& file) {
   for (std::size_t at = head.find(key); at != std::string::npos; at = head.find(key, at + 1)) {
     std::size_t b = at + key.size();
     while (b < head.size() && (head[b] == '"' || head[b] == ' ' || head[b] == '=')) ++b;
@@ -98,7 +99,8 @@ class VtkFile final : public VolumeFile {
       reader->Update();
       grid_ = reader->GetOutput();
     } else {
-      if (head.rfind("# vtk DataFile", 0) != 0) throw FileError(path.string() + ": not a legacy VTK file (no '# vtk DataFile' line)");
+      if (head.rfind("# vtk DataFile", 0) != 0)
+        throw FileError(path.string() + ": not a legacy VTK file (no '# vtk DataFile' line)");
       if (head.find("UNSTRUCTURED_GRID") == std::string::npos)
         throw FileError(path.string() + ": a legacy VTK file, but not an UNSTRUCTURED_GRID");
       ascii_ = head.find("\nASCII") != std::string::npos;
@@ -140,7 +142,8 @@ class VtkFile final : public VolumeFile {
   void write_copy(std::span<const Vec3> points, const fs::path& out) const override {
     io::check_output_path(out);
     std::error_code ec;
-    if (fs::exists(out, ec)) throw FileError("cannot write '" + out.string() + "': it exists (use --in-place to rewrite the input)");
+    if (fs::exists(out, ec))
+      throw FileError("cannot write '" + out.string() + "': it exists (use --in-place to rewrite the input)");
     write(points, out);
   }
   void write_in_place(std::span<const Vec3> points) const override { write(points, path_); }
@@ -170,19 +173,46 @@ class VtkFile final : public VolumeFile {
       int keep = 0;
       std::uint8_t as = std::uint8_t(type);
       switch (type) {
-        case VTK_TETRA: keep = 4; break;
-        case VTK_QUADRATIC_TETRA: keep = 4, as = VTK_TETRA; break;
-        case VTK_HEXAHEDRON: keep = 8; break;
-        case VTK_QUADRATIC_HEXAHEDRON: case VTK_TRIQUADRATIC_HEXAHEDRON: keep = 8, as = VTK_HEXAHEDRON; break;
-        case VTK_WEDGE: keep = 6; break;
-        case VTK_QUADRATIC_WEDGE: keep = 6, as = VTK_WEDGE; break;
-        case VTK_PYRAMID: keep = 5; break;
-        case VTK_QUADRATIC_PYRAMID: keep = 5, as = VTK_PYRAMID; break;
-        case VTK_TRIANGLE: keep = 3; break;
-        case VTK_QUADRATIC_TRIANGLE: keep = 3, as = VTK_TRIANGLE; break;
-        case VTK_QUAD: keep = 4; break;
-        case VTK_QUADRATIC_QUAD: case VTK_BIQUADRATIC_QUAD: keep = 4, as = VTK_QUAD; break;
-        default: break;  // lines, vertices, polyhedra: moved, not measured
+        case VTK_TETRA:
+          keep = 4;
+          break;
+        case VTK_QUADRATIC_TETRA:
+          keep = 4, as = VTK_TETRA;
+          break;
+        case VTK_HEXAHEDRON:
+          keep = 8;
+          break;
+        case VTK_QUADRATIC_HEXAHEDRON:
+        case VTK_TRIQUADRATIC_HEXAHEDRON:
+          keep = 8, as = VTK_HEXAHEDRON;
+          break;
+        case VTK_WEDGE:
+          keep = 6;
+          break;
+        case VTK_QUADRATIC_WEDGE:
+          keep = 6, as = VTK_WEDGE;
+          break;
+        case VTK_PYRAMID:
+          keep = 5;
+          break;
+        case VTK_QUADRATIC_PYRAMID:
+          keep = 5, as = VTK_PYRAMID;
+          break;
+        case VTK_TRIANGLE:
+          keep = 3;
+          break;
+        case VTK_QUADRATIC_TRIANGLE:
+          keep = 3, as = VTK_TRIANGLE;
+          break;
+        case VTK_QUAD:
+          keep = 4;
+          break;
+        case VTK_QUADRATIC_QUAD:
+        case VTK_BIQUADRATIC_QUAD:
+          keep = 4, as = VTK_QUAD;
+          break;
+        default:
+          break;  // lines, vertices, polyhedra: moved, not measured
       }
       if (keep == 0 || npts < keep) continue;
       corners.assign(ids, ids + keep);
@@ -194,7 +224,8 @@ class VtkFile final : public VolumeFile {
     if (!array) array = grid_->GetCellData()->GetArray(o.patch_array.c_str());
     if (!array) {
       std::string names;
-      for (vtkFieldData* d : {static_cast<vtkFieldData*>(grid_->GetPointData()), static_cast<vtkFieldData*>(grid_->GetCellData())})
+      for (vtkFieldData* d :
+           {static_cast<vtkFieldData*>(grid_->GetPointData()), static_cast<vtkFieldData*>(grid_->GetCellData())})
         for (int i = 0; i < d->GetNumberOfArrays(); ++i)
           if (d->GetArrayName(i)) names += (names.empty() ? "" : ", ") + std::string(d->GetArrayName(i));
       throw FileError(path_.string() + ": no point or cell data array named '" + o.patch_array +
@@ -285,6 +316,8 @@ class VtkFile final : public VolumeFile {
 
 }  // namespace
 
-std::unique_ptr<VolumeFile> open_vtk(const fs::path& path, const OpenOptions& o) { return std::make_unique<VtkFile>(path, o); }
+std::unique_ptr<VolumeFile> open_vtk(const fs::path& path, const OpenOptions& o) {
+  return std::make_unique<VtkFile>(path, o);
+}
 
 }  // namespace csrbf::morph::detail

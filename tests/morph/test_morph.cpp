@@ -1,11 +1,13 @@
 // csrbf::morph: the OpenFOAM reader and writer, the motion file, the morph and its quality measures.
 // OpenFOAM's own tools judge the results in tests/morph/test_openfoam.py.
 #include "box_case.hpp"
+#include "cgns_box.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/kernels.hpp"
 #include "csrbf/morph/morph.hpp"
 #include "csrbf/morph/openfoam.hpp"
 #include "csrbf/morph/quality.hpp"
+#include "csrbf/morph/volume_file.hpp"
 #include "io/test_helpers.hpp"
 
 #include <Eigen/Dense>
@@ -473,4 +475,97 @@ TEST_F(BoxMorph, ThePatchesOfAnEmptyPatchAreRefused) {
               prescribe(e.mesh, motion_from(dir, R"({"patches": {"nothing": "fixed"}})"));
             }).find("has no points"),
             std::string::npos);
+}
+
+// CGNS, written by the tests' own cgnslib writer and read back through cgnslib.
+TEST(Cgns, ReadsZonesBoundaryConditionsAndFamilies) {
+  TempDir dir;
+  csrbf::test::write_cgns_box((dir / "box.cgns").string());
+  const auto f = open_volume(dir / "box.cgns");
+  const VolumeMesh& m = f->mesh();
+  EXPECT_EQ(f->format(), "cgns");
+  EXPECT_EQ(m.points.size(), 125u);
+  EXPECT_EQ(m.cells.size(), 64u + 16u);
+  ASSERT_NE(m.patch("bottom"), nullptr);
+  ASSERT_NE(m.patch("top"), nullptr);
+  ASSERT_NE(m.patch("lid"), nullptr);  // the family of "top"
+  EXPECT_EQ(m.patch("bottom")->points.size(), 25u);
+  EXPECT_EQ(m.patch("top")->points, m.patch("lid")->points);
+  for (const auto p : m.patch("top")->points) EXPECT_EQ(m.points[p].z(), 1.0);
+  const MeshQuality q = mesh_quality(m, m.points);
+  ASSERT_TRUE(q.cells.has_value());
+  EXPECT_EQ(q.cells->hexahedra, 64u);
+  EXPECT_NEAR(q.cells->min_scaled_jacobian, 1.0, 1e-12);
+  EXPECT_EQ(q.inverted_cells(), 0u);
+}
+
+TEST(Cgns, WritesTheCoordinatesInTheirOwnTypeAndNothingElse) {
+  for (const bool single : {false, true}) {
+    TempDir dir;
+    csrbf::test::write_cgns_box((dir / "box.cgns").string(), 4, 0.25, single);
+    const auto f = open_volume(dir / "box.cgns");
+    EXPECT_EQ(f->encoding(), single ? "single" : "double");
+    const Motion m =
+        motion_from(dir, R"({"radius": 0.6, "patches": {"bottom": {"translate": [0, 0, 0.05]}, "lid": "fixed"}})");
+    MorphOptions o;
+    o.fit.radius = 0.6;
+    const MorphResult r = morph(f->mesh(), m, o);
+    f->write_copy(r.points, dir / "out.cgns");
+    EXPECT_THROW(f->write_copy(r.points, dir / "out.cgns"), FileError);  // never replaced
+    // Read back through cgnslib directly.
+    int fn = 0;
+    ASSERT_EQ(cg_open((dir / "out.cgns").c_str(), CG_MODE_READ, &fn), CG_OK);
+    CGNS_ENUMT(DataType_t) type;
+    char name[64];
+    ASSERT_EQ(cg_coord_info(fn, 1, 1, 1, &type, name), CG_OK);
+    EXPECT_EQ(type, single ? CGNS_ENUMV(RealSingle) : CGNS_ENUMV(RealDouble));
+    std::vector<double> z(125);
+    cgsize_t lo = 1, hi = 125;
+    ASSERT_EQ(cg_coord_read(fn, 1, 1, "CoordinateZ", CGNS_ENUMV(RealDouble), &lo, &hi, z.data()), CG_OK);
+    for (std::size_t i = 0; i < 125; ++i) EXPECT_EQ(z[i], single ? double(float(r.points[i].z())) : r.points[i].z());
+    int nbocos = 0, nsections = 0;
+    cg_nbocos(fn, 1, 1, &nbocos);
+    cg_nsections(fn, 1, 1, &nsections);
+    EXPECT_EQ(nbocos, 2);
+    EXPECT_EQ(nsections, 2);
+    cg_close(fn);
+    const auto back = open_volume(dir / "out.cgns");
+    EXPECT_EQ(back->mesh().patch("lid")->points, f->mesh().patch("lid")->points);
+    for (const auto p : f->mesh().patch("bottom")->points) EXPECT_NEAR(back->mesh().points[p].z(), 0.05, 1e-7);
+  }
+}
+
+TEST(Cgns, BrokenFilesAreErrorsNamingThem) {
+  TempDir dir;
+  csrbf::test::write_cgns_box((dir / "box.cgns").string());
+  const std::string bytes = csrbf::test::read_text(dir / "box.cgns");
+  csrbf::test::write_text(dir / "cut.cgns", bytes.substr(0, bytes.size() / 3));
+  EXPECT_NE(error_of([&] { open_volume(dir / "cut.cgns"); }).find("cut.cgns"), std::string::npos);
+  csrbf::test::write_text(dir / "text.cgns", "not a cgns file\n");
+  EXPECT_NE(error_of([&] { open_volume(dir / "text.cgns"); }).find("text.cgns"), std::string::npos);
+  EXPECT_NE(error_of([&] { open_volume(dir / "missing.cgns"); }).find("missing.cgns"), std::string::npos);
+  EXPECT_NE(error_of([&] { open_volume(dir / "mesh.stl"); }).find("mesh.stl"), std::string::npos);
+}
+
+TEST(Cells, PrismsAndPyramidsAreMeasuredAndOrientedEitherWay) {
+  // A unit prism and pyramid in VTK's corner order, then mirrored as another convention would
+  // store them: both read as valid; pushing the apex through the base inverts the pyramid.
+  std::vector<Vec3> p{{0, 0, 0}, {0, 1, 0}, {1, 0, 0}, {0, 0, 1}, {0, 1, 1},      {1, 0, 1},
+                      {2, 0, 0}, {3, 0, 0}, {3, 1, 0}, {2, 1, 0}, {2.5, 0.5, 0.7}};
+  for (const bool mirrored : {false, true}) {
+    CellTopology t;
+    const std::uint32_t wedge[] = {0, 1, 2, 3, 4, 5}, wedge_m[] = {0, 2, 1, 3, 5, 4};
+    const std::uint32_t pyr[] = {6, 7, 8, 9, 10}, pyr_m[] = {6, 9, 8, 7, 10};
+    t.add(13, mirrored ? wedge_m : wedge);
+    t.add(14, mirrored ? pyr_m : pyr);
+    orient_cells(t, p);
+    const CellQuality q = cell_quality(t, p, p);
+    EXPECT_EQ(q.prisms, 1u);
+    EXPECT_EQ(q.pyramids, 1u);
+    EXPECT_EQ(q.inverted_cells, 0u) << mirrored;
+    EXPECT_GT(q.min_scaled_jacobian, 0.5);
+    std::vector<Vec3> pushed = p;
+    pushed[10].z() = -0.7;
+    EXPECT_EQ(cell_quality(t, pushed, p).inverted_cells, 1u);
+  }
 }

@@ -14,6 +14,8 @@ import subprocess
 import tempfile
 import unittest
 
+from morph_case import MorphCase
+
 CLI = os.environ.get("CSRBF_CLI", "csrbf")
 SOURCE = os.environ.get("CSRBF_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", ".."))
 TUTORIALS = "/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam"
@@ -60,18 +62,7 @@ def tree_files(root):
     return out
 
 
-class OpenFoamCases(unittest.TestCase):
-    def setUp(self):
-        self.tmp = tempfile.mkdtemp(prefix="csrbf-openfoam-")
-
-    def tearDown(self):
-        shutil.rmtree(self.tmp, ignore_errors=True)
-
-    def motion(self, data):
-        path = os.path.join(self.tmp, "motion-%d.json" % len(os.listdir(self.tmp)))
-        with open(path, "w") as f:
-            json.dump(data, f)
-        return path
+class OpenFoamCases(MorphCase):
 
     def assert_kept(self, case, out, changed=("points", "points.gz")):
         """Every file but points is a byte-for-byte copy; points keeps its header."""

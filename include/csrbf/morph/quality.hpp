@@ -53,9 +53,7 @@ void orient_cells(CellTopology& t, std::span<const Vec3> points);
 struct MeshQuality {
   std::optional<PolyQuality> poly;
   std::optional<CellQuality> cells;
-  std::size_t inverted_cells() const {
-    return (poly ? poly->inverted_cells : 0) + (cells ? cells->inverted_cells : 0);
-  }
+  std::size_t inverted_cells() const { return (poly ? poly->inverted_cells : 0) + (cells ? cells->inverted_cells : 0); }
 };
 
 /// The measures that apply to mesh's topology, over points.

@@ -55,7 +55,7 @@ struct VolumeMesh {
   /// displacements file uses. Empty: point i is number i.
   std::vector<std::uint64_t> point_ids;
   std::vector<Patch> patches;
-  PolyTopology poly;  ///< OpenFOAM
+  PolyTopology poly;   ///< OpenFOAM
   CellTopology cells;  ///< the other formats
 
   /// The patch named name, or nullptr.
