@@ -6,9 +6,7 @@
 """
 import json
 import os
-import shutil
 import subprocess
-import tempfile
 import unittest
 
 from morph_case import MorphCase
