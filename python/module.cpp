@@ -9,6 +9,9 @@
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/mesh.hpp"
 #include "csrbf/io/scene.hpp"
+#ifdef CSRBF_HAVE_MORPH
+#include "csrbf/morph/job.hpp"
+#endif
 #include "csrbf/space_map.hpp"
 #include "csrbf/version.hpp"
 
@@ -23,6 +26,7 @@
 #include <atomic>
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 namespace py = pybind11;
@@ -463,6 +467,54 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
         csrbf::io::write_deformation(path, d);
       },
       py::arg("path"), py::arg("map"), "Writes a SpaceMap as a deformation JSON file (atomically)");
+
+#ifdef CSRBF_HAVE_MORPH
+  m.def(
+      "morph",
+      [](const std::filesystem::path& mesh, const std::filesystem::path& motion, const std::optional<std::filesystem::path>& output,
+         bool in_place, std::optional<double> radius, std::optional<std::string> kernel,
+         std::optional<std::string> polynomial, std::optional<double> greedy, double phase, const std::string& solver,
+         bool force, double memory_limit) {
+        csrbf::morph::MorphJob job;
+        job.mesh = mesh;
+        job.motion = motion;
+        job.in_place = in_place;
+        job.write = output.has_value() || in_place;
+        if (output) job.out = *output;
+        job.radius = radius;
+        if (kernel) job.kernel = named<csrbf::Kernel>(*kernel, "kernel");
+        if (polynomial) job.polynomial = named<csrbf::Polynomial>(*polynomial, "polynomial");
+        job.greedy = greedy;
+        job.solver = named<csrbf::Solver>(solver, "solver");
+        job.phase = phase;
+        job.force = force;
+        job.memory_limit_bytes = memory_limit * double(1ull << 30);
+        csrbf::morph::MorphOutcome o;
+        {
+          py::gil_scoped_release release;
+          o = csrbf::morph::run_job(job);
+        }
+        py::object report = py::module_::import("json").attr("loads")(csrbf::morph::outcome_json(o));
+        if (job.write && o.inverts && !o.written)
+          throw py::value_error(mesh.string() + ": the morph inverts " +
+                                std::to_string(o.after.inverted_cells() - o.before.inverted_cells()) +
+                                " cells; the largest phase that inverts none is " + std::to_string(o.safe_phase) +
+                                "; nothing written (force=True writes anyway)");
+        return py::make_tuple(from_vec3(o.result.points), report);
+      },
+      py::arg("mesh"), py::arg("motion"), py::arg("output") = py::none(), py::arg("in_place") = false,
+      py::arg("radius") = py::none(), py::arg("kernel") = py::none(), py::arg("polynomial") = py::none(),
+      py::arg("greedy") = py::none(), py::arg("phase") = 1.0, py::arg("solver") = "auto", py::arg("force") = false,
+      py::arg("memory_limit") = 4.0,
+      R"doc(Morphs a volume mesh as `csrbf morph` does (docs/morphing.md).
+
+mesh: an OpenFOAM case folder, a .vtu, .vtk, .msh or .cgns file; motion: the motion JSON file.
+output: a new case folder or file to write (None: nothing is written); in_place: rewrite the input.
+radius, kernel, polynomial override the motion file's; greedy: the greedy tolerance.
+Returns (points (n, 3), report): the moved points and the report of `csrbf morph --json`, with the
+quality before and after. A morph that inverts cells writes nothing and raises ValueError, unless
+force=True; without an output it only reports them (report["safe_phase"]).)doc");
+#endif
 
   py::class_<ScenePlayer>(m, "Scene", "An animation scene file (docs/scene-format.md), evaluated at any time")
       .def(py::init([](const std::filesystem::path& path) {

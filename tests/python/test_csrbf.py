@@ -383,3 +383,52 @@ class VtkPython(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class Morph(unittest.TestCase):
+    """csrbf.morph returns what `csrbf morph --json` reports, and the same points."""
+
+    def test_same_as_the_command_line(self):
+        case = os.path.join(EXAMPLES, "airfoil", "case")
+        motion = os.path.join(EXAMPLES, "airfoil", "motion.json")
+        with tempfile.TemporaryDirectory() as tmp:
+            points, report = csrbf.morph(case, motion)
+            self.assertEqual(points.shape, (7872, 3))
+            self.assertFalse(report["written"])
+            self.assertEqual(report["quality"]["after"]["inverted_cells"], 0)
+            self.assertGreater(report["quality"]["after"]["polyhedra"]["max_non_orthogonality"], 30)
+            out = os.path.join(tmp, "pitched")
+            points2, report2 = csrbf.morph(case, motion, output=out, radius=3.0)
+            self.assertTrue(report2["written"])
+            self.assertEqual(report2["radius"], 3.0)
+            r = subprocess.run([os.environ["CSRBF_CLI"], "morph", case, "-o", os.path.join(tmp, "cli"), "--motion", motion,
+                                "--radius", "3", "--json"], capture_output=True, text=True)
+            cli = json.loads(r.stdout)
+            self.assertEqual(cli["quality"]["after"], report2["quality"]["after"])
+            with open(os.path.join(out, "constant", "polyMesh", "points"), "rb") as f, \
+                    open(os.path.join(tmp, "cli", "constant", "polyMesh", "points"), "rb") as g:
+                self.assertEqual(f.read(), g.read())
+            # Half the phase moves every point half as far.
+            half, _ = csrbf.morph(case, motion, radius=3.0, phase=0.5)
+            base, _ = csrbf.morph(case, motion, radius=3.0, phase=0.0)
+            np.testing.assert_allclose(half - base, 0.5 * (points2 - base), atol=1e-14)
+
+    def test_errors(self):
+        case = os.path.join(EXAMPLES, "airfoil", "case")
+        with tempfile.TemporaryDirectory() as tmp:
+            bad = os.path.join(tmp, "m.json")
+            with open(bad, "w") as f:
+                json.dump({"patches": {"wing": "fixed"}}, f)
+            with self.assertRaisesRegex(ValueError, "no radius"):
+                csrbf.morph(case, bad)
+            with self.assertRaisesRegex(csrbf.FileError, "no patch 'wing'"):
+                csrbf.morph(case, bad, radius=1.0)
+            steep = os.path.join(tmp, "steep.json")
+            with open(steep, "w") as f:
+                json.dump({"radius": 0.5, "patches": {"airfoil": {"translate": [0, 0.6, 0]}, "farfield": "fixed"}}, f)
+            _, report = csrbf.morph(case, steep)
+            self.assertGreater(report["quality"]["after"]["inverted_cells"], 0)
+            self.assertLess(report["safe_phase"], 1.0)
+            with self.assertRaisesRegex(ValueError, "inverts"):
+                csrbf.morph(case, steep, output=os.path.join(tmp, "x"))
+            self.assertFalse(os.path.exists(os.path.join(tmp, "x")))

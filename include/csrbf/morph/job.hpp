@@ -1,0 +1,62 @@
+// A whole morph as `csrbf morph` and Python's csrbf.morph run it: open the mesh, read the motion,
+// fit, move, measure the quality before and after, and write the result unless it inverts cells.
+#pragma once
+
+#include "csrbf/errors.hpp"
+#include "csrbf/morph/morph.hpp"
+#include "csrbf/morph/quality.hpp"
+
+#include <filesystem>
+#include <optional>
+#include <string>
+
+namespace csrbf::morph {
+
+/// A job whose options contradict each other or lack a value (no radius anywhere, an output of
+/// another format, neither an output nor in place): a usage error, exit status 2.
+class JobError : public InvalidInput {
+ public:
+  using InvalidInput::InvalidInput;
+};
+
+struct MorphJob {
+  std::filesystem::path mesh, motion;
+  std::filesystem::path out;  ///< empty: no output (or in_place)
+  bool in_place = false;
+  bool write = true;  ///< false: measure only (Python without an output)
+  /// Override the motion file's values.
+  std::optional<double> radius;
+  std::optional<Kernel> kernel;
+  std::optional<Polynomial> polynomial;
+  std::optional<double> greedy;
+  Solver solver = Solver::Auto;
+  double phase = 1.0;
+  double memory_limit_bytes = 4.0 * (1ull << 30);
+  bool force = false;  ///< write even if cells invert
+};
+
+struct MorphOutcome {
+  std::string mesh, motion, output;
+  std::string format, encoding;
+  std::size_t points = 0, cells = 0, patches = 0;
+  std::string motion_summary;  ///< "wing rotate, inlet fixed"
+  MorphOptions options;
+  MorphResult result;
+  MeshQuality before, after;
+  bool inverts = false;  ///< more cells inverted after than before
+  double safe_phase = 1.0;  ///< where inverts: the largest phase that inverts none
+  bool written = false;
+  double ms_read = 0, ms_quality = 0, ms_write = 0, ms_total = 0;
+};
+
+/// Runs the job. Throws JobError for contradicting options, io::FileError for bad files (naming
+/// them), other csrbf::Error for a fit that fails. A morph that inverts cells is not an exception:
+/// written is false unless force.
+MorphOutcome run_job(const MorphJob& job);
+
+/// The outcome as one JSON object (the report of `csrbf morph --json`).
+std::string outcome_json(const MorphOutcome& o);
+/// The outcome as the text report of `csrbf morph`.
+std::string outcome_text(const MorphOutcome& o);
+
+}  // namespace csrbf::morph

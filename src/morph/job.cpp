@@ -1,0 +1,241 @@
+#include "csrbf/morph/job.hpp"
+
+#include "csrbf/io/error.hpp"
+#include "csrbf/morph/volume_file.hpp"
+#include "csrbf/names.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cctype>
+#include <chrono>
+#include <cstdio>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace csrbf::morph {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+std::string extension(const fs::path& p) {
+  std::string e = p.extension().string();
+  for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
+
+nlohmann::json quality_json(const MeshQuality& m) {
+  nlohmann::json j = nlohmann::json::object();
+  j["inverted_cells"] = m.inverted_cells();
+  if (m.cells) {
+    const CellQuality& c = *m.cells;
+    j["cells"] = {{"measured", c.cells},
+                  {"tetrahedra", c.tetrahedra},
+                  {"hexahedra", c.hexahedra},
+                  {"prisms", c.prisms},
+                  {"pyramids", c.pyramids},
+                  {"triangles", c.triangles},
+                  {"quads", c.quads},
+                  {"min_scaled_jacobian", c.min_scaled_jacobian},
+                  {"mean_scaled_jacobian", c.mean_scaled_jacobian},
+                  {"inverted_cells", c.inverted_cells}};
+  }
+  if (!m.poly) return j;
+  const PolyQuality& q = *m.poly;
+  j["polyhedra"] = {{"cells", q.cells},
+                    {"faces", q.faces},
+                    {"max_non_orthogonality", q.max_non_orthogonality},
+                    {"mean_non_orthogonality", q.mean_non_orthogonality},
+                    {"max_skewness", q.max_skewness},
+                    {"negative_volumes", q.negative_volumes},
+                    {"bad_face_pyramids", q.bad_pyramids},
+                    {"inverted_cells", q.inverted_cells},
+                    {"min_volume", q.min_volume},
+                    {"total_volume", q.total_volume}};
+  return j;
+}
+
+std::string quality_table(const MeshQuality& qa, const MeshQuality& qb) {
+  std::ostringstream s;
+  char line[160];
+  const auto row = [&](const char* name, const std::string& x, const std::string& y) {
+    std::snprintf(line, sizeof line, "  %-26s %14s %14s\n", name, x.c_str(), y.c_str());
+    s << line;
+  };
+  const auto num = [](double v, const char* fmt) {
+    char b[48];
+    std::snprintf(b, sizeof b, fmt, v);
+    return std::string(b);
+  };
+  row("quality", "before", "after");
+  if (qa.cells && qb.cells) {
+    const CellQuality &a = *qa.cells, &b = *qb.cells;
+    row("min scaled Jacobian", num(a.min_scaled_jacobian, "%.4f"), num(b.min_scaled_jacobian, "%.4f"));
+    row("mean scaled Jacobian", num(a.mean_scaled_jacobian, "%.4f"), num(b.mean_scaled_jacobian, "%.4f"));
+    row("inverted cells", std::to_string(a.inverted_cells), std::to_string(b.inverted_cells));
+  }
+  if (!qa.poly || !qb.poly) return s.str();
+  const PolyQuality &a = *qa.poly, &b = *qb.poly;
+  row("max non-orthogonality", num(a.max_non_orthogonality, "%.3f deg"), num(b.max_non_orthogonality, "%.3f deg"));
+  row("mean non-orthogonality", num(a.mean_non_orthogonality, "%.3f deg"), num(b.mean_non_orthogonality, "%.3f deg"));
+  row("max skewness", num(a.max_skewness, "%.4f"), num(b.max_skewness, "%.4f"));
+  row("negative volumes", std::to_string(a.negative_volumes), std::to_string(b.negative_volumes));
+  row("bad face pyramids", std::to_string(a.bad_pyramids), std::to_string(b.bad_pyramids));
+  row("inverted cells", std::to_string(a.inverted_cells), std::to_string(b.inverted_cells));
+  row("min cell volume", num(a.min_volume, "%.6g"), num(b.min_volume, "%.6g"));
+  return s.str();
+}
+
+std::string motion_summary(const Motion& m) {
+  std::string s;
+  for (const auto& p : m.patches) {
+    static const char* kinds[] = {"fixed", "translate", "rotate", "displacements"};
+    s += (s.empty() ? "" : ", ") + p.patch + " " + kinds[int(p.kind)];
+  }
+  return s;
+}
+
+}  // namespace
+
+MorphOutcome run_job(const MorphJob& job) {
+  const auto t0 = Clock::now();
+  MorphOutcome o;
+  o.mesh = job.mesh.string();
+  o.motion = job.motion.string();
+  if (job.write && job.out.empty() && !job.in_place) throw JobError("give an output (a new case folder or file) or in place");
+  if (job.write && !job.out.empty() && job.in_place) throw JobError("give an output or in place, not both");
+  if (job.write && !job.out.empty()) {
+    std::error_code ec;
+    if (fs::symlink_status(job.out, ec).type() != fs::file_type::not_found)
+      throw io::FileError("cannot write '" + job.out.string() +
+                          "': it exists (csrbf morph writes a new case folder or file; in place rewrites the input's "
+                          "points alone)");
+    const fs::path parent = job.out.has_parent_path() ? job.out.parent_path() : fs::path(".");
+    if (!fs::is_directory(parent, ec))
+      throw io::FileError("cannot write '" + job.out.string() + "': folder '" + parent.string() + "' does not exist");
+    if (!fs::is_directory(job.mesh, ec) && extension(job.out) != extension(job.mesh))
+      throw JobError("output " + job.out.string() + ": the output is written in the input's format, so it needs the extension '" +
+                     extension(job.mesh) + "'");
+  }
+  const Motion motion = read_motion(job.motion);
+  MorphOptions& opt = o.options;
+  if (job.radius)
+    opt.fit.radius = *job.radius;
+  else if (motion.radius)
+    opt.fit.radius = *motion.radius;
+  else
+    throw JobError("no radius: give one, or \"radius\" in " + job.motion.string());
+  opt.fit.kernel = job.kernel.value_or(motion.kernel.value_or(Kernel::C2));
+  opt.fit.polynomial = job.polynomial.value_or(motion.polynomial.value_or(Polynomial::None));
+  opt.fit.solver = job.solver;
+  opt.fit.memory_limit_bytes = job.memory_limit_bytes;
+  opt.phase = job.phase;
+  opt.greedy = job.greedy.value_or(0.0);
+  o.motion_summary = motion_summary(motion);
+
+  const auto t_read = Clock::now();
+  OpenOptions open;
+  open.patch_array = motion.patch_array;
+  const auto file = open_volume(job.mesh, open);
+  const VolumeMesh& mesh = file->mesh();
+  o.format = file->format();
+  o.encoding = file->encoding();
+  o.points = mesh.points.size();
+  o.cells = mesh.poly.faces() ? mesh.poly.cells : mesh.cells.size();
+  o.patches = mesh.patches.size();
+  if (mesh.patches.empty())
+    throw io::FileError(o.mesh + ": the mesh has no patches" +
+                        (o.format == "vtu" || o.format == "vtk"
+                             ? std::string(": name an integer point or cell data array as \"patch_array\" in ") + o.motion
+                             : std::string()));
+  o.ms_read = ms_since(t_read);
+  auto t_q = Clock::now();
+  o.before = mesh_quality(mesh, mesh.points);
+  o.ms_quality = ms_since(t_q);
+  try {
+    o.result = morph(mesh, motion, opt);
+  } catch (const DuplicateSource& e) {
+    throw io::FileError(o.mesh + ": two prescribed points are at the same place (controls " + std::to_string(e.first()) +
+                        " and " + std::to_string(e.second()) + "): " + e.what());
+  } catch (const io::FileError&) {
+    throw;
+  } catch (const Error& e) {
+    throw io::FileError(o.mesh + ": " + e.what());
+  }
+  t_q = Clock::now();
+  o.after = mesh_quality(mesh, o.result.points);
+  o.ms_quality += ms_since(t_q);
+  o.inverts = o.after.inverted_cells() > o.before.inverted_cells();
+  o.safe_phase = job.phase;
+  if (o.inverts) o.safe_phase = largest_safe_phase(mesh, o.result.points, job.phase, o.before.inverted_cells());
+  if (job.write && (!o.inverts || job.force)) {
+    const auto t_w = Clock::now();
+    if (job.in_place)
+      file->write_in_place(o.result.points);
+    else
+      file->write_copy(o.result.points, job.out);
+    o.ms_write = ms_since(t_w);
+    o.written = true;
+    o.output = job.in_place ? o.mesh : job.out.string();
+  }
+  o.ms_total = ms_since(t0);
+  return o;
+}
+
+std::string outcome_json(const MorphOutcome& o) {
+  const MorphReport& rep = o.result.report;
+  nlohmann::json j{{"case", o.mesh},
+                   {"format", o.format},
+                   {"encoding", o.encoding},
+                   {"output", o.output},
+                   {"written", o.written},
+                   {"points", o.points},
+                   {"cells", o.cells},
+                   {"patches", o.patches},
+                   {"prescribed", rep.prescribed},
+                   {"moving", rep.moving},
+                   {"fixed", rep.fixed},
+                   {"controls", rep.controls},
+                   {"greedy_rounds", rep.greedy_rounds},
+                   {"max_displacement", rep.max_displacement},
+                   {"max_boundary_error", rep.max_boundary_error},
+                   {"radius", o.options.fit.radius},
+                   {"kernel", kernel_name(o.options.fit.kernel)},
+                   {"polynomial", polynomial_name(o.options.fit.polynomial)},
+                   {"solver", rep.controls ? std::string(name_of(rep.fit.solver)) : std::string("none")},
+                   {"phase", o.options.phase},
+                   {"quality", {{"before", quality_json(o.before)}, {"after", quality_json(o.after)}}},
+                   {"ms",
+                    {{"read", o.ms_read},
+                     {"fit", rep.seconds_fit * 1e3},
+                     {"evaluate", rep.seconds_evaluate * 1e3},
+                     {"quality", o.ms_quality},
+                     {"write", o.ms_write},
+                     {"total", o.ms_total}}}};
+  if (o.inverts) j["safe_phase"] = o.safe_phase;
+  return j.dump(2);
+}
+
+std::string outcome_text(const MorphOutcome& o) {
+  const MorphReport& rep = o.result.report;
+  std::ostringstream s;
+  s << "csrbf morph: " << o.mesh << " (" << o.format << ", " << o.encoding << "): " << o.points << " points, " << o.cells
+    << " cells, " << o.patches << " patches\n"
+    << "  motion " << o.motion << ": " << o.motion_summary << "\n"
+    << "  " << rep.prescribed << " prescribed points (" << rep.moving << " moving, " << rep.fixed << " fixed), "
+    << rep.controls << " controls";
+  if (rep.greedy_rounds) s << " chosen in " << rep.greedy_rounds << " greedy rounds";
+  s << "; largest displacement " << rep.max_displacement << ", largest boundary error " << rep.max_boundary_error
+    << " before exact placement\n"
+    << "  R = " << o.options.fit.radius << ", kernel " << kernel_name(o.options.fit.kernel) << ", polynomial "
+    << polynomial_name(o.options.fit.polynomial) << ", phase " << o.options.phase << "\n"
+    << quality_table(o.before, o.after) << "  time: read " << o.ms_read << " ms, fit " << rep.seconds_fit * 1e3
+    << " ms, evaluate " << rep.seconds_evaluate * 1e3 << " ms, quality " << o.ms_quality << " ms, write " << o.ms_write
+    << " ms, total " << o.ms_total << " ms\n";
+  if (o.written) s << "  -> " << o.output << (o.inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
+  return s.str();
+}
+
+}  // namespace csrbf::morph
