@@ -471,10 +471,10 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
 #ifdef CSRBF_HAVE_MORPH
   m.def(
       "morph",
-      [](const std::filesystem::path& mesh, const std::filesystem::path& motion, const std::optional<std::filesystem::path>& output,
-         bool in_place, std::optional<double> radius, std::optional<std::string> kernel,
-         std::optional<std::string> polynomial, std::optional<double> greedy, double phase, const std::string& solver,
-         bool force, double memory_limit) {
+      [](const std::filesystem::path& mesh, const std::filesystem::path& motion,
+         const std::optional<std::filesystem::path>& output, bool in_place, std::optional<double> radius,
+         std::optional<std::string> kernel, std::optional<std::string> polynomial, std::optional<double> greedy,
+         double phase, const std::string& solver, bool force, double memory_limit) {
         csrbf::morph::MorphJob job;
         job.mesh = mesh;
         job.motion = motion;

@@ -7,7 +7,7 @@
 #include "csrbf/io/error.hpp"
 #include "csrbf/morph/quality.hpp"
 
-#include <gmsh.h>
+#include <dlfcn.h>
 #include <vtkCellType.h>
 
 #include <algorithm>
@@ -17,6 +17,7 @@
 #include <fstream>
 #include <mutex>
 #include <set>
+#include <type_traits>
 #include <unordered_map>
 
 namespace fs = std::filesystem;
@@ -27,6 +28,165 @@ namespace {
 
 using io::FileError;
 
+/// Gmsh's library, opened on first use (dlopen) through its C API: linked, its start-up (OpenCASCADE's
+/// static initialisers) cost every csrbf command 0.17 s. The calls mirror the C++ API's and throw
+/// its error text as a std::string, as it does.
+namespace gm {
+
+struct Api {
+  void* lib = nullptr;
+  void (*free_)(void*) = nullptr;
+  void (*initialize)(int, char**, const int, int*) = nullptr;
+  void (*option_set_number)(const char*, const double, int*) = nullptr;
+  void (*clear_)(int*) = nullptr;
+  void (*open_)(const char*, int*) = nullptr;
+  void (*get_nodes)(size_t**, size_t*, double**, size_t*, double**, size_t*, const int, const int, const int, const int,
+                    int*) = nullptr;
+  void (*get_elements)(int**, size_t*, size_t***, size_t**, size_t*, size_t***, size_t**, size_t*, const int, const int,
+                       int*) = nullptr;
+  void (*get_element_properties)(const int, char**, int*, int*, int*, double**, size_t*, int*, int*) = nullptr;
+  void (*get_physical_groups)(int**, size_t*, const int, int*) = nullptr;
+  void (*get_physical_name)(const int, const int, char**, int*) = nullptr;
+  void (*get_entities_for_physical_group)(const int, const int, int**, size_t*, int*) = nullptr;
+  void (*last_error)(char**, int*) = nullptr;
+};
+
+const Api& api() {
+  static const Api a = [] {
+    Api x;
+    for (const char* name : {CSRBF_GMSH_LIBRARY, "libgmsh.so.4.8", "libgmsh.so"}) {
+      x.lib = ::dlopen(name, RTLD_NOW | RTLD_LOCAL);
+      if (x.lib) break;
+    }
+    if (!x.lib) throw std::string("cannot load Gmsh's library (" CSRBF_GMSH_LIBRARY "): ") + ::dlerror();
+    const auto get = [&](auto& f, const char* symbol) {
+      f = reinterpret_cast<std::remove_reference_t<decltype(f)>>(::dlsym(x.lib, symbol));
+      if (!f) throw std::string("Gmsh's library has no ") + symbol;
+    };
+    get(x.free_, "gmshFree");
+    get(x.initialize, "gmshInitialize");
+    get(x.option_set_number, "gmshOptionSetNumber");
+    get(x.clear_, "gmshClear");
+    get(x.open_, "gmshOpen");
+    get(x.get_nodes, "gmshModelMeshGetNodes");
+    get(x.get_elements, "gmshModelMeshGetElements");
+    get(x.get_element_properties, "gmshModelMeshGetElementProperties");
+    get(x.get_physical_groups, "gmshModelGetPhysicalGroups");
+    get(x.get_physical_name, "gmshModelGetPhysicalName");
+    get(x.get_entities_for_physical_group, "gmshModelGetEntitiesForPhysicalGroup");
+    get(x.last_error, "gmshLoggerGetLastError");
+    return x;
+  }();
+  return a;
+}
+
+void check(int ierr) {
+  if (!ierr) return;
+  char* e = nullptr;
+  int ie = 0;
+  api().last_error(&e, &ie);
+  std::string text = e ? e : "error " + std::to_string(ierr);
+  if (e) api().free_(e);
+  throw text;
+}
+
+template <class T>
+std::vector<T> take(T* p, size_t n) {
+  std::vector<T> v(p, p + n);
+  if (p) api().free_(p);
+  return v;
+}
+
+void initialize() {
+  int ierr = 0;
+  api().initialize(0, nullptr, 0, &ierr);
+  check(ierr);
+}
+void set_number(const char* name, double v) {
+  int ierr = 0;
+  api().option_set_number(name, v, &ierr);
+  check(ierr);
+}
+void clear() {
+  int ierr = 0;
+  api().clear_(&ierr);
+  check(ierr);
+}
+void open(const std::string& file) {
+  int ierr = 0;
+  api().open_(file.c_str(), &ierr);
+  check(ierr);
+}
+void get_nodes(std::vector<std::size_t>& tags, std::vector<double>& coord, int dim, int tag, bool boundary) {
+  size_t *t = nullptr, nt = 0, nc = 0, np = 0;
+  double *c = nullptr, *p = nullptr;
+  int ierr = 0;
+  api().get_nodes(&t, &nt, &c, &nc, &p, &np, dim, tag, boundary, 0, &ierr);
+  tags = take(t, nt);
+  coord = take(c, nc);
+  take(p, np);
+  check(ierr);
+}
+void get_elements(std::vector<int>& types, std::vector<std::vector<std::size_t>>& elements,
+                  std::vector<std::vector<std::size_t>>& nodes, int dim = -1, int tag = -1) {
+  int* ty = nullptr;
+  size_t nty = 0, **et = nullptr, *etn = nullptr, etnn = 0, **nt = nullptr, *ntn = nullptr, ntnn = 0;
+  int ierr = 0;
+  api().get_elements(&ty, &nty, &et, &etn, &etnn, &nt, &ntn, &ntnn, dim, tag, &ierr);
+  types = take(ty, nty);
+  elements.clear();
+  nodes.clear();
+  for (size_t i = 0; i < etnn; ++i) elements.push_back(take(et[i], etn[i]));
+  for (size_t i = 0; i < ntnn; ++i) nodes.push_back(take(nt[i], ntn[i]));
+  take(et, etnn);
+  take(etn, etnn);
+  take(nt, ntnn);
+  take(ntn, ntnn);
+  check(ierr);
+}
+void get_element_properties(int type, std::string& name, int& nodes, int& primary) {
+  char* n = nullptr;
+  int dim = 0, order = 0, ierr = 0;
+  double* local = nullptr;
+  size_t nl = 0;
+  api().get_element_properties(type, &n, &dim, &order, &nodes, &local, &nl, &primary, &ierr);
+  name = n ? n : "";
+  if (n) api().free_(n);
+  take(local, nl);
+  check(ierr);
+}
+std::vector<std::pair<int, int>> get_physical_groups() {
+  int* dt = nullptr;
+  size_t n = 0;
+  int ierr = 0;
+  api().get_physical_groups(&dt, &n, -1, &ierr);
+  const auto v = take(dt, n);
+  check(ierr);
+  std::vector<std::pair<int, int>> out;
+  for (size_t i = 0; i + 1 < v.size(); i += 2) out.emplace_back(v[i], v[i + 1]);
+  return out;
+}
+std::string get_physical_name(int dim, int tag) {
+  char* n = nullptr;
+  int ierr = 0;
+  api().get_physical_name(dim, tag, &n, &ierr);
+  std::string s = n ? n : "";
+  if (n) api().free_(n);
+  check(ierr);
+  return s;
+}
+std::vector<int> get_entities_for_physical_group(int dim, int tag) {
+  int* t = nullptr;
+  size_t n = 0;
+  int ierr = 0;
+  api().get_entities_for_physical_group(dim, tag, &t, &n, &ierr);
+  auto v = take(t, n);
+  check(ierr);
+  return v;
+}
+
+}  // namespace gm
+
 /// Gmsh's library has one global model: one file at a time in this process.
 std::mutex& gmsh_lock() {
   static std::mutex m;
@@ -36,9 +196,9 @@ std::mutex& gmsh_lock() {
 void start_gmsh() {
   static bool started = false;
   if (started) return;
-  gmsh::initialize();
-  gmsh::option::setNumber("General.Terminal", 0);
-  gmsh::option::setNumber("General.Verbosity", 0);
+  gm::initialize();
+  gm::set_number("General.Terminal", 0);
+  gm::set_number("General.Verbosity", 0);
   started = true;
 }
 
@@ -106,19 +266,22 @@ class GmshFile final : public VolumeFile {
     io::check_readable(path, "a Gmsh mesh");
     header_ = check_header(path, o.max_file_bytes);
     std::lock_guard<std::mutex> lock(gmsh_lock());
-    start_gmsh();
-    gmsh::clear();
     try {
-      gmsh::open(path.string());
+      start_gmsh();
+      gm::clear();
+      gm::open(path.string());
       read();
+      gm::clear();
     } catch (const std::string& e) {
-      gmsh::clear();
+      try {
+        gm::clear();
+      } catch (const std::string&) {
+      }
       throw FileError(path.string() + ": Gmsh cannot read it: " + e);
     } catch (const FileError&) {
-      gmsh::clear();
+      gm::clear();
       throw;
     }
-    gmsh::clear();
   }
 
   const VolumeMesh& mesh() const override { return mesh_; }
@@ -127,10 +290,7 @@ class GmshFile final : public VolumeFile {
     return std::string("msh ") + (header_.version >= 4.0 ? "4.1" : "2.2") + (header_.binary ? " binary" : " ascii");
   }
   void write_copy(std::span<const Vec3> points, const fs::path& out) const override {
-    io::check_output_path(out);
-    std::error_code ec;
-    if (fs::exists(out, ec))
-      throw FileError("cannot write '" + out.string() + "': it exists (use --in-place to rewrite the input)");
+    check_copy_target(path_, out);
     write(points, out);
   }
   void write_in_place(std::span<const Vec3> points) const override { write(points, path_); }
@@ -138,8 +298,8 @@ class GmshFile final : public VolumeFile {
  private:
   void read() {
     std::vector<std::size_t> tags;
-    std::vector<double> coord, param;
-    gmsh::model::mesh::getNodes(tags, coord, param, -1, -1, false, false);
+    std::vector<double> coord;
+    gm::get_nodes(tags, coord, -1, -1, false);
     if (tags.empty()) throw FileError(path_.string() + ": no nodes");
     auto& index = index_;
     index.reserve(tags.size());
@@ -153,13 +313,12 @@ class GmshFile final : public VolumeFile {
     }
     std::vector<int> types;
     std::vector<std::vector<std::size_t>> element_tags, node_tags;
-    gmsh::model::mesh::getElements(types, element_tags, node_tags, -1, -1);
+    gm::get_elements(types, element_tags, node_tags);
     std::vector<std::uint32_t> corners;
     for (std::size_t t = 0; t < types.size(); ++t) {
       std::string name;
-      int dim = 0, order = 0, nodes = 0, primary = 0;
-      std::vector<double> local;
-      gmsh::model::mesh::getElementProperties(types[t], name, dim, order, nodes, local, primary);
+      int nodes = 0, primary = 0;
+      gm::get_element_properties(types[t], name, nodes, primary);
       const std::uint8_t vt = vtk_type(name);
       if (!vt) continue;  // points and lines: moved, not measured
       for (std::size_t e = 0; e < element_tags[t].size(); ++e) {
@@ -176,21 +335,24 @@ class GmshFile final : public VolumeFile {
       }
     }
     orient_cells(mesh_.cells, mesh_.points);
-    gmsh::vectorpair groups;
-    gmsh::model::getPhysicalGroups(groups, -1);
-    for (const auto& [dim, tag] : groups) {
+    for (const auto& [dim, tag] : gm::get_physical_groups()) {
       Patch p;
-      gmsh::model::getPhysicalName(dim, tag, p.name);
+      p.name = gm::get_physical_name(dim, tag);
       if (p.name.empty()) p.name = std::to_string(tag);
       p.type = "dim " + std::to_string(dim);
       std::set<std::uint32_t> pts;
-      std::vector<int> entities;
-      gmsh::model::getEntitiesForPhysicalGroup(dim, tag, entities);
-      for (const int entity : entities) {
-        std::vector<std::size_t> nt;
-        std::vector<double> c, pc;
-        gmsh::model::mesh::getNodes(nt, c, pc, dim, entity, true, false);
-        for (const auto n : nt) pts.insert(index.at(n));
+      // The nodes of the group's elements (a 2.2 file gives Gmsh no topology, so the nodes
+      // classified on an entity's boundary are not found from the entity).
+      for (const int entity : gm::get_entities_for_physical_group(dim, tag)) {
+        std::vector<int> ts;
+        std::vector<std::vector<std::size_t>> et, nt;
+        gm::get_elements(ts, et, nt, dim, entity);
+        for (const auto& block : nt)
+          for (const auto n : block) pts.insert(index.at(n));
+        std::vector<std::size_t> own;
+        std::vector<double> c;
+        gm::get_nodes(own, c, dim, entity, true);
+        for (const auto n : own) pts.insert(index.at(n));
       }
       p.points.assign(pts.begin(), pts.end());
       // Two groups of other dimensions may share a name: the points join under it.

@@ -104,7 +104,8 @@ MorphOutcome run_job(const MorphJob& job) {
   MorphOutcome o;
   o.mesh = job.mesh.string();
   o.motion = job.motion.string();
-  if (job.write && job.out.empty() && !job.in_place) throw JobError("give an output (a new case folder or file) or in place");
+  if (job.write && job.out.empty() && !job.in_place)
+    throw JobError("give an output (a new case folder or file) or in place");
   if (job.write && !job.out.empty() && job.in_place) throw JobError("give an output or in place, not both");
   if (job.write && !job.out.empty()) {
     std::error_code ec;
@@ -116,7 +117,8 @@ MorphOutcome run_job(const MorphJob& job) {
     if (!fs::is_directory(parent, ec))
       throw io::FileError("cannot write '" + job.out.string() + "': folder '" + parent.string() + "' does not exist");
     if (!fs::is_directory(job.mesh, ec) && extension(job.out) != extension(job.mesh))
-      throw JobError("output " + job.out.string() + ": the output is written in the input's format, so it needs the extension '" +
+      throw JobError("output " + job.out.string() +
+                     ": the output is written in the input's format, so it needs the extension '" +
                      extension(job.mesh) + "'");
   }
   const Motion motion = read_motion(job.motion);
@@ -146,10 +148,11 @@ MorphOutcome run_job(const MorphJob& job) {
   o.cells = mesh.poly.faces() ? mesh.poly.cells : mesh.cells.size();
   o.patches = mesh.patches.size();
   if (mesh.patches.empty())
-    throw io::FileError(o.mesh + ": the mesh has no patches" +
-                        (o.format == "vtu" || o.format == "vtk"
-                             ? std::string(": name an integer point or cell data array as \"patch_array\" in ") + o.motion
-                             : std::string()));
+    throw io::FileError(
+        o.mesh + ": the mesh has no patches" +
+        (o.format == "vtu" || o.format == "vtk"
+             ? std::string(": name an integer point or cell data array as \"patch_array\" in ") + o.motion
+             : std::string()));
   o.ms_read = ms_since(t_read);
   auto t_q = Clock::now();
   o.before = mesh_quality(mesh, mesh.points);
@@ -157,8 +160,8 @@ MorphOutcome run_job(const MorphJob& job) {
   try {
     o.result = morph(mesh, motion, opt);
   } catch (const DuplicateSource& e) {
-    throw io::FileError(o.mesh + ": two prescribed points are at the same place (controls " + std::to_string(e.first()) +
-                        " and " + std::to_string(e.second()) + "): " + e.what());
+    throw io::FileError(o.mesh + ": two prescribed points are at the same place (controls " +
+                        std::to_string(e.first()) + " and " + std::to_string(e.second()) + "): " + e.what());
   } catch (const io::FileError&) {
     throw;
   } catch (const Error& e) {
@@ -221,8 +224,8 @@ std::string outcome_json(const MorphOutcome& o) {
 std::string outcome_text(const MorphOutcome& o) {
   const MorphReport& rep = o.result.report;
   std::ostringstream s;
-  s << "csrbf morph: " << o.mesh << " (" << o.format << ", " << o.encoding << "): " << o.points << " points, " << o.cells
-    << " cells, " << o.patches << " patches\n"
+  s << "csrbf morph: " << o.mesh << " (" << o.format << ", " << o.encoding << "): " << o.points << " points, "
+    << o.cells << " cells, " << o.patches << " patches\n"
     << "  motion " << o.motion << ": " << o.motion_summary << "\n"
     << "  " << rep.prescribed << " prescribed points (" << rep.moving << " moving, " << rep.fixed << " fixed), "
     << rep.controls << " controls";
@@ -234,7 +237,8 @@ std::string outcome_text(const MorphOutcome& o) {
     << quality_table(o.before, o.after) << "  time: read " << o.ms_read << " ms, fit " << rep.seconds_fit * 1e3
     << " ms, evaluate " << rep.seconds_evaluate * 1e3 << " ms, quality " << o.ms_quality << " ms, write " << o.ms_write
     << " ms, total " << o.ms_total << " ms\n";
-  if (o.written) s << "  -> " << o.output << (o.inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
+  if (o.written)
+    s << "  -> " << o.output << (o.inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
   return s.str();
 }
 

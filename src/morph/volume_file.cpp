@@ -1,10 +1,12 @@
 #include "csrbf/morph/volume_file.hpp"
 
+#include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/morph/openfoam.hpp"
 #include "volume_formats.hpp"
 
 #include <algorithm>
+#include <cctype>
 
 namespace fs = std::filesystem;
 
@@ -33,6 +35,21 @@ class FoamFile final : public VolumeFile {
 };
 
 }  // namespace
+
+void check_copy_target(const fs::path& in, const fs::path& out) {
+  io::check_output_path(out);
+  std::error_code ec;
+  if (fs::symlink_status(out, ec).type() != fs::file_type::not_found)
+    throw io::FileError("cannot write '" + out.string() +
+                        "': it exists (csrbf writes a new file; in place rewrites the input)");
+  const auto lower = [](std::string e) {
+    for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+    return e;
+  };
+  if (lower(in.extension().string()) != lower(out.extension().string()))
+    throw io::FileError("cannot write '" + out.string() + "': a copy of " + in.string() +
+                        " keeps its format and extension '" + in.extension().string() + "'");
+}
 
 std::unique_ptr<VolumeFile> open_openfoam(const fs::path& path, const OpenOptions& o) {
   return std::make_unique<FoamFile>(path, o);

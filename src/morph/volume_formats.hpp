@@ -5,6 +5,9 @@
 
 namespace csrbf::morph::detail {
 
+/// Throws io::FileError unless out can take a copy of in: a new name with in's extension.
+void check_copy_target(const std::filesystem::path& in, const std::filesystem::path& out);
+
 std::unique_ptr<VolumeFile> open_openfoam(const std::filesystem::path& path, const OpenOptions& o);
 std::unique_ptr<VolumeFile> open_vtk(const std::filesystem::path& path, const OpenOptions& o);
 std::unique_ptr<VolumeFile> open_gmsh(const std::filesystem::path& path, const OpenOptions& o);

@@ -140,10 +140,7 @@ class VtkFile final : public VolumeFile {
   }
 
   void write_copy(std::span<const Vec3> points, const fs::path& out) const override {
-    io::check_output_path(out);
-    std::error_code ec;
-    if (fs::exists(out, ec))
-      throw FileError("cannot write '" + out.string() + "': it exists (use --in-place to rewrite the input)");
+    check_copy_target(path_, out);
     write(points, out);
   }
   void write_in_place(std::span<const Vec3> points) const override { write(points, path_); }

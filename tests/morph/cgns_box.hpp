@@ -13,7 +13,8 @@
 namespace csrbf::test {
 
 /// tets: each hexahedron split into 6 positive tetrahedra (python3-meshio's CGNS reader reads only those).
-inline void write_cgns_box(const std::string& path, int n = 4, double h = 0.25, bool single = false, bool tets = false) {
+inline void write_cgns_box(const std::string& path, int n = 4, double h = 0.25, bool single = false,
+                           bool tets = false) {
   int fn = 0, base = 0, zone = 0, section = 0, bc = 0, coord = 0;
   const auto ok = [](int r) {
     if (r != CG_OK) throw std::runtime_error(std::string("cgns: ") + cg_get_error());
@@ -47,8 +48,8 @@ inline void write_cgns_box(const std::string& path, int n = 4, double h = 0.25, 
   for (int k = 0; k < n; ++k)
     for (int j = 0; j < n; ++j)
       for (int i = 0; i < n; ++i)
-        for (const int v : {P(i, j, k), P(i + 1, j, k), P(i + 1, j + 1, k), P(i, j + 1, k), P(i, j, k + 1), P(i + 1, j, k + 1),
-                            P(i + 1, j + 1, k + 1), P(i, j + 1, k + 1)})
+        for (const int v : {P(i, j, k), P(i + 1, j, k), P(i + 1, j + 1, k), P(i, j + 1, k), P(i, j, k + 1),
+                            P(i + 1, j, k + 1), P(i + 1, j + 1, k + 1), P(i, j + 1, k + 1)})
           hexes.push_back(v);
   cgsize_t cells = n * n * n;
   if (tets) {
@@ -56,7 +57,8 @@ inline void write_cgns_box(const std::string& path, int n = 4, double h = 0.25, 
     static const int kuhn[6][4] = {{0, 1, 2, 6}, {0, 2, 3, 6}, {0, 3, 7, 6}, {0, 7, 4, 6}, {0, 4, 5, 6}, {0, 5, 1, 6}};
     for (std::size_t c = 0; c < hexes.size(); c += 8)
       for (const auto& k : kuhn) {
-        cgsize_t v[4] = {hexes[c + std::size_t(k[0])], hexes[c + std::size_t(k[1])], hexes[c + std::size_t(k[2])], hexes[c + std::size_t(k[3])]};
+        cgsize_t v[4] = {hexes[c + std::size_t(k[0])], hexes[c + std::size_t(k[1])], hexes[c + std::size_t(k[2])],
+                         hexes[c + std::size_t(k[3])]};
         const auto at = [&](int i, const std::vector<double>& a) { return a[std::size_t(v[i] - 1)]; };
         double e[3][3];
         for (int i = 0; i < 3; ++i) {
@@ -64,7 +66,8 @@ inline void write_cgns_box(const std::string& path, int n = 4, double h = 0.25, 
           e[i][1] = at(i + 1, y) - at(0, y);
           e[i][2] = at(i + 1, z) - at(0, z);
         }
-        const double det = e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) - e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
+        const double det = e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1]) -
+                           e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0]) +
                            e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]);
         if (det < 0) std::swap(v[1], v[2]);
         t.insert(t.end(), v, v + 4);

@@ -569,3 +569,43 @@ TEST(Cells, PrismsAndPyramidsAreMeasuredAndOrientedEitherWay) {
     EXPECT_EQ(cell_quality(t, pushed, p).inverted_cells, 1u);
   }
 }
+
+// Gmsh: a two-tetrahedron mesh in msh 2.2, written here.
+TEST(Gmsh, ReadsGroupsAndRefusesBrokenFiles) {
+  TempDir dir;
+  const std::string mesh =
+      "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n2\n2 1 \"base\"\n3 2 \"solid\"\n$EndPhysicalNames\n"
+      "$Nodes\n5\n10 0 0 0\n11 1 0 0\n12 0 1 0\n13 0 0 1\n14 0 0 -1\n$EndNodes\n"
+      "$Elements\n3\n1 2 2 1 1 10 11 12\n2 4 2 2 2 10 11 12 13\n3 4 2 2 2 10 12 11 14\n$EndElements\n";
+  csrbf::test::write_text(dir / "two.msh", mesh);
+  const auto f = open_volume(dir / "two.msh");
+  EXPECT_EQ(f->encoding(), "msh 2.2 ascii");
+  const VolumeMesh& m = f->mesh();
+  ASSERT_EQ(m.points.size(), 5u);
+  EXPECT_EQ(m.point_ids, (std::vector<std::uint64_t>{10, 11, 12, 13, 14}));
+  ASSERT_NE(m.patch("base"), nullptr);
+  EXPECT_EQ(m.patch("base")->points, (std::vector<std::uint32_t>{0, 1, 2}));
+  EXPECT_EQ(m.patch("solid")->points.size(), 5u);
+  const MeshQuality q = mesh_quality(m, m.points);
+  EXPECT_EQ(q.cells->tetrahedra, 2u);
+  EXPECT_EQ(q.inverted_cells(), 0u);
+  // Moved and written: only the coordinates of $Nodes change.
+  std::vector<Vec3> p = m.points;
+  p[3] = Vec3(0.25, 0.125, 1.5);
+  f->write_copy(p, dir / "out.msh");
+  std::string want = mesh;
+  want.replace(want.find("13 0 0 1"), 8, "13 0.25 0.125 1.5");
+  EXPECT_EQ(csrbf::test::read_text(dir / "out.msh"), want);
+  EXPECT_NE(error_of([&] { f->write_copy(p, dir / "out.vtu"); }), "");
+
+  const auto broken = [&](const std::string& text) {
+    csrbf::test::write_text(dir / "bad.msh", text);
+    return error_of([&] { open_volume(dir / "bad.msh"); });
+  };
+  EXPECT_NE(broken("garbage\n").find("not a Gmsh mesh"), std::string::npos);
+  EXPECT_NE(broken(mesh.substr(0, mesh.find("$Elements") + 12)).find("bad.msh"), std::string::npos);
+  std::string lying = mesh;
+  lying.replace(lying.find("$Nodes\n5"), 8, "$Nodes\n5000000");
+  EXPECT_NE(broken(lying).find("a count that lies"), std::string::npos) << broken(lying);
+  EXPECT_NE(broken("$MeshFormat\n3.0 0 8\n$EndMeshFormat\n").find("csrbf reads 2.2 and 4.1"), std::string::npos);
+}

@@ -43,7 +43,7 @@ struct MorphOutcome {
   MorphOptions options;
   MorphResult result;
   MeshQuality before, after;
-  bool inverts = false;  ///< more cells inverted after than before
+  bool inverts = false;     ///< more cells inverted after than before
   double safe_phase = 1.0;  ///< where inverts: the largest phase that inverts none
   bool written = false;
   double ms_read = 0, ms_quality = 0, ms_write = 0, ms_total = 0;

@@ -1,0 +1,192 @@
+#!/usr/bin/env python3
+"""csrbf morph against OpenFOAM's own mesh motion (moveMesh with dynamicMotionSolverFvMesh and
+displacementLaplacian, diffusivity quadratic inverseDistance on the moving wall: what an OpenFOAM
+user picks), the same boundary motion in the same run, one JSON line a case and tool: wall time
+end to end (reading and writing included), peak memory (GNU time's maximum resident set), and
+checkMesh's maximum non-orthogonality and skewness of the result. Medians of --repeat runs.
+
+    /usr/bin/python3 bench/morph_openfoam.py --csrbf build/bin/csrbf [--case airfoil2d|pitzdaily] [--scale K]
+        [--repeat 3] [--format ascii|binary]
+
+Cases: airfoil2d, the tutorial's airFoil2D (21812 points) with its walls pitched by 3 degrees;
+pitzdaily, the tutorial's blockMesh case with every block's cell counts multiplied by K in x and y
+(K = 20: about 1e7 points), its lower wall lifted by 0.3 mm.
+"""
+import argparse
+import json
+import math
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+
+TUTORIALS = "/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam"
+ENV = dict(os.environ, WM_PROJECT_DIR="/usr/share/openfoam", OMPI_ALLOW_RUN_AS_ROOT="1",
+           OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+
+
+def sh(args, cwd=None):
+    r = subprocess.run(args, cwd=cwd, env=ENV, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit("failed: %s\n%s%s" % (" ".join(args), r.stdout[-3000:], r.stderr[-3000:]))
+    return r.stdout + r.stderr
+
+
+def timed(args, cwd=None):
+    """(wall seconds, peak resident MiB) of a child, by GNU time."""
+    out = sh(["/usr/bin/time", "-f", "CSRBF_TIME %e %M"] + args, cwd=cwd)
+    m = re.findall(r"CSRBF_TIME (\S+) (\S+)", out)[-1]
+    return float(m[0]), float(m[1]) / 1024.0
+
+
+def check_mesh(case, time=None):
+    out = sh(["checkMesh"] + (["-time", time] if time else []), cwd=case)
+    non_orth = re.search(r"Mesh non-orthogonality Max: (\S+) average: (\S+)", out)
+    skew = re.search(r"Max skewness = ([-+.0-9eE]+)", out)
+    return {"max_non_orthogonality": float(non_orth.group(1)), "mean_non_orthogonality": float(non_orth.group(2)),
+            "max_skewness": float(skew.group(1)), "mesh_ok": "Mesh OK." in out,
+            "negative_volumes": "negative volume" in out}
+
+
+def set_format(case, fmt):
+    path = os.path.join(case, "system", "controlDict")
+    with open(path) as f:
+        text = f.read()
+    text = re.sub(r"writeFormat\s+\w+;", "writeFormat %s;" % fmt, text)
+    text = re.sub(r"writePrecision\s+\d+;", "writePrecision 12;", text)
+    with open(path, "w") as f:
+        f.write(text)
+
+
+def prepare(case, work, scale, fmt):
+    """The case, its mesh, and its motion as (csrbf motion, pointDisplacement boundary entries)."""
+    if case == "airfoil2d":
+        src = os.path.join(work, "airFoil2D")
+        shutil.copytree(os.path.join(TUTORIALS, "airFoil2D"), src)
+        set_format(src, fmt)
+        if fmt == "binary":
+            sh(["foamFormatConvert", "-constant"], cwd=src)
+        degrees, origin = -3.0, [-8.75, 0, 0]
+        motion = {"radius": 20.0, "patches": {
+            "walls": {"rotate": {"axis": [0, 0, 1], "degrees": degrees, "origin": origin}},
+            "inlet": "fixed", "outlet": "fixed"}}
+        point_bcs = {
+            "walls": "type angularOscillatingDisplacement; axis (0 0 1); origin (%g %g %g); angle0 %.17g; "
+                     "amplitude 0; omega 0; value uniform (0 0 0);" % (*origin, math.radians(degrees)),
+            "inlet": "type fixedValue; value uniform (0 0 0);",
+            "outlet": "type fixedValue; value uniform (0 0 0);",
+            "frontAndBack": "type empty;"}
+        return src, motion, point_bcs, "walls"
+    src = os.path.join(work, "pitzDaily")
+    shutil.copytree(os.path.join(TUTORIALS, "pitzDaily"), src)
+    path = os.path.join(src, "system", "blockMeshDict")
+    with open(path) as f:
+        text = f.read()
+    text = re.sub(r"\((\d+) (\d+) 1\)", lambda m: "(%d %d 1)" % (int(m.group(1)) * scale, int(m.group(2)) * scale), text)
+    with open(path, "w") as f:
+        f.write(text)
+    set_format(src, fmt)
+    sh(["blockMesh"], cwd=src)
+    motion = {"radius": 0.03, "patches": {"lowerWall": {"translate": [0, 0.0003, 0]}, "upperWall": "fixed",
+                                          "inlet": "fixed", "outlet": "fixed"}}
+    point_bcs = {"lowerWall": "type fixedValue; value uniform (0 0.0003 0);",
+                 "upperWall": "type fixedValue; value uniform (0 0 0);",
+                 "inlet": "type fixedValue; value uniform (0 0 0);",
+                 "outlet": "type fixedValue; value uniform (0 0 0);",
+                 "frontAndBack": "type empty;"}
+    return src, motion, point_bcs, "lowerWall"
+
+
+def laplacian_case(src, dst, point_bcs, wall):
+    """src set up for one step of moveMesh with displacementLaplacian."""
+    shutil.copytree(src, dst)
+    for d in os.listdir(dst):  # the tutorial's fields are not needed; 0/pointDisplacement is
+        if re.fullmatch(r"[0-9.]+", d):
+            shutil.rmtree(os.path.join(dst, d))
+    os.makedirs(os.path.join(dst, "0"))
+    header = "FoamFile { version 2.0; format ascii; class %s; object %s; }\n"
+    with open(os.path.join(dst, "constant", "dynamicMeshDict"), "w") as f:
+        f.write(header % ("dictionary", "dynamicMeshDict"))
+        f.write("dynamicFvMesh dynamicMotionSolverFvMesh;\nmotionSolverLibs (fvMotionSolvers);\n"
+                "motionSolver displacementLaplacian;\ndisplacementLaplacianCoeffs { diffusivity quadratic "
+                "inverseDistance 1(%s); }\ndiffusivity quadratic inverseDistance 1(%s);\n" % (wall, wall))
+    with open(os.path.join(dst, "0", "pointDisplacement"), "w") as f:
+        f.write(header % ("pointVectorField", "pointDisplacement"))
+        f.write("dimensions [0 1 0 0 0 0 0];\ninternalField uniform (0 0 0);\nboundaryField\n{\n")
+        for name, bc in point_bcs.items():
+            f.write("    %s { %s }\n" % (name, bc))
+        f.write("}\n")
+    with open(os.path.join(dst, "system", "fvSolution"), "w") as f:
+        f.write(header % ("dictionary", "fvSolution"))
+        f.write('solvers { "cellDisplacement.*" { solver GAMG; tolerance 1e-8; relTol 0; smoother GaussSeidel; } }\n'
+                "PIMPLE { nOuterCorrectors 1; }\n")
+    path = os.path.join(dst, "system", "controlDict")
+    with open(path) as f:
+        text = f.read()
+    for key, value in (("startTime", "0"), ("endTime", "1"), ("deltaT", "1"), ("writeInterval", "1"),
+                       ("writeControl", "timeStep"), ("startFrom", "startTime")):
+        text = re.sub(r"\b%s\s+[^;]+;" % key, "%s %s;" % (key, value), text)
+    text = re.sub(r"functions\s*\{.*", "", text, flags=re.S)
+    with open(path, "w") as f:
+        f.write(text)
+    with open(os.path.join(dst, "system", "fvSchemes"), "a") as f:
+        f.write("\n")
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--csrbf", required=True)
+    p.add_argument("--case", choices=("airfoil2d", "pitzdaily"), default="airfoil2d")
+    p.add_argument("--scale", type=int, default=1)
+    p.add_argument("--repeat", type=int, default=3)
+    p.add_argument("--format", choices=("ascii", "binary"), default="ascii")
+    p.add_argument("--skip-openfoam", action="store_true")
+    a = p.parse_args()
+    work = tempfile.mkdtemp(prefix="csrbf-bench-morph-")
+    try:
+        src, motion, point_bcs, wall = prepare(a.case, work, a.scale, a.format)
+        with open(os.path.join(work, "motion.json"), "w") as f:
+            json.dump(motion, f)
+        rows = []
+        times, mems = [], []
+        for k in range(a.repeat):
+            out = os.path.join(work, "csrbf-%d" % k)
+            t, m = timed([a.csrbf, "morph", src, "-o", out, "--motion", os.path.join(work, "motion.json"), "--json"])
+            times.append(t)
+            mems.append(m)
+            report = json.loads(subprocess.run([a.csrbf, "morph", src, "-o", out + "-r", "--motion",
+                                                os.path.join(work, "motion.json"), "--json"],
+                                               capture_output=True, text=True).stdout)
+            if k + 1 < a.repeat:
+                shutil.rmtree(out)
+            shutil.rmtree(out + "-r")
+        points = report["points"]
+        q = check_mesh(out)
+        rows.append({"case": a.case, "scale": a.scale, "format": a.format, "points": points, "cells": report["cells"],
+                     "tool": "csrbf", "seconds": statistics.median(times), "seconds_all": times,
+                     "peak_mib": statistics.median(mems), "controls": report["controls"], "ms": report["ms"], **q})
+        if not a.skip_openfoam:
+            times, mems = [], []
+            for k in range(a.repeat):
+                case = os.path.join(work, "laplacian-%d" % k)
+                laplacian_case(src, case, point_bcs, wall)
+                t, m = timed(["moveMesh"], cwd=case)
+                times.append(t)
+                mems.append(m)
+            q = check_mesh(case, "1")
+            rows.append({"case": a.case, "scale": a.scale, "format": a.format, "points": points,
+                         "cells": report["cells"], "tool": "displacementLaplacian", "seconds": statistics.median(times),
+                         "seconds_all": times, "peak_mib": statistics.median(mems), **q})
+            rows.append({"case": a.case, "scale": a.scale, "points": points,
+                         "speedup": rows[1]["seconds"] / rows[0]["seconds"]})
+        for r in rows:
+            print(json.dumps(r), flush=True)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
