@@ -6,11 +6,12 @@ end to end (reading and writing included), peak memory (GNU time's maximum resid
 checkMesh's maximum non-orthogonality and skewness of the result. Medians of --repeat runs.
 
     /usr/bin/python3 bench/morph_openfoam.py --csrbf build/bin/csrbf [--case airfoil2d|pitzdaily] [--scale K]
-        [--repeat 3] [--format ascii|binary]
+        [--repeat 3] [--format ascii|binary] [--greedy TOL]
 
 Cases: airfoil2d, the tutorial's airFoil2D (21812 points) with its walls pitched by 3 degrees;
 pitzdaily, the tutorial's blockMesh case with every block's cell counts multiplied by K in x and y
-(K = 20: about 1e7 points), its lower wall lifted by 0.3 mm.
+(K = 20: about 1e7 points), a 1 mm bump raised on its lower wall (ASCII: the bump is computed
+from the ASCII points, and binary cases are converted after).
 """
 import argparse
 import json
@@ -36,17 +37,21 @@ def sh(args, cwd=None):
 
 
 def timed(args, cwd=None):
-    """(wall seconds, peak resident MiB) of a child, by GNU time."""
-    out = sh(["/usr/bin/time", "-f", "CSRBF_TIME %e %M"] + args, cwd=cwd)
-    m = re.findall(r"CSRBF_TIME (\S+) (\S+)", out)[-1]
-    return float(m[0]), float(m[1]) / 1024.0
+    """(wall seconds, peak resident MiB, standard output) of a child, by GNU time."""
+    r = subprocess.run(["/usr/bin/time", "-o", "/dev/stderr", "-f", "CSRBF_TIME %e %M"] + args, cwd=cwd, env=ENV,
+                       capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.exit("failed: %s\n%s%s" % (" ".join(args), r.stdout[-3000:], r.stderr[-3000:]))
+    m = re.findall(r"CSRBF_TIME (\S+) (\S+)", r.stderr)[-1]
+    return float(m[0]), float(m[1]) / 1024.0, r.stdout
 
 
 def check_mesh(case, time=None):
     out = sh(["checkMesh"] + (["-time", time] if time else []), cwd=case)
     non_orth = re.search(r"Mesh non-orthogonality Max: (\S+) average: (\S+)", out)
     skew = re.search(r"Max skewness = ([-+.0-9eE]+)", out)
-    return {"max_non_orthogonality": float(non_orth.group(1)), "mean_non_orthogonality": float(non_orth.group(2)),
+    failed = re.findall(r"\*\*\*([^\n]*)", out)
+    return {"max_non_orthogonality": float(non_orth.group(1)), "mean_non_orthogonality": float(non_orth.group(2)), "failed": failed,
             "max_skewness": float(skew.group(1)), "mesh_ok": "Mesh OK." in out,
             "negative_volumes": "negative volume" in out}
 
@@ -88,16 +93,49 @@ def prepare(case, work, scale, fmt):
     text = re.sub(r"\((\d+) (\d+) 1\)", lambda m: "(%d %d 1)" % (int(m.group(1)) * scale, int(m.group(2)) * scale), text)
     with open(path, "w") as f:
         f.write(text)
-    set_format(src, fmt)
     sh(["blockMesh"], cwd=src)
-    motion = {"radius": 0.03, "patches": {"lowerWall": {"translate": [0, 0.0003, 0]}, "upperWall": "fixed",
+    # A smooth bump on the lower wall downstream of the step (shape optimisation's kind of motion):
+    # dy = A sin^2(pi (x - x0) / L) for x0 < x < x0 + L, given point by point to both tools (OpenFOAM
+    # takes the patch's values in its point order: the order points first appear in its faces).
+    poly = os.path.join(src, "constant", "polyMesh")
+    points, faces, start, count = read_patch(poly, "lowerWall")
+    x0, length, amplitude = 0.05, 0.1, 0.001
+    order, seen = [], set()
+    for f in faces[start:start + count]:
+        for v in f:
+            if v not in seen:
+                seen.add(v)
+                order.append(v)
+    dy = [amplitude * math.sin(math.pi * (points[v][0] - x0) / length) ** 2 if x0 < points[v][0] < x0 + length else 0.0
+          for v in order]
+    with open(os.path.join(work, "bump.txt"), "w") as f:
+        for v, d in zip(order, dy):
+            f.write("%d 0 %.17g 0\n" % (v, d))
+    motion = {"radius": 0.02, "patches": {"lowerWall": {"displacements": "bump.txt"}, "upperWall": "fixed",
                                           "inlet": "fixed", "outlet": "fixed"}}
-    point_bcs = {"lowerWall": "type fixedValue; value uniform (0 0.0003 0);",
+    values = " ".join("(0 %.17g 0)" % d for d in dy)
+    point_bcs = {"lowerWall": "type fixedValue; value nonuniform List<vector> %d(%s);" % (len(dy), values),
                  "upperWall": "type fixedValue; value uniform (0 0 0);",
                  "inlet": "type fixedValue; value uniform (0 0 0);",
                  "outlet": "type fixedValue; value uniform (0 0 0);",
                  "frontAndBack": "type empty;"}
+    if fmt == "binary":
+        set_format(src, fmt)
+        sh(["foamFormatConvert", "-constant"], cwd=src)
     return src, motion, point_bcs, "lowerWall"
+
+
+def read_patch(poly, name):
+    """(points, faces, startFace, nFaces) of an ASCII polyMesh's patch."""
+    def body(path):
+        with open(path) as f:
+            text = f.read()
+        return text[text.index("}") + 1:]
+    pts = [tuple(map(float, m)) for m in re.findall(r"\(([-\d.e+]+) ([-\d.e+]+) ([-\d.e+]+)\)", body(os.path.join(poly, "points")))]
+    faces = [list(map(int, f.split())) for f in re.findall(r"\d+\(([\d ]+)\)", body(os.path.join(poly, "faces")))]
+    b = body(os.path.join(poly, "boundary"))
+    m = re.search(name + r"\s*\{[^}]*?nFaces\s+(\d+);\s*startFace\s+(\d+);", b, re.S)
+    return pts, faces, int(m.group(2)), int(m.group(1))
 
 
 def laplacian_case(src, dst, point_bcs, wall):
@@ -143,6 +181,7 @@ def main():
     p.add_argument("--scale", type=int, default=1)
     p.add_argument("--repeat", type=int, default=3)
     p.add_argument("--format", choices=("ascii", "binary"), default="ascii")
+    p.add_argument("--greedy", type=float, default=0.0, help="csrbf morph --greedy TOL")
     p.add_argument("--skip-openfoam", action="store_true")
     a = p.parse_args()
     work = tempfile.mkdtemp(prefix="csrbf-bench-morph-")
@@ -154,26 +193,27 @@ def main():
         times, mems = [], []
         for k in range(a.repeat):
             out = os.path.join(work, "csrbf-%d" % k)
-            t, m = timed([a.csrbf, "morph", src, "-o", out, "--motion", os.path.join(work, "motion.json"), "--json"])
+            t, m, stdout = timed([a.csrbf, "morph", src, "-o", out, "--motion", os.path.join(work, "motion.json"),
+                                  "--json"] + (["--greedy", repr(a.greedy)] if a.greedy else []))
             times.append(t)
             mems.append(m)
-            report = json.loads(subprocess.run([a.csrbf, "morph", src, "-o", out + "-r", "--motion",
-                                                os.path.join(work, "motion.json"), "--json"],
-                                               capture_output=True, text=True).stdout)
+            report = json.loads(stdout)
             if k + 1 < a.repeat:
                 shutil.rmtree(out)
-            shutil.rmtree(out + "-r")
         points = report["points"]
         q = check_mesh(out)
         rows.append({"case": a.case, "scale": a.scale, "format": a.format, "points": points, "cells": report["cells"],
                      "tool": "csrbf", "seconds": statistics.median(times), "seconds_all": times,
-                     "peak_mib": statistics.median(mems), "controls": report["controls"], "ms": report["ms"], **q})
+                     "peak_mib": statistics.median(mems), "controls": report["controls"], "greedy": a.greedy,
+                     "ms": report["ms"], **q})
         if not a.skip_openfoam:
             times, mems = [], []
             for k in range(a.repeat):
                 case = os.path.join(work, "laplacian-%d" % k)
                 laplacian_case(src, case, point_bcs, wall)
-                t, m = timed(["moveMesh"], cwd=case)
+                t, m, _ = timed(["moveMesh"], cwd=case)
+                if k + 1 < a.repeat:
+                    q = None
                 times.append(t)
                 mems.append(m)
             q = check_mesh(case, "1")

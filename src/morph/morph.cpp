@@ -76,6 +76,38 @@ class SpacedSet {
   std::unordered_map<std::uint64_t, std::vector<Vec3>> cells_;
 };
 
+struct Flat {
+  int axis;
+  double lo, hi;
+  std::string patch;
+};
+
+/// A 2-D OpenFOAM case (a patch of type empty, every point on one of two planes normal to an
+/// axis): the axis and the planes.
+std::optional<Flat> flat_axis(const VolumeMesh& mesh) {
+  const Patch* empty = nullptr;
+  for (const Patch& p : mesh.patches)
+    if (p.type == "empty") empty = &p;
+  if (!empty || mesh.points.empty()) return std::nullopt;
+  for (int a = 0; a < 3; ++a) {
+    const double first = mesh.points[0][a];
+    double second = first;
+    bool two = true;
+    for (const Vec3& p : mesh.points) {
+      const double v = p[a];
+      if (v == first || v == second) continue;
+      if (second == first) {
+        second = v;
+        continue;
+      }
+      two = false;
+      break;
+    }
+    if (two && second != first) return Flat{a, std::min(first, second), std::max(first, second), empty->name};
+  }
+  return std::nullopt;
+}
+
 }  // namespace
 
 std::size_t Prescribed::moving() const { return std::size_t(std::count(fixed.begin(), fixed.end(), char(0))); }
@@ -192,32 +224,75 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   for (const Vec3& dv : pres.displacements) rep.max_displacement = std::max(rep.max_displacement, dv.norm());
   if (rep.moving == 0 || rep.max_displacement == 0 || options.phase == 0) return r;  // nothing moves
 
-  std::vector<Vec3> sources(n), targets(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    sources[i] = mesh.points[pres.points[i]];
-    targets[i] = sources[i] + pres.displacements[i];
+  // The controls: the prescribed points, or in a 2-D case their projections on the mid-plane, each
+  // pair of the two planes' points one control.
+  const auto flat = flat_axis(mesh);
+  const double tol = 1e-12 * std::max(mesh_size(mesh), 1e-300);
+  std::vector<Vec3> sources, targets;
+  sources.reserve(n);
+  targets.reserve(n);
+  if (flat) {
+    const int a = flat->axis;
+    const double mid = 0.5 * (flat->lo + flat->hi);
+    std::vector<std::uint32_t> order(n);
+    std::iota(order.begin(), order.end(), 0u);
+    const auto projected = [&](std::uint32_t i) {
+      Vec3 p = mesh.points[pres.points[i]];
+      p[a] = mid;
+      return p;
+    };
+    const auto less = [&](std::uint32_t i, std::uint32_t j) {
+      const Vec3 p = projected(i), q = projected(j);
+      return std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3);
+    };
+    std::sort(order.begin(), order.end(), less);
+    for (std::size_t k = 0; k < n; ++k) {
+      const std::uint32_t i = order[k];
+      const Vec3& d = pres.displacements[i];
+      if (std::abs(d[a]) > tol)
+        throw io::FileError(
+            motion.file + ": the mesh is 2-D (patch '" + flat->patch + "' is empty), but point " +
+            std::to_string(mesh.point_ids.empty() ? std::uint64_t(pres.points[i]) : mesh.point_ids[pres.points[i]]) +
+            " moves out of its plane by " + std::to_string(d[a]));
+      const Vec3 p = projected(i);
+      if (!sources.empty() && sources.back() == p) {
+        if ((targets.back() - sources.back() - d).norm() > tol)
+          throw io::FileError(motion.file + ": the mesh is 2-D (patch '" + flat->patch + "' is empty), but points " +
+                              std::to_string(pres.points[order[k - 1]]) + " and " + std::to_string(pres.points[i]) +
+                              " of its two planes move differently");
+        continue;
+      }
+      sources.push_back(p);
+      targets.push_back(p + d);
+    }
+  } else {
+    for (std::size_t i = 0; i < n; ++i) {
+      sources.push_back(mesh.points[pres.points[i]]);
+      targets.push_back(sources.back() + pres.displacements[i]);
+    }
   }
+  const std::size_t nc = sources.size();
   const auto t_fit = Clock::now();
-  std::vector<Vec3> at(n);
+  std::vector<Vec3> at(nc);
   const auto worst = [&](const SpaceMap& map, std::vector<double>& err) {
     map.apply(sources, at, 1.0);
-    err.resize(n);
+    err.resize(nc);
     double e = 0;
-    for (std::size_t i = 0; i < n; ++i) e = std::max(e, err[i] = (at[i] - targets[i]).norm());
+    for (std::size_t i = 0; i < nc; ++i) e = std::max(e, err[i] = (at[i] - targets[i]).norm());
     return e;
   };
   std::vector<double> err;
   std::optional<SpaceMap> map;
-  if (options.greedy > 0 && n > 1) {
+  if (options.greedy > 0 && nc > 1) {
     const double limit = options.greedy * rep.max_displacement;
-    std::vector<char> chosen(n, 0);
+    std::vector<char> chosen(nc, 0);
     std::vector<std::uint32_t> subset;
     std::size_t first = 0;
-    for (std::size_t i = 1; i < n; ++i)
-      if (pres.displacements[i].squaredNorm() > pres.displacements[first].squaredNorm()) first = i;
+    for (std::size_t i = 1; i < nc; ++i)
+      if ((targets[i] - sources[i]).squaredNorm() > (targets[first] - sources[first]).squaredNorm()) first = i;
     subset.push_back(std::uint32_t(first));
     chosen[first] = 1;
-    std::vector<std::uint32_t> by_error(n);
+    std::vector<std::uint32_t> by_error(nc);
     for (;;) {
       ++rep.greedy_rounds;
       std::sort(subset.begin(), subset.end());
@@ -228,7 +303,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
       }
       map = SpaceMap::fit(s, t, options.fit);
       rep.max_boundary_error = worst(*map, err);
-      if (rep.max_boundary_error <= limit || subset.size() == n) break;
+      if (rep.max_boundary_error <= limit || subset.size() == nc) break;
       std::iota(by_error.begin(), by_error.end(), 0u);
       std::sort(by_error.begin(), by_error.end(), [&](std::uint32_t a, std::uint32_t b) { return err[a] > err[b]; });
       SpacedSet spaced(options.fit.radius);
@@ -243,13 +318,26 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   } else {
     map = SpaceMap::fit(sources, targets, options.fit);
     rep.max_boundary_error = worst(*map, err);
-    rep.controls = n;
+    rep.controls = nc;
   }
   rep.fit = map->stats();
   rep.seconds_fit = seconds_since(t_fit);
 
   const auto t_eval = Clock::now();
-  map->apply(mesh.points, r.points, options.phase);
+  if (flat) {
+    // The displacement at each point's projection: the two planes' points move alike, and never
+    // out of their planes (every control's displacement is 0 along the axis).
+    std::vector<Vec3> projected(mesh.points), d(mesh.points.size());
+    const double mid = 0.5 * (flat->lo + flat->hi);
+    for (Vec3& p : projected) p[flat->axis] = mid;
+    map->displacements(projected.front().data(), d.front().data(), projected.size());
+    for (std::size_t i = 0; i < d.size(); ++i) {
+      r.points[i] = mesh.points[i] + options.phase * d[i];
+      r.points[i][flat->axis] = mesh.points[i][flat->axis];
+    }
+  } else {
+    map->apply(mesh.points, r.points, options.phase);
+  }
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t p = pres.points[i];
     r.points[p] = pres.fixed[i] ? mesh.points[p] : Vec3(mesh.points[p] + options.phase * pres.displacements[i]);

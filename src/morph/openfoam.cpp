@@ -160,6 +160,13 @@ class Parser {
     if (pos >= t_.size()) fail("unexpected end of file (truncated?)");
     return t_[pos];
   }
+  /// expect(c, what) with the message built only on failure (per point and per face, a message
+  /// built each time cost more than the parse).
+  template <class F>
+  void expect_lazy(char c, F&& what) {
+    if (peek() != c) fail(std::string("expected '") + c + "' " + what() + ", got " + quote(word_at(pos)));
+    ++pos;
+  }
   void expect(char c, const char* what) {
     if (peek() != c) fail(std::string("expected '") + c + "' " + what + ", got " + quote(word_at(pos)));
     ++pos;
@@ -190,6 +197,21 @@ class Parser {
     if (v > max)
       fail_at(at, std::to_string(v) + " " + what + " cannot fit in the " + std::to_string(t_.size()) +
                       "-byte file (truncated, or a count that lies)");
+    return v;
+  }
+  /// A non-negative integer, parsed directly (the labels of faces, owner and neighbour are most of
+  /// a mesh's text); anything else goes through integer() for its message.
+  std::uint64_t label(const char* what) {
+    while (pos < t_.size() && (t_[pos] == ' ' || t_[pos] == '\n' || t_[pos] == '\t' || t_[pos] == '\r')) ++pos;
+    std::size_t i = pos;
+    std::uint64_t v = 0;
+    while (i < t_.size() && t_[i] >= '0' && t_[i] <= '9' && i - pos < 18) v = v * 10 + std::uint64_t(t_[i++] - '0');
+    if (i == pos || (i < t_.size() && !is_space(t_[i]) && !is_punct(t_[i]))) {
+      const auto x = integer(what);
+      if (x < 0) fail("negative " + std::string(what) + " " + std::to_string(x));
+      return std::uint64_t(x);
+    }
+    pos = i;
     return v;
   }
   double number(const char* what) {
@@ -310,6 +332,11 @@ Header read_header(Parser& p) {
   return h;
 }
 
+/// Labels are kept as 32 bits; faces below 2^31 (the quality measure marks a cell's neighbour faces
+/// by the top bit).
+constexpr std::uint64_t kNoBound = std::uint64_t(std::numeric_limits<std::uint32_t>::max());
+constexpr std::uint64_t kMaxFaces = std::uint64_t(1) << 31;
+
 std::vector<std::uint32_t> read_labels(Parser& p, const Header& h, const std::string& what, std::uint64_t bound) {
   const std::size_t min_bytes = h.binary ? std::size_t(h.label_bytes) : 2;
   const std::uint64_t n = p.count(what, p.remaining() / min_bytes + 1);
@@ -343,13 +370,12 @@ std::vector<std::uint32_t> read_labels(Parser& p, const Header& h, const std::st
       out[i] = check(v, i);
     }
   } else {
-    for (std::uint64_t i = 0; i < n; ++i) out[i] = check(p.integer("a label"), i);
+    for (std::uint64_t i = 0; i < n; ++i)
+      out[i] = check(std::int64_t(std::min<std::uint64_t>(p.label("a label"), kNoBound)), i);
   }
   p.expect(')', ("to close the list of " + std::to_string(n) + " " + what + " (more entries than the count?)").c_str());
   return out;
 }
-
-constexpr std::uint64_t kNoBound = std::uint64_t(std::numeric_limits<std::uint32_t>::max());
 
 void read_points(Parser& p, const Header& h, FoamPointsFile& f, std::vector<Vec3>& pts) {
   if (!h.cls.empty() && h.cls != "vectorField" && h.cls != "pointField")
@@ -376,9 +402,9 @@ void read_points(Parser& p, const Header& h, FoamPointsFile& f, std::vector<Vec3
       }
   } else {
     for (std::uint64_t i = 0; i < n; ++i) {
-      p.expect('(', ("to open point " + std::to_string(i)).c_str());
+      p.expect_lazy('(', [&] { return "to open point " + std::to_string(i); });
       for (int c = 0; c < 3; ++c) pts[i][c] = p.number("a coordinate");
-      p.expect(')', ("to close point " + std::to_string(i) + " (a point has 3 coordinates)").c_str());
+      p.expect_lazy(')', [&] { return "to close point " + std::to_string(i) + " (a point has 3 coordinates)"; });
     }
   }
   p.skip();
@@ -409,9 +435,12 @@ void read_faces(Parser& p, const Header& h, PolyTopology& t, std::size_t points)
   t.face_start.reserve(n + 1);
   t.face_points.reserve(4 * n);
   for (std::uint64_t f = 0; f < n; ++f) {
-    const std::uint64_t k = p.count("points of face " + std::to_string(f), p.remaining() / (h.binary ? 4 : 2) + 1);
+    const std::uint64_t k = p.label("the number of points of a face");
+    if (k > p.remaining() / (h.binary ? 4 : 2) + 1)
+      p.fail("face " + std::to_string(f) + ": " + std::to_string(k) +
+             " points cannot fit in the file (truncated, or a count that lies)");
     if (k < 3) p.fail("face " + std::to_string(f) + " has " + std::to_string(k) + " points (at least 3)");
-    p.expect('(', ("to open face " + std::to_string(f)).c_str());
+    p.expect_lazy('(', [&] { return "to open face " + std::to_string(f); });
     if (h.binary) {
       const char* raw = p.raw(k * std::size_t(h.label_bytes), "face " + std::to_string(f));
       for (std::uint64_t i = 0; i < k; ++i) {
@@ -430,14 +459,14 @@ void read_faces(Parser& p, const Header& h, PolyTopology& t, std::size_t points)
       }
     } else {
       for (std::uint64_t i = 0; i < k; ++i) {
-        const auto v = p.integer("a point label");
+        const auto v = std::int64_t(std::min<std::uint64_t>(p.label("a point label"), kNoBound));
         if (v < 0 || std::uint64_t(v) >= points)
           p.fail("face " + std::to_string(f) + " uses point " + std::to_string(v) + ", but there are " +
                  std::to_string(points) + " points");
         t.face_points.push_back(std::uint32_t(v));
       }
     }
-    p.expect(')', ("to close face " + std::to_string(f) + " (more labels than its count?)").c_str());
+    p.expect_lazy(')', [&] { return "to close face " + std::to_string(f) + " (more labels than its count?)"; });
     t.face_start.push_back(t.face_points.size());
   }
   p.expect(')', ("to close the list of " + std::to_string(n) + " faces").c_str());
@@ -524,6 +553,8 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes) {
     read_faces(p, read_header(p), m.poly, np);
   }
   const std::size_t nf = m.poly.face_start.size() - 1;
+  if (nf >= kMaxFaces)
+    throw FileError(c.poly_mesh.string() + ": " + std::to_string(nf) + " faces: more than csrbf reads (2^31)");
   {
     Loaded l = load(c.poly_mesh, "owner", max_file_bytes);
     Parser p(l.text, l.path.string());
@@ -551,6 +582,7 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes) {
     std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges;
     read_boundary(p, m.patches, ranges);
     std::uint64_t next = m.poly.internal_faces();
+    std::vector<std::uint32_t> stamp(np, 0);
     for (std::size_t i = 0; i < ranges.size(); ++i) {
       const auto [start, count] = ranges[i];
       const std::string name = "patch '" + m.patches[i].name + "'";
@@ -561,12 +593,24 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes) {
         throw FileError(l.path.string() + ": " + name + ": startFace " + std::to_string(start) + ", expected " +
                         std::to_string(next) + " (patches follow the internal faces and each other)");
       next = start + count;
+      // The patch's points, each once (a stamp per point), ascending: sorted when few, else
+      // gathered by one pass over the stamps.
       std::vector<std::uint32_t>& pts = m.patches[i].points;
-      for (std::uint64_t f = start; f < start + count; ++f)
-        pts.insert(pts.end(), m.poly.face_points.begin() + std::ptrdiff_t(m.poly.face_start[f]),
-                   m.poly.face_points.begin() + std::ptrdiff_t(m.poly.face_start[f + 1]));
-      std::sort(pts.begin(), pts.end());
-      pts.erase(std::unique(pts.begin(), pts.end()), pts.end());
+      const auto mark = std::uint32_t(i + 1);
+      for (std::uint64_t k = m.poly.face_start[start]; k < m.poly.face_start[start + count]; ++k) {
+        const std::uint32_t v = m.poly.face_points[k];
+        if (stamp[v] != mark) {
+          stamp[v] = mark;
+          pts.push_back(v);
+        }
+      }
+      if (pts.size() > np / 8) {
+        pts.clear();
+        for (std::uint32_t v = 0; v < np; ++v)
+          if (stamp[v] == mark) pts.push_back(v);
+      } else {
+        std::sort(pts.begin(), pts.end());
+      }
     }
     if (next != nf)
       throw FileError(l.path.string() + ": the patches end at face " + std::to_string(next) + ", but there are " +

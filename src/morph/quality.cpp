@@ -6,6 +6,8 @@
 #include <tbb/parallel_reduce.h>
 
 #include <algorithm>
+#include <functional>
+#include <limits>
 #include <cmath>
 #include <numbers>
 #include <vector>
@@ -35,7 +37,7 @@ void face_geometry(const PolyTopology& t, std::span<const Vec3> p, std::size_t f
   double sum_a = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const Vec3& a = p[v[i]];
-    const Vec3& next = p[v[(i + 1) % n]];
+    const Vec3& next = p[v[i + 1 < n ? i + 1 : 0]];
     const Vec3 c = a + next + mean;
     const Vec3 nn = (next - a).cross(mean - a);
     const double mag = nn.norm();
@@ -65,40 +67,41 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points) {
     for (std::size_t f = r.begin(); f < r.end(); ++f) face_geometry(t, points, f, fc[f], fa[f]);
   });
   // Cell centres and volumes (primitiveMeshCellCentresAndVols): an estimated centre, the mean of
-  // the cell's face centres, then pyramids from it to each face.
-  std::vector<Vec3> est(nc, Vec3::Zero()), cc(nc, Vec3::Zero());
-  std::vector<double> vol(nc, 0.0);
-  std::vector<std::uint32_t> nfaces(nc, 0);
-  for (std::size_t f = 0; f < nf; ++f) {
-    est[t.owner[f]] += fc[f];
-    ++nfaces[t.owner[f]];
+  // the cell's face centres, then pyramids from it to each face. Each cell's faces by a counting
+  // sort, so that the cells are computed in parallel.
+  std::vector<std::uint64_t> first(nc + 1, 0);
+  for (std::size_t f = 0; f < nf; ++f) ++first[t.owner[f] + 1];
+  for (std::size_t f = 0; f < ni; ++f) ++first[t.neighbour[f] + 1];
+  for (std::size_t c = 0; c < nc; ++c) first[c + 1] += first[c];
+  std::vector<std::uint32_t> faces_of(first[nc]);  // a face, with its top bit set where the cell is its neighbour
+  {
+    std::vector<std::uint64_t> next(first.begin(), first.end() - 1);
+    for (std::size_t f = 0; f < nf; ++f) faces_of[next[t.owner[f]]++] = std::uint32_t(f);
+    for (std::size_t f = 0; f < ni; ++f) faces_of[next[t.neighbour[f]]++] = std::uint32_t(f) | 0x80000000u;
   }
-  for (std::size_t f = 0; f < ni; ++f) {
-    est[t.neighbour[f]] += fc[f];
-    ++nfaces[t.neighbour[f]];
-  }
-  for (std::size_t c = 0; c < nc; ++c)
-    if (nfaces[c]) est[c] /= double(nfaces[c]);
-  for (std::size_t f = 0; f < nf; ++f) {
-    const std::uint32_t o = t.owner[f];
-    const double v = fa[f].dot(fc[f] - est[o]);
-    cc[o] += v * (0.75 * fc[f] + 0.25 * est[o]);
-    vol[o] += v;
-  }
-  for (std::size_t f = 0; f < ni; ++f) {
-    const std::uint32_t n = t.neighbour[f];
-    const double v = fa[f].dot(est[n] - fc[f]);
-    cc[n] += v * (0.75 * fc[f] + 0.25 * est[n]);
-    vol[n] += v;
-  }
-  q.min_volume = nc ? std::numeric_limits<double>::infinity() : 0.0;
+  std::vector<Vec3> cc(nc);
+  std::vector<double> vol(nc);
   std::vector<char> inverted(nc, 0);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nc, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t c = r.begin(); c < r.end(); ++c) {
+      const std::uint64_t b = first[c], e = first[c + 1];
+      Vec3 est = Vec3::Zero();
+      for (std::uint64_t k = b; k < e; ++k) est += fc[faces_of[k] & 0x7fffffffu];
+      if (e > b) est /= double(e - b);
+      Vec3 centre = Vec3::Zero();
+      double v = 0;
+      for (std::uint64_t k = b; k < e; ++k) {
+        const std::uint32_t f = faces_of[k] & 0x7fffffffu;
+        const double pyr = (faces_of[k] & 0x80000000u) ? fa[f].dot(est - fc[f]) : fa[f].dot(fc[f] - est);
+        centre += pyr * (0.75 * fc[f] + 0.25 * est);
+        v += pyr;
+      }
+      cc[c] = std::abs(v) > kVSmall ? Vec3(centre / v) : est;
+      vol[c] = v / 3.0;
+    }
+  });
+  q.min_volume = nc ? std::numeric_limits<double>::infinity() : 0.0;
   for (std::size_t c = 0; c < nc; ++c) {
-    if (std::abs(vol[c]) > kVSmall)
-      cc[c] /= vol[c];
-    else
-      cc[c] = est[c];
-    vol[c] /= 3.0;
     q.min_volume = std::min(q.min_volume, vol[c]);
     q.total_volume += vol[c];
     if (vol[c] <= kVSmall) {
@@ -153,22 +156,25 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points) {
   q.max_skewness = acc.max_skew;
   // Face pyramids (checkFacePyramids): the pyramid from each face to its owner's centre, and to
   // its neighbour's, must not have negative volume (below -1e-15, checkMesh's threshold), the
-  // face's normal pointing away from the cell. Each bad pyramid counts, as in checkMesh.
+  // face's normal pointing away from the cell. Each bad pyramid counts, as in checkMesh; a cell
+  // with one is inverted.
   constexpr double kMinPyramid = -1e-15;
-  for (std::size_t f = 0; f < nf; ++f) {
-    const double own = fa[f].dot(fc[f] - cc[t.owner[f]]) / 3.0;
-    if (own < kMinPyramid) {
-      ++q.bad_pyramids;
-      inverted[t.owner[f]] = 1;
-    }
-    if (f < ni) {
-      const double nei = fa[f].dot(cc[t.neighbour[f]] - fc[f]) / 3.0;
-      if (nei < kMinPyramid) {
-        ++q.bad_pyramids;
-        inverted[t.neighbour[f]] = 1;
-      }
-    }
-  }
+  q.bad_pyramids = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, nc, 4096), std::size_t(0),
+      [&](const tbb::blocked_range<std::size_t>& r, std::size_t bad) {
+        for (std::size_t c = r.begin(); c < r.end(); ++c)
+          for (std::uint64_t k = first[c]; k < first[c + 1]; ++k) {
+            const std::uint32_t f = faces_of[k] & 0x7fffffffu;
+            const double pyr =
+                (faces_of[k] & 0x80000000u) ? fa[f].dot(cc[c] - fc[f]) / 3.0 : fa[f].dot(fc[f] - cc[c]) / 3.0;
+            if (pyr < kMinPyramid) {
+              ++bad;
+              inverted[c] = 1;
+            }
+          }
+        return bad;
+      },
+      std::plus<>());
   q.inverted_cells = std::size_t(std::count(inverted.begin(), inverted.end(), char(1)));
   return q;
 }
