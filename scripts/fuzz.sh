@@ -15,7 +15,7 @@ jobs=${JOBS:-$(nproc)}
 command -v clang++ > /dev/null || { echo "fuzz: clang++ is needed (bash scripts/install-deps.sh)"; exit 2; }
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCSRBF_FUZZ=ON \
   -DCSRBF_BUILD_APPS=OFF -DCSRBF_BUILD_GUI=OFF -DCSRBF_BUILD_TESTS=OFF -DCSRBF_BUILD_BENCH=OFF \
-  -DCSRBF_BUILD_PYTHON=OFF -DCSRBF_BUILD_RENDER=OFF -DCSRBF_BUILD_VTK=OFF -DCSRBF_WITH_AVX512=ON > /dev/null
+  -DCSRBF_BUILD_PYTHON=OFF -DCSRBF_BUILD_RENDER=OFF -DCSRBF_BUILD_VTK=OFF -DCSRBF_BUILD_MORPH=OFF -DCSRBF_WITH_AVX512=ON > /dev/null
 cmake --build build-fuzz --parallel "$(nproc)" --target $(printf 'fuzz_%s ' "${targets[@]}")
 status=0
 run() {

@@ -20,8 +20,10 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
       ->required();
   auto* out = cmd->add_option("-o,--output", a.out,
                               "A new case folder (OpenFOAM: a copy of the case with the moved points) or a new file of "
-                              "the input's format");
-  auto* in_place = cmd->add_flag("--in-place", a.in_place, "Rewrite the case's points file alone (atomically)");
+                              "the input's format; -o or --in-place is required");
+  auto* in_place =
+      cmd->add_flag("--in-place", a.in_place,
+                    "Rewrite the input with the moved points, atomically (OpenFOAM: its points file alone)");
   out->excludes(in_place);
   cmd->add_option("--motion", a.motion, "Motion JSON: what each patch does (docs/morphing.md)")->required();
   cmd->add_option("--radius,-r", a.radius, "Radius of support R (overrides the motion file's)")

@@ -1,5 +1,6 @@
 #include "csrbf/morph/job.hpp"
 
+#include "csrbf/io/controls.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/morph/volume_file.hpp"
 #include "csrbf/names.hpp"
@@ -7,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cctype>
+#include <cmath>
 #include <chrono>
 #include <cstdio>
 #include <sstream>
@@ -111,8 +113,7 @@ MorphOutcome run_job(const MorphJob& job) {
     std::error_code ec;
     if (fs::symlink_status(job.out, ec).type() != fs::file_type::not_found)
       throw io::FileError("cannot write '" + job.out.string() +
-                          "': it exists (csrbf morph writes a new case folder or file; in place rewrites the input's "
-                          "points alone)");
+                          "': it exists (csrbf morph writes a new case folder or file; --in-place rewrites the input)");
     const fs::path parent = job.out.has_parent_path() ? job.out.parent_path() : fs::path(".");
     if (!fs::is_directory(parent, ec))
       throw io::FileError("cannot write '" + job.out.string() + "': folder '" + parent.string() + "' does not exist");
@@ -142,10 +143,13 @@ MorphOutcome run_job(const MorphJob& job) {
   open.patch_array = motion.patch_array;
   const auto file = open_volume(job.mesh, open);
   const VolumeMesh& mesh = file->mesh();
+  if (!motion.patch_array.empty() && file->format() != "vtu" && file->format() != "vtk")
+    throw io::FileError(o.motion + ": patch_array: names a VTK data array, but " + o.mesh + " is " + file->format() +
+                        ", whose patches are its own");
   o.format = file->format();
   o.encoding = file->encoding();
   o.points = mesh.points.size();
-  o.cells = mesh.poly.faces() ? mesh.poly.cells : mesh.cells.size();
+  o.cells = mesh.poly.faces() ? mesh.poly.cells : mesh.cells.size();  // refined below: the measured cells
   o.patches = mesh.patches.size();
   if (mesh.patches.empty())
     throw io::FileError(
@@ -156,6 +160,7 @@ MorphOutcome run_job(const MorphJob& job) {
   o.ms_read = ms_since(t_read);
   auto t_q = Clock::now();
   o.before = mesh_quality(mesh, mesh.points);
+  if (o.before.cells) o.cells = o.before.cells->cells;  // the volume cells, not the boundary faces a file also holds
   o.ms_quality = ms_since(t_q);
   try {
     o.result = morph(mesh, motion, opt);

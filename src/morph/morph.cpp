@@ -1,6 +1,7 @@
 #include "csrbf/morph/morph.hpp"
 
 #include "csrbf/errors.hpp"
+#include "csrbf/io/controls.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/space_map.hpp"
 
@@ -209,10 +210,10 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
 
 MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options) {
   if (!(options.fit.radius > 0) || !std::isfinite(options.fit.radius))
-    throw InvalidInput("the radius must be a finite number > 0, got " + std::to_string(options.fit.radius));
+    throw InvalidInput("the radius must be a finite number > 0, got " + io::format_number(options.fit.radius));
   if (!std::isfinite(options.phase)) throw InvalidInput("the phase must be finite");
   if (!(options.greedy >= 0) || !std::isfinite(options.greedy))
-    throw InvalidInput("the greedy tolerance must be a finite number >= 0, got " + std::to_string(options.greedy));
+    throw InvalidInput("the greedy tolerance must be a finite number >= 0, got " + io::format_number(options.greedy));
   const Prescribed pres = prescribe(mesh, motion);
   MorphResult r;
   MorphReport& rep = r.report;

@@ -109,11 +109,8 @@ Motion read_motion(const fs::path& path) {
         node.expected("\"fixed\", or an object with translate, rotate or displacements");
       pm.kind = PatchMotion::Kind::Fixed;
     } else if (value.is_object() && value.size() == 1) {
-      node.only({"translate", "rotate", "displacements", "fixed"});
-      if (node.has("fixed")) {
-        if (!node["fixed"].boolean()) node["fixed"].expected("true");
-        pm.kind = PatchMotion::Kind::Fixed;
-      } else if (node.has("translate")) {
+      node.only({"translate", "rotate", "displacements"});
+      if (node.has("translate")) {
         pm.kind = PatchMotion::Kind::Translate;
         pm.translation = node["translate"].vec3();
       } else if (node.has("rotate")) {

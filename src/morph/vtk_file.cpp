@@ -144,6 +144,18 @@ class VtkFile final : public VolumeFile {
     write(points, out);
   }
   void write_in_place(std::span<const Vec3> points) const override { write(points, path_); }
+  std::string patch_hint() const override {
+    std::string names;
+    for (vtkFieldData* d :
+         {static_cast<vtkFieldData*>(grid_->GetPointData()), static_cast<vtkFieldData*>(grid_->GetCellData())})
+      for (int i = 0; i < d->GetNumberOfArrays(); ++i) {
+        vtkDataArray* a = d->GetArray(i);
+        if (a && a->GetName() && a->GetNumberOfComponents() == 1 && a->GetDataType() != VTK_FLOAT &&
+            a->GetDataType() != VTK_DOUBLE)
+          names += (names.empty() ? "" : ", ") + std::string(a->GetName());
+      }
+    return names.empty() ? "; it has no integer point or cell data array" : "; its integer arrays: " + names;
+  }
 
  private:
   static std::string first_line(const std::string& s) {

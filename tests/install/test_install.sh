@@ -15,8 +15,9 @@ done
 for f in lib/cmake/csrbf/csrbfConfig.cmake lib/cmake/csrbf/csrbfConfigVersion.cmake lib/cmake/csrbf/FindCHOLMOD.cmake \
          lib/cmake/csrbf/csrbf-core-targets.cmake lib/cmake/csrbf/csrbf-anim-targets.cmake \
          lib/cmake/csrbf/csrbf-io-targets.cmake lib/cmake/csrbf/csrbf-render-targets.cmake \
-         lib/cmake/csrbf/csrbf-vtk-targets.cmake \
+         lib/cmake/csrbf/csrbf-vtk-targets.cmake lib/cmake/csrbf/csrbf-morph-targets.cmake lib/cmake/csrbf/FindCGNS.cmake \
          include/csrbf/space_map.hpp include/csrbf/version.hpp include/csrbf/vtk/vtkCSRBFTransform.h include/csrbf/anim/scene.hpp \
+         include/csrbf/morph/morph.hpp lib/libcsrbf_morph.a \
          lib/libcsrbf_core.a lib/libcsrbf_vtk.a; do
   test -f "$tmp/prefix/$f" || { echo "missing $f"; exit 1; }
 done
@@ -35,7 +36,7 @@ echo "installed: programs, headers, libraries, CMake config and version, Python 
 if grep -q '/libcholmod' "$tmp/prefix/lib/cmake/csrbf/csrbf-core-targets.cmake"; then
   echo "csrbf-core-targets.cmake names CHOLMOD by path"; exit 1
 fi
-for c in core anim io render vtk; do
+for c in core anim io morph render vtk; do
   extra=()
   if [ "$c" = core ]; then
     extra=(-DCMAKE_DISABLE_FIND_PACKAGE_VTK=ON -DCMAKE_DISABLE_FIND_PACKAGE_MPI=ON -DCMAKE_DISABLE_FIND_PACKAGE_assimp=ON)

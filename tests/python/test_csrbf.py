@@ -432,3 +432,12 @@ class Morph(unittest.TestCase):
             with self.assertRaisesRegex(ValueError, "inverts"):
                 csrbf.morph(case, steep, output=os.path.join(tmp, "x"))
             self.assertFalse(os.path.exists(os.path.join(tmp, "x")))
+
+    def test_options_are_checked_as_the_command_checks_them(self):
+        case = os.path.join(EXAMPLES, "airfoil", "case")
+        motion = os.path.join(EXAMPLES, "airfoil", "motion.json")
+        for kwargs, text in (({"phase": 2.0}, "phase must be in"), ({"phase": -1.0}, "phase must be in"),
+                             ({"greedy": 2.0}, "greedy tolerance"), ({"radius": 0.0}, "radius must be"),
+                             ({"kernel": "c3"}, "kernel")):
+            with self.assertRaisesRegex(ValueError, text):
+                csrbf.morph(case, motion, **kwargs)

@@ -35,6 +35,8 @@ class VolumeFile {
   virtual void write_copy(std::span<const Vec3> points, const std::filesystem::path& out) const = 0;
   /// Rewrites the input with points, atomically.
   virtual void write_in_place(std::span<const Vec3> points) const = 0;
+  /// Where the mesh has no patches: what could name them ("; its integer arrays: a, b"), or "".
+  virtual std::string patch_hint() const { return {}; }
 };
 
 /// Opens path by its kind: a folder is an OpenFOAM case, a file goes by its extension. Throws
