@@ -109,6 +109,13 @@ MorphOutcome run_job(const MorphJob& job) {
   if (job.write && job.out.empty() && !job.in_place)
     throw JobError("give an output (a new case folder or file) or in place");
   if (job.write && !job.out.empty() && job.in_place) throw JobError("give an output or in place, not both");
+  if (job.radius && !(*job.radius > 0 && std::isfinite(*job.radius)))
+    throw JobError("the radius must be a finite number > 0, got " + io::format_number(*job.radius));
+  if (!(job.phase >= 0 && job.phase <= 1))
+    throw JobError("the phase must be in [0, 1], got " + io::format_number(job.phase));
+  if (job.greedy && !(*job.greedy > 0 && *job.greedy <= 1))
+    throw JobError("the greedy tolerance must be in (0, 1], got " + io::format_number(*job.greedy));
+  if (!(job.memory_limit_bytes > 0)) throw JobError("the memory limit must be > 0");
   if (job.write && !job.out.empty()) {
     std::error_code ec;
     if (fs::symlink_status(job.out, ec).type() != fs::file_type::not_found)
@@ -152,11 +159,11 @@ MorphOutcome run_job(const MorphJob& job) {
   o.cells = mesh.poly.faces() ? mesh.poly.cells : mesh.cells.size();  // refined below: the measured cells
   o.patches = mesh.patches.size();
   if (mesh.patches.empty())
-    throw io::FileError(
-        o.mesh + ": the mesh has no patches" +
-        (o.format == "vtu" || o.format == "vtk"
-             ? std::string(": name an integer point or cell data array as \"patch_array\" in ") + o.motion
-             : std::string()));
+    throw io::FileError(o.mesh + ": the mesh has no patches" +
+                        (o.format == "vtu" || o.format == "vtk"
+                             ? std::string(": name an integer point or cell data array as \"patch_array\" in ") +
+                                   o.motion + file->patch_hint()
+                             : std::string()));
   o.ms_read = ms_since(t_read);
   auto t_q = Clock::now();
   o.before = mesh_quality(mesh, mesh.points);

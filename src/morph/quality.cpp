@@ -3,7 +3,7 @@
 #include <Eigen/Geometry>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_reduce.h>
+#include <tbb/parallel_reduce.h>  // parallel_deterministic_reduce: the same sums in every run
 
 #include <algorithm>
 #include <functional>
@@ -115,7 +115,7 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points) {
   struct Acc {
     double min_cos = 1, sum_cos = 0, max_skew = 0;
   };
-  const Acc acc = tbb::parallel_reduce(
+  const Acc acc = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<std::size_t>(0, nf, 4096), Acc{},
       [&](const tbb::blocked_range<std::size_t>& r, Acc a) {
         for (std::size_t f = r.begin(); f < r.end(); ++f) {
@@ -159,7 +159,7 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points) {
   // face's normal pointing away from the cell. Each bad pyramid counts, as in checkMesh; a cell
   // with one is inverted.
   constexpr double kMinPyramid = -1e-15;
-  q.bad_pyramids = tbb::parallel_reduce(
+  q.bad_pyramids = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<std::size_t>(0, nc, 4096), std::size_t(0),
       [&](const tbb::blocked_range<std::size_t>& r, std::size_t bad) {
         for (std::size_t c = r.begin(); c < r.end(); ++c)

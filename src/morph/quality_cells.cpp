@@ -10,7 +10,7 @@
 #include <Eigen/Geometry>
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
-#include <tbb/parallel_reduce.h>
+#include <tbb/parallel_reduce.h>  // parallel_deterministic_reduce: the same sums in every run
 
 #include <algorithm>
 #include <array>
@@ -73,7 +73,7 @@ CellQuality cell_quality(const CellTopology& t, std::span<const Vec3> points, st
     std::size_t measured = 0, inverted = 0, tet = 0, hex = 0, prism = 0, pyramid = 0, tri = 0, quad = 0;
     double min = 1, sum = 0;
   };
-  const Acc acc = tbb::parallel_reduce(
+  const Acc acc = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<std::size_t>(0, t.size(), 2048), Acc{},
       [&](const tbb::blocked_range<std::size_t>& r, Acc a) {
         Cells& c = cells.local();
