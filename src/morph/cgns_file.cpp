@@ -94,7 +94,9 @@ class CgnsFile final : public VolumeFile {
     if (bases < 1) throw FileError(path.string() + ": no CGNS base");
     std::map<std::string, std::set<std::uint32_t>> patches;
     for (int b = 1; b <= bases; ++b) {
-      int zones = 0;
+      int zones = 0, cell_dim = 0, phys_dim = 0;
+      char bname_[64] = {};
+      check(cg_base_read(fn, b, bname_, &cell_dim, &phys_dim), "reading base " + std::to_string(b));
       check(cg_nzones(fn, b, &zones), "reading the zones");
       for (int z = 1; z <= zones; ++z) {
         CGNS_ENUMT(ZoneType_t) zt;
@@ -119,7 +121,7 @@ class CgnsFile final : public VolumeFile {
           const char* name = c == 0 ? "CoordinateX" : c == 1 ? "CoordinateY" : "CoordinateZ";
           cgsize_t lo = 1, hi = cgsize_t(nv);
           if (cg_coord_read(fn, b, z, name, CGNS_ENUMV(RealDouble), &lo, &hi, buf.data()) != CG_OK) {
-            if (c == 2 && ncoords == 2) break;  // a 2-D zone: z stays 0
+            if (c == 2 && ncoords == 2 && phys_dim == 2) break;  // a 2-D base: z stays 0
             throw FileError(where + ": no " + name + ": " + cg_get_error());
           }
           for (std::size_t i = 0; i < nv; ++i) {
@@ -196,6 +198,11 @@ class CgnsFile final : public VolumeFile {
           std::vector<cgsize_t> ids;
           const bool range = ptset == CGNS_ENUMV(PointRange) || ptset == CGNS_ENUMV(ElementRange);
           if (range && pnts.size() == 2) {
+            const double span = double(pnts[1]) - double(pnts[0]) + 1;
+            if (pnts[0] < 1 || span < 1 || span > double(nv) + double(elements.empty() ? 0 : elements.rbegin()->first))
+              throw FileError(where + ": boundary condition '" + std::string(bname) + "' ranges over " +
+                              std::to_string(pnts[0]) + " to " + std::to_string(pnts[1]) +
+                              ", past the zone's vertices and elements");
             for (cgsize_t i = pnts[0]; i <= pnts[1]; ++i) ids.push_back(i);
           } else {
             ids = pnts;

@@ -8,14 +8,20 @@
 #include "csrbf/morph/quality.hpp"
 
 #include <dlfcn.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <vtkCellType.h>
 
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
-#include <mutex>
 #include <set>
 #include <type_traits>
 #include <unordered_map>
@@ -187,12 +193,6 @@ std::vector<int> get_entities_for_physical_group(int dim, int tag) {
 
 }  // namespace gm
 
-/// Gmsh's library has one global model: one file at a time in this process.
-std::mutex& gmsh_lock() {
-  static std::mutex m;
-  return m;
-}
-
 void start_gmsh() {
   static bool started = false;
   if (started) return;
@@ -231,6 +231,21 @@ Header check_header(const fs::path& path, double max_bytes) {
   int file_type = 0;
   std::from_chars(r.ptr + 1, head.data() + head.size(), file_type);
   h.binary = file_type == 1;
+  // Every section the mesh needs must end: Gmsh's reader takes a file cut short for a smaller mesh.
+  {
+    std::ifstream whole(path, std::ios::binary);
+    std::string chunk(1 << 20, '\0'), carry;
+    bool nodes = false, elements = false;
+    while (whole) {
+      whole.read(chunk.data(), std::streamsize(chunk.size()));
+      const std::string part = carry + chunk.substr(0, std::size_t(whole.gcount()));
+      nodes |= part.find("\n$EndNodes") != std::string::npos;
+      elements |= part.find("\n$EndElements") != std::string::npos;
+      carry = part.size() > 16 ? part.substr(part.size() - 16) : part;
+    }
+    if (!nodes || !elements)
+      throw FileError(path.string() + ": no " + (nodes ? "$EndElements" : "$EndNodes") + " (truncated?)");
+  }
   const auto at = head.find("$Nodes");
   if (at != std::string::npos) {
     const char* q = head.data() + at + 6;
@@ -265,23 +280,8 @@ class GmshFile final : public VolumeFile {
   GmshFile(const fs::path& path, const OpenOptions& o) : path_(path) {
     io::check_readable(path, "a Gmsh mesh");
     header_ = check_header(path, o.max_file_bytes);
-    std::lock_guard<std::mutex> lock(gmsh_lock());
-    try {
-      start_gmsh();
-      gm::clear();
-      gm::open(path.string());
-      read();
-      gm::clear();
-    } catch (const std::string& e) {
-      try {
-        gm::clear();
-      } catch (const std::string&) {
-      }
-      throw FileError(path.string() + ": Gmsh cannot read it: " + e);
-    } catch (const FileError&) {
-      gm::clear();
-      throw;
-    }
+    read_in_child(o.max_file_bytes);
+    for (std::size_t i = 0; i < mesh_.point_ids.size(); ++i) index_.emplace(mesh_.point_ids[i], std::uint32_t(i));
   }
 
   const VolumeMesh& mesh() const override { return mesh_; }
@@ -365,6 +365,134 @@ class GmshFile final : public VolumeFile {
           merged = true;
         }
       if (!merged) mesh_.patches.push_back(std::move(p));
+    }
+  }
+
+  /// Gmsh's library crashes on some corrupt files (a node count one short, a node tag past the
+  /// nodes). It reads in a child process, which sends the mesh back through a pipe: a crash is then
+  /// an error naming the file, never csrbf's own crash. The child dies with its parent.
+  void read_in_child(double max_bytes) {
+    int fds[2];
+    if (::pipe2(fds, O_CLOEXEC) != 0)
+      throw FileError(path_.string() + ": cannot start Gmsh's reader: " + std::strerror(errno));
+    std::fflush(nullptr);
+    const pid_t pid = ::fork();
+    if (pid < 0) {
+      ::close(fds[0]);
+      ::close(fds[1]);
+      throw FileError(path_.string() + ": cannot start Gmsh's reader: " + std::strerror(errno));
+    }
+    if (pid == 0) {
+      ::close(fds[0]);
+      ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+      int status = 0;
+      std::string out;
+      try {
+        start_gmsh();
+        gm::clear();
+        gm::open(path_.string());
+        read();
+        out = "M" + serialize();
+      } catch (const std::string& e) {
+        out = "E" + (e.empty() ? std::string("Gmsh gave no reason") : e);
+        status = 3;
+      } catch (const std::exception& e) {
+        out = "E" + std::string(e.what());
+        status = 3;
+      }
+      for (std::size_t done = 0; done < out.size();) {
+        const ssize_t n = ::write(fds[1], out.data() + done, out.size() - done);
+        if (n <= 0) ::_exit(4);
+        done += std::size_t(n);
+      }
+      ::_exit(status);
+    }
+    ::close(fds[1]);
+    std::string in;
+    char buf[1 << 16];
+    bool too_big = false;
+    for (;;) {
+      const ssize_t n = ::read(fds[0], buf, sizeof buf);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) break;
+      if (double(in.size()) + double(n) > 4 * max_bytes) {
+        too_big = true;
+        ::kill(pid, SIGKILL);
+        break;
+      }
+      in.append(buf, std::size_t(n));
+    }
+    ::close(fds[0]);
+    int status = 0;
+    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (too_big) throw FileError(path_.string() + ": the mesh passes the memory limit");
+    if (WIFSIGNALED(status))
+      throw FileError(path_.string() + ": Gmsh's library crashed reading it (signal " +
+                      std::to_string(WTERMSIG(status)) + "): the file is corrupt or truncated");
+    if (!in.empty() && in[0] == 'E') throw FileError(path_.string() + ": Gmsh cannot read it: " + in.substr(1));
+    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || in.empty() || in[0] != 'M')
+      throw FileError(path_.string() + ": Gmsh's reader failed (exit status " + std::to_string(WEXITSTATUS(status)) +
+                      ")");
+    deserialize(std::string_view(in).substr(1));
+  }
+
+  template <class T>
+  static void put(std::string& s, const T& v) {
+    s.append(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+  template <class T>
+  static void put_vector(std::string& s, const std::vector<T>& v) {
+    put(s, std::uint64_t(v.size()));
+    s.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+  }
+  std::string serialize() const {
+    std::string s;
+    put_vector(s, mesh_.points);
+    put_vector(s, mesh_.point_ids);
+    put_vector(s, mesh_.cells.type);
+    put_vector(s, mesh_.cells.start);
+    put_vector(s, mesh_.cells.points);
+    put(s, std::uint64_t(mesh_.patches.size()));
+    for (const Patch& p : mesh_.patches) {
+      put_vector(s, std::vector<char>(p.name.begin(), p.name.end()));
+      put_vector(s, std::vector<char>(p.type.begin(), p.type.end()));
+      put_vector(s, p.points);
+    }
+    return s;
+  }
+  void deserialize(std::string_view s) {
+    std::size_t at = 0;
+    const auto get_u64 = [&] {
+      if (at + 8 > s.size()) throw FileError(path_.string() + ": Gmsh's reader sent a short reply");
+      std::uint64_t v;
+      std::memcpy(&v, s.data() + at, 8);
+      at += 8;
+      return v;
+    };
+    const auto get = [&](auto& v) {
+      using T = typename std::remove_reference_t<decltype(v)>::value_type;
+      const std::uint64_t n = get_u64();
+      if (n > (s.size() - at) / sizeof(T)) throw FileError(path_.string() + ": Gmsh's reader sent a short reply");
+      v.resize(n);
+      std::memcpy(static_cast<void*>(v.data()), s.data() + at, n * sizeof(T));
+      at += n * sizeof(T);
+    };
+    get(mesh_.points);
+    get(mesh_.point_ids);
+    get(mesh_.cells.type);
+    get(mesh_.cells.start);
+    get(mesh_.cells.points);
+    const std::uint64_t patches = get_u64();
+    for (std::uint64_t k = 0; k < patches; ++k) {
+      Patch p;
+      std::vector<char> name, type;
+      get(name);
+      get(type);
+      get(p.points);
+      p.name.assign(name.begin(), name.end());
+      p.type.assign(type.begin(), type.end());
+      mesh_.patches.push_back(std::move(p));
     }
   }
 

@@ -148,6 +148,7 @@ MorphOutcome run_job(const MorphJob& job) {
   const auto t_read = Clock::now();
   OpenOptions open;
   open.patch_array = motion.patch_array;
+  open.max_file_bytes = job.memory_limit_bytes;  // a mesh file, uncompressed, within --memory-limit
   const auto file = open_volume(job.mesh, open);
   const VolumeMesh& mesh = file->mesh();
   if (!motion.patch_array.empty() && file->format() != "vtu" && file->format() != "vtk")
@@ -168,6 +169,7 @@ MorphOutcome run_job(const MorphJob& job) {
   auto t_q = Clock::now();
   o.before = mesh_quality(mesh, mesh.points);
   if (o.before.cells) o.cells = o.before.cells->cells;  // the volume cells, not the boundary faces a file also holds
+  if (o.cells == 0) throw io::FileError(o.mesh + ": no cells (truncated, or not a volume mesh)");
   o.ms_quality = ms_since(t_q);
   try {
     o.result = morph(mesh, motion, opt);

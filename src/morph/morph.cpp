@@ -308,12 +308,15 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
       std::iota(by_error.begin(), by_error.end(), 0u);
       std::sort(by_error.begin(), by_error.end(), [&](std::uint32_t a, std::uint32_t b) { return err[a] > err[b]; });
       SpacedSet spaced(options.fit.radius);
+      const std::size_t before = subset.size();
       for (const std::uint32_t i : by_error) {
         if (err[i] <= limit) break;
         if (chosen[i] || !spaced.try_add(sources[i])) continue;
         chosen[i] = 1;
         subset.push_back(i);
       }
+      // Only controls themselves miss the tolerance (it is below what the solve reaches): stop.
+      if (subset.size() == before) break;
     }
     rep.controls = subset.size();
   } else {

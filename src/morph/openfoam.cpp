@@ -104,13 +104,20 @@ struct Loaded {
 Loaded load(const fs::path& dir, const std::string& name, double max_bytes) {
   Loaded l;
   std::error_code ec;
+  for (const fs::path& p : {dir / name, dir / (name + ".gz")})
+    if (fs::exists(p, ec) && !fs::is_regular_file(p, ec))
+      throw FileError(p.string() + ": not a regular file (a mesh file is read whole, not from a pipe or device)");
   if (fs::exists(dir / name, ec)) {
     l.path = dir / name;
     l.text = io::read_input(l.path, "an OpenFOAM mesh file", max_bytes);
   } else if (fs::exists(dir / (name + ".gz"), ec)) {
     l.path = dir / (name + ".gz");
     l.gz = true;
-    l.text = gunzip(io::read_input(l.path, "an OpenFOAM mesh file", max_bytes), l.path, max_bytes);
+    try {
+      l.text = gunzip(io::read_input(l.path, "an OpenFOAM mesh file", max_bytes), l.path, max_bytes);
+    } catch (const std::bad_alloc&) {
+      throw FileError(l.path.string() + ": not enough memory to decompress it (--memory-limit bounds it)");
+    }
   } else {
     throw FileError(dir.string() + ": no '" + name + "' or '" + name +
                     ".gz' (an OpenFOAM polyMesh holds points, faces, owner, neighbour and boundary)");
@@ -459,8 +466,8 @@ void read_faces(Parser& p, const Header& h, PolyTopology& t, std::size_t points)
       }
     } else {
       for (std::uint64_t i = 0; i < k; ++i) {
-        const auto v = std::int64_t(std::min<std::uint64_t>(p.label("a point label"), kNoBound));
-        if (v < 0 || std::uint64_t(v) >= points)
+        const std::uint64_t v = p.label("a point label");
+        if (v >= points)
           p.fail("face " + std::to_string(f) + " uses point " + std::to_string(v) + ", but there are " +
                  std::to_string(points) + " points");
         t.face_points.push_back(std::uint32_t(v));
@@ -574,6 +581,20 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes) {
   std::uint64_t cells = 0;
   for (const auto o : m.poly.owner) cells = std::max<std::uint64_t>(cells, o + 1ull);
   for (const auto o : m.poly.neighbour) cells = std::max<std::uint64_t>(cells, o + 1ull);
+  // A cell has 4 faces or more and a face 2 cells or fewer: more cells than half the faces is a label
+  // that lies (and would make every per-cell array that large).
+  if (cells > nf / 2)
+    throw FileError(c.poly_mesh.string() + ": owner and neighbour name cell " + std::to_string(cells - 1) + ", but " +
+                    std::to_string(nf) + " faces make at most " + std::to_string(nf / 2) + " cells");
+  {
+    std::vector<std::uint32_t> faces_of(cells, 0);
+    for (const auto o : m.poly.owner) ++faces_of[o];
+    for (const auto o : m.poly.neighbour) ++faces_of[o];
+    for (std::uint64_t k = 0; k < cells; ++k)
+      if (faces_of[k] < 4)
+        throw FileError(c.poly_mesh.string() + ": cell " + std::to_string(k) + " has " + std::to_string(faces_of[k]) +
+                        " faces in owner and neighbour (a cell has 4 or more)");
+  }
   m.poly.cells = cells;
   {
     Loaded l = load(c.poly_mesh, "boundary", max_file_bytes);

@@ -68,6 +68,8 @@ std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions&
   }
   std::string ext = path.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  if (fs::exists(path, ec) && !fs::is_regular_file(path, ec))
+    throw io::FileError(path.string() + ": not a regular file (a mesh file is read whole, not from a pipe or device)");
   if (ext == ".vtu" || ext == ".vtk") return detail::open_vtk(path, options);
   if (ext == ".msh") return detail::open_gmsh(path, options);
   if (ext == ".cgns") return detail::open_cgns(path, options);

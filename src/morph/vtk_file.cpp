@@ -96,7 +96,7 @@ class VtkFile final : public VolumeFile {
       reader->AddObserver(vtkCommand::ErrorEvent, errors);
       reader->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, errors);
       reader->SetFileName(path.c_str());
-      reader->Update();
+      update(reader, path);
       grid_ = reader->GetOutput();
     } else {
       if (head.rfind("# vtk DataFile", 0) != 0)
@@ -109,6 +109,16 @@ class VtkFile final : public VolumeFile {
       // At least 2 bytes a coordinate in ASCII, 4 in binary; 2 a cell entry.
       check_count(head, "POINTS ", ascii_ ? 6 : 12, std::max(size, 1.0), path);
       check_count(head, "CELLS ", 2, std::max(size, 1.0), path);
+      if (const auto at = head.find("CELLS "); at != std::string::npos) {  // CELLS n size: the size too
+        std::uint64_t a = 0, b = 0;
+        const char* q = head.data() + at + 6;
+        const auto r = std::from_chars(q, head.data() + head.size(), a);
+        if (r.ec == std::errc() && std::from_chars(r.ptr + 1, head.data() + head.size(), b).ec == std::errc() &&
+            double(b) * 2.0 > std::max(size, 1.0) * 4.0)
+          throw FileError(path.string() + ": CELLS " + std::to_string(a) + " " + std::to_string(b) +
+                          " cannot fit in the " + std::to_string(std::uint64_t(size)) +
+                          "-byte file (truncated, or a count that lies)");
+      }
       vtkNew<vtkUnstructuredGridReader> reader;
       reader->AddObserver(vtkCommand::ErrorEvent, errors);
       reader->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, errors);
@@ -120,13 +130,31 @@ class VtkFile final : public VolumeFile {
       reader->ReadAllColorScalarsOn();
       reader->ReadAllTCoordsOn();
       reader->ReadAllFieldsOn();
-      reader->Update();
+      update(reader, path);
       grid_ = reader->GetOutput();
     }
     if (!errors->message.empty())
       throw FileError(path.string() + ": VTK cannot read it: " + first_line(errors->message));
     if (!grid_ || !grid_->GetPoints() || grid_->GetNumberOfPoints() == 0)
       throw FileError(path.string() + ": no points (empty, truncated or not an unstructured grid)");
+    if (xml_) {  // VTK's reader gives what it could read of a truncated file without an error
+      const auto stated = [&](const char* key) {
+        std::uint64_t total = 0;
+        const std::string k = std::string(key) + "=\"";
+        for (std::size_t at = head.find(k); at != std::string::npos; at = head.find(k, at + 1)) {
+          std::uint64_t v = 0;
+          std::from_chars(head.data() + at + k.size(), head.data() + head.size(), v);
+          total += v;
+        }
+        return total;
+      };
+      if (stated("NumberOfPoints") != std::uint64_t(grid_->GetNumberOfPoints()) ||
+          stated("NumberOfCells") != std::uint64_t(grid_->GetNumberOfCells()))
+        throw FileError(path.string() + ": the file states " + std::to_string(stated("NumberOfPoints")) +
+                        " points and " + std::to_string(stated("NumberOfCells")) + " cells, but holds " +
+                        std::to_string(grid_->GetNumberOfPoints()) + " and " +
+                        std::to_string(grid_->GetNumberOfCells()) + " (truncated or corrupt)");
+    }
     fill_mesh(o);
   }
 
@@ -158,6 +186,13 @@ class VtkFile final : public VolumeFile {
   }
 
  private:
+  static void update(vtkAlgorithm* reader, const fs::path& path) {
+    try {
+      reader->Update();
+    } catch (const std::bad_alloc&) {
+      throw FileError(path.string() + ": not enough memory to read it (a count in it that lies?)");
+    }
+  }
   static std::string first_line(const std::string& s) {
     std::string t = s.substr(0, s.find('\n', s.find('\n') + 1));
     std::replace(t.begin(), t.end(), '\n', ' ');
@@ -223,6 +258,10 @@ class VtkFile final : public VolumeFile {
         default:
           break;  // lines, vertices, polyhedra: moved, not measured
       }
+      for (vtkIdType k = 0; k < npts; ++k)
+        if (ids[k] < 0 || ids[k] >= n)
+          throw FileError(path_.string() + ": cell " + std::to_string(c) + " uses point " + std::to_string(ids[k]) +
+                          ", but there are " + std::to_string(n) + " points (truncated, or a count that lies)");
       if (keep == 0 || npts < keep) continue;
       corners.assign(ids, ids + keep);
       mesh_.cells.add(as, corners);

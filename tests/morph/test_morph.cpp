@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 
 #include <bit>
+#include <sys/stat.h>
 #include <cmath>
 #include <numbers>
 
@@ -608,4 +609,50 @@ TEST(Gmsh, ReadsGroupsAndRefusesBrokenFiles) {
   lying.replace(lying.find("$Nodes\n5"), 8, "$Nodes\n5000000");
   EXPECT_NE(broken(lying).find("a count that lies"), std::string::npos) << broken(lying);
   EXPECT_NE(broken("$MeshFormat\n3.0 0 8\n$EndMeshFormat\n").find("csrbf reads 2.2 and 4.1"), std::string::npos);
+}
+
+// Found by an attacker's trial: each was a crash, a hang or a false success.
+TEST(Hostile, LiesAndShortFilesAreErrorsNotCrashes) {
+  TempDir dir;
+  // Gmsh 2.2 whose node count is one short: Gmsh's library crashed on such files; it now reads in a
+  // child process, so the crash is an error naming the file.
+  const std::string mesh =
+      "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n1\n2 1 \"base\"\n$EndPhysicalNames\n"
+      "$Nodes\n4\n10 0 0 0\n11 1 0 0\n12 0 1 0\n13 0 0 1\n14 0 0 -1\n$EndNodes\n"
+      "$Elements\n3\n1 2 2 1 1 10 11 12\n2 4 2 2 2 10 11 12 13\n3 4 2 2 2 10 12 11 14\n$EndElements\n";
+  csrbf::test::write_text(dir / "short.msh", mesh);
+  EXPECT_NE(error_of([&] { open_volume(dir / "short.msh"); }).find("short.msh"), std::string::npos);
+  csrbf::test::write_text(dir / "cut.msh", mesh.substr(0, mesh.find("$EndElements")));
+  EXPECT_NE(error_of([&] { open_volume(dir / "cut.msh"); }).find("no $EndElements"), std::string::npos);
+  // VTK: a cell naming a point past the points.
+  csrbf::test::write_text(
+      dir / "bad.vtk",
+      "# vtk DataFile Version 4.2\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 double\n0 0 0 1 0 0 0 1 0 0 0 "
+      "1\nCELLS 1 5\n4 0 1 2 99999999\nCELL_TYPES 1\n10\n");
+  EXPECT_NE(error_of([&] { open_volume(dir / "bad.vtk"); }).find("uses point 99999999, but there are 4 points"),
+            std::string::npos)
+      << error_of([&] { open_volume(dir / "bad.vtk"); });
+  // A FIFO is not a mesh file (reading it would wait for ever).
+  ASSERT_EQ(::mkfifo((dir / "pipe.msh").c_str(), 0600), 0);
+  EXPECT_NE(error_of([&] { open_volume(dir / "pipe.msh"); }).find("not a regular file"), std::string::npos);
+  // OpenFOAM: an owner label far past the faces would size every per-cell array.
+  csrbf::test::write_box_case(dir.path / "case", {});
+  const auto owner = dir.path / "case" / "constant" / "polyMesh" / "owner";
+  std::string t = csrbf::test::read_text(owner);
+  t.replace(t.find("\n(\n0\n") + 3, 1, "99999999");
+  csrbf::test::write_text(owner, t);
+  EXPECT_NE(error_of([&] { read_openfoam(dir.path / "case"); }).find("name cell 99999999"), std::string::npos)
+      << error_of([&] { read_openfoam(dir.path / "case"); });
+}
+
+TEST_F(BoxMorph, AGreedyToleranceBelowTheSolvesAccuracyStillEnds) {
+  const Motion m =
+      motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},
+                                                    "zmax": "fixed"}})");
+  MorphOptions o;
+  o.fit.radius = 0.5;
+  o.greedy = 1e-300;
+  const MorphResult r = morph(c.mesh, m, o);
+  EXPECT_LE(r.report.controls, 98u);
+  EXPECT_LT(r.report.max_boundary_error, 1e-10);
 }
