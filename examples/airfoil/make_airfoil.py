@@ -1,7 +1,9 @@
 #!/usr/bin/env python3
 """Writes a 2-D O-mesh around a NACA 0012 airfoil (chord 1, one cell thick in z) as an OpenFOAM
-case: case/constant/polyMesh and the system files checkMesh needs. Made here, from the NACA
-formula: no mesh is copied from another project.
+case (case/constant/polyMesh and the system files checkMesh needs) and as a Gmsh 2.2 mesh
+(airfoil.msh: hexahedra in the physical volume "fluid", quadrilaterals in the physical surfaces
+"airfoil", "farfield" and "frontAndBack"). Made here, from the NACA formula: no mesh is copied from
+another project.
 
     /usr/bin/python3 examples/airfoil/make_airfoil.py [OUT_FOLDER]   (default: next to this script)
 
@@ -210,6 +212,38 @@ def write_case(root):
                     '    location    "system";\n    object      %s;\n}\n\n' % name + body)
 
 
+def write_msh(path):
+    """The same mesh as Gmsh 2.2 ASCII: node tags are the OpenFOAM point numbers + 1."""
+    pts, internal, patches = mesh()
+    layer = N_AROUND * (N_OUT + 1)
+
+    def p(i, j, k):
+        return k * layer + j * N_AROUND + (i % N_AROUND) + 1
+
+    elements = []
+    names = {"airfoil": 1, "farfield": 2, "frontAndBack": 3, "fluid": 4}
+    for name, _, faces in patches:
+        for _, face in faces:
+            elements.append((3, names[name], [v + 1 for v in face]))
+    for j in range(N_OUT):
+        for i in range(N_AROUND):
+            # Gmsh's (and VTK's) corner order, bottom face anticlockwise seen from +z.
+            bottom = [p(i, j, 0), p(i, j + 1, 0), p(i + 1, j + 1, 0), p(i + 1, j, 0)]
+            elements.append((5, names["fluid"], bottom + [v + layer for v in bottom]))
+    with open(path, "w") as o:
+        o.write("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$PhysicalNames\n%d\n" % len(names))
+        for name, tag in names.items():
+            o.write('%d %d "%s"\n' % (3 if name == "fluid" else 2, tag, name))
+        o.write("$EndPhysicalNames\n$Nodes\n%d\n" % len(pts))
+        o.writelines("%d %r %r %r\n" % (k + 1, round(x, 12) + 0.0, round(y, 12) + 0.0, z) for k, (x, y, z) in enumerate(pts))
+        o.write("$EndNodes\n$Elements\n%d\n" % len(elements))
+        for k, (kind, tag, nodes) in enumerate(elements):
+            o.write("%d %d 2 %d %d %s\n" % (k + 1, kind, tag, tag, " ".join(map(str, nodes))))
+        o.write("$EndElements\n")
+
+
 if __name__ == "__main__":
     here = os.path.dirname(os.path.abspath(__file__))
-    write_case(os.path.join(sys.argv[1] if len(sys.argv) > 1 else here, "case"))
+    out = sys.argv[1] if len(sys.argv) > 1 else here
+    write_case(os.path.join(out, "case"))
+    write_msh(os.path.join(out, "airfoil.msh"))

@@ -147,6 +147,21 @@ class Formats(MorphCase):
                 m = meshio.read(out)
                 self.assertEqual(len(m.points), len(nodes0))
 
+    def test_bundled_airfoil_msh_pitches(self):
+        here = os.path.join(os.environ.get("CSRBF_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", "..")),
+                            "examples", "airfoil")
+        out = os.path.join(self.tmp, "pitched.msh")
+        report = self.morph(os.path.join(here, "airfoil.msh"), out, os.path.join(here, "motion.json"))
+        self.assertEqual(report["cells"], 3840)
+        self.assertEqual(report["quality"]["after"]["inverted_cells"], 0)
+        nodes0, groups0, counts0, sicn0 = read_gmsh(os.path.join(here, "airfoil.msh"))
+        nodes1, groups1, counts1, sicn1 = read_gmsh(out)
+        self.assertEqual(groups0, groups1)
+        self.assertEqual(counts0, counts1)
+        self.assertGreater(sicn1, 0)
+        for tag in groups0["farfield"]:
+            self.assertTrue(np.array_equal(nodes0[tag], nodes1[tag]))
+
     def test_gmsh_displacements_use_node_tags(self):
         src = os.path.join(self.tmp, "box.msh")
         make_gmsh_box(src, 4.1, False)
