@@ -376,6 +376,7 @@ class GmshFile final : public VolumeFile {
     if (::pipe2(fds, O_CLOEXEC) != 0)
       throw FileError(path_.string() + ": cannot start Gmsh's reader: " + std::strerror(errno));
     std::fflush(nullptr);
+    const pid_t parent = ::getpid();
     const pid_t pid = ::fork();
     if (pid < 0) {
       ::close(fds[0]);
@@ -385,6 +386,11 @@ class GmshFile final : public VolumeFile {
     if (pid == 0) {
       ::close(fds[0]);
       ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+      if (::getppid() != parent) ::_exit(5);  // the parent died before prctl
+      // The parent's handlers remove its partial files: not the child's business.
+      for (int sig :
+           {SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU})
+        ::signal(sig, SIG_DFL);
       int status = 0;
       std::string out;
       try {
