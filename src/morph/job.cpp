@@ -167,7 +167,8 @@ MorphOutcome run_job(const MorphJob& job) {
                              : std::string()));
   o.ms_read = ms_since(t_read);
   auto t_q = Clock::now();
-  o.before = mesh_quality(mesh, mesh.points);
+  QualityMeter meter(mesh);
+  o.before = meter.measure(mesh.points);
   if (o.before.cells) o.cells = o.before.cells->cells;  // the volume cells, not the boundary faces a file also holds
   if (o.cells == 0) throw io::FileError(o.mesh + ": no cells (truncated, or not a volume mesh)");
   o.ms_quality = ms_since(t_q);
@@ -182,7 +183,7 @@ MorphOutcome run_job(const MorphJob& job) {
     throw io::FileError(o.mesh + ": " + e.what());
   }
   t_q = Clock::now();
-  o.after = mesh_quality(mesh, o.result.points);
+  o.after = meter.measure(o.result.points);
   o.ms_quality += ms_since(t_q);
   o.inverts = o.after.inverted_cells() > o.before.inverted_cells();
   o.safe_phase = job.phase;

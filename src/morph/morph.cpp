@@ -353,10 +353,11 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
 double largest_safe_phase(const VolumeMesh& mesh, std::span<const Vec3> moved, double phase,
                           std::size_t inverted_before) {
   std::vector<Vec3> at(mesh.points.size());
+  QualityMeter meter(mesh);
   const auto ok = [&](double s) {
     const double w = s / phase;
     for (std::size_t i = 0; i < at.size(); ++i) at[i] = mesh.points[i] + w * (moved[i] - mesh.points[i]);
-    return mesh_quality(mesh, at).inverted_cells() <= inverted_before;
+    return meter.measure(at).inverted_cells() <= inverted_before;
   };
   double lo = 0, hi = phase;
   while (hi - lo > 1e-4 * std::abs(phase)) {

@@ -1,5 +1,7 @@
 #include "csrbf/morph/quality.hpp"
 
+#include "quality_buffers.hpp"
+
 #include <Eigen/Geometry>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -56,32 +58,42 @@ void face_geometry(const PolyTopology& t, std::span<const Vec3> p, std::size_t f
 
 }  // namespace
 
-PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points) {
+namespace detail {
+
+PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, PolyBuffers& b) {
   PolyQuality q;
   const std::size_t nf = t.faces(), ni = t.internal_faces(), nc = t.cells;
   q.cells = nc;
   q.faces = nf;
   q.internal_faces = ni;
-  std::vector<Vec3> fc(nf), fa(nf);
+  auto& fc = b.fc;
+  auto& fa = b.fa;
+  fc.resize(nf);
+  fa.resize(nf);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t f = r.begin(); f < r.end(); ++f) face_geometry(t, points, f, fc[f], fa[f]);
   });
   // Cell centres and volumes (primitiveMeshCellCentresAndVols): an estimated centre, the mean of
   // the cell's face centres, then pyramids from it to each face. Each cell's faces by a counting
   // sort, so that the cells are computed in parallel.
-  std::vector<std::uint64_t> first(nc + 1, 0);
-  for (std::size_t f = 0; f < nf; ++f) ++first[t.owner[f] + 1];
-  for (std::size_t f = 0; f < ni; ++f) ++first[t.neighbour[f] + 1];
-  for (std::size_t c = 0; c < nc; ++c) first[c + 1] += first[c];
-  std::vector<std::uint32_t> faces_of(first[nc]);  // a face, with its top bit set where the cell is its neighbour
-  {
+  auto& first = b.first;
+  auto& faces_of = b.faces_of;   // a face, with its top bit set where the cell is its neighbour
+  if (first.size() != nc + 1) {  // the topology's index, once
+    first.assign(nc + 1, 0);
+    for (std::size_t f = 0; f < nf; ++f) ++first[t.owner[f] + 1];
+    for (std::size_t f = 0; f < ni; ++f) ++first[t.neighbour[f] + 1];
+    for (std::size_t c = 0; c < nc; ++c) first[c + 1] += first[c];
+    faces_of.resize(first[nc]);
     std::vector<std::uint64_t> next(first.begin(), first.end() - 1);
     for (std::size_t f = 0; f < nf; ++f) faces_of[next[t.owner[f]]++] = std::uint32_t(f);
     for (std::size_t f = 0; f < ni; ++f) faces_of[next[t.neighbour[f]]++] = std::uint32_t(f) | 0x80000000u;
   }
-  std::vector<Vec3> cc(nc);
-  std::vector<double> vol(nc);
-  std::vector<char> inverted(nc, 0);
+  auto& cc = b.cc;
+  auto& vol = b.vol;
+  auto& inverted = b.inverted;
+  cc.resize(nc);
+  vol.resize(nc);
+  inverted.assign(nc, 0);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nc, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t c = r.begin(); c < r.end(); ++c) {
       const std::uint64_t b = first[c], e = first[c + 1];
@@ -177,6 +189,13 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points) {
       std::plus<>());
   q.inverted_cells = std::size_t(std::count(inverted.begin(), inverted.end(), char(1)));
   return q;
+}
+
+}  // namespace detail
+
+PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points) {
+  detail::PolyBuffers b;
+  return detail::poly_quality(t, points, b);
 }
 
 }  // namespace csrbf::morph

@@ -1,5 +1,7 @@
 #include "csrbf/morph/quality.hpp"
 
+#include "quality_buffers.hpp"
+
 #include <vtkCellType.h>
 #include <vtkHexahedron.h>
 #include <vtkMeshQuality.h>
@@ -175,9 +177,16 @@ void orient_cells(CellTopology& t, std::span<const Vec3> points) {
 }
 
 MeshQuality mesh_quality(const VolumeMesh& mesh, std::span<const Vec3> points) {
+  return QualityMeter(mesh).measure(points);
+}
+
+QualityMeter::QualityMeter(const VolumeMesh& mesh) : mesh_(&mesh), buffers_(std::make_unique<detail::PolyBuffers>()) {}
+QualityMeter::~QualityMeter() = default;
+
+MeshQuality QualityMeter::measure(std::span<const Vec3> points) {
   MeshQuality q;
-  if (mesh.poly.faces()) q.poly = poly_quality(mesh.poly, points);
-  if (mesh.cells.size()) q.cells = cell_quality(mesh.cells, points, mesh.points);
+  if (mesh_->poly.faces()) q.poly = detail::poly_quality(mesh_->poly, points, *buffers_);
+  if (mesh_->cells.size()) q.cells = cell_quality(mesh_->cells, points, mesh_->points);
   return q;
 }
 

@@ -14,6 +14,7 @@
 #include "csrbf/morph/volume_mesh.hpp"
 
 #include <cstddef>
+#include <memory>
 #include <optional>
 #include <span>
 
@@ -58,5 +59,25 @@ struct MeshQuality {
 
 /// The measures that apply to mesh's topology, over points.
 MeshQuality mesh_quality(const VolumeMesh& mesh, std::span<const Vec3> points);
+
+namespace detail {
+struct PolyBuffers;
+}
+
+/// mesh_quality for many point sets of one mesh (before, after, a bisection): keeps its buffers
+/// and the cell-to-face index between calls. Borrows mesh, which must outlive it; one thread at a
+/// time.
+class QualityMeter {
+ public:
+  explicit QualityMeter(const VolumeMesh& mesh);
+  ~QualityMeter();
+  QualityMeter(const QualityMeter&) = delete;
+  QualityMeter& operator=(const QualityMeter&) = delete;
+  MeshQuality measure(std::span<const Vec3> points);
+
+ private:
+  const VolumeMesh* mesh_;
+  std::unique_ptr<detail::PolyBuffers> buffers_;
+};
 
 }  // namespace csrbf::morph

@@ -1,0 +1,23 @@
+// The buffers of the polyhedral quality measure, kept by QualityMeter between calls (private to
+// csrbf::morph): a 1e7-point mesh's pass allocates about a gigabyte, and the first touch of fresh
+// pages cost as much as the measure.
+#pragma once
+
+#include "csrbf/morph/quality.hpp"
+
+#include <cstdint>
+#include <vector>
+
+namespace csrbf::morph::detail {
+
+struct PolyBuffers {
+  std::vector<Vec3> fc, fa, cc;
+  std::vector<double> vol;
+  std::vector<char> inverted;
+  std::vector<std::uint64_t> first;     ///< the cell-to-face index: the topology's, built once
+  std::vector<std::uint32_t> faces_of;
+};
+
+PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, PolyBuffers& b);
+
+}  // namespace csrbf::morph::detail
