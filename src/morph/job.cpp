@@ -4,6 +4,7 @@
 #include "csrbf/io/error.hpp"
 #include "csrbf/morph/volume_file.hpp"
 #include "csrbf/names.hpp"
+#include "volume_formats.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -21,12 +22,6 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
-
-std::string extension(const fs::path& p) {
-  std::string e = p.extension().string();
-  for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-  return e;
-}
 
 nlohmann::json quality_json(const MeshQuality& m) {
   nlohmann::json j = nlohmann::json::object();
@@ -124,10 +119,10 @@ MorphOutcome run_job(const MorphJob& job) {
     const fs::path parent = job.out.has_parent_path() ? job.out.parent_path() : fs::path(".");
     if (!fs::is_directory(parent, ec))
       throw io::FileError("cannot write '" + job.out.string() + "': folder '" + parent.string() + "' does not exist");
-    if (!fs::is_directory(job.mesh, ec) && extension(job.out) != extension(job.mesh))
+    if (!fs::is_directory(job.mesh, ec) && detail::lower_extension(job.out) != detail::lower_extension(job.mesh))
       throw JobError("output " + job.out.string() +
                      ": the output is written in the input's format, so it needs the extension '" +
-                     extension(job.mesh) + "'");
+                     detail::lower_extension(job.mesh) + "'");
   }
   const Motion motion = read_motion(job.motion);
   MorphOptions& opt = o.options;

@@ -344,6 +344,18 @@ Header read_header(Parser& p) {
 constexpr std::uint64_t kNoBound = std::uint64_t(std::numeric_limits<std::uint32_t>::max());
 constexpr std::uint64_t kMaxFaces = std::uint64_t(1) << 31;
 
+/// Label i of a binary list of 4- or 8-byte labels (arch "label=32|64").
+std::int64_t binary_label(const char* raw, std::uint64_t i, int bytes) {
+  if (bytes == 4) {
+    std::int32_t x;
+    std::memcpy(&x, raw + 4 * i, 4);
+    return x;
+  }
+  std::int64_t v;
+  std::memcpy(&v, raw + 8 * i, 8);
+  return v;
+}
+
 std::vector<std::uint32_t> read_labels(Parser& p, const Header& h, const std::string& what, std::uint64_t bound) {
   const std::size_t min_bytes = h.binary ? std::size_t(h.label_bytes) : 2;
   const std::uint64_t n = p.count(what, p.remaining() / min_bytes + 1);
@@ -366,15 +378,7 @@ std::vector<std::uint32_t> read_labels(Parser& p, const Header& h, const std::st
   if (h.binary) {
     const char* raw = p.raw(n * std::size_t(h.label_bytes), std::to_string(n) + " " + what);
     for (std::uint64_t i = 0; i < n; ++i) {
-      std::int64_t v;
-      if (h.label_bytes == 4) {
-        std::int32_t x;
-        std::memcpy(&x, raw + 4 * i, 4);
-        v = x;
-      } else {
-        std::memcpy(&v, raw + 8 * i, 8);
-      }
-      out[i] = check(v, i);
+      out[i] = check(binary_label(raw, i, h.label_bytes), i);
     }
   } else {
     for (std::uint64_t i = 0; i < n; ++i)
@@ -451,14 +455,7 @@ void read_faces(Parser& p, const Header& h, PolyTopology& t, std::size_t points)
     if (h.binary) {
       const char* raw = p.raw(k * std::size_t(h.label_bytes), "face " + std::to_string(f));
       for (std::uint64_t i = 0; i < k; ++i) {
-        std::int64_t v;
-        if (h.label_bytes == 4) {
-          std::int32_t x;
-          std::memcpy(&x, raw + 4 * i, 4);
-          v = x;
-        } else {
-          std::memcpy(&v, raw + 8 * i, 8);
-        }
+        const std::int64_t v = binary_label(raw, i, h.label_bytes);
         if (v < 0 || std::uint64_t(v) >= points)
           p.fail("face " + std::to_string(f) + " uses point " + std::to_string(v) + ", but there are " +
                  std::to_string(points) + " points");

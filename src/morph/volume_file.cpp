@@ -36,17 +36,19 @@ class FoamFile final : public VolumeFile {
 
 }  // namespace
 
+std::string lower_extension(const fs::path& path) {
+  std::string e = path.extension().string();
+  for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return e;
+}
+
 void check_copy_target(const fs::path& in, const fs::path& out) {
   io::check_output_path(out);
   std::error_code ec;
   if (fs::symlink_status(out, ec).type() != fs::file_type::not_found)
     throw io::FileError("cannot write '" + out.string() +
                         "': it exists (csrbf writes a new file; in place rewrites the input)");
-  const auto lower = [](std::string e) {
-    for (auto& c : e) c = char(std::tolower(static_cast<unsigned char>(c)));
-    return e;
-  };
-  if (lower(in.extension().string()) != lower(out.extension().string()))
+  if (lower_extension(in) != lower_extension(out))
     throw io::FileError("cannot write '" + out.string() + "': a copy of " + in.string() +
                         " keeps its format and extension '" + in.extension().string() + "'");
 }
@@ -66,8 +68,7 @@ std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions&
                           "owner file)");
     return detail::open_openfoam(path, options);
   }
-  std::string ext = path.extension().string();
-  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return char(std::tolower(c)); });
+  const std::string ext = detail::lower_extension(path);
   if (fs::exists(path, ec) && !fs::is_regular_file(path, ec))
     throw io::FileError(path.string() + ": not a regular file (a mesh file is read whole, not from a pipe or device)");
   if (ext == ".vtu" || ext == ".vtk") return detail::open_vtk(path, options);

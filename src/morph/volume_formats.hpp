@@ -5,6 +5,9 @@
 
 namespace csrbf::morph::detail {
 
+/// path's extension in lower case (".msh"), which picks the format.
+std::string lower_extension(const std::filesystem::path& path);
+
 /// Throws io::FileError unless out can take a copy of in: a new name with in's extension.
 void check_copy_target(const std::filesystem::path& in, const std::filesystem::path& out);
 

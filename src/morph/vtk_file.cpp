@@ -173,19 +173,26 @@ class VtkFile final : public VolumeFile {
   }
   void write_in_place(std::span<const Vec3> points) const override { write(points, path_); }
   std::string patch_hint() const override {
-    std::string names;
-    for (vtkFieldData* d :
-         {static_cast<vtkFieldData*>(grid_->GetPointData()), static_cast<vtkFieldData*>(grid_->GetCellData())})
-      for (int i = 0; i < d->GetNumberOfArrays(); ++i) {
-        vtkDataArray* a = d->GetArray(i);
-        if (a && a->GetName() && a->GetNumberOfComponents() == 1 && a->GetDataType() != VTK_FLOAT &&
-            a->GetDataType() != VTK_DOUBLE)
-          names += (names.empty() ? "" : ", ") + std::string(a->GetName());
-      }
+    const std::string names = array_names(true);
     return names.empty() ? "; it has no integer point or cell data array" : "; its integer arrays: " + names;
   }
 
  private:
+  /// An array that can name patches: one integer a point or cell.
+  static bool names_patches(vtkDataArray* a) {
+    return a && a->GetNumberOfComponents() == 1 && a->GetDataType() != VTK_FLOAT && a->GetDataType() != VTK_DOUBLE;
+  }
+  /// The point and cell data arrays' names, ", "-separated; only those that can name patches.
+  std::string array_names(bool patch_arrays_only) const {
+    std::string names;
+    for (vtkFieldData* d :
+         {static_cast<vtkFieldData*>(grid_->GetPointData()), static_cast<vtkFieldData*>(grid_->GetCellData())})
+      for (int i = 0; i < d->GetNumberOfArrays(); ++i)
+        if (d->GetArrayName(i) && (!patch_arrays_only || names_patches(d->GetArray(i))))
+          names += (names.empty() ? "" : ", ") + std::string(d->GetArrayName(i));
+    return names;
+  }
+
   static void update(vtkAlgorithm* reader, const fs::path& path) {
     try {
       reader->Update();
@@ -271,15 +278,11 @@ class VtkFile final : public VolumeFile {
     const bool on_points = array != nullptr;
     if (!array) array = grid_->GetCellData()->GetArray(o.patch_array.c_str());
     if (!array) {
-      std::string names;
-      for (vtkFieldData* d :
-           {static_cast<vtkFieldData*>(grid_->GetPointData()), static_cast<vtkFieldData*>(grid_->GetCellData())})
-        for (int i = 0; i < d->GetNumberOfArrays(); ++i)
-          if (d->GetArrayName(i)) names += (names.empty() ? "" : ", ") + std::string(d->GetArrayName(i));
+      const std::string names = array_names(false);
       throw FileError(path_.string() + ": no point or cell data array named '" + o.patch_array +
                       "' (the motion file's patch_array); its arrays: " + (names.empty() ? "(none)" : names));
     }
-    if (array->GetNumberOfComponents() != 1 || array->GetDataType() == VTK_FLOAT || array->GetDataType() == VTK_DOUBLE)
+    if (!names_patches(array))
       throw FileError(path_.string() + ": array '" + o.patch_array + "' must be one integer a " +
                       (on_points ? "point" : "cell") + " to name patches");
     std::map<long long, std::set<std::uint32_t>> groups;
