@@ -46,6 +46,14 @@ class SpaceMap {
   /// Throws InvalidInput, DuplicateSource, DegeneratePolynomial or NotPositiveDefinite.
   static SpaceMap fit(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options);
 
+  /// A mapping whose coefficients were solved elsewhere (csrbf::mpi's distributed fit): sources and
+  /// their alpha (N x 3), and the polynomial's beta in the coordinates u = (x - center) / scale (row 0
+  /// constant, rows 1-3 linear, zero where absent). Evaluation only, through the same grid and loops
+  /// as a fitted map: it has no matrix, so with_destinations() and condition_estimate() throw
+  /// InvalidInput; destinations() is empty. N may be 0 (the polynomial alone).
+  static SpaceMap from_solution(std::span<const Vec3> sources, const Eigen::Matrix<double, Eigen::Dynamic, 3>& alpha,
+                                const Eigen::Matrix<double, 4, 3>& beta, const Vec3& center, double scale,
+                                const FitOptions& options);
   /// The same sources, radius, kernel and polynomial with new destinations: reuses the neighbour
   /// index, the matrix, its ordering and factorisation, so only the solve is redone (by CG, started
   /// from this map's solution: an animation frame that moves the destinations a little converges in

@@ -459,7 +459,47 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   return SpaceMap(std::move(structure_only)).solve_destinations(destinations);
 }
 
+SpaceMap SpaceMap::from_solution(std::span<const Vec3> sources, const Eigen::Matrix<double, Eigen::Dynamic, 3>& alpha,
+                                 const Eigen::Matrix<double, 4, 3>& beta, const Vec3& center, double scale,
+                                 const FitOptions& options) {
+  if (alpha.rows() != Eigen::Index(sources.size())) {
+    std::ostringstream os;
+    os << "from_solution: " << sources.size() << " sources but " << alpha.rows() << " coefficient rows";
+    throw InvalidInput(os.str());
+  }
+  if (!(options.radius >= 1e-150 && options.radius <= 1e150)) {
+    std::ostringstream os;
+    os << "radius must be a positive finite number in [1e-150, 1e150], got " << options.radius;
+    throw InvalidInput(os.str());
+  }
+  if (!(scale > 0) || !std::isfinite(scale) || !center.allFinite() || !alpha.allFinite() || !beta.allFinite())
+    throw InvalidInput("from_solution: the center, scale, coefficients and polynomial must be finite (scale > 0)");
+  check_points(sources, "source");
+  auto st = std::make_shared<Structure>();
+  st->options = options;
+  st->sources.assign(sources.begin(), sources.end());
+  st->stats.controls = sources.size();
+  st->terms = polynomial_terms(options.polynomial);
+  st->center = center;
+  st->scale = scale;
+  st->solved_elsewhere = true;
+  auto s = std::make_shared<State>();
+  s->st = std::move(st);
+  s->alpha = alpha;
+  s->beta = beta;
+  if (options.polynomial == Polynomial::None) s->beta.setZero();
+  if (options.polynomial == Polynomial::Constant) s->beta.bottomRows<3>().setZero();
+  s->poly.center = center;
+  s->poly.inv_scale = 1.0 / scale;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 3; ++c) s->poly.b[r][c] = s->beta(r, c);
+  s->stats = s->st->stats;
+  return SpaceMap(std::move(s));
+}
+
 SpaceMap SpaceMap::with_destinations(std::span<const Vec3> destinations) const {
+  if (s_->st->solved_elsewhere)
+    throw InvalidInput("with_destinations: this map was made from a solution (from_solution) and has no matrix");
   if (destinations.size() != size()) {
     std::ostringstream os;
     os << "control points: " << size() << " sources but " << destinations.size() << " destinations";
@@ -479,7 +519,11 @@ SpaceMap SpaceMap::solve_destinations(std::span<const Vec3> destinations) const 
   return SpaceMap(std::move(s));
 }
 
-double SpaceMap::condition_estimate() const { return s_->st->condition(); }
+double SpaceMap::condition_estimate() const {
+  if (s_->st->solved_elsewhere)
+    throw InvalidInput("condition_estimate: this map was made from a solution (from_solution) and has no matrix");
+  return s_->st->condition();
+}
 const KernelMatrix& SpaceMap::matrix() const noexcept { return s_->st->a; }
 
 void deform(std::span<const Vec3> sources, std::span<const Vec3> destinations, const FitOptions& options,

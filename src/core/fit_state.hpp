@@ -60,6 +60,7 @@ struct SpaceMap::Structure {
   RowMatrix y;                        // A^{-1} P, in `order`
   Eigen::LLT<Eigen::MatrixXd> schur;  // P^T A^{-1} P
   FitStats stats;                     // the structural part and its times
+  bool solved_elsewhere = false;      // SpaceMap::from_solution: no matrix, no factor
 
   /// b = A^-1 b (input order); CG starts from `initial` where it is given.
   void solve_in_place(RowMatrix& b, const RowMatrix* initial = nullptr) const {

@@ -68,7 +68,8 @@ bool SpaceMap::float_trusted() const {
     std::vector<float> inf(3 * m), outf(3 * m);
     std::vector<double> ind(3 * m), outd(3 * m);
     double gmax = 0;
-    for (std::size_t i = 0; i < n; ++i) gmax = std::max(gmax, (s_->destinations[i] - st.sources[i]).norm());
+    if (s_->destinations.size() == n)
+      for (std::size_t i = 0; i < n; ++i) gmax = std::max(gmax, (s_->destinations[i] - st.sources[i]).norm());
     for (std::size_t k = 0; k < m; ++k) {
       const std::size_t i = m == n ? k : std::size_t(rng() % n);
       for (int c = 0; c < 3; ++c) {
@@ -78,6 +79,9 @@ bool SpaceMap::float_trusted() const {
     }
     apply_direct(inf.data(), outf.data(), m, 1.0, false);
     apply_direct(ind.data(), outd.data(), m, 1.0, false);
+    if (s_->destinations.size() != n)  // from_solution: the displacements at the sample stand in
+      for (std::size_t k = 0; k < m; ++k)
+        gmax = std::max(gmax, Vec3(outd[3 * k], outd[3 * k + 1], outd[3 * k + 2]).norm());
     double err = 0;
     for (std::size_t k = 0; k < 3 * m; ++k) {
       const double e = std::abs(double(outf[k]) - outd[k]);

@@ -350,3 +350,53 @@ TEST(SpaceMap, RadiusTooSmallForTheSourcesExtentIsRefusedAtFit) {
   // A radius whose reciprocal overflows.
   EXPECT_THROW(csrbf::SpaceMap::fit(s, d, csrbf::FitOptions{1e-310}), csrbf::InvalidInput);
 }
+
+// A map made from another's solution (csrbf::mpi's evaluation) evaluates as the fitted map does:
+// the same points, in double and float, with the polynomial given in plain coordinates; and with no
+// sources at all, the polynomial alone.
+TEST(SpaceMapFromSolution, EvaluatesAsTheFittedMap) {
+  std::mt19937 rng(19);
+  const auto s = random_points(3000, rng);
+  const auto d = displaced(s, rng);
+  const auto x = random_points(20000, rng, -0.1, 1.1);
+  for (const Polynomial poly : kPolys) {
+    FitOptions o;
+    o.radius = 0.15;
+    o.polynomial = poly;
+    const SpaceMap fitted = SpaceMap::fit(s, d, o);
+    const SpaceMap copy = SpaceMap::from_solution(fitted.sources(), fitted.coefficients(),
+                                                  fitted.polynomial_coefficients(), Vec3::Zero(), 1.0, o);
+    EXPECT_EQ(copy.size(), fitted.size());
+    std::vector<Vec3> a(x.size()), b(x.size());
+    fitted.apply(x, a, 0.7);
+    copy.apply(x, b, 0.7);
+    double worst = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) worst = std::max(worst, (a[i] - b[i]).norm());
+    EXPECT_LT(worst, 1e-12) << polynomial_name(poly);
+    std::vector<float> xf(3 * x.size()), af(xf.size()), bf(xf.size());
+    for (std::size_t i = 0; i < x.size(); ++i)
+      for (int c = 0; c < 3; ++c) xf[3 * i + std::size_t(c)] = float(x[i][c]);
+    fitted.apply(xf.data(), af.data(), x.size());
+    copy.apply(xf.data(), bf.data(), x.size());
+    float worst_f = 0;
+    for (std::size_t k = 0; k < xf.size(); ++k) worst_f = std::max(worst_f, std::abs(af[k] - bf[k]));
+    EXPECT_LT(worst_f, 1e-5f) << polynomial_name(poly);
+    EXPECT_THROW(copy.with_destinations(d), InvalidInput);
+    EXPECT_THROW((void)copy.condition_estimate(), InvalidInput);
+  }
+  // No sources: p(x) = b0 + B x alone, here a shift and a shear.
+  FitOptions o;
+  o.radius = 0.1;
+  o.polynomial = Polynomial::Linear;
+  Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
+  beta.row(0) = Eigen::RowVector3d(0.5, -1, 2);
+  beta(2, 0) = 0.25;  // dx += 0.25 y
+  const SpaceMap empty =
+      SpaceMap::from_solution({}, Eigen::Matrix<double, Eigen::Dynamic, 3>(0, 3), beta, Vec3::Zero(), 1.0, o);
+  std::vector<Vec3> out(x.size());
+  empty.apply(x, out, 1.0);
+  for (std::size_t i = 0; i < x.size(); i += 997)
+    EXPECT_NEAR((out[i] - (x[i] + Vec3(0.5 + 0.25 * x[i].y(), -1, 2))).norm(), 0.0, 1e-14);
+  EXPECT_THROW(SpaceMap::from_solution(s, Eigen::Matrix<double, Eigen::Dynamic, 3>(2, 3), beta, Vec3::Zero(), 1.0, o),
+               InvalidInput);
+}
