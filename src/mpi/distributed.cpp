@@ -1,0 +1,705 @@
+#include "csrbf/mpi/distributed.hpp"
+
+#include "csrbf/errors.hpp"
+#include "csrbf/kernels.hpp"
+#include "csrbf/mpi/runtime.hpp"
+#include "csrbf/neighbor_index.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <petscksp.h>
+#include <petscmat.h>
+#include <tbb/parallel_sort.h>
+
+#include <algorithm>
+#include <chrono>
+#include <climits>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <numeric>
+#include <sstream>
+#include <unordered_map>
+
+namespace csrbf::mpi {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
+
+std::string num(double v) {
+  std::ostringstream os;
+  os.precision(10);
+  os << v;
+  return os.str();
+}
+
+struct Box {
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
+  Vec3 hi = Vec3::Constant(-std::numeric_limits<double>::infinity());
+  bool empty() const { return !(lo.x() <= hi.x()); }
+  void add(const Vec3& p) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  /// Distance from p to the box (0 inside); infinite for an empty box.
+  double distance(const Vec3& p) const {
+    if (empty()) return std::numeric_limits<double>::infinity();
+    return (lo - p).cwiseMax(p - hi).cwiseMax(0.0).norm();
+  }
+};
+
+Box box_of(std::span<const Vec3> p) {
+  Box b;
+  for (const Vec3& x : p) b.add(x);
+  return b;
+}
+
+std::vector<Box> all_boxes(MPI_Comm comm, const Box& mine, std::size_t& bytes) {
+  int size = 1;
+  MPI_Comm_size(comm, &size);
+  double v[6] = {mine.lo.x(), mine.lo.y(), mine.lo.z(), mine.hi.x(), mine.hi.y(), mine.hi.z()};
+  std::vector<double> all(6 * std::size_t(size));
+  MPI_Allgather(v, 6, MPI_DOUBLE, all.data(), 6, MPI_DOUBLE, comm);
+  bytes += sizeof(v) * std::size_t(size - 1);
+  std::vector<Box> boxes(static_cast<std::size_t>(size));
+  for (int r = 0; r < size; ++r) {
+    const double* a = all.data() + 6 * r;
+    boxes[std::size_t(r)].lo = Vec3(a[0], a[1], a[2]);
+    boxes[std::size_t(r)].hi = Vec3(a[3], a[4], a[5]);
+  }
+  return boxes;
+}
+
+/// A control sent to another rank: its global row (or position), its id for messages, its source
+/// and a vector (a displacement, or the coefficients).
+struct Packet {
+  std::uint64_t global = 0, user = 0;
+  double x[3] = {0, 0, 0}, v[3] = {0, 0, 0};
+  Vec3 source() const { return Vec3(x[0], x[1], x[2]); }
+  Vec3 value() const { return Vec3(v[0], v[1], v[2]); }
+};
+static_assert(std::is_trivially_copyable_v<Packet>);
+
+Packet packet(std::uint64_t global, std::uint64_t user, const Vec3& x, const Vec3& v) {
+  Packet p;
+  p.global = global;
+  p.user = user;
+  for (int c = 0; c < 3; ++c) {
+    p.x[c] = x[c];
+    p.v[c] = v[c];
+  }
+  return p;
+}
+
+/// Each rank's packets for every other rank, exchanged (MPI_Alltoallv); what this rank received, in
+/// rank order, with the rank each came from.
+std::vector<Packet> exchange(MPI_Comm comm, const std::vector<std::vector<Packet>>& out, std::vector<int>* from,
+                             std::size_t& bytes) {
+  int size = 1;
+  MPI_Comm_size(comm, &size);
+  std::vector<int> send_counts(static_cast<std::size_t>(size)), recv_counts(static_cast<std::size_t>(size));
+  for (int r = 0; r < size; ++r) {
+    const std::size_t b = out[std::size_t(r)].size() * sizeof(Packet);
+    if (b > std::size_t(INT_MAX))
+      throw ResourceLimit("a halo of " + std::to_string(out[std::size_t(r)].size()) +
+                          " controls for one rank passes what one MPI message carries (2 GiB): use more ranks");
+    send_counts[std::size_t(r)] = int(b);
+  }
+  MPI_Alltoall(send_counts.data(), 1, MPI_INT, recv_counts.data(), 1, MPI_INT, comm);
+  std::vector<int> send_displs(static_cast<std::size_t>(size), 0), recv_displs(static_cast<std::size_t>(size), 0);
+  long long send_total = 0, recv_total = 0;
+  for (int r = 0; r < size; ++r) {
+    send_displs[std::size_t(r)] = int(send_total);
+    recv_displs[std::size_t(r)] = int(recv_total);
+    send_total += send_counts[std::size_t(r)];
+    recv_total += recv_counts[std::size_t(r)];
+  }
+  if (send_total > INT_MAX || recv_total > INT_MAX)
+    throw ResourceLimit("a rank's halo passes what one MPI exchange carries (2 GiB): use more ranks or a smaller radius");
+  std::vector<Packet> send(std::size_t(send_total) / sizeof(Packet)), recv(std::size_t(recv_total) / sizeof(Packet));
+  std::size_t k = 0;
+  for (int r = 0; r < size; ++r)
+    for (const Packet& p : out[std::size_t(r)]) send[k++] = p;
+  MPI_Alltoallv(send.data(), send_counts.data(), send_displs.data(), MPI_BYTE, recv.data(), recv_counts.data(),
+                recv_displs.data(), MPI_BYTE, comm);
+  bytes += std::size_t(send_total);
+  if (from) {
+    from->clear();
+    for (int r = 0; r < size; ++r)
+      from->insert(from->end(), std::size_t(recv_counts[std::size_t(r)]) / sizeof(Packet), r);
+  }
+  return recv;
+}
+
+std::size_t sum(MPI_Comm comm, std::size_t v, std::size_t& bytes) {
+  unsigned long long a = v, b = 0;
+  MPI_Allreduce(&a, &b, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
+  bytes += sizeof(a);
+  return std::size_t(b);
+}
+
+double max_of(MPI_Comm comm, double v, std::size_t& bytes) {
+  double out = 0;
+  MPI_Allreduce(&v, &out, 1, MPI_DOUBLE, MPI_MAX, comm);
+  bytes += sizeof(v);
+  return out;
+}
+
+/// An exact-position key (the bits of the three coordinates) for the dedupe of shared points.
+struct PositionHash {
+  std::size_t operator()(const Vec3& p) const noexcept {
+    std::uint64_t h = 1469598103934665603ull;
+    for (int c = 0; c < 3; ++c) {
+      std::uint64_t b;
+      const double v = p[c] == 0.0 ? 0.0 : p[c];  // -0 and +0 alike
+      std::memcpy(&b, &v, sizeof b);
+      h = (h ^ b) * 1099511628211ull;
+    }
+    return std::size_t(h);
+  }
+};
+
+/// PETSc objects released on every path.
+struct PetscMat {
+  Mat m = nullptr;
+  ~PetscMat() {
+    if (m) MatDestroy(&m);
+  }
+};
+struct PetscVec {
+  Vec v = nullptr;
+  ~PetscVec() {
+    if (v) VecDestroy(&v);
+  }
+};
+struct PetscKsp {
+  KSP k = nullptr;
+  ~PetscKsp() {
+    if (k) KSPDestroy(&k);
+  }
+};
+
+using Columns = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic>;
+
+/// The KSP of one solver over A: MUMPS's Cholesky (PCCHOLESKY, MATSOLVERMUMPS, factorised at the
+/// first solve and reused), or CG with block Jacobi and a shifted incomplete Cholesky on each block.
+void make_ksp(MPI_Comm comm, Mat a, DistributedSolver s, PetscKsp& ksp, int workspace_percent) {
+  if (ksp.k) KSPDestroy(&ksp.k);
+  check_petsc(KSPCreate(comm, &ksp.k), "KSPCreate");
+  check_petsc(KSPSetOperators(ksp.k, a, a), "KSPSetOperators");
+  PC pc = nullptr;
+  check_petsc(KSPGetPC(ksp.k, &pc), "KSPGetPC");
+  if (s == DistributedSolver::Mumps) {
+    check_petsc(KSPSetType(ksp.k, KSPPREONLY), "KSPSetType(preonly)");
+    check_petsc(PCSetType(pc, PCCHOLESKY), "PCSetType(cholesky)");
+    check_petsc(PCFactorSetMatSolverType(pc, MATSOLVERMUMPS), "PCFactorSetMatSolverType(mumps)");
+    check_petsc(PCFactorSetUpMatSolverType(pc), "PCFactorSetUpMatSolverType");
+    Mat f = nullptr;
+    check_petsc(PCFactorGetMatrix(pc, &f), "PCFactorGetMatrix");
+    // ICNTL(14): the room MUMPS adds to its estimated workspace, in percent. Its estimate can fall
+    // short with the parallel ordering (INFOG(1) = -9): the caller retries with more.
+    check_petsc(MatMumpsSetIcntl(f, 14, workspace_percent), "MatMumpsSetIcntl(14)");
+    check_petsc(KSPSetUp(ksp.k), "the MUMPS factorisation");
+  } else {
+    check_petsc(KSPSetType(ksp.k, KSPCG), "KSPSetType(cg)");
+    check_petsc(KSPSetNormType(ksp.k, KSP_NORM_UNPRECONDITIONED), "KSPSetNormType");
+    check_petsc(KSPSetTolerances(ksp.k, kCgTolerance, 1e-300, PETSC_DEFAULT, PetscInt(kCgMaxIterations)),
+                "KSPSetTolerances");
+    check_petsc(PCSetType(pc, PCBJACOBI), "PCSetType(bjacobi)");
+    check_petsc(KSPSetUp(ksp.k), "KSPSetUp(cg)");
+    PetscInt blocks = 0, first = 0;
+    KSP* sub = nullptr;
+    check_petsc(PCBJacobiGetSubKSP(pc, &blocks, &first, &sub), "PCBJacobiGetSubKSP");
+    for (PetscInt b = 0; b < blocks; ++b) {
+      PC sub_pc = nullptr;
+      check_petsc(KSPGetPC(sub[b], &sub_pc), "KSPGetPC(sub)");
+      check_petsc(PCSetType(sub_pc, PCICC), "PCSetType(icc)");
+      check_petsc(PCFactorSetShiftType(sub_pc, MAT_SHIFT_POSITIVE_DEFINITE), "PCFactorSetShiftType");
+    }
+  }
+}
+
+/// Solves A x = b for each column of b (this rank's rows); false where the KSP did not converge
+/// (CG), with the steps of the slowest column in `iterations`.
+bool solve_columns(Mat a, KSP ksp, const Columns& b, Columns& x, std::size_t& iterations, bool* out_of_memory) {
+  PetscVec vb, vx;
+  check_petsc(MatCreateVecs(a, &vx.v, &vb.v), "MatCreateVecs");
+  x.resize(b.rows(), b.cols());
+  for (Eigen::Index c = 0; c < b.cols(); ++c) {
+    PetscScalar* p = nullptr;
+    check_petsc(VecGetArray(vb.v, &p), "VecGetArray");
+    for (Eigen::Index i = 0; i < b.rows(); ++i) p[i] = b(i, c);
+    check_petsc(VecRestoreArray(vb.v, &p), "VecRestoreArray");
+    check_petsc(VecSet(vx.v, 0.0), "VecSet");
+    check_petsc(KSPSolve(ksp, vb.v, vx.v), "KSPSolve");
+    KSPConvergedReason reason;
+    check_petsc(KSPGetConvergedReason(ksp, &reason), "KSPGetConvergedReason");
+    PetscInt it = 0;
+    KSPGetIterationNumber(ksp, &it);
+    iterations = std::max(iterations, std::size_t(it));
+    if (reason < 0) {
+      PC pc = nullptr;
+      KSPGetPC(ksp, &pc);
+      PCFailedReason why = PC_NOERROR;
+      PCGetFailedReasonRank(pc, &why);
+      if (why == PC_FACTOR_OUTMEMORY) *out_of_memory = true;
+      return false;
+    }
+    const PetscScalar* q = nullptr;
+    check_petsc(VecGetArrayRead(vx.v, &q), "VecGetArrayRead");
+    for (Eigen::Index i = 0; i < b.rows(); ++i) x(i, c) = q[i];
+    check_petsc(VecRestoreArrayRead(vx.v, &q), "VecRestoreArrayRead");
+  }
+  return true;
+}
+
+/// A x for each column of x (this rank's rows).
+Columns multiply(Mat a, const Columns& x) {
+  PetscVec vx, vy;
+  check_petsc(MatCreateVecs(a, &vx.v, &vy.v), "MatCreateVecs");
+  Columns y(x.rows(), x.cols());
+  for (Eigen::Index c = 0; c < x.cols(); ++c) {
+    PetscScalar* p = nullptr;
+    check_petsc(VecGetArray(vx.v, &p), "VecGetArray");
+    for (Eigen::Index i = 0; i < x.rows(); ++i) p[i] = x(i, c);
+    check_petsc(VecRestoreArray(vx.v, &p), "VecRestoreArray");
+    check_petsc(MatMult(a, vx.v, vy.v), "MatMult");
+    const PetscScalar* q = nullptr;
+    check_petsc(VecGetArrayRead(vy.v, &q), "VecGetArrayRead");
+    for (Eigen::Index i = 0; i < x.rows(); ++i) y(i, c) = q[i];
+    check_petsc(VecRestoreArrayRead(vy.v, &q), "VecRestoreArrayRead");
+  }
+  return y;
+}
+
+/// Sums a small matrix over the ranks.
+Columns sum_over_ranks(MPI_Comm comm, const Columns& m, std::size_t& bytes) {
+  Columns out(m.rows(), m.cols());
+  MPI_Allreduce(m.data(), out.data(), int(m.size()), MPI_DOUBLE, MPI_SUM, comm);
+  bytes += std::size_t(m.size()) * sizeof(double);
+  return out;
+}
+
+}  // namespace
+
+std::optional<DistributedSolver> parse_distributed_solver(const std::string& name) noexcept {
+  if (name == "auto") return DistributedSolver::Auto;
+  if (name == "mumps" || name == "envelope" || name == "eigen" || name == "cholmod") return DistributedSolver::Mumps;
+  if (name == "cg") return DistributedSolver::Cg;
+  return std::nullopt;
+}
+
+std::string distributed_solver_name(DistributedSolver s) {
+  return s == DistributedSolver::Auto ? "auto" : s == DistributedSolver::Mumps ? "mumps" : "cg";
+}
+
+DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_in,
+                                   std::span<const Vec3> destinations_in, const FitOptions& options,
+                                   DistributedSolver solver, std::span<const std::uint64_t> ids_in, bool dedupe) {
+  DistributedMap m;
+  m.comm_ = comm;
+  m.options_ = options;
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  RankStats& rs = m.rank_stats_;
+  rs.rank = rank;
+  std::size_t& bytes = rs.bytes_sent;
+  const double radius = options.radius;
+  const auto t_halo = Clock::now();
+
+  // Checks every rank makes of its own share, agreed before any exchange.
+  collectively(comm, [&] {
+    if (sources_in.size() != destinations_in.size())
+      throw InvalidInput("control points: " + std::to_string(sources_in.size()) + " sources but " +
+                         std::to_string(destinations_in.size()) + " destinations");
+    if (!ids_in.empty() && ids_in.size() != sources_in.size())
+      throw InvalidInput("control points: " + std::to_string(ids_in.size()) + " ids for " +
+                         std::to_string(sources_in.size()) + " controls");
+    if (!(radius >= 1e-150 && radius <= 1e150))
+      throw InvalidInput("radius must be a positive finite number in [1e-150, 1e150], got " + num(radius));
+    if (!(options.memory_limit_bytes > 0))
+      throw InvalidInput("memory_limit_bytes must be a number > 0, got " + num(options.memory_limit_bytes));
+    for (std::size_t i = 0; i < sources_in.size(); ++i)
+      if (!sources_in[i].allFinite() || !destinations_in[i].allFinite())
+        throw InvalidInput("control " + std::to_string(ids_in.empty() ? i : ids_in[i]) +
+                           ": a coordinate is not finite");
+  });
+  const auto id_of = [&](std::size_t i) { return ids_in.empty() ? std::uint64_t(i) : ids_in[i]; };
+
+  // Dedupe: a source another rank also has, bit for bit, is owned by the lowest such rank.
+  std::vector<char> keep(sources_in.size(), 1);
+  if (dedupe && size > 1) {
+    double gmax = 0;
+    for (std::size_t i = 0; i < sources_in.size(); ++i)
+      gmax = std::max(gmax, (destinations_in[i] - sources_in[i]).norm());
+    gmax = max_of(comm, gmax, bytes);
+    const std::vector<Box> boxes = all_boxes(comm, box_of(sources_in), bytes);
+    std::vector<std::vector<Packet>> out(static_cast<std::size_t>(size));
+    for (int r = rank + 1; r < size; ++r)  // only higher ranks drop theirs: send to them
+      for (std::size_t i = 0; i < sources_in.size(); ++i)
+        if (boxes[std::size_t(r)].distance(sources_in[i]) == 0.0)
+          out[std::size_t(r)].push_back(packet(0, id_of(i), sources_in[i], destinations_in[i] - sources_in[i]));
+    std::vector<int> from;
+    const std::vector<Packet> got = exchange(comm, out, &from, bytes);
+    collectively(comm, [&] {
+      std::unordered_map<Vec3, std::size_t, PositionHash> lower;
+      lower.reserve(got.size());
+      for (std::size_t k = 0; k < got.size(); ++k) lower.emplace(got[k].source(), k);
+      for (std::size_t i = 0; i < sources_in.size(); ++i) {
+        const auto it = lower.find(sources_in[i]);
+        if (it == lower.end()) continue;
+        const Packet& p = got[it->second];
+        if ((p.value() - (destinations_in[i] - sources_in[i])).norm() > 1e-12 * std::max(gmax, 1e-300))
+          throw InvalidInput("control " + std::to_string(id_of(i)) + " on rank " + std::to_string(rank) +
+                             " and control " + std::to_string(p.user) + " on rank " + std::to_string(from[it->second]) +
+                             " are the same point, moved differently");
+        keep[i] = 0;
+      }
+    });
+  }
+  std::vector<std::uint64_t> ids;
+  for (std::size_t i = 0; i < sources_in.size(); ++i) {
+    if (!keep[i]) {
+      ++rs.controls_dropped;
+      continue;
+    }
+    m.sources_.push_back(sources_in[i]);
+    ids.push_back(id_of(i));
+  }
+  std::vector<Vec3> g;  // displacements
+  for (std::size_t i = 0; i < sources_in.size(); ++i)
+    if (keep[i]) g.push_back(destinations_in[i] - sources_in[i]);
+  const std::size_t n = m.sources_.size();
+  const std::size_t total = sum(comm, n, bytes);
+  if (total == 0) throw Failure("control points: none given on any rank (need at least 1)", 0, 1);
+  if (total >= std::size_t(std::numeric_limits<PetscInt>::max()))
+    throw Failure("control points: " + std::to_string(total) + " controls: more than PETSc's 32-bit indices hold", 0, 1);
+  {
+    unsigned long long mine = n, before = 0;
+    MPI_Exscan(&mine, &before, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
+    m.offset_ = rank == 0 ? 0 : std::size_t(before);
+  }
+  rs.controls_owned = n;
+  m.stats_.controls = total;
+  m.stats_.ranks = std::size_t(size);
+
+  // The polynomial's frame: the mean of all sources and their spread (as the serial fit).
+  const int terms =
+      options.polynomial == Polynomial::None ? 0 : options.polynomial == Polynomial::Constant ? 1 : 4;
+  {
+    Vec3 s = Vec3::Zero();
+    for (const Vec3& x : m.sources_) s += x;
+    Vec3 all = Vec3::Zero();
+    MPI_Allreduce(s.data(), all.data(), 3, MPI_DOUBLE, MPI_SUM, comm);
+    m.center_ = all / double(total);
+    double spread = 0;
+    for (const Vec3& x : m.sources_) spread = std::max(spread, (x - m.center_).cwiseAbs().maxCoeff());
+    spread = max_of(comm, spread, bytes);
+    m.scale_ = spread > 0 ? spread : 1.0;
+  }
+  if (options.polynomial == Polynomial::Linear) {
+    if (total < 4)
+      throw Failure("polynomial 'linear' needs at least 4 control points that are not coplanar, got " +
+                        std::to_string(total) + "; use polynomial 'constant' or 'none'",
+                    0, 1);
+    Eigen::Matrix3d utu = Eigen::Matrix3d::Zero();
+    for (const Vec3& x : m.sources_) {
+      const Vec3 u = (x - m.center_) / m.scale_;
+      utu += u * u.transpose();
+    }
+    const Columns all = sum_over_ranks(comm, Columns(utu), bytes);
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(Eigen::Matrix3d(all), Eigen::EigenvaluesOnly);
+    const Vec3 ev = es.eigenvalues().cwiseMax(0.0);
+    const double sv0 = std::sqrt(ev(2)), sv1 = std::sqrt(ev(1)), sv2 = std::sqrt(ev(0));
+    const double tol = 1e-9 * std::max(sv0, 1e-300);
+    if (sv2 <= tol)
+      throw Failure("polynomial 'linear' needs control sources that span 3-D space, but the " + std::to_string(total) +
+                        " sources are " + (sv1 <= tol ? "collinear" : "coplanar") + "; use polynomial 'constant' or 'none'",
+                    0, 1);
+  }
+
+  // The halo of the matrix rows: every rank's controls within R of this rank's controls.
+  std::vector<Packet> halo;
+  {
+    const std::vector<Box> boxes = all_boxes(comm, box_of(m.sources_), bytes);
+    std::vector<std::vector<Packet>> out(static_cast<std::size_t>(size));
+    for (int r = 0; r < size; ++r) {
+      if (r == rank) continue;
+      for (std::size_t i = 0; i < n; ++i)
+        if (boxes[std::size_t(r)].distance(m.sources_[i]) < radius)
+          out[std::size_t(r)].push_back(packet(m.offset_ + i, ids[i], m.sources_[i], Vec3::Zero()));
+    }
+    halo = exchange(comm, out, nullptr, bytes);
+  }
+  rs.controls_halo = halo.size();
+  rs.seconds_halo = seconds_since(t_halo);
+
+  // The rows of this rank's controls: neighbours among the owned and halo controls.
+  const auto t_asm = Clock::now();
+  PetscMat a;
+  std::vector<PetscInt> row_start(n + 1, 0), cols;
+  std::vector<double> vals;
+  collectively(comm, [&] {
+    std::vector<Vec3> local(m.sources_);
+    for (const Packet& p : halo) local.push_back(p.source());
+    const NeighborIndex index(local, radius);
+    const auto global_of = [&](std::size_t j) { return j < n ? m.offset_ + j : halo[j - n].global; };
+    const auto user_of = [&](std::size_t j) { return j < n ? ids[j] : halo[j - n].user; };
+    std::size_t nnz = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      index.for_each_within(m.sources_[i], [&](std::size_t j, double d2) {
+        if (d2 == 0.0 && j != i)
+          throw DuplicateSource(std::min(user_of(i), user_of(j)), std::max(user_of(i), user_of(j)),
+                                "controls " + std::to_string(user_of(i)) + " and " + std::to_string(user_of(j)) +
+                                    " have the same source " + num(m.sources_[i].x()) + " " + num(m.sources_[i].y()) +
+                                    " " + num(m.sources_[i].z()));
+        ++nnz;
+      });
+    }
+    // PETSc's matrix (a value and a column index an entry, twice while assembling) and MUMPS's
+    // factor, at least as large again: refused before anything is allocated.
+    const double need = 48.0 * double(nnz);
+    if (need > options.memory_limit_bytes)
+      throw ResourceLimit("the matrix rows of rank " + std::to_string(rank) + " hold " + std::to_string(nnz) +
+                          " entries (" + num(need / double(1ull << 30)) + " GiB with the factor), more than the limit of " +
+                          num(options.memory_limit_bytes / double(1ull << 30)) + " GiB: use a smaller radius or more ranks");
+    cols.reserve(nnz);
+    vals.reserve(nnz);
+    std::vector<PetscInt> d_nnz(n, 0), o_nnz(n, 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      index.for_each_within(m.sources_[i], [&](std::size_t j, double d2) {
+        const std::size_t gj = global_of(j);
+        cols.push_back(PetscInt(gj));
+        vals.push_back(wendland(options.kernel, std::sqrt(d2) / radius));
+        (gj >= m.offset_ && gj < m.offset_ + n ? d_nnz[i] : o_nnz[i])++;
+      });
+      row_start[i + 1] = PetscInt(cols.size());
+    }
+    rs.matrix_nonzeros = cols.size();
+    check_petsc(MatCreateAIJ(comm, PetscInt(n), PetscInt(n), PetscInt(total), PetscInt(total), 0, d_nnz.data(), 0,
+                             o_nnz.data(), &a.m),
+                "MatCreateAIJ");
+    check_petsc(MatSetOption(a.m, MAT_NEW_NONZERO_ALLOCATION_ERR, PETSC_TRUE), "MatSetOption");
+    for (std::size_t i = 0; i < n; ++i) {
+      const PetscInt row = PetscInt(m.offset_ + i);
+      check_petsc(MatSetValues(a.m, 1, &row, row_start[i + 1] - row_start[i], cols.data() + row_start[i],
+                               vals.data() + row_start[i], INSERT_VALUES),
+                  "MatSetValues");
+    }
+  });
+  check_petsc(MatAssemblyBegin(a.m, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin");
+  check_petsc(MatAssemblyEnd(a.m, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd");
+  check_petsc(MatSetOption(a.m, MAT_SYMMETRIC, PETSC_TRUE), "MatSetOption(symmetric)");
+  check_petsc(MatSetOption(a.m, MAT_SPD, PETSC_TRUE), "MatSetOption(spd)");
+  std::vector<PetscInt>().swap(cols);
+  std::vector<double>().swap(vals);
+  rs.seconds_assembly = seconds_since(t_asm);
+
+  // Right-hand sides: the displacements, then P = [1, u] (u = (x - center) / scale).
+  const auto t_solve = Clock::now();
+  Columns rhs(Eigen::Index(n), 3 + terms);
+  for (std::size_t i = 0; i < n; ++i) {
+    rhs.row(Eigen::Index(i)).head<3>() = g[i].transpose();
+    if (terms > 0) rhs(Eigen::Index(i), 3) = 1.0;
+    if (terms == 4) rhs.row(Eigen::Index(i)).tail<3>() = ((m.sources_[i] - m.center_) / m.scale_).transpose();
+  }
+  DistributedSolver use = solver;
+  if (use == DistributedSolver::Auto) use = total <= kDirectBelow ? DistributedSolver::Mumps : DistributedSolver::Cg;
+  Columns sol;
+  PetscKsp ksp;
+  std::size_t iterations = 0;
+  const auto run = [&](DistributedSolver s) {
+    for (int workspace = 50; workspace <= 3200; workspace *= 4) {
+      int ok = 1, out_of_memory = 0;
+      collectively(comm, [&] {
+        make_ksp(comm, a.m, s, ksp, workspace);
+        bool oom = false;
+        ok = solve_columns(a.m, ksp.k, rhs, sol, iterations, &oom) ? 1 : 0;
+        out_of_memory = oom ? 1 : 0;
+      });
+      int flags[2] = {ok, -out_of_memory}, all[2] = {0, 0};
+      MPI_Allreduce(flags, all, 2, MPI_INT, MPI_MIN, comm);
+      if (all[0] == 1) return true;
+      if (s != DistributedSolver::Mumps || all[1] == 0) return false;
+    }
+    return false;
+  };
+  bool solved = run(use);
+  if (!solved && use == DistributedSolver::Cg && solver == DistributedSolver::Auto) {
+    m.stats_.fell_back = true;
+    use = DistributedSolver::Mumps;
+    solved = run(use);
+  }
+  if (!solved)
+    throw Failure(use == DistributedSolver::Cg
+                      ? "conjugate gradients did not converge in " + std::to_string(kCgMaxIterations) +
+                            " steps (--solver mumps factorises instead)"
+                      : "MUMPS's Cholesky factorisation failed: the interpolation matrix is not numerically positive "
+                        "definite (sources too close together for R = " + num(radius) + ")",
+                  0, 1);
+  m.stats_.solver = use;
+  m.stats_.iterations = iterations;
+  // The polynomial block: (P^T Y) beta = P^T z, alpha = z - Y beta, with Y = A^-1 P, z = A^-1 g.
+  Columns alpha = sol.leftCols(3);
+  if (terms > 0) {
+    const Columns y = sol.rightCols(terms);
+    const Columns p = rhs.rightCols(terms);
+    const Columns s = sum_over_ranks(comm, Columns(p.transpose() * y), bytes);
+    const Columns t = sum_over_ranks(comm, Columns(p.transpose() * alpha), bytes);
+    Eigen::LLT<Eigen::MatrixXd> llt(s);
+    if (llt.info() != Eigen::Success)
+      throw Failure("the polynomial block P^T A^-1 P is not positive definite (controls degenerate for polynomial '" +
+                        std::string(polynomial_name(options.polynomial)) + "')",
+                    0, 1);
+    const Columns b = llt.solve(t);
+    alpha -= y * b;
+    m.beta_.topRows(terms) = b;
+  }
+  m.alpha_ = alpha;
+  rs.seconds_solve = seconds_since(t_solve);
+
+  // The residual, global: max ||A alpha + P beta - g|| over max ||g||.
+  const auto t_res = Clock::now();
+  double res = 0, gmax = 0;
+  {
+    const Columns aa = multiply(a.m, Columns(m.alpha_));
+    for (std::size_t i = 0; i < n; ++i) {
+      Vec3 v = aa.row(Eigen::Index(i)).transpose();
+      if (terms > 0) {
+        const Vec3 u = (m.sources_[i] - m.center_) / m.scale_;
+        v += (m.beta_.row(0) + u.transpose() * m.beta_.bottomRows<3>()).transpose();
+      }
+      const double e = (v - g[i]).norm();
+      res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
+      gmax = std::max(gmax, g[i].norm());
+    }
+    if (!m.alpha_.allFinite() || !m.beta_.allFinite()) res = std::numeric_limits<double>::infinity();
+    res = max_of(comm, res, bytes);
+    gmax = max_of(comm, gmax, bytes);
+  }
+  m.stats_.residual_relative = gmax > 0 ? res / gmax : res;
+  rs.seconds_residual = seconds_since(t_res);
+  if (!(m.stats_.residual_relative <= kResidualLimit))
+    throw Failure("the controls cannot be interpolated to a relative residual of " + num(kResidualLimit) + " (got " +
+                      num(m.stats_.residual_relative) +
+                      "): the matrix is too ill-conditioned; merge or separate close sources, or use a smaller radius",
+                  0, 1);
+  rs.peak_bytes = peak_memory_bytes();
+  return m;
+}
+
+Eigen::Matrix<double, 4, 3> DistributedMap::polynomial_coefficients() const {
+  Eigen::Matrix<double, 4, 3> out;
+  const Eigen::Matrix3d lin = beta_.bottomRows<3>() / scale_;
+  out.row(0) = beta_.row(0) - center_.transpose() * lin;
+  out.bottomRows<3>() = lin;
+  return out;
+}
+
+void DistributedMap::displacements(std::span<const Vec3> in, std::span<Vec3> out) {
+  apply(in, out, 1.0);
+  for (std::size_t i = 0; i < in.size(); ++i) out[i] -= in[i];
+}
+
+void DistributedMap::apply(std::span<const Vec3> in, std::span<Vec3> out, double phase) {
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm_, &rank);
+  MPI_Comm_size(comm_, &size);
+  const auto t0 = Clock::now();
+  collectively(comm_, [&] {
+    if (in.size() != out.size())
+      throw InvalidInput(std::to_string(in.size()) + " points in but room for " + std::to_string(out.size()));
+    check_phase(phase);
+    for (std::size_t i = 0; i < in.size(); ++i)
+      if (!in[i].allFinite()) throw InvalidInput("point " + std::to_string(i) + ": a coordinate is not finite");
+  });
+  const double radius = options_.radius;
+  // Every rank's controls within R of this rank's points, with their coefficients.
+  const std::vector<Box> boxes = all_boxes(comm_, box_of(in), rank_stats_.bytes_sent);
+  std::vector<std::vector<Packet>> send(static_cast<std::size_t>(size));
+  for (int r = 0; r < size; ++r) {
+    if (r == rank) continue;
+    for (std::size_t i = 0; i < sources_.size(); ++i)
+      if (boxes[std::size_t(r)].distance(sources_[i]) < radius)
+        send[std::size_t(r)].push_back(packet(offset_ + i, 0, sources_[i], alpha_.row(Eigen::Index(i)).transpose()));
+  }
+  const std::vector<Packet> got = exchange(comm_, send, nullptr, rank_stats_.bytes_sent);
+  rank_stats_.eval_halo = got.size();
+  collectively(comm_, [&] {
+    if (in.empty()) return;
+    const Box& mine = boxes[std::size_t(rank)];
+    std::vector<Vec3> s;
+    std::vector<Vec3> a;
+    for (std::size_t i = 0; i < sources_.size(); ++i)
+      if (mine.distance(sources_[i]) < radius) {
+        s.push_back(sources_[i]);
+        a.push_back(alpha_.row(Eigen::Index(i)).transpose());
+      }
+    for (const Packet& p : got) {
+      s.push_back(p.source());
+      a.push_back(p.value());
+    }
+    Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(s.size()), 3);
+    for (std::size_t k = 0; k < a.size(); ++k) alpha.row(Eigen::Index(k)) = a[k].transpose();
+    const SpaceMap local = SpaceMap::from_solution(s, alpha, beta_, center_, scale_, options_);
+    local.apply(in, out, phase);
+  });
+  rank_stats_.points += in.size();
+  rank_stats_.seconds_evaluate += seconds_since(t0);
+  rank_stats_.peak_bytes = peak_memory_bytes();
+}
+
+Partition rcb_partition(std::span<const Vec3> points, std::span<const Vec3> controls, int parts) {
+  Partition out;
+  out.point_part.assign(points.size(), 0);
+  out.control_part.assign(controls.size(), 0);
+  if (parts <= 1) return out;
+  const double wc = controls.empty() ? 1.0 : std::max(1.0, double(points.size()) / double(controls.size()));
+  // Items: points first, then controls (index >= points.size()).
+  const std::size_t np = points.size();
+  std::vector<std::uint32_t> items(np + controls.size());
+  if (items.size() >= (std::size_t(1) << 32)) throw ResourceLimit("more than 2^32 points and controls to partition");
+  std::iota(items.begin(), items.end(), 0u);
+  const auto at = [&](std::uint32_t k) -> const Vec3& { return k < np ? points[k] : controls[k - np]; };
+  const auto weight = [&](std::uint32_t k) { return k < np ? 1.0 : wc; };
+  struct Range {
+    std::size_t begin, end;
+    int first, parts;
+  };
+  std::vector<Range> stack{{0, items.size(), 0, parts}};
+  while (!stack.empty()) {
+    const Range r = stack.back();
+    stack.pop_back();
+    if (r.parts == 1 || r.end == r.begin) {
+      for (std::size_t k = r.begin; k < r.end; ++k) {
+        const std::uint32_t i = items[k];
+        (i < np ? out.point_part[i] : out.control_part[i - np]) = r.first;
+      }
+      continue;
+    }
+    Box b;
+    for (std::size_t k = r.begin; k < r.end; ++k) b.add(at(items[k]));
+    int axis = 0;
+    (b.hi - b.lo).maxCoeff(&axis);
+    tbb::parallel_sort(items.begin() + std::ptrdiff_t(r.begin), items.begin() + std::ptrdiff_t(r.end),
+                       [&](std::uint32_t p, std::uint32_t q) {
+                         const double a = at(p)[axis], c = at(q)[axis];
+                         return a < c || (a == c && p < q);
+                       });
+    const int left = r.parts / 2;
+    double total = 0;
+    for (std::size_t k = r.begin; k < r.end; ++k) total += weight(items[k]);
+    const double target = total * double(left) / double(r.parts);
+    double acc = 0;
+    std::size_t cut = r.begin;
+    while (cut < r.end && acc + 0.5 * weight(items[cut]) < target) acc += weight(items[cut++]);
+    stack.push_back({r.begin, cut, r.first, left});
+    stack.push_back({cut, r.end, r.first + left, r.parts - left});
+  }
+  return out;
+}
+
+}  // namespace csrbf::mpi

@@ -1,0 +1,221 @@
+// csrbf::mpi under mpirun (tests/CMakeLists.txt runs it with 1, 2, 3 and 4 ranks): the distributed
+// fit and evaluation equal the serial SpaceMap to 1e-10 of the largest displacement, for every
+// kernel and polynomial and both solvers; controls whose support crosses every partition boundary;
+// a rank with no points and one with no controls; shared controls owned once; a failure on one
+// rank is a failure on all.
+#include "csrbf/mpi/distributed.hpp"
+#include "csrbf/mpi/runtime.hpp"
+#include "csrbf/space_map.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace csrbf;
+using namespace csrbf::mpi;
+
+namespace {
+
+int g_rank = 0, g_size = 1;
+
+std::vector<Vec3> cloud(std::size_t n, unsigned seed, double lo = 0, double hi = 1) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> u(lo, hi);
+  std::vector<Vec3> p(n);
+  for (auto& x : p) x = Vec3(u(rng), u(rng), u(rng));
+  return p;
+}
+
+std::vector<Vec3> moved(const std::vector<Vec3>& s) {
+  std::vector<Vec3> d(s.size());
+  for (std::size_t i = 0; i < s.size(); ++i)
+    d[i] = s[i] + Vec3(0.05 * std::sin(3 * s[i].y()), 0.03 * s[i].x() - 0.01, 0.02 * std::cos(2 * s[i].z()));
+  return d;
+}
+
+/// This rank's share of a set, by a partition every rank computes alike.
+template <class T>
+std::vector<T> share(const std::vector<T>& all, const std::vector<int>& part, int rank) {
+  std::vector<T> out;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    if (part[i] == rank) out.push_back(all[i]);
+  return out;
+}
+
+struct Case {
+  std::vector<Vec3> s, d, x;
+  Partition part;
+};
+
+Case make_case(std::size_t n, std::size_t m, unsigned seed) {
+  Case c;
+  c.s = cloud(n, seed);
+  c.d = moved(c.s);
+  c.x = cloud(m, seed + 1, -0.05, 1.05);
+  c.part = rcb_partition(c.x, c.s, g_size);
+  return c;
+}
+
+/// The largest distance between the distributed and the serial result over this rank's points,
+/// over all ranks, relative to the largest displacement.
+double compare(const Case& c, const FitOptions& o, DistributedSolver solver, const std::vector<int>& point_part,
+               const std::vector<int>& control_part, double phase = 0.8) {
+  const auto s = share(c.s, control_part, g_rank), d = share(c.d, control_part, g_rank);
+  const auto x = share(c.x, point_part, g_rank);
+  DistributedMap map = DistributedMap::fit(MPI_COMM_WORLD, s, d, o, solver);
+  std::vector<Vec3> out(x.size());
+  map.apply(x, out, phase);
+  const SpaceMap serial = SpaceMap::fit(c.s, c.d, o);
+  std::vector<Vec3> want(x.size());
+  serial.apply(x, want, phase);
+  double err = 0, gmax = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) err = std::max(err, (out[i] - want[i]).norm());
+  for (std::size_t i = 0; i < c.s.size(); ++i) gmax = std::max(gmax, (c.d[i] - c.s[i]).norm());
+  double all = 0;
+  MPI_Allreduce(&err, &all, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+  return all / gmax;
+}
+
+TEST(Distributed, EqualsTheSerialFitForEveryKernelPolynomialAndSolver) {
+  const Case c = make_case(2500, 20000, 19);
+  for (const Kernel k : {Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6})
+    for (const Polynomial p : {Polynomial::None, Polynomial::Constant, Polynomial::Linear})
+      for (const DistributedSolver s : {DistributedSolver::Mumps, DistributedSolver::Cg}) {
+        FitOptions o;
+        o.radius = 0.2;
+        o.kernel = k;
+        o.polynomial = p;
+        SCOPED_TRACE(std::string(kernel_name(k)) + " " + std::string(polynomial_name(p)) + " " +
+                     distributed_solver_name(s));
+        EXPECT_LT(compare(c, o, s, c.part.point_part, c.part.control_part), 1e-10);
+      }
+}
+
+TEST(Distributed, SupportsCrossingEveryPartitionBoundary) {
+  // R = 0.7 of the cube: every control's support reaches every part.
+  const Case c = make_case(600, 5000, 23);
+  FitOptions o;
+  o.radius = 0.7;
+  o.polynomial = Polynomial::Linear;
+  EXPECT_LT(compare(c, o, DistributedSolver::Auto, c.part.point_part, c.part.control_part), 1e-10);
+}
+
+TEST(Distributed, ARankWithNoPointsAndARankWithNoControls) {
+  const Case c = make_case(1500, 8000, 29);
+  // The last rank has no points, rank 0 no controls (with one rank: both, on rank 0's own sets).
+  std::vector<int> pp = c.part.point_part, cp = c.part.control_part;
+  if (g_size > 1) {
+    for (int& r : pp)
+      if (r == g_size - 1) r = 0;
+    for (int& r : cp)
+      if (r == 0) r = 1;
+  }
+  FitOptions o;
+  o.radius = 0.25;
+  o.polynomial = Polynomial::Constant;
+  EXPECT_LT(compare(c, o, DistributedSolver::Mumps, pp, cp), 1e-10);
+  EXPECT_LT(compare(c, o, DistributedSolver::Cg, pp, cp), 1e-10);
+}
+
+TEST(Distributed, SharedControlsAreOwnedOnceAndMustAgree) {
+  const Case c = make_case(1200, 6000, 31);
+  // Every rank also holds the controls of its neighbour rank (rank + 1): duplicates, bit for bit.
+  std::vector<Vec3> s = share(c.s, c.part.control_part, g_rank), d = share(c.d, c.part.control_part, g_rank);
+  if (g_size > 1) {
+    const int next = (g_rank + 1) % g_size;
+    const auto s2 = share(c.s, c.part.control_part, next), d2 = share(c.d, c.part.control_part, next);
+    s.insert(s.end(), s2.begin(), s2.end());
+    d.insert(d.end(), d2.begin(), d2.end());
+  }
+  FitOptions o;
+  o.radius = 0.25;
+  DistributedMap map = DistributedMap::fit(MPI_COMM_WORLD, s, d, o, DistributedSolver::Auto, {}, true);
+  EXPECT_EQ(map.stats().controls, c.s.size());
+  const auto x = share(c.x, c.part.point_part, g_rank);
+  std::vector<Vec3> out(x.size()), want(x.size());
+  map.apply(x, out);
+  SpaceMap::fit(c.s, c.d, o).apply(x, want);
+  for (std::size_t i = 0; i < x.size(); ++i) ASSERT_LT((out[i] - want[i]).norm(), 1e-10);
+  if (g_size > 1) {
+    // The same point moved two ways on two ranks: an error on every rank, naming both.
+    std::vector<Vec3> bad = d;
+    for (std::size_t i = bad.size() / 2; i < bad.size(); ++i) bad[i] += Vec3(0.01, 0, 0);
+    try {
+      DistributedMap::fit(MPI_COMM_WORLD, s, bad, o, DistributedSolver::Auto, {}, true);
+      ADD_FAILURE() << "no error";
+    } catch (const Failure& f) {
+      EXPECT_NE(std::string(f.what()).find("moved differently"), std::string::npos) << f.what();
+    }
+    // Without dedupe the duplicates are an error naming the controls.
+    try {
+      DistributedMap::fit(MPI_COMM_WORLD, s, d, o, DistributedSolver::Auto, {}, false);
+      ADD_FAILURE() << "no error";
+    } catch (const Failure& f) {
+      EXPECT_NE(std::string(f.what()).find("same source"), std::string::npos) << f.what();
+    }
+  }
+}
+
+TEST(Distributed, AFailureOnOneRankIsAFailureOnAll) {
+  const Case c = make_case(500, 100, 37);
+  auto s = share(c.s, c.part.control_part, g_rank), d = share(c.d, c.part.control_part, g_rank);
+  const int bad = g_size - 1;
+  if (g_rank == bad && !s.empty()) s[0].x() = std::nan("");
+  if (g_rank == bad && s.empty()) {
+    s.push_back(Vec3(std::nan(""), 0, 0));
+    d.push_back(Vec3::Zero());
+  }
+  FitOptions o;
+  o.radius = 0.3;
+  try {
+    DistributedMap::fit(MPI_COMM_WORLD, s, d, o);
+    ADD_FAILURE() << "no error";
+  } catch (const Failure& f) {
+    EXPECT_EQ(f.rank(), bad);
+    EXPECT_EQ(f.exit_code(), 1);
+    EXPECT_NE(std::string(f.what()).find("not finite"), std::string::npos) << f.what();
+  }
+  // A radius that is no number: the same error on every rank, from every rank's own check.
+  o.radius = -1;
+  EXPECT_THROW(DistributedMap::fit(MPI_COMM_WORLD, share(c.s, c.part.control_part, g_rank),
+                                   share(c.d, c.part.control_part, g_rank), o),
+               Failure);
+  // No controls anywhere.
+  o.radius = 0.3;
+  EXPECT_THROW(DistributedMap::fit(MPI_COMM_WORLD, {}, {}, o), Failure);
+}
+
+TEST(Partition, RcbBalancesPointsAndControls) {
+  const auto x = cloud(10000, 41), s = cloud(500, 43);
+  for (const int parts : {1, 2, 3, 4, 7}) {
+    const Partition p = rcb_partition(x, s, parts);
+    std::vector<int> np(std::size_t(parts), 0), nc(std::size_t(parts), 0);
+    for (const int r : p.point_part) ++np[std::size_t(r)];
+    for (const int r : p.control_part) ++nc[std::size_t(r)];
+    for (int r = 0; r < parts; ++r) {
+      // Each part within 5% of its even share of the total weight (points + controls weighted).
+      const double w = np[std::size_t(r)] + nc[std::size_t(r)] * (10000.0 / 500.0);
+      EXPECT_NEAR(w / (20000.0 / parts), 1.0, 0.05) << parts << " parts, part " << r;
+    }
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Runtime runtime(&argc, &argv);
+  g_rank = runtime.rank();
+  g_size = runtime.size();
+  ::testing::InitGoogleTest(&argc, argv);
+  if (g_rank != 0) {  // one report: rank 0's; the others' failures still fail the run (exit code)
+    auto& listeners = ::testing::UnitTest::GetInstance()->listeners();
+    delete listeners.Release(listeners.default_result_printer());
+  }
+  const int rc = RUN_ALL_TESTS();
+  int any = 0;
+  MPI_Allreduce(&rc, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  return any;
+}
