@@ -8,7 +8,11 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cctype>
+#include <exception>
+#include <numbers>
+#include <vector>
 #include <cmath>
 #include <chrono>
 #include <cstdio>
@@ -85,6 +89,59 @@ std::string quality_table(const MeshQuality& qa, const MeshQuality& qb) {
   return s.str();
 }
 
+/// f's exception, if it threw (for MorphBackend::agree).
+template <class F>
+std::exception_ptr caught(F&& f) {
+  try {
+    f();
+  } catch (...) {
+    return std::current_exception();
+  }
+  return nullptr;
+}
+
+/// The quality of every part of a decomposed mesh (the part's own where alone). Faces between
+/// parts are boundary faces of each: their non-orthogonality is not counted, their skewness is
+/// measured as a boundary face's.
+MeshQuality combine(MorphBackend& b, MeshQuality q) {
+  if (!b.part()) return q;
+  const auto sum = [&](std::size_t v) { return std::size_t(b.sum(double(v))); };
+  const auto min = [&](double v) { return -b.max(-v); };
+  if (q.poly) {
+    PolyQuality& p = *q.poly;
+    const double internal = b.sum(double(p.internal_faces));
+    const double cos_sum = b.sum(std::cos(p.mean_non_orthogonality * std::numbers::pi / 180.0) * double(p.internal_faces));
+    p.cells = sum(p.cells);
+    p.faces = sum(p.faces);
+    p.internal_faces = std::size_t(internal);
+    p.max_non_orthogonality = b.max(p.max_non_orthogonality);
+    p.mean_non_orthogonality =
+        internal > 0 ? std::acos(std::clamp(cos_sum / internal, -1.0, 1.0)) * 180.0 / std::numbers::pi : 0.0;
+    p.max_skewness = b.max(p.max_skewness);
+    p.negative_volumes = sum(p.negative_volumes);
+    p.bad_pyramids = sum(p.bad_pyramids);
+    p.inverted_cells = sum(p.inverted_cells);
+    p.min_volume = min(p.min_volume);
+    p.total_volume = b.sum(p.total_volume);
+  }
+  if (q.cells) {
+    CellQuality& c = *q.cells;
+    const double n = b.sum(double(c.cells));
+    const double mean_sum = b.sum(c.mean_scaled_jacobian * double(c.cells));
+    c.cells = std::size_t(n);
+    c.tetrahedra = sum(c.tetrahedra);
+    c.hexahedra = sum(c.hexahedra);
+    c.prisms = sum(c.prisms);
+    c.pyramids = sum(c.pyramids);
+    c.triangles = sum(c.triangles);
+    c.quads = sum(c.quads);
+    c.min_scaled_jacobian = min(c.min_scaled_jacobian);
+    c.mean_scaled_jacobian = n > 0 ? mean_sum / n : 1.0;
+    c.inverted_cells = sum(c.inverted_cells);
+  }
+  return q;
+}
+
 std::string motion_summary(const Motion& m) {
   std::string s;
   for (const auto& p : m.patches) {
@@ -97,10 +154,15 @@ std::string motion_summary(const Motion& m) {
 }  // namespace
 
 MorphOutcome run_job(const MorphJob& job) {
+  MorphBackend& b = job.backend ? *job.backend : local_backend();
   const auto t0 = Clock::now();
   MorphOutcome o;
   o.mesh = job.mesh.string();
   o.motion = job.motion.string();
+  Motion motion;
+  std::unique_ptr<VolumeFile> file;
+  auto t_read = Clock::now();
+  b.agree(caught([&] {
   if (job.write && job.out.empty() && !job.in_place)
     throw JobError("give an output (a new case folder or file) or in place");
   if (job.write && !job.out.empty() && job.in_place) throw JobError("give an output or in place, not both");
@@ -124,7 +186,7 @@ MorphOutcome run_job(const MorphJob& job) {
                      ": the output is written in the input's format, so it needs the extension '" +
                      detail::lower_extension(job.mesh) + "'");
   }
-  const Motion motion = read_motion(job.motion);
+  motion = read_motion(job.motion);
   MorphOptions& opt = o.options;
   if (job.radius)
     opt.fit.radius = *job.radius;
@@ -140,11 +202,11 @@ MorphOutcome run_job(const MorphJob& job) {
   opt.greedy = job.greedy.value_or(0.0);
   o.motion_summary = motion_summary(motion);
 
-  const auto t_read = Clock::now();
+  t_read = Clock::now();
   OpenOptions open;
   open.patch_array = motion.patch_array;
   open.max_file_bytes = job.memory_limit_bytes;  // a mesh file, uncompressed, within --memory-limit
-  const auto file = open_volume(job.mesh, open);
+  file = open_volume(b.mesh_path(job.mesh), open);
   const VolumeMesh& mesh = file->mesh();
   if (!motion.patch_array.empty() && file->format() != "vtu" && file->format() != "vtk")
     throw io::FileError(o.motion + ": patch_array: names a VTK data array, but " + o.mesh + " is " + file->format() +
@@ -160,15 +222,19 @@ MorphOutcome run_job(const MorphJob& job) {
                              ? std::string(": name an integer point or cell data array as \"patch_array\" in ") +
                                    o.motion + file->patch_hint()
                              : std::string()));
+  }));
+  const VolumeMesh& mesh = file->mesh();
+  const MorphOptions& opt = o.options;
   o.ms_read = ms_since(t_read);
   auto t_q = Clock::now();
   QualityMeter meter(mesh);
-  o.before = meter.measure(mesh.points);
+  o.before = combine(b, meter.measure(mesh.points));
   if (o.before.cells) o.cells = o.before.cells->cells;  // the volume cells, not the boundary faces a file also holds
+  if (b.part()) o.cells = std::size_t(b.sum(double(o.cells)));
   if (o.cells == 0) throw io::FileError(o.mesh + ": no cells (truncated, or not a volume mesh)");
   o.ms_quality = ms_since(t_q);
   try {
-    o.result = morph(mesh, motion, opt);
+    o.result = morph(mesh, motion, opt, &b);
   } catch (const DuplicateSource& e) {
     throw io::FileError(o.mesh + ": two prescribed points are at the same place (controls " +
                         std::to_string(e.first()) + " and " + std::to_string(e.second()) + "): " + e.what());
@@ -178,17 +244,29 @@ MorphOutcome run_job(const MorphJob& job) {
     throw io::FileError(o.mesh + ": " + e.what());
   }
   t_q = Clock::now();
-  o.after = meter.measure(o.result.points);
+  o.after = combine(b, meter.measure(o.result.points));
   o.ms_quality += ms_since(t_q);
   o.inverts = o.after.inverted_cells() > o.before.inverted_cells();
   o.safe_phase = job.phase;
-  if (o.inverts) o.safe_phase = largest_safe_phase(mesh, o.result.points, job.phase, o.before.inverted_cells());
+  if (o.inverts && !b.part())
+    o.safe_phase = largest_safe_phase(mesh, o.result.points, job.phase, o.before.inverted_cells());
+  if (o.inverts && b.part()) {  // the bisection of largest_safe_phase, counting every part's cells
+    std::vector<Vec3> at(mesh.points.size());
+    double lo = 0, hi = job.phase;
+    while (hi - lo > 1e-4 * std::abs(job.phase)) {
+      const double mid = 0.5 * (lo + hi), w = mid / job.phase;
+      for (std::size_t i = 0; i < at.size(); ++i) at[i] = mesh.points[i] + w * (o.result.points[i] - mesh.points[i]);
+      const double inverted = b.sum(double(meter.measure(at).inverted_cells()));
+      (inverted <= double(o.before.inverted_cells()) ? lo : hi) = mid;
+    }
+    o.safe_phase = lo;
+  }
   if (job.write && (!o.inverts || job.force)) {
     const auto t_w = Clock::now();
     if (job.in_place)
-      file->write_in_place(o.result.points);
+      b.write_in_place(*file, o.result.points);
     else
-      file->write_copy(o.result.points, job.out);
+      b.write_copy(*file, o.result.points, job.out);
     o.ms_write = ms_since(t_w);
     o.written = true;
     o.output = job.in_place ? o.mesh : job.out.string();

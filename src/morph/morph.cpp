@@ -3,12 +3,15 @@
 #include "csrbf/errors.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/morph/volume_file.hpp"
 #include "csrbf/space_map.hpp"
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <exception>
+#include <memory>
 #include <numeric>
 #include <optional>
 #include <sstream>
@@ -20,6 +23,31 @@ namespace {
 
 using io::FileError;
 using Clock = std::chrono::steady_clock;
+
+/// f's exception, if it threw (for MorphBackend::agree).
+template <class F>
+std::exception_ptr caught(F&& f) {
+  try {
+    f();
+  } catch (...) {
+    return std::current_exception();
+  }
+  return nullptr;
+}
+
+class LocalMapping final : public FittedMapping {
+ public:
+  explicit LocalMapping(SpaceMap map) : map_(std::move(map)) {}
+  void apply(std::span<const Vec3> in, std::span<Vec3> out, double phase) override { map_.apply(in, out, phase); }
+  void displacements(std::span<const Vec3> in, std::span<Vec3> out) override {
+    map_.displacements(in.empty() ? nullptr : in.front().data(), out.empty() ? nullptr : out.front().data(),
+                       in.size());
+  }
+  FitStats stats() const override { return map_.stats(); }
+
+ private:
+  SpaceMap map_;
+};
 
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
@@ -111,9 +139,27 @@ std::optional<Flat> flat_axis(const VolumeMesh& mesh) {
 
 }  // namespace
 
+std::unique_ptr<FittedMapping> MorphBackend::fit(std::span<const Vec3> sources, std::span<const Vec3> targets,
+                                                 const FitOptions& options, std::span<const std::uint64_t>) {
+  return std::make_unique<LocalMapping>(SpaceMap::fit(sources, targets, options));
+}
+
+void MorphBackend::write_copy(const VolumeFile& file, std::span<const Vec3> points, const std::filesystem::path& out) {
+  file.write_copy(points, out);
+}
+
+void MorphBackend::write_in_place(const VolumeFile& file, std::span<const Vec3> points) {
+  file.write_in_place(points);
+}
+
+MorphBackend& local_backend() {
+  static MorphBackend b;
+  return b;
+}
+
 std::size_t Prescribed::moving() const { return std::size_t(std::count(fixed.begin(), fixed.end(), char(0))); }
 
-Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
+Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
   const std::size_t np = mesh.points.size();
   const double tol = 1e-12 * std::max(mesh_size(mesh), 1e-300);
   std::vector<std::int32_t> who(np, -1);  // the motion that set a point
@@ -135,7 +181,10 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
     const Patch* patch = mesh.patch(pm.patch);
     if (!patch)
       throw FileError(pm.where + ": the mesh has no patch '" + pm.patch + "'; its patches: " + patch_list(mesh));
-    if (patch->points.empty()) throw FileError(pm.where + ": patch '" + pm.patch + "' has no points");
+    if (patch->points.empty()) {
+      if (part) continue;  // the patch lies in other parts of the mesh
+      throw FileError(pm.where + ": patch '" + pm.patch + "' has no points");
+    }
     std::vector<Vec3> given;
     if (pm.kind == PatchMotion::Kind::Displacements) {
       given.assign(patch->points.size(), Vec3::Constant(std::nan("")));
@@ -145,6 +194,7 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
         std::uint64_t index = g.point;
         if (!mesh.point_ids.empty()) {  // the file's own numbers (Gmsh node tags)
           const auto id = ids.find(g.point);
+          if (id == ids.end() && part) continue;  // a point of another part
           if (id == ids.end())
             throw FileError(at + "point " + std::to_string(g.point) +
                             " is not a node of the mesh (its nodes are numbered " + std::to_string(min_id) + " to " +
@@ -155,6 +205,7 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
                           std::to_string(np) + " points (0 to " + std::to_string(np ? np - 1 : 0) + ")");
         }
         const auto it = std::lower_bound(patch->points.begin(), patch->points.end(), std::uint32_t(index));
+        if ((it == patch->points.end() || *it != index) && part) continue;  // on this patch in another part
         if (it == patch->points.end() || *it != index)
           throw FileError(at + "point " + std::to_string(g.point) + " is not on patch '" + pm.patch + "'");
         const auto k = std::size_t(it - patch->points.begin());
@@ -208,13 +259,20 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion) {
   return out;
 }
 
-MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options) {
+MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options,
+                  MorphBackend* backend) {
+  MorphBackend& b = backend ? *backend : local_backend();
   if (!(options.fit.radius > 0) || !std::isfinite(options.fit.radius))
     throw InvalidInput("the radius must be a finite number > 0, got " + io::format_number(options.fit.radius));
   if (!std::isfinite(options.phase)) throw InvalidInput("the phase must be finite");
   if (!(options.greedy >= 0) || !std::isfinite(options.greedy))
     throw InvalidInput("the greedy tolerance must be a finite number >= 0, got " + io::format_number(options.greedy));
-  const Prescribed pres = prescribe(mesh, motion);
+  Prescribed pres;
+  b.agree(caught([&] { pres = prescribe(mesh, motion, b.part()); }));
+  if (b.part())
+    for (const PatchMotion& pm : motion.patches)
+      if (b.max(double(mesh.patch(pm.patch)->points.size())) == 0)
+        throw FileError(pm.where + ": patch '" + pm.patch + "' has no points");
   MorphResult r;
   MorphReport& rep = r.report;
   rep.prescribed = pres.points.size();
@@ -223,15 +281,20 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   r.points = mesh.points;
   const std::size_t n = pres.points.size();
   for (const Vec3& dv : pres.displacements) rep.max_displacement = std::max(rep.max_displacement, dv.norm());
-  if (rep.moving == 0 || rep.max_displacement == 0 || options.phase == 0) return r;  // nothing moves
+  rep.max_displacement = b.max(rep.max_displacement);
+  if (b.max(double(rep.moving)) == 0 || rep.max_displacement == 0 || options.phase == 0) return r;  // nothing moves
 
   // The controls: the prescribed points, or in a 2-D case their projections on the mid-plane, each
   // pair of the two planes' points one control.
   const auto flat = flat_axis(mesh);
-  const double tol = 1e-12 * std::max(mesh_size(mesh), 1e-300);
+  const double tol = 1e-12 * std::max(b.max(mesh_size(mesh)), 1e-300);
+  const auto number = [&](std::uint32_t p) { return mesh.point_ids.empty() ? std::uint64_t(p) : mesh.point_ids[p]; };
   std::vector<Vec3> sources, targets;
+  std::vector<std::uint64_t> ids;
   sources.reserve(n);
   targets.reserve(n);
+  ids.reserve(n);
+  b.agree(caught([&] {
   if (flat) {
     const int a = flat->axis;
     const double mid = 0.5 * (flat->lo + flat->hi);
@@ -265,46 +328,54 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
       }
       sources.push_back(p);
       targets.push_back(p + d);
+      ids.push_back(number(pres.points[i]));
     }
   } else {
     for (std::size_t i = 0; i < n; ++i) {
       sources.push_back(mesh.points[pres.points[i]]);
       targets.push_back(sources.back() + pres.displacements[i]);
+      ids.push_back(number(pres.points[i]));
     }
   }
+  }));
   const std::size_t nc = sources.size();
   const auto t_fit = Clock::now();
   std::vector<Vec3> at(nc);
-  const auto worst = [&](const SpaceMap& map, std::vector<double>& err) {
+  const auto worst = [&](FittedMapping& map, std::vector<double>& err) {
     map.apply(sources, at, 1.0);
     err.resize(nc);
     double e = 0;
     for (std::size_t i = 0; i < nc; ++i) e = std::max(e, err[i] = (at[i] - targets[i]).norm());
-    return e;
+    return b.max(e);
   };
   std::vector<double> err;
-  std::optional<SpaceMap> map;
-  if (options.greedy > 0 && nc > 1) {
+  std::unique_ptr<FittedMapping> map;
+  if (options.greedy > 0 && b.max(double(nc)) > 1) {
     const double limit = options.greedy * rep.max_displacement;
     std::vector<char> chosen(nc, 0);
     std::vector<std::uint32_t> subset;
     std::size_t first = 0;
     for (std::size_t i = 1; i < nc; ++i)
       if ((targets[i] - sources[i]).squaredNorm() > (targets[first] - sources[first]).squaredNorm()) first = i;
-    subset.push_back(std::uint32_t(first));
-    chosen[first] = 1;
+    if (nc > 0) {
+      subset.push_back(std::uint32_t(first));
+      chosen[first] = 1;
+    }
     std::vector<std::uint32_t> by_error(nc);
     for (;;) {
       ++rep.greedy_rounds;
       std::sort(subset.begin(), subset.end());
       std::vector<Vec3> s(subset.size()), t(subset.size());
+      std::vector<std::uint64_t> u(subset.size());
       for (std::size_t k = 0; k < subset.size(); ++k) {
         s[k] = sources[subset[k]];
         t[k] = targets[subset[k]];
+        u[k] = ids[subset[k]];
       }
-      map = SpaceMap::fit(s, t, options.fit);
+      map.reset();
+      map = b.fit(s, t, options.fit, u);
       rep.max_boundary_error = worst(*map, err);
-      if (rep.max_boundary_error <= limit || subset.size() == nc) break;
+      if (rep.max_boundary_error <= limit || b.max(double(subset.size() < nc)) == 0) break;
       std::iota(by_error.begin(), by_error.end(), 0u);
       std::sort(by_error.begin(), by_error.end(), [&](std::uint32_t a, std::uint32_t b) { return err[a] > err[b]; });
       SpacedSet spaced(options.fit.radius);
@@ -316,11 +387,11 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
         subset.push_back(i);
       }
       // Only controls themselves miss the tolerance (it is below what the solve reaches): stop.
-      if (subset.size() == before) break;
+      if (b.max(double(subset.size() > before)) == 0) break;
     }
     rep.controls = subset.size();
   } else {
-    map = SpaceMap::fit(sources, targets, options.fit);
+    map = b.fit(sources, targets, options.fit, ids);
     rep.max_boundary_error = worst(*map, err);
     rep.controls = nc;
   }
@@ -334,7 +405,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
     std::vector<Vec3> projected(mesh.points), d(mesh.points.size());
     const double mid = 0.5 * (flat->lo + flat->hi);
     for (Vec3& p : projected) p[flat->axis] = mid;
-    map->displacements(projected.front().data(), d.front().data(), projected.size());
+    map->displacements(projected, d);
     for (std::size_t i = 0; i < d.size(); ++i) {
       r.points[i] = mesh.points[i] + options.phase * d[i];
       r.points[i][flat->axis] = mesh.points[i][flat->axis];

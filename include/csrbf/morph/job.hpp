@@ -33,6 +33,9 @@ struct MorphJob {
   double phase = 1.0;
   double memory_limit_bytes = 4.0 * (1ull << 30);
   bool force = false;  ///< write even if cells invert
+  /// Where the mapping is fitted and evaluated, and the mesh read and written (MorphBackend);
+  /// null: this process alone.
+  MorphBackend* backend = nullptr;
 };
 
 struct MorphOutcome {

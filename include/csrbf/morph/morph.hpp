@@ -5,6 +5,7 @@
 
 #include "csrbf/fit_options.hpp"
 #include "csrbf/fit_stats.hpp"
+#include "csrbf/morph/backend.hpp"
 #include "csrbf/morph/motion.hpp"
 #include "csrbf/morph/quality.hpp"
 #include "csrbf/morph/volume_mesh.hpp"
@@ -26,7 +27,9 @@ struct Prescribed {
 /// moves; two moving patches that disagree at a shared point (by more than 1e-12 of the mesh's
 /// size) are an error naming both and the point. Unknown and empty patches, point ids outside the
 /// patch, and patch points missing from a displacements file are errors. Throws io::FileError.
-Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion);
+/// part: the mesh is one part of a decomposed mesh (MorphBackend::part): a patch may be empty here,
+/// and a displacements file's points that are not on this part's patch are another part's.
+Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part = false);
 
 struct MorphOptions {
   FitOptions fit;      ///< radius > 0 required; kernel, polynomial, solver, memory limit
@@ -54,8 +57,10 @@ struct MorphResult {
 };
 
 /// Morphs mesh.points. Prescribed points are placed at x + phase d exactly, fixed ones are copied
-/// bit for bit, every other point is x + phase d(x) of the fitted mapping.
-MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options);
+/// bit for bit, every other point is x + phase d(x) of the fitted mapping. The backend fits and
+/// evaluates (default: SpaceMap in this process; csrbf::mpi's over MPI ranks).
+MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options,
+                  MorphBackend* backend = nullptr);
 
 /// The largest phase s in [0, phase] at which the morph (positions linear in s between points
 /// and moved) inverts no cell that was not inverted before, found by bisection to 1e-4 of phase.
