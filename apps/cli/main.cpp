@@ -13,6 +13,11 @@
 #include "csrbf/version.hpp"
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#ifdef CSRBF_WITH_MPI
+#include "csrbf/mpi/backends.hpp"
+#include "csrbf/mpi/runtime.hpp"
+#endif
 
 #include <charconv>
 #include <csignal>
@@ -87,9 +92,15 @@ struct Fitted {
   std::optional<csrbf::io::ActiveArea> area;  // the deformation file's active area, if any
 };
 
-/// The fit of the controls or deformation file; a deformation's active area is checked against
-/// `mesh` (when given) before the fit, which may take long.
-Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, const std::string& mesh_name = {}) {
+struct FitInput {
+  csrbf::io::Controls controls;
+  csrbf::FitOptions options;
+  std::optional<csrbf::io::ActiveArea> area;
+};
+
+/// The controls or deformation file and the fit's options; a deformation's active area is checked
+/// against `mesh` (when given) before the fit, which may take long.
+FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, const std::string& mesh_name) {
   csrbf::io::Controls controls;
   csrbf::FitOptions o;
   std::optional<csrbf::io::ActiveArea> area;
@@ -114,6 +125,12 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
   if (o.ordering != csrbf::Ordering::Auto && (o.solver == csrbf::Solver::Eigen || o.solver == csrbf::Solver::Cholmod))
     throw csrbf::cli::UsageError("--ordering " + a.ordering + ": solver '" + a.solver +
                                  "' orders the matrix itself; --ordering applies to the envelope solver and cg");
+  return {std::move(controls), o, std::move(area)};
+}
+
+/// The fit of the controls or deformation file.
+Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, const std::string& mesh_name = {}) {
+  auto [controls, o, area] = read_fit_input(a, mesh, mesh_name);
   // Where control i came from: "file:line" for controls text, "file: sources[i]" for JSON.
   const bool json_file = !a.deformation.empty();
   const auto where = [&](std::size_t i) {
@@ -138,6 +155,103 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
   }
 }
 
+struct DeformArgs {
+  std::string mesh_in, mesh_out;
+  double phase = 1.0;
+  bool json = false;
+};
+
+#ifdef CSRBF_WITH_MPI
+/// `mpirun -np K csrbf deform` (K > 1): rank 0 reads the mesh and the controls, the fit and the
+/// evaluation are spread over the ranks (csrbf::mpi::ScatterBackend), rank 0 writes. The other
+/// ranks serve until rank 0 is done, and exit with its status.
+int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformArgs& da) {
+  namespace mpi = csrbf::mpi;
+  if (rt.rank() != 0) return mpi::serve(rt.comm());
+  const auto solver = mpi::parse_distributed_solver(fa.solver);
+  mpi::ScatterBackend backend(rt.comm(), solver.value_or(mpi::DistributedSolver::Auto));
+  int code = 0;
+  try {
+    csrbf::io::check_output_path(csrbf::io::resolve_output(da.mesh_out));
+    if (csrbf::io::format_for(da.mesh_out) == csrbf::io::MeshFormat::Assimp)
+      throw csrbf::cli::UsageError("-o: unknown output format '" +
+                                   std::filesystem::path(da.mesh_out).extension().string() +
+                                   "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
+    const auto t0 = std::chrono::steady_clock::now();
+    auto mesh = csrbf::io::MeshDocument::load(da.mesh_in, fa.memory_limit_gib * double(1ull << 30));
+    FitInput in = read_fit_input(fa, &mesh, da.mesh_in);
+    auto& p = mesh.positions();
+    std::vector<csrbf::Vec3> part;  // the active area's vertices, or all
+    if (in.area)
+      for (const auto v : in.area->vertices) part.push_back(p.at(v));
+    std::span<const csrbf::Vec3> evaluated =
+        in.area ? std::span<const csrbf::Vec3>(part) : std::span<const csrbf::Vec3>(p);
+    backend.balance(evaluated);
+    std::vector<std::uint64_t> ids(in.controls.sources.size());
+    for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = in.controls.lines.empty() ? i : in.controls.lines[i];
+    auto mapping = backend.fit(in.controls.sources, in.controls.destinations, in.options, ids);
+    std::vector<csrbf::Vec3> moved(evaluated.size());
+    mapping->apply(evaluated, moved, da.phase);
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < moved.size(); ++i) {
+      const std::size_t v = in.area ? in.area->vertices[i] : i;
+      count += p[v] != moved[i];
+      p[v] = moved[i];
+    }
+    const auto t1 = std::chrono::steady_clock::now();
+    mesh.save(da.mesh_out);
+    const auto ranks = backend.rank_stats();
+    const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+    if (da.json) {
+      nlohmann::json j{{"vertices", p.size()},
+                       {"moved", count},
+                       {"controls", backend.stats().controls},
+                       {"ranks", ranks.size()},
+                       {"solver", mpi::distributed_solver_name(backend.stats().solver)},
+                       {"iterations", backend.stats().iterations},
+                       {"residual_relative", backend.stats().residual_relative},
+                       {"ms", ms},
+                       {"per_rank", nlohmann::json::array()}};
+      for (const auto& r : ranks)
+        j["per_rank"].push_back({{"rank", r.rank},
+                                 {"controls_owned", r.controls_owned},
+                                 {"controls_halo", r.controls_halo},
+                                 {"eval_halo", r.eval_halo},
+                                 {"points", r.points},
+                                 {"matrix_nonzeros", r.matrix_nonzeros},
+                                 {"peak_bytes", r.peak_bytes},
+                                 {"bytes_sent", r.bytes_sent},
+                                 {"seconds",
+                                  {{"halo", r.seconds_halo},
+                                   {"assembly", r.seconds_assembly},
+                                   {"solve", r.seconds_solve},
+                                   {"residual", r.seconds_residual},
+                                   {"evaluate", r.seconds_evaluate}}}});
+      std::cout << j.dump(2) << '\n';
+    } else {
+      std::cout << "csrbf deform: " << p.size() << " vertices (" << count << " moved) of " << da.mesh_in << " by "
+                << backend.stats().controls << " controls on " << ranks.size() << " ranks ("
+                << mpi::distributed_solver_name(backend.stats().solver) << "), R = " << in.options.radius << ", phase "
+                << da.phase << " -> " << da.mesh_out << " (" << ms << " ms)\n";
+    }
+  } catch (const csrbf::cli::UsageError& e) {
+    std::cerr << "csrbf: error: " << e.what() << '\n';
+    code = 2;
+  } catch (const mpi::Failure& e) {
+    std::cerr << "csrbf: error: " << e.what() << (e.rank() ? " (rank " + std::to_string(e.rank()) + ")" : "") << '\n';
+    code = e.exit_code();
+  } catch (const std::bad_alloc&) {
+    std::cerr << "csrbf: error: out of memory on rank 0 (it holds the whole mesh: docs/DISTRIBUTED.md)\n";
+    code = 1;
+  } catch (const std::exception& e) {
+    std::cerr << "csrbf: error: " << e.what() << '\n';
+    code = 1;
+  }
+  backend.finish(code);
+  return code;
+}
+#endif
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -151,8 +265,10 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("csrbf ") + csrbf::kVersion);
 
   FitArgs deform_args;
-  std::string mesh_in, mesh_out;
-  double phase = 1.0;
+  DeformArgs da;
+  std::string& mesh_in = da.mesh_in;
+  std::string& mesh_out = da.mesh_out;
+  double& phase = da.phase;
   auto* deform = app.add_subcommand("deform", "Deform a mesh by the space mapping the controls define");
   deform->add_option("--mesh,-m", mesh_in, "Input mesh: .obj .ply .off .xyz (order kept), .stl .gltf .glb (assimp)")
       ->required();
@@ -161,6 +277,7 @@ int main(int argc, char** argv) {
       ->check(finite_in(0.0, 1.0, "--phase"))
       ->capture_default_str();
   deform->add_option("-o,--output", mesh_out, "Output mesh; its extension sets the format")->required();
+  deform->add_flag("--json", da.json, "Print one JSON object (with each MPI rank's figures under mpirun)");
 
   csrbf::cli::BenchOptions bench_opts;
   auto* bench = app.add_subcommand("bench", "Run a benchmark scenario and print medians (docs/PERFORMANCE.md)");
@@ -229,12 +346,32 @@ int main(int argc, char** argv) {
   csrbf::cli::MorphArgs morph_args;
   auto* morph = csrbf::cli::add_morph_command(app, morph_args);
 
+#ifdef CSRBF_WITH_MPI
+  // Under mpirun with more than one rank: every rank parses, rank 0 alone speaks.
+  const int ranks = csrbf::mpi::launched_ranks();
+  const bool quiet = ranks > 1 && csrbf::mpi::launched_rank() != 0;
+#else
+  const bool quiet = false;
+#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
+    std::ostringstream sink;
+    const int code = quiet ? app.exit(e, sink, sink) : app.exit(e);
     return code == 0 ? 0 : 2;
   }
+#ifdef CSRBF_WITH_MPI
+  if (ranks > 1) {
+    if (!*deform && !*morph) {
+      if (!quiet)
+        std::cerr << "csrbf: error: " << app.get_subcommands().front()->get_name()
+                  << " runs on one process; under mpirun with more than one rank, csrbf runs deform and morph\n";
+      return 2;
+    }
+    csrbf::mpi::Runtime rt(&argc, &argv);
+    return *deform ? deform_distributed(rt, deform_args, da) : csrbf::cli::run_morph_distributed(morph_args, rt);
+  }
+#endif
 
   try {
     if (*deform) {
@@ -253,6 +390,16 @@ int main(int argc, char** argv) {
       mesh.save(mesh_out);
       std::size_t moved = 0;
       for (std::size_t i = 0; i < p.size(); ++i) moved += p[i] != before[i];
+      if (da.json) {
+        nlohmann::json j{{"vertices", p.size()},
+                         {"moved", moved},
+                         {"controls", f.map.size()},
+                         {"ranks", 1},
+                         {"ms", std::chrono::duration<double, std::milli>(t1 - t0).count()},
+                         {"fit", csrbf::cli::stats_json(f.map)}};
+        std::cout << j.dump(2) << '\n';
+        return 0;
+      }
       std::cout << "csrbf deform: " << p.size() << " vertices (" << moved << " moved) of " << mesh_in << " by "
                 << f.map.size() << " controls, R = " << f.map.radius() << ", kernel "
                 << csrbf::kernel_name(f.map.kernel()) << ", polynomial " << csrbf::polynomial_name(f.map.polynomial())

@@ -5,7 +5,15 @@
 #include "csrbf/morph/job.hpp"
 #include "csrbf/names.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <iostream>
+#ifdef CSRBF_WITH_MPI
+#include "csrbf/mpi/backends.hpp"
+#include "csrbf/mpi/runtime.hpp"
+
+#include <filesystem>
+#endif
 
 namespace csrbf::cli {
 
@@ -51,7 +59,9 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
   return cmd;
 }
 
-int run_morph(const MorphArgs& a) {
+namespace {
+
+morph::MorphJob job_of(const MorphArgs& a) {
   morph::MorphJob job;
   job.mesh = a.mesh;
   job.motion = a.motion;
@@ -66,13 +76,11 @@ int run_morph(const MorphArgs& a) {
   job.phase = a.phase;
   job.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
   job.force = a.force;
-  morph::MorphOutcome o;
-  try {
-    o = morph::run_job(job);
-  } catch (const morph::JobError& e) {
-    throw UsageError(std::string("morph: ") + e.what());
-  }
-  std::cout << (a.json ? morph::outcome_json(o) + "\n" : morph::outcome_text(o));
+  return job;
+}
+
+/// The exit status of an outcome: 1 where the morph inverts cells and nothing was written.
+int report_inversion(const MorphArgs& a, const morph::MorphOutcome& o) {
   if (o.inverts && !o.written) {
     std::cerr << "csrbf: error: the morph inverts " << o.after.inverted_cells() - o.before.inverted_cells()
               << " cells (" << o.after.inverted_cells() << " inverted, " << o.before.inverted_cells()
@@ -82,5 +90,154 @@ int run_morph(const MorphArgs& a) {
   }
   return 0;
 }
+
+}  // namespace
+
+int run_morph(const MorphArgs& a) {
+  const morph::MorphJob job = job_of(a);
+  morph::MorphOutcome o;
+  try {
+    o = morph::run_job(job);
+  } catch (const morph::JobError& e) {
+    throw UsageError(std::string("morph: ") + e.what());
+  }
+  std::cout << (a.json ? morph::outcome_json(o) + "\n" : morph::outcome_text(o));
+  return report_inversion(a, o);
+}
+
+#ifdef CSRBF_WITH_MPI
+namespace {
+
+nlohmann::json ranks_json(const std::vector<mpi::RankStats>& ranks) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const auto& r : ranks)
+    a.push_back({{"rank", r.rank},
+                 {"controls_owned", r.controls_owned},
+                 {"controls_halo", r.controls_halo},
+                 {"controls_shared_dropped", r.controls_dropped},
+                 {"eval_halo", r.eval_halo},
+                 {"points", r.points},
+                 {"matrix_nonzeros", r.matrix_nonzeros},
+                 {"peak_bytes", r.peak_bytes},
+                 {"bytes_sent", r.bytes_sent},
+                 {"seconds",
+                  {{"halo", r.seconds_halo},
+                   {"assembly", r.seconds_assembly},
+                   {"solve", r.seconds_solve},
+                   {"residual", r.seconds_residual},
+                   {"evaluate", r.seconds_evaluate}}}});
+  return a;
+}
+
+void print_outcome(const MorphArgs& a, const morph::MorphOutcome& o, const std::vector<mpi::RankStats>& ranks,
+                   const mpi::DistributedStats& st, const char* mode) {
+  if (a.json) {
+    nlohmann::json j = nlohmann::json::parse(morph::outcome_json(o));
+    j["controls"] = st.controls;
+    j["solver"] = mpi::distributed_solver_name(st.solver);
+    j["distributed"] = {{"mode", mode},
+                        {"ranks", ranks.size()},
+                        {"iterations", st.iterations},
+                        {"fell_back", st.fell_back},
+                        {"residual_relative", st.residual_relative}};
+    j["per_rank"] = ranks_json(ranks);
+    std::cout << j.dump(2) << '\n';
+    return;
+  }
+  std::cout << morph::outcome_text(o) << "  distributed (" << mode << ") over " << ranks.size()
+            << " ranks: " << st.controls << " controls, solver " << mpi::distributed_solver_name(st.solver) << "\n";
+  for (const auto& r : ranks)
+    std::cout << "    rank " << r.rank << ": " << r.controls_owned << " controls (+" << r.controls_halo << " halo), "
+              << r.points << " points evaluated, peak " << double(r.peak_bytes) / double(1 << 20) << " MiB, sent "
+              << double(r.bytes_sent) / double(1 << 20) << " MiB\n";
+}
+
+}  // namespace
+
+int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
+  namespace fs = std::filesystem;
+  const auto solver = mpi::parse_distributed_solver(a.solver).value_or(mpi::DistributedSolver::Auto);
+  const auto print_error = [&](const std::string& what, int rank) {
+    if (rt.rank() == 0)
+      std::cerr << "csrbf: error: " << what << (rank > 0 ? " (rank " + std::to_string(rank) + ")" : "") << '\n';
+  };
+  std::error_code ec;
+  const int processors = fs::is_directory(a.mesh, ec) ? mpi::processor_folders(a.mesh) : 0;
+  if (processors > 0) {
+    // A decomposed OpenFOAM case: every rank its processor folder.
+    try {
+      mpi::collectively(rt.comm(), [&] {
+        if (processors != rt.size())
+          throw morph::JobError("morph: " + a.mesh + " is decomposed into " + std::to_string(processors) +
+                                " processor folders: run it with mpirun -np " + std::to_string(processors) + ", not " +
+                                std::to_string(rt.size()));
+        if (a.greedy)
+          throw morph::JobError(
+              "morph: --greedy picks controls worst first over the whole boundary; a decomposed case "
+              "is morphed with all its boundary points (leave --greedy out)");
+      });
+    } catch (const mpi::Failure& f) {
+      print_error(f.what(), -1);
+      return 2;
+    }
+    mpi::DecomposedBackend backend(rt.comm(), solver, a.mesh);
+    morph::MorphJob job = job_of(a);
+    job.backend = &backend;
+    try {
+      const morph::MorphOutcome local = morph::run_job(job);
+      const auto ranks = backend.rank_stats();
+      morph::MorphOutcome o = local;
+      o.points = std::size_t(backend.sum(double(local.points)));
+      o.result.report.prescribed = std::size_t(backend.sum(double(local.result.report.prescribed)));
+      o.result.report.moving = std::size_t(backend.sum(double(local.result.report.moving)));
+      o.result.report.fixed = std::size_t(backend.sum(double(local.result.report.fixed)));
+      o.ms_read = backend.max(local.ms_read);
+      o.ms_quality = backend.max(local.ms_quality);
+      o.ms_write = backend.max(local.ms_write);
+      o.ms_total = backend.max(local.ms_total);
+      o.result.report.seconds_fit = backend.max(local.result.report.seconds_fit);
+      o.result.report.seconds_evaluate = backend.max(local.result.report.seconds_evaluate);
+      if (rt.rank() == 0) print_outcome(a, o, ranks, backend.stats(), "decomposed");
+      const int code = report_inversion(a, o);
+      return code;
+    } catch (const mpi::Failure& f) {
+      print_error(f.what(), f.rank());
+      return f.exit_code();
+    } catch (const std::exception& e) {
+      // Not agreed with the other ranks, which may wait for this one: report, and end the job.
+      std::cerr << "csrbf: error (rank " << rt.rank() << "): " << e.what() << '\n';
+      MPI_Abort(rt.comm(), 1);
+    }
+  }
+  // A single file: rank 0 reads and writes it; the fit and evaluation are spread.
+  if (rt.rank() != 0) return mpi::serve(rt.comm());
+  mpi::ScatterBackend backend(rt.comm(), solver);
+  int code = 0;
+  try {
+    morph::MorphJob job = job_of(a);
+    job.backend = &backend;
+    morph::MorphOutcome o;
+    try {
+      o = morph::run_job(job);
+    } catch (const morph::JobError& e) {
+      throw UsageError(std::string("morph: ") + e.what());
+    }
+    const auto ranks = backend.rank_stats();
+    print_outcome(a, o, ranks, backend.stats(), "scattered from rank 0");
+    code = report_inversion(a, o);
+  } catch (const UsageError& e) {
+    std::cerr << "csrbf: error: " << e.what() << '\n';
+    code = 2;
+  } catch (const mpi::Failure& f) {
+    print_error(f.what(), f.rank());
+    code = f.exit_code();
+  } catch (const std::exception& e) {
+    std::cerr << "csrbf: error: " << e.what() << '\n';
+    code = 1;
+  }
+  backend.finish(code);
+  return code;
+}
+#endif
 
 }  // namespace csrbf::cli

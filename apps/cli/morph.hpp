@@ -23,4 +23,16 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a);
 /// or 2 for a UsageError).
 int run_morph(const MorphArgs& a);
 
+#ifdef CSRBF_WITH_MPI
+}  // namespace csrbf::cli
+namespace csrbf::mpi {
+class Runtime;
+}
+namespace csrbf::cli {
+/// `mpirun -np K csrbf morph` (K > 1): a decomposed OpenFOAM case (processor folders, one a rank:
+/// each rank morphs its own), or a single mesh that rank 0 reads and writes while the fit and the
+/// evaluation are spread over the ranks. Every rank returns the same status.
+int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt);
+#endif
+
 }  // namespace csrbf::cli

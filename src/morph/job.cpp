@@ -110,7 +110,8 @@ MeshQuality combine(MorphBackend& b, MeshQuality q) {
   if (q.poly) {
     PolyQuality& p = *q.poly;
     const double internal = b.sum(double(p.internal_faces));
-    const double cos_sum = b.sum(std::cos(p.mean_non_orthogonality * std::numbers::pi / 180.0) * double(p.internal_faces));
+    const double cos_sum =
+        b.sum(std::cos(p.mean_non_orthogonality * std::numbers::pi / 180.0) * double(p.internal_faces));
     p.cells = sum(p.cells);
     p.faces = sum(p.faces);
     p.internal_faces = std::size_t(internal);
@@ -163,65 +164,66 @@ MorphOutcome run_job(const MorphJob& job) {
   std::unique_ptr<VolumeFile> file;
   auto t_read = Clock::now();
   b.agree(caught([&] {
-  if (job.write && job.out.empty() && !job.in_place)
-    throw JobError("give an output (a new case folder or file) or in place");
-  if (job.write && !job.out.empty() && job.in_place) throw JobError("give an output or in place, not both");
-  if (job.radius && !(*job.radius > 0 && std::isfinite(*job.radius)))
-    throw JobError("the radius must be a finite number > 0, got " + io::format_number(*job.radius));
-  if (!(job.phase >= 0 && job.phase <= 1))
-    throw JobError("the phase must be in [0, 1], got " + io::format_number(job.phase));
-  if (job.greedy && !(*job.greedy > 0 && *job.greedy <= 1))
-    throw JobError("the greedy tolerance must be in (0, 1], got " + io::format_number(*job.greedy));
-  if (!(job.memory_limit_bytes > 0)) throw JobError("the memory limit must be > 0");
-  if (job.write && !job.out.empty()) {
-    std::error_code ec;
-    if (fs::symlink_status(job.out, ec).type() != fs::file_type::not_found)
-      throw io::FileError("cannot write '" + job.out.string() +
-                          "': it exists (csrbf morph writes a new case folder or file; --in-place rewrites the input)");
-    const fs::path parent = job.out.has_parent_path() ? job.out.parent_path() : fs::path(".");
-    if (!fs::is_directory(parent, ec))
-      throw io::FileError("cannot write '" + job.out.string() + "': folder '" + parent.string() + "' does not exist");
-    if (!fs::is_directory(job.mesh, ec) && detail::lower_extension(job.out) != detail::lower_extension(job.mesh))
-      throw JobError("output " + job.out.string() +
-                     ": the output is written in the input's format, so it needs the extension '" +
-                     detail::lower_extension(job.mesh) + "'");
-  }
-  motion = read_motion(job.motion);
-  MorphOptions& opt = o.options;
-  if (job.radius)
-    opt.fit.radius = *job.radius;
-  else if (motion.radius)
-    opt.fit.radius = *motion.radius;
-  else
-    throw JobError("no radius: give one, or \"radius\" in " + job.motion.string());
-  opt.fit.kernel = job.kernel.value_or(motion.kernel.value_or(Kernel::C2));
-  opt.fit.polynomial = job.polynomial.value_or(motion.polynomial.value_or(Polynomial::None));
-  opt.fit.solver = job.solver;
-  opt.fit.memory_limit_bytes = job.memory_limit_bytes;
-  opt.phase = job.phase;
-  opt.greedy = job.greedy.value_or(0.0);
-  o.motion_summary = motion_summary(motion);
+    if (job.write && job.out.empty() && !job.in_place)
+      throw JobError("give an output (a new case folder or file) or in place");
+    if (job.write && !job.out.empty() && job.in_place) throw JobError("give an output or in place, not both");
+    if (job.radius && !(*job.radius > 0 && std::isfinite(*job.radius)))
+      throw JobError("the radius must be a finite number > 0, got " + io::format_number(*job.radius));
+    if (!(job.phase >= 0 && job.phase <= 1))
+      throw JobError("the phase must be in [0, 1], got " + io::format_number(job.phase));
+    if (job.greedy && !(*job.greedy > 0 && *job.greedy <= 1))
+      throw JobError("the greedy tolerance must be in (0, 1], got " + io::format_number(*job.greedy));
+    if (!(job.memory_limit_bytes > 0)) throw JobError("the memory limit must be > 0");
+    if (job.write && !job.out.empty()) {
+      std::error_code ec;
+      if (fs::symlink_status(job.out, ec).type() != fs::file_type::not_found)
+        throw io::FileError(
+            "cannot write '" + job.out.string() +
+            "': it exists (csrbf morph writes a new case folder or file; --in-place rewrites the input)");
+      const fs::path parent = job.out.has_parent_path() ? job.out.parent_path() : fs::path(".");
+      if (!fs::is_directory(parent, ec))
+        throw io::FileError("cannot write '" + job.out.string() + "': folder '" + parent.string() + "' does not exist");
+      if (!fs::is_directory(job.mesh, ec) && detail::lower_extension(job.out) != detail::lower_extension(job.mesh))
+        throw JobError("output " + job.out.string() +
+                       ": the output is written in the input's format, so it needs the extension '" +
+                       detail::lower_extension(job.mesh) + "'");
+    }
+    motion = read_motion(job.motion);
+    MorphOptions& opt = o.options;
+    if (job.radius)
+      opt.fit.radius = *job.radius;
+    else if (motion.radius)
+      opt.fit.radius = *motion.radius;
+    else
+      throw JobError("no radius: give one, or \"radius\" in " + job.motion.string());
+    opt.fit.kernel = job.kernel.value_or(motion.kernel.value_or(Kernel::C2));
+    opt.fit.polynomial = job.polynomial.value_or(motion.polynomial.value_or(Polynomial::None));
+    opt.fit.solver = job.solver;
+    opt.fit.memory_limit_bytes = job.memory_limit_bytes;
+    opt.phase = job.phase;
+    opt.greedy = job.greedy.value_or(0.0);
+    o.motion_summary = motion_summary(motion);
 
-  t_read = Clock::now();
-  OpenOptions open;
-  open.patch_array = motion.patch_array;
-  open.max_file_bytes = job.memory_limit_bytes;  // a mesh file, uncompressed, within --memory-limit
-  file = open_volume(b.mesh_path(job.mesh), open);
-  const VolumeMesh& mesh = file->mesh();
-  if (!motion.patch_array.empty() && file->format() != "vtu" && file->format() != "vtk")
-    throw io::FileError(o.motion + ": patch_array: names a VTK data array, but " + o.mesh + " is " + file->format() +
-                        ", whose patches are its own");
-  o.format = file->format();
-  o.encoding = file->encoding();
-  o.points = mesh.points.size();
-  o.cells = mesh.poly.faces() ? mesh.poly.cells : mesh.cells.size();  // refined below: the measured cells
-  o.patches = mesh.patches.size();
-  if (mesh.patches.empty())
-    throw io::FileError(o.mesh + ": the mesh has no patches" +
-                        (o.format == "vtu" || o.format == "vtk"
-                             ? std::string(": name an integer point or cell data array as \"patch_array\" in ") +
-                                   o.motion + file->patch_hint()
-                             : std::string()));
+    t_read = Clock::now();
+    OpenOptions open;
+    open.patch_array = motion.patch_array;
+    open.max_file_bytes = job.memory_limit_bytes;  // a mesh file, uncompressed, within --memory-limit
+    file = open_volume(b.mesh_path(job.mesh), open);
+    const VolumeMesh& mesh = file->mesh();
+    if (!motion.patch_array.empty() && file->format() != "vtu" && file->format() != "vtk")
+      throw io::FileError(o.motion + ": patch_array: names a VTK data array, but " + o.mesh + " is " + file->format() +
+                          ", whose patches are its own");
+    o.format = file->format();
+    o.encoding = file->encoding();
+    o.points = mesh.points.size();
+    o.cells = mesh.poly.faces() ? mesh.poly.cells : mesh.cells.size();  // refined below: the measured cells
+    o.patches = mesh.patches.size();
+    if (mesh.patches.empty())
+      throw io::FileError(o.mesh + ": the mesh has no patches" +
+                          (o.format == "vtu" || o.format == "vtk"
+                               ? std::string(": name an integer point or cell data array as \"patch_array\" in ") +
+                                     o.motion + file->patch_hint()
+                               : std::string()));
   }));
   const VolumeMesh& mesh = file->mesh();
   const MorphOptions& opt = o.options;

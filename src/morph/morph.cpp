@@ -40,8 +40,7 @@ class LocalMapping final : public FittedMapping {
   explicit LocalMapping(SpaceMap map) : map_(std::move(map)) {}
   void apply(std::span<const Vec3> in, std::span<Vec3> out, double phase) override { map_.apply(in, out, phase); }
   void displacements(std::span<const Vec3> in, std::span<Vec3> out) override {
-    map_.displacements(in.empty() ? nullptr : in.front().data(), out.empty() ? nullptr : out.front().data(),
-                       in.size());
+    map_.displacements(in.empty() ? nullptr : in.front().data(), out.empty() ? nullptr : out.front().data(), in.size());
   }
   FitStats stats() const override { return map_.stats(); }
 
@@ -148,9 +147,7 @@ void MorphBackend::write_copy(const VolumeFile& file, std::span<const Vec3> poin
   file.write_copy(points, out);
 }
 
-void MorphBackend::write_in_place(const VolumeFile& file, std::span<const Vec3> points) {
-  file.write_in_place(points);
-}
+void MorphBackend::write_in_place(const VolumeFile& file, std::span<const Vec3> points) { file.write_in_place(points); }
 
 MorphBackend& local_backend() {
   static MorphBackend b;
@@ -259,8 +256,7 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
   return out;
 }
 
-MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options,
-                  MorphBackend* backend) {
+MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options, MorphBackend* backend) {
   MorphBackend& b = backend ? *backend : local_backend();
   if (!(options.fit.radius > 0) || !std::isfinite(options.fit.radius))
     throw InvalidInput("the radius must be a finite number > 0, got " + io::format_number(options.fit.radius));
@@ -295,48 +291,48 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   targets.reserve(n);
   ids.reserve(n);
   b.agree(caught([&] {
-  if (flat) {
-    const int a = flat->axis;
-    const double mid = 0.5 * (flat->lo + flat->hi);
-    std::vector<std::uint32_t> order(n);
-    std::iota(order.begin(), order.end(), 0u);
-    const auto projected = [&](std::uint32_t i) {
-      Vec3 p = mesh.points[pres.points[i]];
-      p[a] = mid;
-      return p;
-    };
-    const auto less = [&](std::uint32_t i, std::uint32_t j) {
-      const Vec3 p = projected(i), q = projected(j);
-      return std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3);
-    };
-    std::sort(order.begin(), order.end(), less);
-    for (std::size_t k = 0; k < n; ++k) {
-      const std::uint32_t i = order[k];
-      const Vec3& d = pres.displacements[i];
-      if (std::abs(d[a]) > tol)
-        throw io::FileError(
-            motion.file + ": the mesh is 2-D (patch '" + flat->patch + "' is empty), but point " +
-            std::to_string(mesh.point_ids.empty() ? std::uint64_t(pres.points[i]) : mesh.point_ids[pres.points[i]]) +
-            " moves out of its plane by " + std::to_string(d[a]));
-      const Vec3 p = projected(i);
-      if (!sources.empty() && sources.back() == p) {
-        if ((targets.back() - sources.back() - d).norm() > tol)
-          throw io::FileError(motion.file + ": the mesh is 2-D (patch '" + flat->patch + "' is empty), but points " +
-                              std::to_string(pres.points[order[k - 1]]) + " and " + std::to_string(pres.points[i]) +
-                              " of its two planes move differently");
-        continue;
+    if (flat) {
+      const int a = flat->axis;
+      const double mid = 0.5 * (flat->lo + flat->hi);
+      std::vector<std::uint32_t> order(n);
+      std::iota(order.begin(), order.end(), 0u);
+      const auto projected = [&](std::uint32_t i) {
+        Vec3 p = mesh.points[pres.points[i]];
+        p[a] = mid;
+        return p;
+      };
+      const auto less = [&](std::uint32_t i, std::uint32_t j) {
+        const Vec3 p = projected(i), q = projected(j);
+        return std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3);
+      };
+      std::sort(order.begin(), order.end(), less);
+      for (std::size_t k = 0; k < n; ++k) {
+        const std::uint32_t i = order[k];
+        const Vec3& d = pres.displacements[i];
+        if (std::abs(d[a]) > tol)
+          throw io::FileError(
+              motion.file + ": the mesh is 2-D (patch '" + flat->patch + "' is empty), but point " +
+              std::to_string(mesh.point_ids.empty() ? std::uint64_t(pres.points[i]) : mesh.point_ids[pres.points[i]]) +
+              " moves out of its plane by " + std::to_string(d[a]));
+        const Vec3 p = projected(i);
+        if (!sources.empty() && sources.back() == p) {
+          if ((targets.back() - sources.back() - d).norm() > tol)
+            throw io::FileError(motion.file + ": the mesh is 2-D (patch '" + flat->patch + "' is empty), but points " +
+                                std::to_string(pres.points[order[k - 1]]) + " and " + std::to_string(pres.points[i]) +
+                                " of its two planes move differently");
+          continue;
+        }
+        sources.push_back(p);
+        targets.push_back(p + d);
+        ids.push_back(number(pres.points[i]));
       }
-      sources.push_back(p);
-      targets.push_back(p + d);
-      ids.push_back(number(pres.points[i]));
+    } else {
+      for (std::size_t i = 0; i < n; ++i) {
+        sources.push_back(mesh.points[pres.points[i]]);
+        targets.push_back(sources.back() + pres.displacements[i]);
+        ids.push_back(number(pres.points[i]));
+      }
     }
-  } else {
-    for (std::size_t i = 0; i < n; ++i) {
-      sources.push_back(mesh.points[pres.points[i]]);
-      targets.push_back(sources.back() + pres.displacements[i]);
-      ids.push_back(number(pres.points[i]));
-    }
-  }
   }));
   const std::size_t nc = sources.size();
   const auto t_fit = Clock::now();
@@ -350,6 +346,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   };
   std::vector<double> err;
   std::unique_ptr<FittedMapping> map;
+  b.balance(mesh.points);
   if (options.greedy > 0 && b.max(double(nc)) > 1) {
     const double limit = options.greedy * rep.max_displacement;
     std::vector<char> chosen(nc, 0);

@@ -634,6 +634,18 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes) {
       throw FileError(l.path.string() + ": the patches end at face " + std::to_string(next) + ", but there are " +
                       std::to_string(nf) + " faces (" + std::to_string(m.poly.internal_faces()) + " internal)");
   }
+  // A processor folder of a decomposed case (decomposePar): its points are numbered as in the whole
+  // mesh (pointProcAddressing), which displacement files and messages use.
+  std::error_code ec2;
+  if (fs::exists(c.poly_mesh / "pointProcAddressing", ec2) || fs::exists(c.poly_mesh / "pointProcAddressing.gz", ec2)) {
+    Loaded l = load(c.poly_mesh, "pointProcAddressing", max_file_bytes);
+    Parser p(l.text, l.path.string());
+    const std::vector<std::uint32_t> global = read_labels(p, read_header(p), "point labels", kNoBound);
+    if (global.size() != np)
+      throw FileError(l.path.string() + ": " + std::to_string(global.size()) + " point labels, but points has " +
+                      std::to_string(np) + " points");
+    m.point_ids.assign(global.begin(), global.end());
+  }
   return c;
 }
 
@@ -712,6 +724,19 @@ void write_bytes(const fs::path& file, const std::string& bytes) {
                     " bytes");
 }
 
+/// c's points file in copy_root, a copy of c.root: csrbf's own file there, replaced through a new
+/// file (a link in the case is replaced by a file, never written through).
+void place_points(const FoamCase& c, const std::string& bytes, const fs::path& copy_root) {
+  std::error_code ec;
+  const fs::path rel = fs::relative(c.points_file.path, c.root, ec);
+  if (ec || rel.empty()) throw FileError("cannot place the points of '" + c.root.string() + "' in the copy");
+  const fs::path copied = copy_root / rel;
+  const fs::path fresh = copied.parent_path() / (".csrbf-new-" + copied.filename().string());
+  write_bytes(fresh, bytes);
+  fs::rename(fresh, copied, ec);
+  if (ec) throw FileError("cannot write '" + copied.string() + "': " + ec.message());
+}
+
 }  // namespace
 
 void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const fs::path& out) {
@@ -730,16 +755,38 @@ void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const 
   io::Partial partial(out, io::Partial::Kind::Folder);
   fs::copy(c.root, partial.path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
   if (ec) throw FileError("cannot copy '" + c.root.string() + "' to '" + out.string() + "': " + ec.message());
-  const fs::path rel = fs::relative(c.points_file.path, c.root, ec);
-  if (ec || rel.empty()) throw FileError("cannot place the points of '" + c.root.string() + "' in the copy");
-  const fs::path copied = partial.path() / rel;
-  // The copy of points is csrbf's own file: replaced through a new file (a link in the case is
-  // replaced by a file, never written through).
-  const fs::path fresh = copied.parent_path() / (".csrbf-new-" + copied.filename().string());
-  write_bytes(fresh, bytes);
-  fs::rename(fresh, copied, ec);
-  if (ec) throw FileError("cannot write '" + copied.string() + "': " + ec.message());
+  place_points(c, bytes, partial.path());
   partial.commit_new(out);
+}
+
+void write_openfoam_points_into(const FoamCase& c, std::span<const Vec3> points, const fs::path& copy_root) {
+  place_points(c, encoded_points(c, points), copy_root);
+}
+
+fs::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points) {
+  const fs::path& target = c.points_file.path;
+  const fs::path staged = target.parent_path() / (".csrbf-new-" + target.filename().string());
+  try {
+    write_bytes(staged, encoded_points(c, points));
+  } catch (...) {
+    discard_openfoam_points(staged);
+    throw;
+  }
+  return staged;
+}
+
+void commit_openfoam_points(const FoamCase& c, const fs::path& staged) {
+  std::error_code ec;
+  fs::rename(staged, c.points_file.path, ec);
+  if (ec) {
+    discard_openfoam_points(staged);
+    throw FileError("cannot write '" + c.points_file.path.string() + "': " + ec.message());
+  }
+}
+
+void discard_openfoam_points(const fs::path& staged) noexcept {
+  std::error_code ec;
+  fs::remove(staged, ec);
 }
 
 void write_openfoam_in_place(const FoamCase& c, std::span<const Vec3> points) {

@@ -28,7 +28,7 @@ class FoamFile final : public VolumeFile {
     write_openfoam_copy(case_, points, out);
   }
   void write_in_place(std::span<const Vec3> points) const override { write_openfoam_in_place(case_, points); }
-  const FoamCase& foam() const { return case_; }
+  const FoamCase* foam() const override { return &case_; }
 
  private:
   FoamCase case_;

@@ -117,7 +117,8 @@ std::vector<Packet> exchange(MPI_Comm comm, const std::vector<std::vector<Packet
     recv_total += recv_counts[std::size_t(r)];
   }
   if (send_total > INT_MAX || recv_total > INT_MAX)
-    throw ResourceLimit("a rank's halo passes what one MPI exchange carries (2 GiB): use more ranks or a smaller radius");
+    throw ResourceLimit(
+        "a rank's halo passes what one MPI exchange carries (2 GiB): use more ranks or a smaller radius");
   std::vector<Packet> send(std::size_t(send_total) / sizeof(Packet)), recv(std::size_t(recv_total) / sizeof(Packet));
   std::size_t k = 0;
   for (int r = 0; r < size; ++r)
@@ -376,7 +377,8 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
   const std::size_t total = sum(comm, n, bytes);
   if (total == 0) throw Failure("control points: none given on any rank (need at least 1)", 0, 1);
   if (total >= std::size_t(std::numeric_limits<PetscInt>::max()))
-    throw Failure("control points: " + std::to_string(total) + " controls: more than PETSc's 32-bit indices hold", 0, 1);
+    throw Failure("control points: " + std::to_string(total) + " controls: more than PETSc's 32-bit indices hold", 0,
+                  1);
   {
     unsigned long long mine = n, before = 0;
     MPI_Exscan(&mine, &before, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
@@ -387,8 +389,7 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
   m.stats_.ranks = std::size_t(size);
 
   // The polynomial's frame: the mean of all sources and their spread (as the serial fit).
-  const int terms =
-      options.polynomial == Polynomial::None ? 0 : options.polynomial == Polynomial::Constant ? 1 : 4;
+  const int terms = options.polynomial == Polynomial::None ? 0 : options.polynomial == Polynomial::Constant ? 1 : 4;
   {
     Vec3 s = Vec3::Zero();
     for (const Vec3& x : m.sources_) s += x;
@@ -417,7 +418,8 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
     const double tol = 1e-9 * std::max(sv0, 1e-300);
     if (sv2 <= tol)
       throw Failure("polynomial 'linear' needs control sources that span 3-D space, but the " + std::to_string(total) +
-                        " sources are " + (sv1 <= tol ? "collinear" : "coplanar") + "; use polynomial 'constant' or 'none'",
+                        " sources are " + (sv1 <= tol ? "collinear" : "coplanar") +
+                        "; use polynomial 'constant' or 'none'",
                     0, 1);
   }
 
@@ -463,9 +465,10 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
     // factor, at least as large again: refused before anything is allocated.
     const double need = 48.0 * double(nnz);
     if (need > options.memory_limit_bytes)
-      throw ResourceLimit("the matrix rows of rank " + std::to_string(rank) + " hold " + std::to_string(nnz) +
-                          " entries (" + num(need / double(1ull << 30)) + " GiB with the factor), more than the limit of " +
-                          num(options.memory_limit_bytes / double(1ull << 30)) + " GiB: use a smaller radius or more ranks");
+      throw ResourceLimit(
+          "the matrix rows of rank " + std::to_string(rank) + " hold " + std::to_string(nnz) + " entries (" +
+          num(need / double(1ull << 30)) + " GiB with the factor), more than the limit of " +
+          num(options.memory_limit_bytes / double(1ull << 30)) + " GiB: use a smaller radius or more ranks");
     cols.reserve(nnz);
     vals.reserve(nnz);
     std::vector<PetscInt> d_nnz(n, 0), o_nnz(n, 0);
@@ -538,7 +541,8 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
                       ? "conjugate gradients did not converge in " + std::to_string(kCgMaxIterations) +
                             " steps (--solver mumps factorises instead)"
                       : "MUMPS's Cholesky factorisation failed: the interpolation matrix is not numerically positive "
-                        "definite (sources too close together for R = " + num(radius) + ")",
+                        "definite (sources too close together for R = " +
+                            num(radius) + ")",
                   0, 1);
   m.stats_.solver = use;
   m.stats_.iterations = iterations;
@@ -652,28 +656,41 @@ void DistributedMap::apply(std::span<const Vec3> in, std::span<Vec3> out, double
   rank_stats_.peak_bytes = peak_memory_bytes();
 }
 
+int Partition::part_of(const Vec3& x) const {
+  if (tree.empty()) return 0;
+  int k = 0;
+  while (tree[std::size_t(k)].part < 0) {
+    const Node& n = tree[std::size_t(k)];
+    k = x[n.axis] < n.cut ? n.left : n.right;
+  }
+  return tree[std::size_t(k)].part;
+}
+
 Partition rcb_partition(std::span<const Vec3> points, std::span<const Vec3> controls, int parts) {
   Partition out;
   out.point_part.assign(points.size(), 0);
   out.control_part.assign(controls.size(), 0);
-  if (parts <= 1) return out;
+  parts = std::max(parts, 1);
   const double wc = controls.empty() ? 1.0 : std::max(1.0, double(points.size()) / double(controls.size()));
   // Items: points first, then controls (index >= points.size()).
   const std::size_t np = points.size();
+  if (np + controls.size() >= (std::size_t(1) << 32))
+    throw ResourceLimit("more than 2^32 points and controls to partition");
   std::vector<std::uint32_t> items(np + controls.size());
-  if (items.size() >= (std::size_t(1) << 32)) throw ResourceLimit("more than 2^32 points and controls to partition");
   std::iota(items.begin(), items.end(), 0u);
   const auto at = [&](std::uint32_t k) -> const Vec3& { return k < np ? points[k] : controls[k - np]; };
   const auto weight = [&](std::uint32_t k) { return k < np ? 1.0 : wc; };
   struct Range {
     std::size_t begin, end;
-    int first, parts;
+    int first, parts, node;
   };
-  std::vector<Range> stack{{0, items.size(), 0, parts}};
+  out.tree.emplace_back();
+  std::vector<Range> stack{{0, items.size(), 0, parts, 0}};
   while (!stack.empty()) {
     const Range r = stack.back();
     stack.pop_back();
-    if (r.parts == 1 || r.end == r.begin) {
+    if (r.parts == 1) {
+      out.tree[std::size_t(r.node)].part = r.first;
       for (std::size_t k = r.begin; k < r.end; ++k) {
         const std::uint32_t i = items[k];
         (i < np ? out.point_part[i] : out.control_part[i - np]) = r.first;
@@ -683,7 +700,7 @@ Partition rcb_partition(std::span<const Vec3> points, std::span<const Vec3> cont
     Box b;
     for (std::size_t k = r.begin; k < r.end; ++k) b.add(at(items[k]));
     int axis = 0;
-    (b.hi - b.lo).maxCoeff(&axis);
+    if (!b.empty()) (b.hi - b.lo).maxCoeff(&axis);
     tbb::parallel_sort(items.begin() + std::ptrdiff_t(r.begin), items.begin() + std::ptrdiff_t(r.end),
                        [&](std::uint32_t p, std::uint32_t q) {
                          const double a = at(p)[axis], c = at(q)[axis];
@@ -696,8 +713,19 @@ Partition rcb_partition(std::span<const Vec3> points, std::span<const Vec3> cont
     double acc = 0;
     std::size_t cut = r.begin;
     while (cut < r.end && acc + 0.5 * weight(items[cut]) < target) acc += weight(items[cut++]);
-    stack.push_back({r.begin, cut, r.first, left});
-    stack.push_back({cut, r.end, r.first + left, r.parts - left});
+    // Items that share the cut's coordinate go right, as part_of places them.
+    const double value = cut < r.end ? at(items[cut])[axis] : std::numeric_limits<double>::infinity();
+    while (cut > r.begin && at(items[cut - 1])[axis] == value) --cut;
+    const int l = int(out.tree.size()), rr = l + 1;
+    out.tree.emplace_back();
+    out.tree.emplace_back();
+    Partition::Node& n = out.tree[std::size_t(r.node)];
+    n.axis = axis;
+    n.cut = value;
+    n.left = l;
+    n.right = rr;
+    stack.push_back({r.begin, cut, r.first, left, l});
+    stack.push_back({cut, r.end, r.first + left, r.parts - left, rr});
   }
   return out;
 }

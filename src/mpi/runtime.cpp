@@ -34,6 +34,14 @@ int launched_ranks() noexcept {
   return 0;
 }
 
+int launched_rank() noexcept {
+  for (const char* name : {"OMPI_COMM_WORLD_RANK", "PMIX_RANK", "PMI_RANK"}) {
+    const char* v = std::getenv(name);
+    if (v && *v) return env_int(name);
+  }
+  return 0;
+}
+
 Runtime::Runtime(int* argc, char*** argv) {
   int provided = 0;
   MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided);

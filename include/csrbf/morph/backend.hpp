@@ -36,6 +36,9 @@ class MorphBackend {
   /// The mapping of sources to targets. ids: a number a control for messages (the mesh's own).
   virtual std::unique_ptr<FittedMapping> fit(std::span<const Vec3> sources, std::span<const Vec3> targets,
                                              const FitOptions& options, std::span<const std::uint64_t> ids);
+  /// The points the next fit's mapping will be evaluated at (the mesh's), for a backend that
+  /// spreads them over processes to balance; valid until that fit returns.
+  virtual void balance(std::span<const Vec3> points) { (void)points; }
   /// True where this process holds a part of the mesh and other processes the rest: a patch may be
   /// empty here, and a displacements file name points of other parts.
   virtual bool part() const { return false; }

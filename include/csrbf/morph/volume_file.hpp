@@ -22,6 +22,8 @@ struct OpenOptions {
   double max_file_bytes = 8.0 * (1ull << 30);
 };
 
+struct FoamCase;
+
 class VolumeFile {
  public:
   virtual ~VolumeFile() = default;
@@ -37,6 +39,9 @@ class VolumeFile {
   virtual void write_in_place(std::span<const Vec3> points) const = 0;
   /// Where the mesh has no patches: what could name them ("; its integer arrays: a, b"), or "".
   virtual std::string patch_hint() const { return {}; }
+  /// An OpenFOAM case's files (the decomposed morph writes each processor's points itself); null
+  /// for the other formats.
+  virtual const FoamCase* foam() const { return nullptr; }
 };
 
 /// Opens path by its kind: a folder is an OpenFOAM case, a file goes by its extension. Throws

@@ -42,14 +42,14 @@ std::string distributed_solver_name(DistributedSolver s);
 /// What one rank did, for --json.
 struct RankStats {
   int rank = 0;
-  std::size_t controls_owned = 0;   ///< rows of the matrix on this rank
-  std::size_t controls_halo = 0;    ///< other ranks' controls within R of this rank's controls
-  std::size_t controls_dropped = 0; ///< this rank's controls another (lower) rank also had: owned there
-  std::size_t eval_halo = 0;        ///< other ranks' controls within R of this rank's points (last apply)
-  std::size_t points = 0;           ///< points evaluated here (all applies)
-  std::size_t matrix_nonzeros = 0;  ///< of this rank's rows
-  std::size_t bytes_sent = 0;       ///< by csrbf's own exchanges (halo, sums), not PETSc's inside the solve
-  std::size_t peak_bytes = 0;       ///< peak resident memory of the process
+  std::size_t controls_owned = 0;    ///< rows of the matrix on this rank
+  std::size_t controls_halo = 0;     ///< other ranks' controls within R of this rank's controls
+  std::size_t controls_dropped = 0;  ///< this rank's controls another (lower) rank also had: owned there
+  std::size_t eval_halo = 0;         ///< other ranks' controls within R of this rank's points (last apply)
+  std::size_t points = 0;            ///< points evaluated here (all applies)
+  std::size_t matrix_nonzeros = 0;   ///< of this rank's rows
+  std::size_t bytes_sent = 0;        ///< by csrbf's own exchanges (halo, sums), not PETSc's inside the solve
+  std::size_t peak_bytes = 0;        ///< peak resident memory of the process
   double seconds_halo = 0, seconds_assembly = 0, seconds_solve = 0, seconds_residual = 0, seconds_evaluate = 0;
 };
 
@@ -110,6 +110,15 @@ class DistributedMap {
 /// each point and of each control. Serial (rank 0, which read the file).
 struct Partition {
   std::vector<int> point_part, control_part;
+  /// The cuts, to place other points: node 0 is the root; a leaf has part >= 0.
+  struct Node {
+    int axis = 0;
+    double cut = 0;  ///< a point with coordinate < cut goes left
+    int left = -1, right = -1, part = -1;
+  };
+  std::vector<Node> tree;
+  /// The part whose region holds x (points on a cut go right).
+  int part_of(const Vec3& x) const;
 };
 Partition rcb_partition(std::span<const Vec3> points, std::span<const Vec3> controls, int parts);
 

@@ -16,6 +16,8 @@ namespace csrbf::mpi {
 /// MPI's mpirun, PMIx, MPICH's Hydra); 0 when no launcher started it. The command line runs its
 /// distributed path where this is > 1, and the serial program otherwise (no MPI is started).
 int launched_ranks() noexcept;
+/// This process's rank in that job, from the same environment; 0 when none.
+int launched_rank() noexcept;
 
 /// MPI (MPI_THREAD_FUNNELED: TBB's threads never call MPI) and PETSc, for the life of the object.
 /// PETSc's error handler is replaced by one that returns the error to csrbf, which throws it.

@@ -1,0 +1,444 @@
+#include "csrbf/mpi/backends.hpp"
+
+#include "csrbf/io/atomic_file.hpp"
+#include "csrbf/io/error.hpp"
+#include "csrbf/morph/job.hpp"
+#include "csrbf/morph/openfoam.hpp"
+#include "csrbf/morph/volume_file.hpp"
+#include "csrbf/mpi/runtime.hpp"
+
+#include <algorithm>
+#include <climits>
+#include <cstdio>
+#include <iostream>
+#include <numeric>
+#include <string>
+
+namespace fs = std::filesystem;
+
+namespace csrbf::mpi {
+
+namespace {
+
+enum Op : int { kFit = 1, kApply = 2, kDisplacements = 3, kStats = 4, kDone = 5 };
+
+struct Command {
+  int op = 0, code = 0, kernel = 0, polynomial = 0, solver = 0, generation = 0;
+  double radius = 0, memory = 0, phase = 0;
+};
+
+void broadcast(MPI_Comm comm, Command& c) { MPI_Bcast(&c, int(sizeof c), MPI_BYTE, 0, comm); }
+
+/// A control as rank 0 scatters it: its id, source and target.
+struct ControlPacket {
+  std::uint64_t id = 0;
+  double s[3] = {0, 0, 0}, t[3] = {0, 0, 0};
+};
+
+int checked_count(std::size_t n, const char* what) {
+  if (n > std::size_t(INT_MAX))
+    throw ResourceLimit(std::string("one rank's share of the ") + what + " (" + std::to_string(n) +
+                        " values) passes what one MPI message carries: use more ranks");
+  return int(n);
+}
+
+/// Root's values per rank (in rank order, counts[r] each), scattered; every rank's own share.
+template <class T>
+std::vector<T> scatter(MPI_Comm comm, const std::vector<T>& all, const std::vector<std::size_t>& counts,
+                       std::size_t& bytes) {
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  std::vector<int> c(static_cast<std::size_t>(size), 0), d(static_cast<std::size_t>(size), 0);
+  if (rank == 0) {
+    std::size_t off = 0;
+    for (int r = 0; r < size; ++r) {
+      c[std::size_t(r)] = checked_count(counts[std::size_t(r)] * sizeof(T), "scattered data");
+      d[std::size_t(r)] = checked_count(off * sizeof(T), "scattered data");
+      off += counts[std::size_t(r)];
+    }
+    bytes += (off - counts[0]) * sizeof(T);
+  }
+  int mine = 0;
+  MPI_Scatter(c.data(), 1, MPI_INT, &mine, 1, MPI_INT, 0, comm);
+  std::vector<T> out(std::size_t(mine) / sizeof(T));
+  MPI_Scatterv(all.data(), c.data(), d.data(), MPI_BYTE, out.data(), mine, MPI_BYTE, 0, comm);
+  return out;
+}
+
+/// Every rank's values gathered on root in rank order (counts known there).
+template <class T>
+void gather(MPI_Comm comm, const std::vector<T>& mine, std::vector<T>& all, const std::vector<std::size_t>& counts,
+            std::size_t& bytes) {
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  std::vector<int> c(static_cast<std::size_t>(size), 0), d(static_cast<std::size_t>(size), 0);
+  if (rank == 0) {
+    std::size_t off = 0;
+    for (int r = 0; r < size; ++r) {
+      c[std::size_t(r)] = checked_count(counts[std::size_t(r)] * sizeof(T), "gathered data");
+      d[std::size_t(r)] = checked_count(off * sizeof(T), "gathered data");
+      off += counts[std::size_t(r)];
+    }
+    all.resize(off);
+  } else {
+    bytes += mine.size() * sizeof(T);
+  }
+  MPI_Gatherv(mine.data(), checked_count(mine.size() * sizeof(T), "gathered data"), MPI_BYTE, all.data(), c.data(),
+              d.data(), MPI_BYTE, 0, comm);
+}
+
+std::vector<RankStats> gather_stats(MPI_Comm comm, RankStats mine) {
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  mine.rank = rank;
+  mine.peak_bytes = peak_memory_bytes();
+  std::vector<RankStats> all(static_cast<std::size_t>(size));
+  MPI_Allgather(&mine, int(sizeof mine), MPI_BYTE, all.data(), int(sizeof mine), MPI_BYTE, comm);
+  return all;
+}
+
+FitOptions options_of(const Command& c) {
+  FitOptions o;
+  o.radius = c.radius;
+  o.kernel = Kernel(c.kernel);
+  o.polynomial = Polynomial(c.polynomial);
+  o.memory_limit_bytes = c.memory;
+  return o;
+}
+
+/// The points of one apply, in rank order: each rank evaluates its share, rank 0 puts them back.
+void evaluate_share(MPI_Comm comm, DistributedMap& map, int op, double phase, const std::vector<Vec3>& all,
+                    const std::vector<std::size_t>& counts, std::vector<Vec3>& result) {
+  std::size_t& bytes = map.rank_stats().bytes_sent;
+  const std::vector<Vec3> mine = scatter(comm, all, counts, bytes);
+  std::vector<Vec3> out(mine.size());
+  if (op == kApply)
+    map.apply(mine, out, phase);
+  else
+    map.displacements(mine, out);
+  gather(comm, out, result, counts, bytes);
+}
+
+}  // namespace
+
+int exit_code_of(const std::exception_ptr& e) {
+  try {
+    std::rethrow_exception(e);
+  } catch (const morph::JobError&) {
+    return 2;
+  } catch (const Failure& f) {
+    return f.exit_code();
+  } catch (...) {
+    return 1;
+  }
+}
+
+// ---- ScatterBackend --------------------------------------------------------------------------
+
+class ScatterMapping final : public morph::FittedMapping {
+ public:
+  ScatterMapping(ScatterBackend& b, int generation) : b_(b), generation_(generation) {}
+  void apply(std::span<const Vec3> in, std::span<Vec3> out, double phase) override { run(kApply, in, out, phase); }
+  void displacements(std::span<const Vec3> in, std::span<Vec3> out) override { run(kDisplacements, in, out, 1.0); }
+  FitStats stats() const override {
+    FitStats s;
+    s.controls = b_.stats_.controls;
+    s.solver = b_.stats_.solver == DistributedSolver::Cg ? Solver::Cg : Solver::Cholmod;
+    s.iterations = b_.stats_.iterations;
+    s.fell_back = b_.stats_.fell_back;
+    s.residual_relative = b_.stats_.residual_relative;
+    return s;
+  }
+
+ private:
+  void run(int op, std::span<const Vec3> in, std::span<Vec3> out, double phase) {
+    if (generation_ != b_.generation_ || !b_.map_)
+      throw std::logic_error("csrbf::mpi: a mapping used after a later fit replaced it");
+    int size = 1;
+    MPI_Comm_size(b_.comm_, &size);
+    // The points by part (a counting sort by the partition's regions).
+    std::vector<int> part(in.size());
+    std::vector<std::size_t> counts(static_cast<std::size_t>(size), 0);
+    for (std::size_t i = 0; i < in.size(); ++i) ++counts[std::size_t(part[i] = b_.partition_->part_of(in[i]))];
+    std::vector<std::size_t> next(static_cast<std::size_t>(size), 0);
+    for (int r = 1; r < size; ++r) next[std::size_t(r)] = next[std::size_t(r - 1)] + counts[std::size_t(r - 1)];
+    std::vector<std::uint32_t> order(in.size());
+    std::vector<Vec3> sorted(in.size());
+    for (std::size_t i = 0; i < in.size(); ++i) {
+      const std::size_t k = next[std::size_t(part[i])]++;
+      order[k] = std::uint32_t(i);
+      sorted[k] = in[i];
+    }
+    std::vector<int>().swap(part);
+    Command c;
+    c.op = op;
+    c.phase = phase;
+    c.generation = generation_;
+    broadcast(b_.comm_, c);
+    std::vector<Vec3> result;
+    evaluate_share(b_.comm_, *b_.map_, op, phase, sorted, counts, result);
+    for (std::size_t k = 0; k < result.size(); ++k) out[order[k]] = result[k];
+  }
+  ScatterBackend& b_;
+  int generation_;
+};
+
+ScatterBackend::ScatterBackend(MPI_Comm comm, DistributedSolver solver, std::span<const Vec3> balance)
+    : comm_(comm), solver_(solver), balance_(balance.begin(), balance.end()) {}
+
+ScatterBackend::~ScatterBackend() { finish(1); }
+
+void ScatterBackend::finish(int exit_code) noexcept {
+  if (finished_) return;
+  finished_ = true;
+  Command c;
+  c.op = kDone;
+  c.code = exit_code;
+  broadcast(comm_, c);
+}
+
+std::unique_ptr<morph::FittedMapping> ScatterBackend::fit(std::span<const Vec3> sources, std::span<const Vec3> targets,
+                                                          const FitOptions& options,
+                                                          std::span<const std::uint64_t> ids) {
+  int size = 1;
+  MPI_Comm_size(comm_, &size);
+  if (sources.size() != targets.size()) throw InvalidInput("control points: sources and targets differ in number");
+  if (!partition_) partition_ = rcb_partition(balance_, sources, size);
+  std::vector<Vec3>().swap(balance_);
+  std::vector<std::size_t> counts(static_cast<std::size_t>(size), 0);
+  std::vector<int> part(sources.size());
+  for (std::size_t i = 0; i < sources.size(); ++i) ++counts[std::size_t(part[i] = partition_->part_of(sources[i]))];
+  std::vector<std::size_t> next(static_cast<std::size_t>(size), 0);
+  for (int r = 1; r < size; ++r) next[std::size_t(r)] = next[std::size_t(r - 1)] + counts[std::size_t(r - 1)];
+  std::vector<ControlPacket> all(sources.size());
+  for (std::size_t i = 0; i < sources.size(); ++i) {
+    ControlPacket& p = all[next[std::size_t(part[i])]++];
+    p.id = ids.empty() ? i : ids[i];
+    for (int c = 0; c < 3; ++c) {
+      p.s[c] = sources[i][c];
+      p.t[c] = targets[i][c];
+    }
+  }
+  Command c;
+  c.op = kFit;
+  c.kernel = int(options.kernel);
+  c.polynomial = int(options.polynomial);
+  c.solver = int(solver_);
+  c.radius = options.radius;
+  c.memory = options.memory_limit_bytes;
+  c.generation = ++generation_;
+  broadcast(comm_, c);
+  map_.reset();
+  std::size_t bytes = 0;
+  const std::vector<ControlPacket> mine = scatter(comm_, all, counts, bytes);
+  std::vector<Vec3> s(mine.size()), t(mine.size());
+  std::vector<std::uint64_t> u(mine.size());
+  for (std::size_t i = 0; i < mine.size(); ++i) {
+    s[i] = Vec3(mine[i].s[0], mine[i].s[1], mine[i].s[2]);
+    t[i] = Vec3(mine[i].t[0], mine[i].t[1], mine[i].t[2]);
+    u[i] = mine[i].id;
+  }
+  FitOptions o = options_of(c);
+  o.solver = options.solver;
+  map_ = DistributedMap::fit(comm_, s, t, o, solver_, u);
+  map_->rank_stats().bytes_sent += bytes;
+  stats_ = map_->stats();
+  return std::make_unique<ScatterMapping>(*this, generation_);
+}
+
+std::vector<RankStats> ScatterBackend::rank_stats() {
+  Command c;
+  c.op = kStats;
+  broadcast(comm_, c);
+  return gather_stats(comm_, map_ ? map_->rank_stats() : RankStats{});
+}
+
+int serve(MPI_Comm comm) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  std::optional<DistributedMap> map;
+  for (;;) {
+    Command c;
+    broadcast(comm, c);
+    try {
+      switch (c.op) {
+        case kFit: {
+          map.reset();
+          std::size_t bytes = 0;
+          const std::vector<ControlPacket> mine = scatter(comm, std::vector<ControlPacket>(), {}, bytes);
+          std::vector<Vec3> s(mine.size()), t(mine.size());
+          std::vector<std::uint64_t> u(mine.size());
+          for (std::size_t i = 0; i < mine.size(); ++i) {
+            s[i] = Vec3(mine[i].s[0], mine[i].s[1], mine[i].s[2]);
+            t[i] = Vec3(mine[i].t[0], mine[i].t[1], mine[i].t[2]);
+            u[i] = mine[i].id;
+          }
+          try {
+            map = DistributedMap::fit(comm, s, t, options_of(c), DistributedSolver(c.solver), u);
+          } catch (const Failure&) {  // every rank has it; rank 0 reports
+          }
+          break;
+        }
+        case kApply:
+        case kDisplacements: {
+          std::vector<Vec3> none;
+          if (!map) throw std::logic_error("an evaluation without a fit");
+          try {
+            evaluate_share(comm, *map, c.op, c.phase, {}, {}, none);
+          } catch (const Failure&) {
+          }
+          break;
+        }
+        case kStats:
+          gather_stats(comm, map ? map->rank_stats() : RankStats{});
+          break;
+        case kDone:
+          return c.code;
+        default:
+          throw std::logic_error("unknown command " + std::to_string(c.op) + " from rank 0");
+      }
+    } catch (const std::exception& e) {
+      // Not agreed with the other ranks: they may wait for this one in a collective. Report, then
+      // end the whole job.
+      std::cerr << "csrbf: error (rank " << rank << "): " << e.what() << '\n';
+      MPI_Abort(comm, 1);
+    }
+  }
+}
+
+// ---- DecomposedBackend -----------------------------------------------------------------------
+
+namespace {
+
+/// Keeps its figures in the backend's (sink) after each evaluation: the mapping ends with the morph.
+class DecomposedMapping final : public morph::FittedMapping {
+ public:
+  DecomposedMapping(DistributedMap map, RankStats& sink) : map_(std::move(map)), sink_(sink) { sink_ = map_.rank_stats(); }
+  void apply(std::span<const Vec3> in, std::span<Vec3> out, double phase) override {
+    map_.apply(in, out, phase);
+    sink_ = map_.rank_stats();
+  }
+  void displacements(std::span<const Vec3> in, std::span<Vec3> out) override {
+    map_.displacements(in, out);
+    sink_ = map_.rank_stats();
+  }
+  FitStats stats() const override {
+    FitStats s;
+    s.controls = map_.stats().controls;
+    s.solver = map_.stats().solver == DistributedSolver::Cg ? Solver::Cg : Solver::Cholmod;
+    s.iterations = map_.stats().iterations;
+    s.fell_back = map_.stats().fell_back;
+    s.residual_relative = map_.stats().residual_relative;
+    return s;
+  }
+  DistributedMap map_;
+  RankStats& sink_;
+};
+
+template <class F>
+std::exception_ptr caught(F&& f) {
+  try {
+    f();
+  } catch (...) {
+    return std::current_exception();
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+int processor_folders(const fs::path& case_root) {
+  std::error_code ec;
+  int n = 0;
+  while (fs::is_directory(case_root / ("processor" + std::to_string(n)), ec)) ++n;
+  return n;
+}
+
+DecomposedBackend::DecomposedBackend(MPI_Comm comm, DistributedSolver solver, fs::path case_root)
+    : comm_(comm), solver_(solver), root_(std::move(case_root)) {}
+
+std::unique_ptr<morph::FittedMapping> DecomposedBackend::fit(std::span<const Vec3> sources,
+                                                             std::span<const Vec3> targets, const FitOptions& options,
+                                                             std::span<const std::uint64_t> ids) {
+  auto m = std::make_unique<DecomposedMapping>(DistributedMap::fit(comm_, sources, targets, options, solver_, ids, true),
+                                               last_);
+  stats_ = m->map_.stats();
+  return m;
+}
+
+double DecomposedBackend::max(double local) {
+  double out = 0;
+  MPI_Allreduce(&local, &out, 1, MPI_DOUBLE, MPI_MAX, comm_);
+  return out;
+}
+
+double DecomposedBackend::sum(double local) {
+  double out = 0;
+  MPI_Allreduce(&local, &out, 1, MPI_DOUBLE, MPI_SUM, comm_);
+  return out;
+}
+
+void DecomposedBackend::agree(std::exception_ptr local) { mpi::agree(comm_, local, exit_code_of); }
+
+fs::path DecomposedBackend::mesh_path(const fs::path&) {
+  int rank = 0;
+  MPI_Comm_rank(comm_, &rank);
+  return root_ / ("processor" + std::to_string(rank));
+}
+
+void DecomposedBackend::write_copy(const morph::VolumeFile& file, std::span<const Vec3> points, const fs::path& out) {
+  int rank = 0;
+  MPI_Comm_rank(comm_, &rank);
+  std::unique_ptr<io::Partial> partial;
+  std::string where;
+  agree(caught([&] {
+    if (!file.foam()) throw io::FileError("a decomposed mesh is an OpenFOAM case");
+    if (rank != 0) return;
+    std::error_code ec;
+    const fs::path root = fs::weakly_canonical(root_, ec), target = fs::weakly_canonical(fs::absolute(out), ec);
+    const auto [r_end, t_it] = std::mismatch(root.begin(), root.end(), target.begin(), target.end());
+    if (r_end == root.end())
+      throw io::FileError("cannot write '" + out.string() + "': it is inside the case '" + root_.string() +
+                          "' being copied");
+    partial = std::make_unique<io::Partial>(out, io::Partial::Kind::Folder);
+    fs::copy(root_, partial->path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
+    if (ec) throw io::FileError("cannot copy '" + root_.string() + "' to '" + out.string() + "': " + ec.message());
+    where = partial->path().string();
+  }));
+  long long n = static_cast<long long>(where.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm_);
+  where.resize(std::size_t(n));
+  MPI_Bcast(where.data(), int(n), MPI_CHAR, 0, comm_);
+  agree(caught([&] {
+    morph::write_openfoam_points_into(*file.foam(), points, fs::path(where) / ("processor" + std::to_string(rank)));
+  }));
+  agree(caught([&] {
+    if (rank == 0) partial->commit_new(out);
+  }));
+}
+
+void DecomposedBackend::write_in_place(const morph::VolumeFile& file, std::span<const Vec3> points) {
+  // Every part staged beside its points, then each renamed over them: a part that cannot be written
+  // leaves every part as it was.
+  fs::path staged;
+  const std::exception_ptr e = caught([&] {
+    if (!file.foam()) throw io::FileError("a decomposed mesh is an OpenFOAM case");
+    staged = morph::stage_openfoam_points(*file.foam(), points);
+  });
+  try {
+    agree(e);
+  } catch (...) {
+    if (!staged.empty()) morph::discard_openfoam_points(staged);
+    throw;
+  }
+  agree(caught([&] { morph::commit_openfoam_points(*file.foam(), staged); }));
+}
+
+std::vector<RankStats> DecomposedBackend::rank_stats() {
+  return gather_stats(comm_, last_);
+}
+
+}  // namespace csrbf::mpi
