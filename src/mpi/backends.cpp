@@ -316,7 +316,9 @@ namespace {
 /// Keeps its figures in the backend's (sink) after each evaluation: the mapping ends with the morph.
 class DecomposedMapping final : public morph::FittedMapping {
  public:
-  DecomposedMapping(DistributedMap map, RankStats& sink) : map_(std::move(map)), sink_(sink) { sink_ = map_.rank_stats(); }
+  DecomposedMapping(DistributedMap map, RankStats& sink) : map_(std::move(map)), sink_(sink) {
+    sink_ = map_.rank_stats();
+  }
   void apply(std::span<const Vec3> in, std::span<Vec3> out, double phase) override {
     map_.apply(in, out, phase);
     sink_ = map_.rank_stats();
@@ -363,8 +365,8 @@ DecomposedBackend::DecomposedBackend(MPI_Comm comm, DistributedSolver solver, fs
 std::unique_ptr<morph::FittedMapping> DecomposedBackend::fit(std::span<const Vec3> sources,
                                                              std::span<const Vec3> targets, const FitOptions& options,
                                                              std::span<const std::uint64_t> ids) {
-  auto m = std::make_unique<DecomposedMapping>(DistributedMap::fit(comm_, sources, targets, options, solver_, ids, true),
-                                               last_);
+  auto m = std::make_unique<DecomposedMapping>(
+      DistributedMap::fit(comm_, sources, targets, options, solver_, ids, true), last_);
   stats_ = m->map_.stats();
   return m;
 }
@@ -437,8 +439,6 @@ void DecomposedBackend::write_in_place(const morph::VolumeFile& file, std::span<
   agree(caught([&] { morph::commit_openfoam_points(*file.foam(), staged); }));
 }
 
-std::vector<RankStats> DecomposedBackend::rank_stats() {
-  return gather_stats(comm_, last_);
-}
+std::vector<RankStats> DecomposedBackend::rank_stats() { return gather_stats(comm_, last_); }
 
 }  // namespace csrbf::mpi

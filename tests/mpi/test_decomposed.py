@@ -1,0 +1,261 @@
+"""mpirun csrbf morph|deform judged against the serial program and by OpenFOAM's own tools:
+decomposePar (simple and hierarchical; Debian's OpenFOAM has no scotch), mpirun -np K csrbf morph,
+reconstructParMesh, checkMesh; the distributed points equal the serial morph's to 1e-10 of the
+largest displacement; a single mesh morphed and deformed from rank 0; a failing input on one rank
+only; the wrong number of ranks.
+
+    CSRBF_CLI=build/bin/csrbf CSRBF_SOURCE_DIR=. /usr/bin/python3 -m unittest -v test_decomposed
+"""
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+CLI = os.environ.get("CSRBF_CLI", "csrbf")
+SOURCE = os.environ.get("CSRBF_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", ".."))
+TUTORIALS = "/usr/share/doc/openfoam-examples/examples/incompressible/simpleFoam"
+ENV = dict(os.environ, WM_PROJECT_DIR="/usr/share/openfoam", OMPI_ALLOW_RUN_AS_ROOT="1",
+           OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
+MPIRUN = ["mpirun", "--oversubscribe", "-np"]
+
+
+def run(args, cwd=None):
+    return subprocess.run(args, cwd=cwd, env=ENV, capture_output=True, text=True, timeout=600)
+
+
+def foam_list(path):
+    """The body of an ASCII OpenFOAM list file: (count, text after its '(')."""
+    with open(path) as f:
+        t = f.read()
+    t = re.sub(r"/\*.*?\*/", "", t, flags=re.S)
+    t = re.sub(r"//[^\n]*", "", t)
+    body = t[t.index("}", t.index("FoamFile")) + 1:]
+    m = re.search(r"(\d+)\s*\(", body)
+    return int(m.group(1)), body[m.end():]
+
+
+def points(poly):
+    n, body = foam_list(os.path.join(poly, "points"))
+    return np.array([[float(x) for x in s.split()] for s in re.findall(r"\(([^()]*)\)", body)[:n]])
+
+
+def labels(path):
+    n, body = foam_list(path)
+    return np.array([int(x) for x in body.split(")")[0].split()[:n]])
+
+
+def gathered(case, count):
+    """The processors' points placed by pointProcAddressing: the whole mesh's numbering."""
+    parts = []
+    for k in range(count):
+        poly = os.path.join(case, "processor%d" % k, "constant", "polyMesh")
+        parts.append((labels(os.path.join(poly, "pointProcAddressing")), points(poly)))
+    out = np.full((max(a.max() for a, _ in parts) + 1, 3), np.nan)
+    for a, p in parts:
+        out[a] = p
+    return out
+
+
+def decompose(case, count, method, n):
+    with open(os.path.join(case, "system", "decomposeParDict"), "w") as f:
+        f.write("FoamFile { version 2.0; format ascii; class dictionary; object decomposeParDict; }\n"
+                "numberOfSubdomains %d;\nmethod %s;\n"
+                "simpleCoeffs { n (%s); }\nhierarchicalCoeffs { n (%s); order xyz; }\n"
+                % (count, method, n, n))
+    r = run(["decomposePar", "-force"], cwd=case)
+    assert r.returncode == 0, r.stdout[-2000:] + r.stderr[-2000:]
+
+
+def full_precision(case):
+    """decomposePar writes the processors' points with the case's writePrecision: 17 digits keep
+    them exact, so that the serial and distributed morphs start from the same points."""
+    cd = os.path.join(case, "system", "controlDict")
+    with open(cd) as f:
+        t = f.read()
+    t = re.sub(r"writePrecision\s+\d+;", "writePrecision 17;", t)
+    if "writePrecision" not in t:
+        t += "\nwritePrecision 17;\n"
+    with open(cd, "w") as f:
+        f.write(t)
+
+
+class Decomposed(unittest.TestCase):
+    def setUp(self):
+        self.tmp = tempfile.mkdtemp(prefix="csrbf-mpi-")
+
+    def tearDown(self):
+        shutil.rmtree(self.tmp, ignore_errors=True)
+
+    def path(self, *p):
+        return os.path.join(self.tmp, *p)
+
+    def airfoil(self, name="case"):
+        case = self.path(name)
+        shutil.copytree(os.path.join(SOURCE, "examples", "airfoil", "case"), case)
+        full_precision(case)
+        with open(self.path("motion.json"), "w") as f:
+            json.dump({"radius": 1.5, "kernel": "c2", "polynomial": "none",
+                       "patches": {"airfoil": {"rotate": {"axis": [0, 0, 1], "degrees": -5, "origin": [0.25, 0, 0]}},
+                                   "farfield": "fixed"}}, f)
+        return case
+
+    def check_mesh(self, case):
+        r = run(["checkMesh"], cwd=case)
+        self.assertIn("Mesh OK.", r.stdout, r.stdout[-3000:])
+
+    def serial(self, case, out, *extra):
+        r = run([CLI, "morph", case, "-o", out, "--motion", self.path("motion.json"), *extra])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        return points(os.path.join(out, "constant", "polyMesh"))
+
+    def test_decomposed_cases_equal_the_serial_morph_and_pass_checkmesh(self):
+        plain = self.airfoil("plain")
+        for count, method, n in ((2, "simple", "2 1 1"), (3, "hierarchical", "3 1 1"), (4, "hierarchical", "2 2 1")):
+            # Each kernel at a radius where its system is well conditioned: the two solves (the serial
+            # envelope or CHOLMOD, MUMPS here) then agree to ~1e-12; at a condition number of 1e8 they
+            # differ by ~1e-8 (docs/DISTRIBUTED.md).
+            for kernel, poly, radius in (("c0", "none", 1.5), ("c2", "constant", 1.5), ("c4", "none", 0.4),
+                                         ("c6", "constant", 0.25)):
+                with self.subTest(ranks=count, method=method, kernel=kernel, polynomial=poly):
+                    case = self.path("case-%d-%s" % (count, kernel))
+                    shutil.rmtree(case, ignore_errors=True)
+                    shutil.copytree(plain, case)
+                    decompose(case, count, method, n)
+                    inputs = [open(os.path.join(case, "processor%d/constant/polyMesh/points" % k), "rb").read()
+                              for k in range(count)]
+                    extra = ["--kernel", kernel, "--polynomial", poly, "--radius", str(radius)]
+                    want = self.serial(plain, self.path("serial-%d-%s" % (count, kernel)), *extra)
+                    out = self.path("out-%d-%s" % (count, kernel))
+                    r = run(MPIRUN + [str(count), CLI, "morph", case, "-o", out, "--motion", self.path("motion.json"),
+                                      "--json", *extra])
+                    self.assertEqual(r.returncode, 0, r.stdout[-2000:] + r.stderr[-3000:])
+                    report = json.loads(r.stdout)
+                    self.assertEqual(report["distributed"]["ranks"], count)
+                    self.assertEqual(len(report["per_rank"]), count)
+                    self.assertEqual(sum(p["controls_owned"] for p in report["per_rank"]), report["controls"])
+                    got = gathered(out, count)
+                    base = points(os.path.join(plain, "constant", "polyMesh"))
+                    largest = np.abs(want - base).max()
+                    self.assertGreater(largest, 0.01)
+                    self.assertLess(np.abs(got - want).max(), 1e-10 * largest)
+                    # OpenFOAM puts the processors back together and accepts the whole mesh.
+                    r = run(["reconstructParMesh", "-constant"], cwd=out)
+                    self.assertEqual(r.returncode, 0, r.stdout[-2000:])
+                    self.check_mesh(out)
+                    # The input case is untouched.
+                    for k in range(count):
+                        with open(os.path.join(case, "processor%d/constant/polyMesh/points" % k), "rb") as f:
+                            self.assertEqual(f.read(), inputs[k])
+
+    def test_pitzdaily_hierarchical_on_four_ranks(self):
+        case = self.path("pitzDaily")
+        shutil.copytree(os.path.join(TUTORIALS, "pitzDaily"), case)
+        full_precision(case)
+        r = run(["blockMesh"], cwd=case)
+        self.assertEqual(r.returncode, 0, r.stdout[-2000:])
+        with open(self.path("motion.json"), "w") as f:
+            json.dump({"radius": 0.02, "patches": {"lowerWall": {"translate": [0, 0.0001, 0]}, "upperWall": "fixed",
+                                                   "inlet": "fixed", "outlet": "fixed"}}, f)
+        plain = self.path("plain")
+        shutil.copytree(case, plain)
+        want = self.serial(plain, self.path("serial"))
+        decompose(case, 4, "hierarchical", "2 2 1")
+        out = self.path("out")
+        r = run(MPIRUN + ["4", CLI, "morph", case, "-o", out, "--motion", self.path("motion.json")])
+        self.assertEqual(r.returncode, 0, r.stdout[-2000:] + r.stderr[-3000:])
+        largest = np.abs(want - points(os.path.join(plain, "constant", "polyMesh"))).max()
+        self.assertLess(np.abs(gathered(out, 4) - want).max(), 1e-10 * largest)
+        self.assertEqual(run(["reconstructParMesh", "-constant"], cwd=out).returncode, 0)
+        self.check_mesh(out)
+
+    def test_in_place_rewrites_each_processors_points(self):
+        case = self.airfoil()
+        decompose(case, 2, "simple", "2 1 1")
+        copy = self.path("copy")
+        r = run(MPIRUN + ["2", CLI, "morph", case, "-o", copy, "--motion", self.path("motion.json")])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        before = {k: open(os.path.join(case, "processor%d/constant/polyMesh/faces" % k), "rb").read() for k in (0, 1)}
+        r = run(MPIRUN + ["2", CLI, "morph", case, "--in-place", "--motion", self.path("motion.json")])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for k in (0, 1):
+            for f in ("points", "faces", "owner", "neighbour", "boundary"):
+                a = open(os.path.join(case, "processor%d/constant/polyMesh" % k, f), "rb").read()
+                b = open(os.path.join(copy, "processor%d/constant/polyMesh" % k, f), "rb").read()
+                self.assertEqual(a, b, "processor%d %s" % (k, f))
+            self.assertEqual(before[k], open(os.path.join(case, "processor%d/constant/polyMesh/faces" % k), "rb").read())
+        self.assertEqual([f for f in os.listdir(os.path.join(case, "processor1/constant/polyMesh")) if "csrbf" in f], [])
+
+    def test_a_bad_processor_fails_every_rank_and_nothing_is_written(self):
+        case = self.airfoil()
+        decompose(case, 3, "simple", "3 1 1")
+        pts = os.path.join(case, "processor1", "constant", "polyMesh", "points")
+        with open(pts) as f:
+            text = f.read()
+
+        with open(pts, "w") as f:
+            f.write(text[:len(text) // 2])  # truncated on rank 1 only
+        out = self.path("out")
+        r = run(MPIRUN + ["3", CLI, "morph", case, "-o", out, "--motion", self.path("motion.json")])
+        self.assertEqual(r.returncode, 1, r.stdout + r.stderr)
+        self.assertIn("processor1", r.stderr)
+        self.assertEqual(r.stderr.count("csrbf: error"), 1, r.stderr)  # one message, from rank 0
+        self.assertFalse(os.path.exists(out))
+        self.assertEqual([f for f in os.listdir(self.tmp) if f.startswith(".out") or "partial" in f], [])
+        # In place: every processor's points stay as they were.
+        before = open(os.path.join(case, "processor0/constant/polyMesh/points"), "rb").read()
+        r = run(MPIRUN + ["3", CLI, "morph", case, "--in-place", "--motion", self.path("motion.json")])
+        self.assertEqual(r.returncode, 1)
+        self.assertEqual(before, open(os.path.join(case, "processor0/constant/polyMesh/points"), "rb").read())
+        # A patch the mesh does not have: the same error on every rank, said once.
+        with open(self.path("bad.json"), "w") as f:
+            json.dump({"radius": 1.5, "patches": {"wing": "fixed"}}, f)
+        with open(pts, "w") as f:
+            f.write(text)
+        r = run(MPIRUN + ["3", CLI, "morph", case, "-o", out, "--motion", self.path("bad.json")])
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("wing", r.stderr)
+        self.assertFalse(os.path.exists(out))
+
+    def test_the_wrong_number_of_ranks_is_a_usage_error(self):
+        case = self.airfoil()
+        decompose(case, 2, "simple", "2 1 1")
+        r = run(MPIRUN + ["3", CLI, "morph", case, "-o", self.path("out"), "--motion", self.path("motion.json")])
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertIn("mpirun -np 2", r.stderr)
+        self.assertFalse(os.path.exists(self.path("out")))
+
+    def test_a_single_mesh_is_spread_from_rank_zero(self):
+        plain = self.airfoil("plain")
+        want = self.serial(plain, self.path("serial"))
+        for count in (2, 3):
+            out = self.path("out%d" % count)
+            r = run(MPIRUN + [str(count), CLI, "morph", plain, "-o", out, "--motion", self.path("motion.json"), "--json"])
+            self.assertEqual(r.returncode, 0, r.stderr)
+            self.assertEqual(json.loads(r.stdout)["distributed"]["ranks"], count)
+            largest = np.abs(want - points(os.path.join(plain, "constant", "polyMesh"))).max()
+            self.assertLess(np.abs(points(os.path.join(out, "constant", "polyMesh")) - want).max(), 1e-10 * largest)
+        # deform: the bundled bunny, every kernel, against the serial program.
+        bunny, controls = os.path.join(SOURCE, "examples", "bunny.obj"), os.path.join(SOURCE, "examples", "bunny.controls")
+
+        def vertices(path):
+            with open(path) as f:
+                return np.array([[float(x) for x in l.split()[1:4]] for l in f if l.startswith("v ")])
+        for kernel in ("c0", "c2", "c4", "c6"):
+            for poly in ("none", "linear"):
+                a, b = self.path("a-%s-%s.obj" % (kernel, poly)), self.path("b-%s-%s.obj" % (kernel, poly))
+                args = ["deform", "-m", bunny, "--controls", controls, "-r", "2.5", "-k", kernel, "-p", poly]
+                self.assertEqual(run([CLI] + args + ["-o", a]).returncode, 0)
+                r = run(MPIRUN + ["3", CLI] + args + ["-o", b])
+                self.assertEqual(r.returncode, 0, r.stderr)
+                va, vb, v0 = vertices(a), vertices(b), vertices(bunny)
+                self.assertLess(np.abs(va - vb).max(), 1e-10 * np.abs(va - v0).max(), (kernel, poly))
+
+
+if __name__ == "__main__":
+    unittest.main()
