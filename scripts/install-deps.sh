@@ -29,6 +29,7 @@ packages=(
   libgmsh-dev libcgns-dev   # morph: Gmsh .msh and CGNS meshes
   python3-gmsh python3-meshio python3-h5py gmsh   # tests: Gmsh, meshio (h5py: its CGNS reader) read the morphed meshes
   openfoam openfoam-examples   # tests: checkMesh, blockMesh, foamFormatConvert judge `csrbf morph`; the airFoil2D and pitzDaily tutorials
+  libopenmpi-dev openmpi-bin petsc-dev   # csrbf::mpi: `mpirun csrbf deform|morph`, PETSc's MUMPS Cholesky and CG
 )
 
 SUDO=""

@@ -175,8 +175,48 @@ struct PetscVec {
     if (v) VecDestroy(&v);
   }
 };
+/// Auto's probe of CG (the serial rule's, fit_options.hpp): every 10 steps from step 20, the steps
+/// still needed are predicted from the rate the residual fell over the last two thirds of the steps
+/// taken, and CG gives way to MUMPS where they pass `budget`.
+struct CgProbe {
+  void* default_test = nullptr;
+  double budget = 0;
+  std::vector<double> log_residual;
+  bool gave_way = false;
+  double predicted = 0;
+};
+
+PetscErrorCode probe_test(KSP ksp, PetscInt it, PetscReal rnorm, KSPConvergedReason* reason, void* p) {
+  auto* probe = static_cast<CgProbe*>(p);
+  const PetscErrorCode e = KSPConvergedDefault(ksp, it, rnorm, reason, probe->default_test);
+  if (e != 0 || *reason != KSP_CONVERGED_ITERATING) return e;
+  if (it == 0) probe->log_residual.clear();
+  probe->log_residual.push_back(std::log(std::max(double(rnorm), 1e-300)));
+  const std::size_t k = probe->log_residual.size() - 1;
+  if (k >= 20 && k % 10 == 0) {
+    const std::size_t k0 = k / 3;
+    const double rate = (probe->log_residual[k] - probe->log_residual[k0]) / double(k - k0);
+    const double to_go = std::log(kCgTolerance) + probe->log_residual[0] - probe->log_residual[k];
+    const double predicted = rate < 0 ? double(k) + to_go / rate : std::numeric_limits<double>::infinity();
+    if (predicted > probe->budget) {
+      probe->gave_way = true;
+      probe->predicted = predicted;
+      *reason = KSP_DIVERGED_ITS;
+    }
+  }
+  return 0;
+}
+
+PetscErrorCode destroy_probe(void* p) {
+  auto* probe = static_cast<CgProbe*>(p);
+  if (probe->default_test) KSPConvergedDefaultDestroy(probe->default_test);
+  probe->default_test = nullptr;
+  return 0;
+}
+
 struct PetscKsp {
   KSP k = nullptr;
+  CgProbe probe;
   ~PetscKsp() {
     if (k) KSPDestroy(&k);
   }
@@ -185,9 +225,10 @@ struct PetscKsp {
 using Columns = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic>;
 
 /// The KSP of one solver over A: MUMPS's Cholesky (PCCHOLESKY, MATSOLVERMUMPS, factorised at the
-/// first solve and reused), or CG with block Jacobi and a shifted incomplete Cholesky on each block.
-void make_ksp(MPI_Comm comm, Mat a, DistributedSolver s, PetscKsp& ksp, int workspace_percent) {
+/// first solve and reused), or CG with additive Schwarz and a shifted incomplete Cholesky on each block.
+void make_ksp(MPI_Comm comm, Mat a, DistributedSolver s, PetscKsp& ksp, int workspace_percent, double cg_budget) {
   if (ksp.k) KSPDestroy(&ksp.k);
+  ksp.probe = CgProbe{};
   check_petsc(KSPCreate(comm, &ksp.k), "KSPCreate");
   check_petsc(KSPSetOperators(ksp.k, a, a), "KSPSetOperators");
   PC pc = nullptr;
@@ -208,11 +249,26 @@ void make_ksp(MPI_Comm comm, Mat a, DistributedSolver s, PetscKsp& ksp, int work
     check_petsc(KSPSetNormType(ksp.k, KSP_NORM_UNPRECONDITIONED), "KSPSetNormType");
     check_petsc(KSPSetTolerances(ksp.k, kCgTolerance, 1e-300, PETSC_DEFAULT, PetscInt(kCgMaxIterations)),
                 "KSPSetTolerances");
-    check_petsc(PCSetType(pc, PCBJACOBI), "PCSetType(bjacobi)");
+    if (cg_budget > 0) {
+      ksp.probe.budget = cg_budget;
+      check_petsc(KSPConvergedDefaultCreate(&ksp.probe.default_test), "KSPConvergedDefaultCreate");
+      check_petsc(KSPSetConvergenceTest(ksp.k, probe_test, &ksp.probe, destroy_probe), "KSPSetConvergenceTest");
+    }
+    // Additive Schwarz with one layer of overlap, an incomplete Cholesky on each rank's block: block
+    // Jacobi (no overlap) needed 47 steps on 2 ranks where one rank's ICC needed 12; the overlap
+    // keeps it at 13 (docs/DISTRIBUTED.md).
+    check_petsc(PCSetType(pc, PCASM), "PCSetType(asm)");
+    check_petsc(PCASMSetOverlap(pc, 1), "PCASMSetOverlap");
+    // PETSc's own options (PETSC_OPTIONS="-csrbf_pc_type gamg ...") may replace these defaults.
+    check_petsc(KSPSetOptionsPrefix(ksp.k, "csrbf_"), "KSPSetOptionsPrefix");
+    check_petsc(KSPSetFromOptions(ksp.k), "KSPSetFromOptions");
     check_petsc(KSPSetUp(ksp.k), "KSPSetUp(cg)");
+    PCType type = nullptr;
+    check_petsc(PCGetType(pc, &type), "PCGetType");
+    if (std::string(type) != PCASM) return;
     PetscInt blocks = 0, first = 0;
     KSP* sub = nullptr;
-    check_petsc(PCBJacobiGetSubKSP(pc, &blocks, &first, &sub), "PCBJacobiGetSubKSP");
+    check_petsc(PCASMGetSubKSP(pc, &blocks, &first, &sub), "PCASMGetSubKSP");
     for (PetscInt b = 0; b < blocks; ++b) {
       PC sub_pc = nullptr;
       check_petsc(KSPGetPC(sub[b], &sub_pc), "KSPGetPC(sub)");
@@ -517,8 +573,14 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
   const auto run = [&](DistributedSolver s) {
     for (int workspace = 50; workspace <= 3200; workspace *= 4) {
       int ok = 1, out_of_memory = 0;
+      // Auto's CG gives way where MUMPS is predicted cheaper: a factorisation cost kMumpsCgSteps CG
+      // steps at 1e5 controls, and the ratio grows with N (3-D nested dissection: factor flops ~N^2,
+      // a CG step ~N).
+      const double budget = solver == DistributedSolver::Auto && s == DistributedSolver::Cg
+                                ? kMumpsCgSteps * std::max(1.0, double(total) / 1e5)
+                                : 0.0;
       collectively(comm, [&] {
-        make_ksp(comm, a.m, s, ksp, workspace);
+        make_ksp(comm, a.m, s, ksp, workspace, budget);
         bool oom = false;
         ok = solve_columns(a.m, ksp.k, rhs, sol, iterations, &oom) ? 1 : 0;
         out_of_memory = oom ? 1 : 0;

@@ -6,9 +6,9 @@
 //   for the evaluation, sources and coefficients;
 // - matrix: the rows of a rank's controls, assembled there, as a PETSc parallel AIJ matrix (the
 //   neighbour search over the owned and halo controls, csrbf's NeighborIndex);
-// - solve: MUMPS's distributed Cholesky through PETSc, or PETSc's CG with block Jacobi and
-//   incomplete Cholesky; the polynomial block by the Schur complement, whose 4 x 4 blocks are summed
-//   over the ranks (MPI_Allreduce); the residual checked globally;
+// - solve: MUMPS's distributed Cholesky through PETSc, or PETSc's CG preconditioned by additive
+//   Schwarz (one layer of overlap) with an incomplete Cholesky on each rank's block; the polynomial block by the Schur
+//   complement, whose 4 x 4 blocks are summed over the ranks (MPI_Allreduce); the residual checked globally;
 // - evaluation: each rank's points from its owned and halo (source, coefficient) pairs, through a
 //   SpaceMap made from that solution (the serial grid and loops).
 // Every member function is collective over the map's communicator.
@@ -31,10 +31,13 @@
 namespace csrbf::mpi {
 
 /// The distributed solver. Auto: MUMPS for small systems (kDirectBelow controls or fewer), else CG,
-/// which gives way to MUMPS where it has not converged in kCgMaxIterations steps: the serial rule
-/// (fit_options.hpp) where the envelope solver, which has no distributed form, is MUMPS.
+/// which gives way to MUMPS where its residual's rate predicts more than kMumpsCgSteps x (N / 1e5)
+/// steps (measured here: MUMPS's factorisation cost 226-280 CG steps at N = 1e5-2e5), or where it
+/// has not converged in kCgMaxIterations: the serial rule (fit_options.hpp) with MUMPS for the
+/// direct solvers, the envelope solver having no distributed form.
 enum class DistributedSolver { Auto, Mumps, Cg };
 inline constexpr std::size_t kDirectBelow = 20000;
+inline constexpr double kMumpsCgSteps = 250.0;
 /// "auto", "mumps", "cg"; the serial solver names map to them: envelope, eigen and cholmod to mumps.
 std::optional<DistributedSolver> parse_distributed_solver(const std::string& name) noexcept;
 std::string distributed_solver_name(DistributedSolver s);
