@@ -6,10 +6,13 @@
 // SpaceMap (what csrbf runs without mpirun) in the same process, as the baseline.
 //
 //   mpirun -np K build/bin/bench_mpi --controls 1e5 --points 1e7 [--neighbours 20] [--repeat 3]
-//       [--weak] [--threads 1] [--solver auto|mumps|cg]
+//       [--weak] [--threads 1] [--solver auto|mumps|cg] [--order coherent|random]
 //
 // --weak: N and M are per rank (the totals grow with K). --threads: TBB threads per rank (1: the
-// ranks alone make the parallelism, as on a cluster of single-core ranks).
+// ranks alone make the parallelism, as on a cluster of single-core ranks). --order: the points in
+// a mesh's order (coherent: numbered layer by layer, as a structured or renumbered mesh is; the
+// default) or in no order at all (random: the evaluation then gathers them by cell first, which
+// costs memory and time: docs/PERFORMANCE.md).
 #include "csrbf/mpi/distributed.hpp"
 #include "csrbf/mpi/runtime.hpp"
 #include "csrbf/space_map.hpp"
@@ -25,6 +28,7 @@
 #include <numbers>
 #include <random>
 #include <string>
+#include <tuple>
 #include <vector>
 
 using namespace csrbf;
@@ -54,7 +58,7 @@ int main(int argc, char** argv) {
   mpi::Runtime rt(&argc, &argv);
   double n_arg = 1e5, m_arg = 1e6, neighbours = 20;
   int repeat = 3, threads = 1;
-  bool weak = false;
+  bool weak = false, coherent = true;
   std::string solver_name = "auto";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -79,7 +83,14 @@ int main(int argc, char** argv) {
       solver_name = next();
     else if (a == "--weak")
       weak = true;
-    else {
+    else if (a == "--order") {
+      const std::string v = next();
+      if (v != "coherent" && v != "random") {
+        if (rt.rank() == 0) std::cerr << "bench_mpi: --order coherent or random\n";
+        MPI_Abort(MPI_COMM_WORLD, 2);
+      }
+      coherent = v == "coherent";
+    } else {
       if (rt.rank() == 0) std::cerr << "bench_mpi: unknown option " << a << "\n";
       MPI_Abort(MPI_COMM_WORLD, 2);
     }
@@ -103,6 +114,14 @@ int main(int argc, char** argv) {
   for (auto& p : x) p = Vec3(slab(rng), u(rng), u(rng));
   FitOptions o;
   o.radius = std::cbrt(3.0 * neighbours / (4.0 * std::numbers::pi * double(n_total)));
+  if (coherent) {  // numbered as a mesh: by layers of z, rows of y (4 R thick), then along x
+    const double h = 4 * o.radius;
+    std::sort(x.begin(), x.end(), [h](const Vec3& a, const Vec3& b) {
+      const auto ka = std::make_tuple(std::floor(a.z() / h), std::floor(a.y() / h), a.x());
+      const auto kb = std::make_tuple(std::floor(b.z() / h), std::floor(b.y() / h), b.x());
+      return ka < kb;
+    });
+  }
   o.memory_limit_bytes = 64.0 * (1ull << 30);
   std::vector<double> fit_s, eval_s;
   std::vector<mpi::RankStats> stats(static_cast<std::size_t>(k));
@@ -138,9 +157,10 @@ int main(int argc, char** argv) {
   }
   if (r == 0) {
     std::printf(
-        "{\"ranks\": %d, \"threads_per_rank\": %d, \"weak\": %s, \"controls\": %zu, \"points\": %zu, "
+        "{\"ranks\": %d, \"threads_per_rank\": %d, \"weak\": %s, \"order\": \"%s\", \"controls\": %zu, \"points\": "
+        "%zu, "
         "\"radius\": %.6g, \"solver\": \"%s\", \"iterations\": %zu, \"fit_s\": %.4f, \"evaluate_s\": %.4f",
-        k, threads, weak ? "true" : "false", n_total, m_total, o.radius,
+        k, threads, weak ? "true" : "false", coherent ? "coherent" : "random", n_total, m_total, o.radius,
         mpi::distributed_solver_name(dstats.solver).c_str(), dstats.iterations, median(fit_s), median(eval_s));
     if (k == 1) std::printf(", \"serial_fit_s\": %.4f, \"serial_evaluate_s\": %.4f", serial_fit, serial_eval);
     std::printf(", \"per_rank\": [");

@@ -155,32 +155,38 @@ void print_outcome(const MorphArgs& a, const morph::MorphOutcome& o, const std::
 }  // namespace
 
 int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
-  namespace fs = std::filesystem;
   const auto solver = mpi::parse_distributed_solver(a.solver).value_or(mpi::DistributedSolver::Auto);
   const auto print_error = [&](const std::string& what, int rank) {
     if (rt.rank() == 0)
       std::cerr << "csrbf: error: " << what << (rank > 0 ? " (rank " + std::to_string(rank) + ")" : "") << '\n';
   };
-  std::error_code ec;
-  const int processors = fs::is_directory(a.mesh, ec) ? mpi::processor_folders(a.mesh) : 0;
-  if (processors > 0) {
-    // A decomposed OpenFOAM case: every rank its processor folder.
+  mpi::Decomposition d;
+  try {
+    d = mpi::collectively(rt.comm(), [&] { return mpi::find_decomposition(a.mesh); });
+  } catch (const mpi::Failure& f) {
+    print_error(f.what(), f.rank());
+    return f.exit_code();
+  }
+  if (d.kind != mpi::Decomposition::Kind::None) {
+    // A decomposed mesh: every rank its processor folder, or its piece of a .pvtu.
+    const int parts = int(d.parts.size());
+    const std::string what = d.kind == mpi::Decomposition::Kind::OpenFoam ? " processor folders" : " pieces";
     try {
       mpi::collectively(rt.comm(), [&] {
-        if (processors != rt.size())
-          throw morph::JobError("morph: " + a.mesh + " is decomposed into " + std::to_string(processors) +
-                                " processor folders: run it with mpirun -np " + std::to_string(processors) + ", not " +
+        if (parts != rt.size())
+          throw morph::JobError("morph: " + a.mesh + " is decomposed into " + std::to_string(parts) + what +
+                                ": run it with mpirun -np " + std::to_string(parts) + ", not " +
                                 std::to_string(rt.size()));
         if (a.greedy)
           throw morph::JobError(
-              "morph: --greedy picks controls worst first over the whole boundary; a decomposed case "
+              "morph: --greedy picks controls worst first over the whole boundary; a decomposed mesh "
               "is morphed with all its boundary points (leave --greedy out)");
       });
     } catch (const mpi::Failure& f) {
       print_error(f.what(), -1);
       return 2;
     }
-    mpi::DecomposedBackend backend(rt.comm(), solver, a.mesh);
+    mpi::DecomposedBackend backend(rt.comm(), solver, std::move(d));
     morph::MorphJob job = job_of(a);
     job.backend = &backend;
     try {

@@ -74,6 +74,10 @@ std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions&
   if (ext == ".vtu" || ext == ".vtk") return detail::open_vtk(path, options);
   if (ext == ".msh") return detail::open_gmsh(path, options);
   if (ext == ".cgns") return detail::open_cgns(path, options);
+  if (ext == ".pvtu" && fs::exists(path, ec))
+    throw io::FileError(path.string() +
+                        ": a parallel VTK file: its pieces are morphed by as many MPI ranks (mpirun -np PIECES "
+                        "csrbf morph ...), or a piece (.vtu) alone");
   if (!fs::exists(path, ec)) throw io::FileError(path.string() + ": no such file or folder");
   throw io::FileError(path.string() + ": unknown volume mesh format '" + ext + "' (csrbf morph reads " +
                       kVolumeFormats + ")");

@@ -8,7 +8,9 @@
 #include "csrbf/mpi/runtime.hpp"
 
 #include <algorithm>
+#include <cctype>
 #include <climits>
+#include <fstream>
 #include <cstdio>
 #include <iostream>
 #include <numeric>
@@ -352,15 +354,49 @@ std::exception_ptr caught(F&& f) {
 
 }  // namespace
 
-int processor_folders(const fs::path& case_root) {
+Decomposition find_decomposition(const fs::path& mesh) {
+  Decomposition d;
   std::error_code ec;
-  int n = 0;
-  while (fs::is_directory(case_root / ("processor" + std::to_string(n)), ec)) ++n;
-  return n;
+  if (fs::is_directory(mesh, ec)) {
+    for (int n = 0;; ++n) {
+      const fs::path p = mesh / ("processor" + std::to_string(n));
+      if (!fs::is_directory(p, ec)) break;
+      d.parts.push_back(p);
+    }
+    if (!d.parts.empty()) {
+      d.kind = Decomposition::Kind::OpenFoam;
+      d.root = mesh;
+    }
+    return d;
+  }
+  std::string ext = mesh.extension().string();
+  for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".pvtu") return d;
+  d.kind = Decomposition::Kind::Pvtu;
+  d.root = mesh;
+  d.pvtu_text = io::read_input(mesh, "a parallel VTK file", 64.0 * (1 << 20));
+  // <Piece Source="name.vtu"/>, the quotes either kind.
+  const std::string& t = d.pvtu_text;
+  for (std::size_t at = t.find("<Piece"); at != std::string::npos; at = t.find("<Piece", at + 6)) {
+    const std::size_t end = t.find('>', at);
+    const std::size_t src = t.find("Source", at);
+    if (end == std::string::npos || src == std::string::npos || src > end)
+      throw io::FileError(mesh.string() + ": a <Piece> without a Source attribute");
+    const std::size_t q = t.find_first_of("\"'", src);
+    const std::size_t q2 = q == std::string::npos ? q : t.find(t[q], q + 1);
+    if (q == std::string::npos || q2 == std::string::npos || q2 > end)
+      throw io::FileError(mesh.string() + ": a <Piece> whose Source is not quoted");
+    const fs::path piece = t.substr(q + 1, q2 - q - 1);
+    if (piece.empty() || piece.is_absolute())
+      throw io::FileError(mesh.string() + ": piece '" + piece.string() + "': a path relative to the .pvtu's folder");
+    d.parts.push_back(mesh.parent_path() / piece);
+  }
+  if (d.parts.empty()) throw io::FileError(mesh.string() + ": no <Piece Source=...> entries");
+  return d;
 }
 
-DecomposedBackend::DecomposedBackend(MPI_Comm comm, DistributedSolver solver, fs::path case_root)
-    : comm_(comm), solver_(solver), root_(std::move(case_root)) {}
+DecomposedBackend::DecomposedBackend(MPI_Comm comm, DistributedSolver solver, Decomposition decomposition)
+    : comm_(comm), solver_(solver), d_(std::move(decomposition)) {}
 
 std::unique_ptr<morph::FittedMapping> DecomposedBackend::fit(std::span<const Vec3> sources,
                                                              std::span<const Vec3> targets, const FitOptions& options,
@@ -388,26 +424,30 @@ void DecomposedBackend::agree(std::exception_ptr local) { mpi::agree(comm_, loca
 fs::path DecomposedBackend::mesh_path(const fs::path&) {
   int rank = 0;
   MPI_Comm_rank(comm_, &rank);
-  return root_ / ("processor" + std::to_string(rank));
+  return d_.parts.at(std::size_t(rank));
 }
 
 void DecomposedBackend::write_copy(const morph::VolumeFile& file, std::span<const Vec3> points, const fs::path& out) {
+  if (d_.kind == Decomposition::Kind::Pvtu) {
+    write_pieces_copy(file, points, out);
+    return;
+  }
   int rank = 0;
   MPI_Comm_rank(comm_, &rank);
   std::unique_ptr<io::Partial> partial;
   std::string where;
   agree(caught([&] {
-    if (!file.foam()) throw io::FileError("a decomposed mesh is an OpenFOAM case");
+    if (!file.foam()) throw io::FileError("a decomposed OpenFOAM case has OpenFOAM parts");
     if (rank != 0) return;
     std::error_code ec;
-    const fs::path root = fs::weakly_canonical(root_, ec), target = fs::weakly_canonical(fs::absolute(out), ec);
+    const fs::path root = fs::weakly_canonical(d_.root, ec), target = fs::weakly_canonical(fs::absolute(out), ec);
     const auto [r_end, t_it] = std::mismatch(root.begin(), root.end(), target.begin(), target.end());
     if (r_end == root.end())
-      throw io::FileError("cannot write '" + out.string() + "': it is inside the case '" + root_.string() +
+      throw io::FileError("cannot write '" + out.string() + "': it is inside the case '" + d_.root.string() +
                           "' being copied");
     partial = std::make_unique<io::Partial>(out, io::Partial::Kind::Folder);
-    fs::copy(root_, partial->path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
-    if (ec) throw io::FileError("cannot copy '" + root_.string() + "' to '" + out.string() + "': " + ec.message());
+    fs::copy(d_.root, partial->path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
+    if (ec) throw io::FileError("cannot copy '" + d_.root.string() + "' to '" + out.string() + "': " + ec.message());
     where = partial->path().string();
   }));
   long long n = static_cast<long long>(where.size());
@@ -415,28 +455,112 @@ void DecomposedBackend::write_copy(const morph::VolumeFile& file, std::span<cons
   where.resize(std::size_t(n));
   MPI_Bcast(where.data(), int(n), MPI_CHAR, 0, comm_);
   agree(caught([&] {
-    morph::write_openfoam_points_into(*file.foam(), points, fs::path(where) / ("processor" + std::to_string(rank)));
+    morph::write_openfoam_points_into(*file.foam(), points, fs::path(where) / d_.parts[std::size_t(rank)].filename());
   }));
   agree(caught([&] {
     if (rank == 0) partial->commit_new(out);
   }));
 }
 
+/// A .pvtu's copy: out (a new .pvtu) and a new folder beside it named after it (out without its
+/// extension) that holds the pieces, each written by its rank; rank 0 writes the .pvtu last, its
+/// text the input's with the pieces' new paths. Both appear only when every piece is written.
+void DecomposedBackend::write_pieces_copy(const morph::VolumeFile& file, std::span<const Vec3> points,
+                                          const fs::path& out) {
+  int rank = 0;
+  MPI_Comm_rank(comm_, &rank);
+  const fs::path folder = out.parent_path() / out.stem();
+  std::unique_ptr<io::Partial> partial;
+  std::string where;
+  agree(caught([&] {
+    if (rank != 0) return;
+    std::string ext = out.extension().string();
+    for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+    if (ext != ".pvtu") throw morph::JobError("output " + out.string() + ": a .pvtu's copy is a .pvtu");
+    std::error_code ec;
+    if (fs::symlink_status(folder, ec).type() != fs::file_type::not_found)
+      throw io::FileError("cannot write '" + out.string() + "': its pieces' folder '" + folder.string() + "' exists");
+    partial = std::make_unique<io::Partial>(folder, io::Partial::Kind::Folder);
+    where = partial->path().string();
+  }));
+  long long n = static_cast<long long>(where.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm_);
+  where.resize(std::size_t(n));
+  MPI_Bcast(where.data(), int(n), MPI_CHAR, 0, comm_);
+  agree(caught([&] { file.write_copy(points, fs::path(where) / d_.parts[std::size_t(rank)].filename()); }));
+  agree(caught([&] {
+    if (rank != 0) return;
+    // The input's text with each Source replaced, in order.
+    std::string text = d_.pvtu_text;
+    std::size_t k = 0;
+    for (std::size_t at = text.find("<Piece"); at != std::string::npos; at = text.find("<Piece", at + 6), ++k) {
+      const std::size_t src = text.find("Source", at);
+      const std::size_t q = text.find_first_of("\"'", src);
+      const std::size_t q2 = text.find(text[q], q + 1);
+      const std::string name = (fs::path(folder.filename()) / d_.parts[k].filename()).generic_string();
+      text.replace(q + 1, q2 - q - 1, name);
+    }
+    io::Partial header(out, io::Partial::Kind::File);
+    {
+      std::ofstream o(header.path(), std::ios::binary | std::ios::trunc);
+      o << text;
+      o.close();
+      std::error_code ec;
+      if (!o || fs::file_size(header.path(), ec) != text.size())
+        throw io::FileError("cannot write '" + out.string() + "': the disk did not take all of it");
+    }
+    partial->commit_new(folder);
+    try {
+      header.commit_new(out);
+    } catch (...) {
+      std::error_code ec;
+      fs::remove_all(folder, ec);  // csrbf's own pieces, just made
+      throw;
+    }
+  }));
+}
+
 void DecomposedBackend::write_in_place(const morph::VolumeFile& file, std::span<const Vec3> points) {
-  // Every part staged beside its points, then each renamed over them: a part that cannot be written
+  // Every part staged beside its file, then each renamed over it: a part that cannot be written
   // leaves every part as it was.
   fs::path staged;
   const std::exception_ptr e = caught([&] {
-    if (!file.foam()) throw io::FileError("a decomposed mesh is an OpenFOAM case");
-    staged = morph::stage_openfoam_points(*file.foam(), points);
+    if (file.foam()) {
+      staged = morph::stage_openfoam_points(*file.foam(), points);
+      return;
+    }
+    int rank = 0;
+    MPI_Comm_rank(comm_, &rank);
+    const fs::path& piece = d_.parts.at(std::size_t(rank));
+    staged = piece.parent_path() / (".csrbf-new-" + piece.filename().string());
+    std::error_code ec;
+    fs::remove(staged, ec);  // a stale one of csrbf's, from a run that was killed
+    file.write_copy(points, staged);
   });
+  const auto discard = [&] {
+    std::error_code ec;
+    if (!staged.empty()) fs::remove(staged, ec);
+  };
   try {
     agree(e);
   } catch (...) {
-    if (!staged.empty()) morph::discard_openfoam_points(staged);
+    discard();
     throw;
   }
-  agree(caught([&] { morph::commit_openfoam_points(*file.foam(), staged); }));
+  agree(caught([&] {
+    if (file.foam()) {
+      morph::commit_openfoam_points(*file.foam(), staged);
+      return;
+    }
+    int rank = 0;
+    MPI_Comm_rank(comm_, &rank);
+    std::error_code ec;
+    fs::rename(staged, d_.parts.at(std::size_t(rank)), ec);
+    if (ec) {
+      discard();
+      throw io::FileError("cannot write '" + d_.parts.at(std::size_t(rank)).string() + "': " + ec.message());
+    }
+  }));
 }
 
 std::vector<RankStats> DecomposedBackend::rank_stats() { return gather_stats(comm_, last_); }

@@ -1,6 +1,7 @@
-"""mpirun csrbf morph|deform judged against the serial program and by OpenFOAM's own tools:
+"""mpirun csrbf morph|deform judged against the serial program and by OpenFOAM's own tools and VTK:
 decomposePar (simple and hierarchical; Debian's OpenFOAM has no scotch), mpirun -np K csrbf morph,
-reconstructParMesh, checkMesh; the distributed points equal the serial morph's to 1e-10 of the
+reconstructParMesh, checkMesh; .pvtu pieces, a rank each; the distributed points equal the serial
+morph's to 1e-10 of the
 largest displacement; a single mesh morphed and deformed from rank 0; a failing input on one rank
 only; the wrong number of ranks.
 
@@ -184,10 +185,14 @@ class Decomposed(unittest.TestCase):
         r = run(MPIRUN + ["2", CLI, "morph", case, "--in-place", "--motion", self.path("motion.json")])
         self.assertEqual(r.returncode, 0, r.stderr)
         for k in (0, 1):
-            for f in ("points", "faces", "owner", "neighbour", "boundary"):
+            for f in ("faces", "owner", "neighbour", "boundary"):
                 a = open(os.path.join(case, "processor%d/constant/polyMesh" % k, f), "rb").read()
                 b = open(os.path.join(copy, "processor%d/constant/polyMesh" % k, f), "rb").read()
                 self.assertEqual(a, b, "processor%d %s" % (k, f))
+            # The points equal the copy's to rounding (MUMPS need not add in the same order twice).
+            a = points(os.path.join(case, "processor%d/constant/polyMesh" % k))
+            b = points(os.path.join(copy, "processor%d/constant/polyMesh" % k))
+            self.assertLess(np.abs(a - b).max(), 1e-14)
             self.assertEqual(before[k], open(os.path.join(case, "processor%d/constant/polyMesh/faces" % k), "rb").read())
         self.assertEqual([f for f in os.listdir(os.path.join(case, "processor1/constant/polyMesh")) if "csrbf" in f], [])
 
@@ -229,6 +234,114 @@ class Decomposed(unittest.TestCase):
         self.assertEqual(r.returncode, 2, r.stderr)
         self.assertIn("mpirun -np 2", r.stderr)
         self.assertFalse(os.path.exists(self.path("out")))
+
+    def box_pieces(self, parts):
+        """A box of hexahedra (12 x 6 x 4 cells) as one .vtu and as a .pvtu of `parts` slabs of
+        cells (their shared points repeated in each), with a point array "patch": 1 on the bottom,
+        2 on the top."""
+        import vtk
+        from vtk.util import numpy_support as ns
+        nx, ny, nz, h = 12, 6, 4, 0.1
+
+        def grid(i0, i1):
+            pts = [(i * h, j * h, k * h) for k in range(nz + 1) for j in range(ny + 1) for i in range(i0, i1 + 1)]
+            w = i1 - i0 + 1
+            idx = lambda i, j, k: (i - i0) + w * (j + (ny + 1) * k)
+            g = vtk.vtkUnstructuredGrid()
+            p = vtk.vtkPoints()
+            p.SetData(ns.numpy_to_vtk(np.array(pts, dtype=float), deep=True))
+            g.SetPoints(p)
+            for k in range(nz):
+                for j in range(ny):
+                    for i in range(i0, i1):
+                        ids = [idx(i, j, k), idx(i + 1, j, k), idx(i + 1, j + 1, k), idx(i, j + 1, k),
+                               idx(i, j, k + 1), idx(i + 1, j, k + 1), idx(i + 1, j + 1, k + 1), idx(i, j + 1, k + 1)]
+                        g.InsertNextCell(vtk.VTK_HEXAHEDRON, 8, ids)
+            z = np.array(pts)[:, 2]
+            patch = np.where(z == 0, 1, np.where(np.isclose(z, nz * h), 2, 0)).astype(np.int32)
+            a = ns.numpy_to_vtk(patch, deep=True)
+            a.SetName("patch")
+            g.GetPointData().AddArray(a)
+            return g
+
+        def write(g, path):
+            w = vtk.vtkXMLUnstructuredGridWriter()
+            w.SetFileName(path)
+            w.SetInputData(g)
+            w.SetDataModeToBinary()
+            assert w.Write() == 1
+
+        whole = self.path("box.vtu")
+        write(grid(0, nx), whole)
+        os.makedirs(self.path("box"))
+        cuts = [round(nx * r / parts) for r in range(parts + 1)]
+        pieces = []
+        for r in range(parts):
+            name = "box_%d.vtu" % r
+            write(grid(cuts[r], cuts[r + 1]), self.path("box", name))
+            pieces.append('    <Piece Source="box/%s"/>' % name)
+        with open(self.path("box.pvtu"), "w") as f:
+            f.write('<?xml version="1.0"?>\n<VTKFile type="PUnstructuredGrid" version="0.1" byte_order="LittleEndian">\n'
+                    '  <PUnstructuredGrid GhostLevel="0">\n    <PPointData><PDataArray type="Int32" Name="patch"/>'
+                    '</PPointData>\n    <PPoints><PDataArray type="Float64" NumberOfComponents="3"/></PPoints>\n'
+                    + "\n".join(pieces) + '\n  </PUnstructuredGrid>\n</VTKFile>\n')
+        with open(self.path("box.json"), "w") as f:
+            json.dump({"radius": 0.35, "kernel": "c2", "patch_array": "patch",
+                       "patches": {"1": {"translate": [0.01, 0, 0.03]}, "2": "fixed"}}, f)
+        return whole
+
+    def vtu_points(self, path):
+        import vtk
+        from vtk.util import numpy_support as ns
+        r = vtk.vtkXMLUnstructuredGridReader()
+        r.SetFileName(path)
+        r.Update()
+        return ns.vtk_to_numpy(r.GetOutput().GetPoints().GetData()).astype(float)
+
+    def test_pvtu_pieces_equal_the_serial_morph(self):
+        for parts in (2, 3):
+            with self.subTest(pieces=parts):
+                shutil.rmtree(self.tmp)
+                os.makedirs(self.tmp)
+                whole = self.box_pieces(parts)
+                r = run([CLI, "morph", whole, "-o", self.path("serial.vtu"), "--motion", self.path("box.json")])
+                self.assertEqual(r.returncode, 0, r.stderr)
+                base, want = self.vtu_points(whole), self.vtu_points(self.path("serial.vtu"))
+                moved = {tuple(p): q for p, q in zip(base, want)}
+                r = run(MPIRUN + [str(parts), CLI, "morph", self.path("box.pvtu"), "-o", self.path("out.pvtu"),
+                                  "--motion", self.path("box.json"), "--json"])
+                self.assertEqual(r.returncode, 0, r.stdout[-2000:] + r.stderr[-3000:])
+                self.assertEqual(json.loads(r.stdout)["distributed"]["ranks"], parts)
+                largest = np.abs(want - base).max()
+                self.assertGreater(largest, 0.02)
+                with open(self.path("out.pvtu")) as f:
+                    self.assertEqual(f.read().count('Source="out/box_'), parts)
+                for k in range(parts):
+                    before = self.vtu_points(self.path("box", "box_%d.vtu" % k))
+                    after = self.vtu_points(self.path("out", "box_%d.vtu" % k))
+                    expect = np.array([moved[tuple(p)] for p in before])
+                    self.assertLess(np.abs(after - expect).max(), 1e-10 * largest)
+                # In place: each piece rewritten, equal to the copy's (to rounding: MUMPS's parallel
+                # factorisation need not add in the same order twice).
+                r = run(MPIRUN + [str(parts), CLI, "morph", self.path("box.pvtu"), "--in-place",
+                                  "--motion", self.path("box.json")])
+                self.assertEqual(r.returncode, 0, r.stderr)
+                for k in range(parts):
+                    a = self.vtu_points(self.path("box", "box_%d.vtu" % k))
+                    b = self.vtu_points(self.path("out", "box_%d.vtu" % k))
+                    self.assertLess(np.abs(a - b).max(), 1e-12 * largest, (k, np.abs(a - b).max()))
+                self.assertEqual([f for f in os.listdir(self.path("box")) if "csrbf" in f], [])
+                # The wrong number of ranks, and a missing piece.
+                r = run(MPIRUN + [str(parts + 1), CLI, "morph", self.path("box.pvtu"), "-o", self.path("x.pvtu"),
+                                  "--motion", self.path("box.json")])
+                self.assertEqual(r.returncode, 2, r.stderr)
+                self.assertIn("mpirun -np %d" % parts, r.stderr)
+                os.remove(self.path("box", "box_1.vtu"))
+                r = run(MPIRUN + [str(parts), CLI, "morph", self.path("box.pvtu"), "-o", self.path("y.pvtu"),
+                                  "--motion", self.path("box.json")])
+                self.assertEqual(r.returncode, 1, r.stderr)
+                self.assertIn("box_1.vtu", r.stderr)
+                self.assertFalse(os.path.exists(self.path("y.pvtu")) or os.path.exists(self.path("y")))
 
     def test_a_single_mesh_is_spread_from_rank_zero(self):
         plain = self.airfoil("plain")

@@ -17,6 +17,7 @@
 #include <memory>
 #include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace csrbf::mpi {
@@ -56,10 +57,22 @@ class ScatterBackend final : public morph::MorphBackend {
 /// returns the exit code it finished with.
 int serve(MPI_Comm comm);
 
-/// One rank's part of a decomposed OpenFOAM case. Collective: every rank runs the same job.
+/// How a mesh is split into parts, one a rank: an OpenFOAM case's processor folders
+/// (decomposePar), or the pieces a .pvtu file lists (each a .vtu).
+struct Decomposition {
+  enum class Kind { None, OpenFoam, Pvtu } kind = Kind::None;
+  std::filesystem::path root;                ///< the case folder, or the .pvtu file
+  std::vector<std::filesystem::path> parts;  ///< processor folders, or piece files, in rank order
+  std::string pvtu_text;                     ///< the .pvtu file's own text
+};
+/// The decomposition of mesh: None where it is a single mesh. A .pvtu is read whole (it is small)
+/// and its pieces' paths resolved against its folder; throws io::FileError for a broken one.
+Decomposition find_decomposition(const std::filesystem::path& mesh);
+
+/// One rank's part of a decomposed mesh. Collective: every rank runs the same job.
 class DecomposedBackend final : public morph::MorphBackend {
  public:
-  DecomposedBackend(MPI_Comm comm, DistributedSolver solver, std::filesystem::path case_root);
+  DecomposedBackend(MPI_Comm comm, DistributedSolver solver, Decomposition decomposition);
   std::unique_ptr<morph::FittedMapping> fit(std::span<const Vec3> sources, std::span<const Vec3> targets,
                                             const FitOptions& options, std::span<const std::uint64_t> ids) override;
   bool part() const override { return true; }
@@ -75,16 +88,13 @@ class DecomposedBackend final : public morph::MorphBackend {
   const DistributedStats& stats() const noexcept { return stats_; }
 
  private:
+  void write_pieces_copy(const morph::VolumeFile& file, std::span<const Vec3> points, const std::filesystem::path& out);
   MPI_Comm comm_;
   DistributedSolver solver_;
-  std::filesystem::path root_;
+  Decomposition d_;
   RankStats last_;  // the latest fit's figures, kept by its mapping
   DistributedStats stats_;
 };
-
-/// The processor folders of a decomposed case (processor0 ... processorN-1), checked to be
-/// consecutive; 0 when case_root has none.
-int processor_folders(const std::filesystem::path& case_root);
 
 /// An exception's exit code: 2 for a usage error (csrbf::morph::JobError), 1 otherwise.
 int exit_code_of(const std::exception_ptr& e);
