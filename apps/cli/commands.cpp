@@ -1,11 +1,28 @@
 #include "commands.hpp"
 
+#include "animate.hpp"
+#include "csrbf/names.hpp"
+
 #include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
 
 namespace csrbf::cli {
+
+std::vector<std::string> solver_choices() {
+  std::vector<std::string> v = names<Solver>();
+  v.push_back("mumps");
+  return v;
+}
+
+Solver serial_solver(const std::string& name) {
+  if (const auto s = parse_name<Solver>(name)) return *s;
+  throw UsageError("--solver " + name +
+                   ": MUMPS is the distributed solver (mpirun -np K with K > 1); on one process "
+                   "the solvers are " +
+                   names_text<Solver>());
+}
 
 /// A finite number in [lo, hi]; NaN and infinities are refused (CLI::Range lets NaN through).
 CLI::Validator finite_in(double lo, double hi, const std::string& what) {

@@ -1,5 +1,8 @@
 #pragma once
 
+#include <string>
+#include <vector>
+
 #include "csrbf/folds.hpp"
 #include "csrbf/space_map.hpp"
 
@@ -9,6 +12,11 @@
 #include <string>
 
 namespace csrbf::cli {
+
+/// --solver's choices: the serial solvers, and "mumps" (the distributed one, under mpirun).
+std::vector<std::string> solver_choices();
+/// The serial solver a --solver names; "mumps" is a usage error on one process.
+Solver serial_solver(const std::string& name);
 
 /// A finite number in [lo, hi]; NaN and infinities are refused (CLI::Range lets NaN through).
 CLI::Validator finite_in(double lo, double hi, const std::string& what);

@@ -82,7 +82,7 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
                   "Solver: auto (the envelope while small, else conjugate gradients, which give way to the envelope "
                   "or CHOLMOD where those are predicted faster), envelope (paper), eigen, cholmod, cg (conjugate "
                   "gradients; CHOLMOD takes over if they have not converged in 3000 steps)")
-      ->transform(CLI::IsMember(csrbf::names<csrbf::Solver>(), CLI::ignore_case))
+      ->transform(CLI::IsMember(csrbf::cli::solver_choices(), CLI::ignore_case))
       ->capture_default_str();
 }
 
@@ -100,7 +100,8 @@ struct FitInput {
 
 /// The controls or deformation file and the fit's options; a deformation's active area is checked
 /// against `mesh` (when given) before the fit, which may take long.
-FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, const std::string& mesh_name) {
+FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, const std::string& mesh_name,
+                        bool distributed = false) {
   csrbf::io::Controls controls;
   csrbf::FitOptions o;
   std::optional<csrbf::io::ActiveArea> area;
@@ -121,7 +122,7 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
   for (const auto& w : controls.warnings) std::cerr << "csrbf: warning: " << w << '\n';
   o.ordering = *csrbf::parse_ordering(a.ordering);
   o.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
-  o.solver = *csrbf::parse_solver(a.solver);
+  o.solver = distributed && a.solver == "mumps" ? csrbf::Solver::Auto : csrbf::cli::serial_solver(a.solver);
   if (o.ordering != csrbf::Ordering::Auto && (o.solver == csrbf::Solver::Eigen || o.solver == csrbf::Solver::Cholmod))
     throw csrbf::cli::UsageError("--ordering " + a.ordering + ": solver '" + a.solver +
                                  "' orders the matrix itself; --ordering applies to the envelope solver and cg");
@@ -179,7 +180,7 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
                                    "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
     const auto t0 = std::chrono::steady_clock::now();
     auto mesh = csrbf::io::MeshDocument::load(da.mesh_in, fa.memory_limit_gib * double(1ull << 30));
-    FitInput in = read_fit_input(fa, &mesh, da.mesh_in);
+    FitInput in = read_fit_input(fa, &mesh, da.mesh_in, true);
     auto& p = mesh.positions();
     std::vector<csrbf::Vec3> part;  // the active area's vertices, or all
     if (in.area)
@@ -347,29 +348,36 @@ int main(int argc, char** argv) {
   auto* morph = csrbf::cli::add_morph_command(app, morph_args);
 
 #ifdef CSRBF_WITH_MPI
-  // Under mpirun with more than one rank: every rank parses, rank 0 alone speaks.
-  const int ranks = csrbf::mpi::launched_ranks();
-  const bool quiet = ranks > 1 && csrbf::mpi::launched_rank() != 0;
+  // Under mpirun with more than one rank: MPI starts first; every rank parses, rank 0 alone speaks,
+  // and the others wait for it before they leave (else mpirun may end rank 0 before it has spoken).
+  std::optional<csrbf::mpi::Runtime> rt;
+  if (csrbf::mpi::launched_ranks() > 1) rt.emplace(&argc, &argv);
+  const bool quiet = rt && rt->rank() != 0;
+  const auto leave = [&](int code) {
+    if (rt) MPI_Barrier(rt->comm());
+    return code;
+  };
 #else
   const bool quiet = false;
+  const auto leave = [](int code) { return code; };
 #endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     std::ostringstream sink;
     const int code = quiet ? app.exit(e, sink, sink) : app.exit(e);
-    return code == 0 ? 0 : 2;
+    return leave(code == 0 ? 0 : 2);
   }
 #ifdef CSRBF_WITH_MPI
-  if (ranks > 1) {
+  if (rt) {
     if (!*deform && !*morph) {
       if (!quiet)
         std::cerr << "csrbf: error: " << app.get_subcommands().front()->get_name()
                   << " runs on one process; under mpirun with more than one rank, csrbf runs deform and morph\n";
-      return 2;
+      return leave(2);
     }
-    csrbf::mpi::Runtime rt(&argc, &argv);
-    return *deform ? deform_distributed(rt, deform_args, da) : csrbf::cli::run_morph_distributed(morph_args, rt);
+    return leave(*deform ? deform_distributed(*rt, deform_args, da)
+                         : csrbf::cli::run_morph_distributed(morph_args, *rt));
   }
 #endif
 

@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <filesystem>
 #include <iostream>
 #ifdef CSRBF_WITH_MPI
 #include "csrbf/mpi/backends.hpp"
@@ -49,7 +50,7 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
       ->check(finite_in(0.0, 1.0, "--phase"))
       ->capture_default_str();
   cmd->add_option("--solver", a.solver, "Solver of the fit: auto, envelope, eigen, cholmod, cg")
-      ->transform(CLI::IsMember(csrbf::names<csrbf::Solver>(), CLI::ignore_case))
+      ->transform(CLI::IsMember(solver_choices(), CLI::ignore_case))
       ->capture_default_str();
   cmd->add_option("--memory-limit", a.memory_limit_gib, "Refuse fits that would need more than this many GiB")
       ->check(finite_in(1e-6, 1e6, "--memory-limit"))
@@ -61,7 +62,7 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
 
 namespace {
 
-morph::MorphJob job_of(const MorphArgs& a) {
+morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
   morph::MorphJob job;
   job.mesh = a.mesh;
   job.motion = a.motion;
@@ -72,7 +73,7 @@ morph::MorphJob job_of(const MorphArgs& a) {
   if (!a.kernel.empty()) job.kernel = *parse_name<Kernel>(a.kernel);
   if (!a.polynomial.empty()) job.polynomial = *parse_name<Polynomial>(a.polynomial);
   job.greedy = a.greedy;
-  job.solver = *parse_name<Solver>(a.solver);
+  job.solver = distributed && a.solver == "mumps" ? Solver::Auto : serial_solver(a.solver);
   job.phase = a.phase;
   job.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
   job.force = a.force;
@@ -80,12 +81,13 @@ morph::MorphJob job_of(const MorphArgs& a) {
 }
 
 /// The exit status of an outcome: 1 where the morph inverts cells and nothing was written.
-int report_inversion(const MorphArgs& a, const morph::MorphOutcome& o) {
+int report_inversion(const MorphArgs& a, const morph::MorphOutcome& o, bool speak = true) {
   if (o.inverts && !o.written) {
-    std::cerr << "csrbf: error: the morph inverts " << o.after.inverted_cells() - o.before.inverted_cells()
-              << " cells (" << o.after.inverted_cells() << " inverted, " << o.before.inverted_cells()
-              << " before); the largest phase <= " << a.phase << " that inverts none is " << o.safe_phase
-              << "; nothing written (--force writes anyway)\n";
+    if (speak)
+      std::cerr << "csrbf: error: the morph inverts " << o.after.inverted_cells() - o.before.inverted_cells()
+                << " cells (" << o.after.inverted_cells() << " inverted, " << o.before.inverted_cells()
+                << " before); the largest phase <= " << a.phase << " that inverts none is " << o.safe_phase
+                << "; nothing written (--force writes anyway)\n";
     return 1;
   }
   return 0;
@@ -95,6 +97,13 @@ int report_inversion(const MorphArgs& a, const morph::MorphOutcome& o) {
 
 int run_morph(const MorphArgs& a) {
   const morph::MorphJob job = job_of(a);
+  {
+    std::error_code ec;
+    if (std::filesystem::is_directory(std::filesystem::path(a.mesh) / "processor0", ec))
+      std::cerr << "csrbf: warning: " << a.mesh
+                << " is decomposed (processor folders): one process morphs its constant/polyMesh and "
+                   "leaves the processor folders as they are; mpirun -np PROCESSORS csrbf morph morphs them\n";
+  }
   morph::MorphOutcome o;
   try {
     o = morph::run_job(job);
@@ -187,7 +196,13 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
       return 2;
     }
     mpi::DecomposedBackend backend(rt.comm(), solver, std::move(d));
-    morph::MorphJob job = job_of(a);
+    morph::MorphJob job;
+    try {
+      job = job_of(a, true);  // the same on every rank: its usage errors too
+    } catch (const UsageError& e) {
+      if (rt.rank() == 0) std::cerr << "csrbf: error: " << e.what() << '\n';
+      return 2;
+    }
     job.backend = &backend;
     try {
       const morph::MorphOutcome local = morph::run_job(job);
@@ -197,6 +212,7 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
       o.result.report.prescribed = std::size_t(backend.sum(double(local.result.report.prescribed)));
       o.result.report.moving = std::size_t(backend.sum(double(local.result.report.moving)));
       o.result.report.fixed = std::size_t(backend.sum(double(local.result.report.fixed)));
+      o.result.report.controls = backend.stats().controls;  // shared points once
       o.ms_read = backend.max(local.ms_read);
       o.ms_quality = backend.max(local.ms_quality);
       o.ms_write = backend.max(local.ms_write);
@@ -204,7 +220,7 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
       o.result.report.seconds_fit = backend.max(local.result.report.seconds_fit);
       o.result.report.seconds_evaluate = backend.max(local.result.report.seconds_evaluate);
       if (rt.rank() == 0) print_outcome(a, o, ranks, backend.stats(), "decomposed");
-      const int code = report_inversion(a, o);
+      const int code = report_inversion(a, o, rt.rank() == 0);
       return code;
     } catch (const mpi::Failure& f) {
       print_error(f.what(), f.rank());
@@ -220,7 +236,7 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
   mpi::ScatterBackend backend(rt.comm(), solver);
   int code = 0;
   try {
-    morph::MorphJob job = job_of(a);
+    morph::MorphJob job = job_of(a, true);
     job.backend = &backend;
     morph::MorphOutcome o;
     try {

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cctype>
 #include <exception>
+#include <limits>
 #include <numbers>
 #include <vector>
 #include <cmath>
@@ -105,10 +106,13 @@ std::exception_ptr caught(F&& f) {
 /// measured as a boundary face's.
 MeshQuality combine(MorphBackend& b, MeshQuality q) {
   if (!b.part()) return q;
+  // The same reductions on every part, whether it has cells of a kind or none (an empty processor).
   const auto sum = [&](std::size_t v) { return std::size_t(b.sum(double(v))); };
   const auto min = [&](double v) { return -b.max(-v); };
-  if (q.poly) {
-    PolyQuality& p = *q.poly;
+  const bool has_poly = b.max(q.poly ? 1.0 : 0.0) > 0, has_cells = b.max(q.cells ? 1.0 : 0.0) > 0;
+  if (has_poly) {
+    PolyQuality p = q.poly.value_or(PolyQuality{});
+    const bool mine = q.poly.has_value() && p.cells > 0;
     const double internal = b.sum(double(p.internal_faces));
     const double cos_sum =
         b.sum(std::cos(p.mean_non_orthogonality * std::numbers::pi / 180.0) * double(p.internal_faces));
@@ -122,13 +126,15 @@ MeshQuality combine(MorphBackend& b, MeshQuality q) {
     p.negative_volumes = sum(p.negative_volumes);
     p.bad_pyramids = sum(p.bad_pyramids);
     p.inverted_cells = sum(p.inverted_cells);
-    p.min_volume = min(p.min_volume);
+    p.min_volume = min(mine ? p.min_volume : std::numeric_limits<double>::infinity());
     p.total_volume = b.sum(p.total_volume);
+    q.poly = p;
   }
-  if (q.cells) {
-    CellQuality& c = *q.cells;
+  if (has_cells) {
+    CellQuality c = q.cells.value_or(CellQuality{});
+    const bool mine = q.cells.has_value() && c.cells > 0;
     const double n = b.sum(double(c.cells));
-    const double mean_sum = b.sum(c.mean_scaled_jacobian * double(c.cells));
+    const double mean_sum = b.sum(mine ? c.mean_scaled_jacobian * double(c.cells) : 0.0);
     c.cells = std::size_t(n);
     c.tetrahedra = sum(c.tetrahedra);
     c.hexahedra = sum(c.hexahedra);
@@ -136,9 +142,10 @@ MeshQuality combine(MorphBackend& b, MeshQuality q) {
     c.pyramids = sum(c.pyramids);
     c.triangles = sum(c.triangles);
     c.quads = sum(c.quads);
-    c.min_scaled_jacobian = min(c.min_scaled_jacobian);
+    c.min_scaled_jacobian = min(mine ? c.min_scaled_jacobian : 1.0);
     c.mean_scaled_jacobian = n > 0 ? mean_sum / n : 1.0;
     c.inverted_cells = sum(c.inverted_cells);
+    q.cells = c;
   }
   return q;
 }
@@ -231,8 +238,10 @@ MorphOutcome run_job(const MorphJob& job) {
   auto t_q = Clock::now();
   QualityMeter meter(mesh);
   o.before = combine(b, meter.measure(mesh.points));
-  if (o.before.cells) o.cells = o.before.cells->cells;  // the volume cells, not the boundary faces a file also holds
-  if (b.part()) o.cells = std::size_t(b.sum(double(o.cells)));
+  if (o.before.cells)
+    o.cells = o.before.cells->cells;  // the volume cells, not the boundary faces a file also holds
+  else if (b.part() && o.before.poly)
+    o.cells = o.before.poly->cells;  // every part's (combine)
   if (o.cells == 0) throw io::FileError(o.mesh + ": no cells (truncated, or not a volume mesh)");
   o.ms_quality = ms_since(t_q);
   try {

@@ -173,8 +173,11 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
     }
   }
   const auto number = [&](std::uint32_t p) { return mesh.point_ids.empty() ? std::uint64_t(p) : mesh.point_ids[p]; };
+  Prescribed out;
+  if (part) out.used.resize(motion.patches.size());
   for (std::size_t m = 0; m < motion.patches.size(); ++m) {
     const PatchMotion& pm = motion.patches[m];
+    if (part && pm.kind == PatchMotion::Kind::Displacements) out.used[m].assign(pm.given.size(), 0);
     const Patch* patch = mesh.patch(pm.patch);
     if (!patch)
       throw FileError(pm.where + ": the mesh has no patch '" + pm.patch + "'; its patches: " + patch_list(mesh));
@@ -186,7 +189,8 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
     if (pm.kind == PatchMotion::Kind::Displacements) {
       given.assign(patch->points.size(), Vec3::Constant(std::nan("")));
       std::vector<std::size_t> line(patch->points.size(), 0);
-      for (const auto& g : pm.given) {
+      for (std::size_t gi = 0; gi < pm.given.size(); ++gi) {
+        const auto& g = pm.given[gi];
         const std::string at = pm.file.string() + ":" + std::to_string(g.line) + ": ";
         std::uint64_t index = g.point;
         if (!mesh.point_ids.empty()) {  // the file's own numbers (Gmsh node tags)
@@ -203,6 +207,7 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
         }
         const auto it = std::lower_bound(patch->points.begin(), patch->points.end(), std::uint32_t(index));
         if ((it == patch->points.end() || *it != index) && part) continue;  // on this patch in another part
+        if (part) out.used[m][gi] = 1;
         if (it == patch->points.end() || *it != index)
           throw FileError(at + "point " + std::to_string(g.point) + " is not on patch '" + pm.patch + "'");
         const auto k = std::size_t(it - patch->points.begin());
@@ -246,7 +251,6 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
                         ": give the two patches the same motion at their shared points");
     }
   }
-  Prescribed out;
   for (std::size_t p = 0; p < np; ++p) {
     if (who[p] < 0) continue;
     out.points.push_back(std::uint32_t(p));
@@ -265,10 +269,22 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
     throw InvalidInput("the greedy tolerance must be a finite number >= 0, got " + io::format_number(options.greedy));
   Prescribed pres;
   b.agree(caught([&] { pres = prescribe(mesh, motion, b.part()); }));
-  if (b.part())
-    for (const PatchMotion& pm : motion.patches)
+  if (b.part()) {
+    for (std::size_t m = 0; m < motion.patches.size(); ++m) {
+      const PatchMotion& pm = motion.patches[m];
       if (b.max(double(mesh.patch(pm.patch)->points.size())) == 0)
         throw FileError(pm.where + ": patch '" + pm.patch + "' has no points");
+      if (pm.kind != PatchMotion::Kind::Displacements) continue;
+      // Each line of a displacements file must move a point of the patch in some part.
+      std::vector<double> used(pres.used[m].begin(), pres.used[m].end());
+      b.max(std::span<double>(used));
+      for (std::size_t gi = 0; gi < used.size(); ++gi)
+        if (used[gi] == 0)
+          throw FileError(pm.file.string() + ":" + std::to_string(pm.given[gi].line) + ": point " +
+                          std::to_string(pm.given[gi].point) + " is not a point of patch '" + pm.patch +
+                          "' in any part of the mesh (out of range, or on another patch)");
+    }
+  }
   MorphResult r;
   MorphReport& rep = r.report;
   rep.prescribed = pres.points.size();
@@ -283,6 +299,14 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   // The controls: the prescribed points, or in a 2-D case their projections on the mid-plane, each
   // pair of the two planes' points one control.
   const auto flat = flat_axis(mesh);
+  if (b.part()) {  // every part with points must see the same 2-D axis, or none
+    const double mine = mesh.points.empty() ? -1.0 : flat ? double(flat->axis + 1) : 0.0;
+    const double hi = b.max(mine), lo = -b.max(mine < 0 ? -1e9 : -mine);
+    if (hi != lo)
+      throw FileError(motion.file +
+                      ": the parts of the mesh disagree about being 2-D (an 'empty' patch with "
+                      "faces in some parts, not in others): decompose the case again");
+  }
   const double tol = 1e-12 * std::max(b.max(mesh_size(mesh)), 1e-300);
   const auto number = [&](std::uint32_t p) { return mesh.point_ids.empty() ? std::uint64_t(p) : mesh.point_ids[p]; };
   std::vector<Vec3> sources, targets;

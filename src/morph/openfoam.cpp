@@ -728,8 +728,23 @@ void write_bytes(const fs::path& file, const std::string& bytes) {
 /// file (a link in the case is replaced by a file, never written through).
 void place_points(const FoamCase& c, const std::string& bytes, const fs::path& copy_root) {
   std::error_code ec;
-  const fs::path rel = fs::relative(c.points_file.path, c.root, ec);
-  if (ec || rel.empty()) throw FileError("cannot place the points of '" + c.root.string() + "' in the copy");
+  // Lexically: the path as the case names it, links not followed (fs::relative would resolve them).
+  const fs::path rel = c.points_file.path.lexically_normal().lexically_relative(c.root.lexically_normal());
+  if (rel.empty() || *rel.begin() == "..")
+    throw FileError("cannot place the points of '" + c.root.string() + "' in the copy");
+  // A folder on the way that the copy kept as a link (a case whose polyMesh links to another case's)
+  // becomes a copy of what it links to: the new points must never go through it into the input.
+  fs::path at = copy_root;
+  for (auto it = rel.begin(); it != rel.end() && std::next(it) != rel.end(); ++it) {
+    at /= *it;
+    if (!fs::is_symlink(fs::symlink_status(at, ec))) continue;
+    const fs::path linked = fs::canonical(at, ec);
+    if (ec) throw FileError("cannot place the points in the copy: '" + at.string() + "' links to nowhere");
+    fs::remove(at, ec);  // the link in csrbf's own copy
+    if (!ec) fs::copy(linked, at, fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
+    if (ec)
+      throw FileError("cannot copy '" + linked.string() + "' (linked from the case) into the copy: " + ec.message());
+  }
   const fs::path copied = copy_root / rel;
   const fs::path fresh = copied.parent_path() / (".csrbf-new-" + copied.filename().string());
   write_bytes(fresh, bytes);

@@ -363,10 +363,40 @@ Decomposition find_decomposition(const fs::path& mesh) {
       if (!fs::is_directory(p, ec)) break;
       d.parts.push_back(p);
     }
-    if (!d.parts.empty()) {
-      d.kind = Decomposition::Kind::OpenFoam;
-      d.root = mesh;
+    // Every processor folder, consecutive, and as many as decomposePar was asked for.
+    std::size_t highest = 0;
+    bool any = false;
+    for (const auto& e : fs::directory_iterator(mesh, ec)) {
+      const std::string name = e.path().filename().string();
+      if (name.rfind("processor", 0) != 0 || name.size() == 9) continue;
+      const std::string digits = name.substr(9);
+      if (digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 9) continue;
+      any = true;
+      highest = std::max<std::size_t>(highest, std::stoul(digits));
     }
+    if (!any) return d;
+    if (d.parts.size() != highest + 1)
+      throw io::FileError((mesh / ("processor" + std::to_string(d.parts.size()))).string() +
+                          ": missing, but the case has processor" + std::to_string(highest) +
+                          " (a decomposed case has processor0 to processorN-1)");
+    const fs::path dict = mesh / "system" / "decomposeParDict";
+    if (fs::is_regular_file(dict, ec)) {
+      const std::string t = io::read_input(dict, "a decomposeParDict", 16.0 * (1 << 20));
+      const std::size_t at = t.find("numberOfSubdomains");
+      if (at != std::string::npos) {
+        std::size_t i = at + 18;
+        while (i < t.size() && std::isspace(static_cast<unsigned char>(t[i]))) ++i;
+        std::size_t j = i;
+        while (j < t.size() && std::isdigit(static_cast<unsigned char>(t[j]))) ++j;
+        if (j > i && j - i < 10 && std::stoul(t.substr(i, j - i)) != d.parts.size())
+          throw io::FileError(dict.string() + ": numberOfSubdomains " + t.substr(i, j - i) + ", but the case has " +
+                              std::to_string(d.parts.size()) +
+                              " processor folders: a processor folder is missing, or the case was decomposed "
+                              "again differently");
+      }
+    }
+    d.kind = Decomposition::Kind::OpenFoam;
+    d.root = mesh;
     return d;
   }
   std::string ext = mesh.extension().string();
@@ -411,6 +441,11 @@ double DecomposedBackend::max(double local) {
   double out = 0;
   MPI_Allreduce(&local, &out, 1, MPI_DOUBLE, MPI_MAX, comm_);
   return out;
+}
+
+void DecomposedBackend::max(std::span<double> values) {
+  if (values.size() > std::size_t(INT_MAX)) throw ResourceLimit("more values than one MPI reduction takes");
+  MPI_Allreduce(MPI_IN_PLACE, values.data(), int(values.size()), MPI_DOUBLE, MPI_MAX, comm_);
 }
 
 double DecomposedBackend::sum(double local) {
@@ -521,46 +556,62 @@ void DecomposedBackend::write_pieces_copy(const morph::VolumeFile& file, std::sp
 }
 
 void DecomposedBackend::write_in_place(const morph::VolumeFile& file, std::span<const Vec3> points) {
-  // Every part staged beside its file, then each renamed over it: a part that cannot be written
-  // leaves every part as it was.
+  // Three agreed steps, so that the parts change all together or not at all:
+  // 1. each part's new file is staged beside it, and the old one kept by a second name (a hard link);
+  // 2. each staged file is renamed over its part; where any rank could not, the others put their old
+  //    file back;
+  // 3. the old files' second names are removed.
+  int rank = 0;
+  MPI_Comm_rank(comm_, &rank);
+  const fs::path target = file.foam() ? file.foam()->points_file.path : d_.parts.at(std::size_t(rank));
+  const fs::path kept = target.parent_path() / (".csrbf-old-" + target.filename().string());
   fs::path staged;
-  const std::exception_ptr e = caught([&] {
+  bool linked = false, renamed = false;
+  const auto tidy = [&] {
+    std::error_code ec;
+    if (!staged.empty() && !renamed) fs::remove(staged, ec);
+    if (linked) fs::remove(kept, ec);
+  };
+  const std::exception_ptr e1 = caught([&] {
     if (file.foam()) {
       staged = morph::stage_openfoam_points(*file.foam(), points);
-      return;
+    } else {
+      staged = target.parent_path() / (".csrbf-new-" + target.filename().string());
+      std::error_code ec;
+      fs::remove(staged, ec);  // a stale one of csrbf's, from a run that was killed
+      file.write_copy(points, staged);
     }
-    int rank = 0;
-    MPI_Comm_rank(comm_, &rank);
-    const fs::path& piece = d_.parts.at(std::size_t(rank));
-    staged = piece.parent_path() / (".csrbf-new-" + piece.filename().string());
     std::error_code ec;
-    fs::remove(staged, ec);  // a stale one of csrbf's, from a run that was killed
-    file.write_copy(points, staged);
+    fs::remove(kept, ec);
+    fs::create_hard_link(target, kept, ec);
+    if (ec)
+      throw io::FileError("cannot write '" + target.string() + "': cannot keep the old file (" + ec.message() + ")");
+    linked = true;
   });
-  const auto discard = [&] {
-    std::error_code ec;
-    if (!staged.empty()) fs::remove(staged, ec);
-  };
   try {
-    agree(e);
+    agree(e1);
   } catch (...) {
-    discard();
+    tidy();
     throw;
   }
-  agree(caught([&] {
-    if (file.foam()) {
-      morph::commit_openfoam_points(*file.foam(), staged);
-      return;
-    }
-    int rank = 0;
-    MPI_Comm_rank(comm_, &rank);
+  const std::exception_ptr e2 = caught([&] {
     std::error_code ec;
-    fs::rename(staged, d_.parts.at(std::size_t(rank)), ec);
-    if (ec) {
-      discard();
-      throw io::FileError("cannot write '" + d_.parts.at(std::size_t(rank)).string() + "': " + ec.message());
+    fs::rename(staged, target, ec);
+    if (ec) throw io::FileError("cannot write '" + target.string() + "': " + ec.message());
+    renamed = true;
+  });
+  try {
+    agree(e2);
+  } catch (...) {
+    if (renamed) {  // put the old file back
+      std::error_code ec;
+      fs::rename(kept, target, ec);
+      if (!ec) linked = false;
     }
-  }));
+    tidy();
+    throw;
+  }
+  tidy();
 }
 
 std::vector<RankStats> DecomposedBackend::rank_stats() { return gather_stats(comm_, last_); }

@@ -379,10 +379,14 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
       throw InvalidInput("radius must be a positive finite number in [1e-150, 1e150], got " + num(radius));
     if (!(options.memory_limit_bytes > 0))
       throw InvalidInput("memory_limit_bytes must be a number > 0, got " + num(options.memory_limit_bytes));
-    for (std::size_t i = 0; i < sources_in.size(); ++i)
+    for (std::size_t i = 0; i < sources_in.size(); ++i) {
       if (!sources_in[i].allFinite() || !destinations_in[i].allFinite())
         throw InvalidInput("control " + std::to_string(ids_in.empty() ? i : ids_in[i]) +
                            ": a coordinate is not finite");
+      // The serial fit's limit (squared distances stay normal doubles).
+      if (sources_in[i].cwiseAbs().maxCoeff() > 1e150 || destinations_in[i].cwiseAbs().maxCoeff() > 1e150)
+        throw InvalidInput("control " + std::to_string(ids_in.empty() ? i : ids_in[i]) + ": a coordinate beyond 1e150");
+    }
   });
   const auto id_of = [&](std::size_t i) { return ids_in.empty() ? std::uint64_t(i) : ids_in[i]; };
 
@@ -498,8 +502,9 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
   // The rows of this rank's controls: neighbours among the owned and halo controls.
   const auto t_asm = Clock::now();
   PetscMat a;
-  std::vector<PetscInt> row_start(n + 1, 0), cols;
+  std::vector<PetscInt> row_start(n + 1, 0), cols, d_nnz(n, 0), o_nnz(n, 0);
   std::vector<double> vals;
+  // Everything that can fail on this rank alone, agreed before PETSc's collective calls.
   collectively(comm, [&] {
     std::vector<Vec3> local(m.sources_);
     for (const Packet& p : halo) local.push_back(p.source());
@@ -527,7 +532,6 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
           num(options.memory_limit_bytes / double(1ull << 30)) + " GiB: use a smaller radius or more ranks");
     cols.reserve(nnz);
     vals.reserve(nnz);
-    std::vector<PetscInt> d_nnz(n, 0), o_nnz(n, 0);
     for (std::size_t i = 0; i < n; ++i) {
       index.for_each_within(m.sources_[i], [&](std::size_t j, double d2) {
         const std::size_t gj = global_of(j);
@@ -538,6 +542,8 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
       row_start[i + 1] = PetscInt(cols.size());
     }
     rs.matrix_nonzeros = cols.size();
+  });
+  collectively(comm, [&] {
     check_petsc(MatCreateAIJ(comm, PetscInt(n), PetscInt(n), PetscInt(total), PetscInt(total), 0, d_nnz.data(), 0,
                              o_nnz.data(), &a.m),
                 "MatCreateAIJ");

@@ -227,6 +227,113 @@ class Decomposed(unittest.TestCase):
         self.assertIn("wing", r.stderr)
         self.assertFalse(os.path.exists(out))
 
+    def test_what_the_attack_found(self):
+        """Hangs, torn meshes and silent partial morphs a trial found, each now an error or right."""
+        case = self.airfoil()
+        decompose(case, 3, "simple", "3 1 1")
+        motion = self.path("motion.json")
+        # A rank over the memory limit while the others assemble: an error, not a hang.
+        r = run(MPIRUN + ["3", CLI, "morph", case, "-o", self.path("o1"), "--motion", motion, "--memory-limit", "1.95e-4"])
+        self.assertEqual(r.returncode, 1, r.stderr)
+        self.assertIn("limit", r.stderr)
+        # One processor with a point beyond 1e150: an error, not a hang.
+        bad = self.path("big")
+        shutil.copytree(case, bad)
+        pts = os.path.join(bad, "processor1", "constant", "polyMesh", "points")
+        with open(pts) as f:
+            lines = f.read().split("\n")
+        lines[lines.index("(") + 1] = "(1e300 1e300 1e300)"
+        with open(pts, "w") as f:
+            f.write("\n".join(lines))
+        r = run(MPIRUN + ["3", CLI, "morph", bad, "-o", self.path("o2"), "--motion", motion])
+        self.assertEqual(r.returncode, 1, r.stderr)
+        self.assertFalse(os.path.exists(self.path("o2")))
+        # Missing -o: one usage error.
+        r = run(MPIRUN + ["3", CLI, "morph", case, "--motion", motion])
+        self.assertEqual(r.returncode, 2, r.stderr)
+        self.assertEqual(r.stderr.count("csrbf: error"), 1, r.stderr)
+        # An inverting motion: said once, nothing written.
+        with open(self.path("inv.json"), "w") as f:
+            json.dump({"radius": 0.2, "patches": {"airfoil": {"rotate": {"axis": [0, 0, 1], "degrees": 60,
+                                                                         "origin": [0.25, 0, 0]}},
+                                                  "farfield": "fixed"}}, f)
+        r = run(MPIRUN + ["3", CLI, "morph", case, "-o", self.path("o3"), "--motion", self.path("inv.json")])
+        self.assertEqual(r.returncode, 1)
+        self.assertEqual(r.stderr.count("csrbf: error"), 1, r.stderr)
+        self.assertFalse(os.path.exists(self.path("o3")))
+        # A displacements file (the airfoil's points, each moved up) with a point no part has on the patch.
+        poly = os.path.join(self.path("plain-d"), "constant", "polyMesh")
+        shutil.copytree(os.path.join(SOURCE, "examples", "airfoil", "case"), self.path("plain-d"))
+        n, body = foam_list(os.path.join(poly, "faces"))
+        faces = [[int(v) for v in f.split()] for f in re.findall(r"\d+\(([\d ]+)\)", body)[:n]]
+        with open(os.path.join(poly, "boundary")) as f:
+            m = re.search(r"airfoil\s*\{[^}]*nFaces\s+(\d+);\s*startFace\s+(\d+);", f.read())
+        count, start = int(m.group(1)), int(m.group(2))
+        ids = sorted({v for face in faces[start:start + count] for v in face})
+        with open(self.path("d.txt"), "w") as f:
+            f.writelines("%d 0 0.001 0\n" % i for i in ids)
+            f.write("99999 0.1 0 0\n")
+        with open(self.path("dm.json"), "w") as f:
+            json.dump({"radius": 1.5, "patches": {"airfoil": {"displacements": "d.txt"}, "farfield": "fixed"}}, f)
+        r = run(MPIRUN + ["3", CLI, "morph", case, "-o", self.path("o4"), "--motion", self.path("dm.json")])
+        self.assertEqual(r.returncode, 1, r.stderr)
+        self.assertIn("99999", r.stderr)
+        # A case whose processor polyMesh links elsewhere: the copy does not write through the link.
+        linked = self.path("linked")
+        shutil.copytree(case, linked)
+        poly = os.path.join(linked, "processor1", "constant", "polyMesh")
+        shutil.move(poly, self.path("elsewhere"))
+        os.symlink(self.path("elsewhere"), poly)
+        before = open(os.path.join(self.path("elsewhere"), "points"), "rb").read()
+        r = run(MPIRUN + ["3", CLI, "morph", linked, "-o", self.path("o5"), "--motion", motion])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(before, open(os.path.join(self.path("elsewhere"), "points"), "rb").read())
+        self.assertFalse(os.path.islink(os.path.join(self.path("o5"), "processor1", "constant", "polyMesh")))
+        # A missing processor folder (the dictionary says 3).
+        gone = self.path("gone")
+        shutil.copytree(case, gone)
+        shutil.rmtree(os.path.join(gone, "processor2"))
+        r = run(MPIRUN + ["2", CLI, "morph", gone, "-o", self.path("o6"), "--motion", motion])
+        self.assertEqual(r.returncode, 1, r.stderr)
+        self.assertIn("numberOfSubdomains", r.stderr)
+        shutil.rmtree(os.path.join(gone, "processor1"))
+        shutil.copytree(os.path.join(case, "processor2"), os.path.join(gone, "processor2"))
+        r = run(MPIRUN + ["1", CLI, "morph", gone, "-o", self.path("o7"), "--motion", motion])
+        # One rank is the serial program: it warns that the processor folders stay as they are.
+        self.assertIn("processor folders", r.stderr)
+
+    def test_an_empty_processor_and_an_in_place_that_cannot_finish(self):
+        case = self.airfoil()
+        with open(os.path.join(case, "constant", "cellDecomposition"), "w") as f:
+            f.write("FoamFile { version 2.0; format ascii; class labelList; object cellDecomposition; }\n3840\n(\n" +
+                    "\n".join("0" if i < 1920 else "1" for i in range(3840)) + "\n)\n")
+        with open(os.path.join(case, "system", "decomposeParDict"), "w") as f:
+            f.write("FoamFile { version 2.0; format ascii; class dictionary; object decomposeParDict; }\n"
+                    "numberOfSubdomains 3;\nmethod manual;\nmanualCoeffs { dataFile \"cellDecomposition\"; }\n")
+        self.assertEqual(run(["decomposePar", "-force"], cwd=case).returncode, 0)
+        plain = self.airfoil("plain")
+        want = self.serial(plain, self.path("serial"))
+        out = self.path("out")
+        r = run(MPIRUN + ["3", CLI, "morph", case, "-o", out, "--motion", self.path("motion.json"), "--json"])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(json.loads(r.stdout)["cells"], 3840)
+        largest = np.abs(want - points(os.path.join(plain, "constant", "polyMesh"))).max()
+        got = gathered(out, 2)  # processor2 has no points
+        self.assertLess(np.abs(got - want).max(), 1e-10 * largest)
+        # In place, where one part cannot be renamed (immutable): every part stays as it was.
+        target = os.path.join(case, "processor1", "constant", "polyMesh", "points")
+        if subprocess.run(["chattr", "+i", target], capture_output=True).returncode != 0:
+            self.skipTest("chattr +i is not available here")
+        self.addCleanup(lambda: subprocess.run(["chattr", "-i", target]))
+        before = [open(os.path.join(case, "processor%d/constant/polyMesh/points" % k), "rb").read() for k in range(3)]
+        r = run(MPIRUN + ["3", CLI, "morph", case, "--in-place", "--motion", self.path("motion.json")])
+        self.assertEqual(r.returncode, 1, r.stderr)
+        subprocess.run(["chattr", "-i", target])
+        for k in range(3):
+            self.assertEqual(before[k], open(os.path.join(case, "processor%d/constant/polyMesh/points" % k), "rb").read())
+            self.assertEqual([f for f in os.listdir(os.path.join(case, "processor%d/constant/polyMesh" % k))
+                              if "csrbf" in f], [])
+
     def test_the_wrong_number_of_ranks_is_a_usage_error(self):
         case = self.airfoil()
         decompose(case, 2, "simple", "2 1 1")

@@ -46,6 +46,8 @@ class MorphBackend {
   /// where alone).
   virtual double max(double local) { return local; }
   virtual double sum(double local) { return local; }
+  /// Each value replaced by its largest over the processes (unchanged where alone).
+  virtual void max(std::span<double> values) { (void)values; }
   /// Rethrows local, or another process's failure, on every process.
   virtual void agree(std::exception_ptr local) {
     if (local) std::rethrow_exception(local);

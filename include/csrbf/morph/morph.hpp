@@ -20,6 +20,9 @@ struct Prescribed {
   std::vector<std::uint32_t> points;  ///< ascending
   std::vector<Vec3> displacements;
   std::vector<char> fixed;
+  /// A part of a decomposed mesh: for each motion patch with a displacements file, which of its
+  /// lines this part used (the others are other parts' points, or wrong).
+  std::vector<std::vector<char>> used;
   std::size_t moving() const;
 };
 

@@ -78,6 +78,7 @@ class DecomposedBackend final : public morph::MorphBackend {
   bool part() const override { return true; }
   double max(double local) override;
   double sum(double local) override;
+  void max(std::span<double> values) override;
   void agree(std::exception_ptr local) override;
   std::filesystem::path mesh_path(const std::filesystem::path& mesh) override;
   void write_copy(const morph::VolumeFile& file, std::span<const Vec3> points,
