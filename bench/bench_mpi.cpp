@@ -1,16 +1,16 @@
 // Strong and weak scaling of csrbf::mpi (docs/DISTRIBUTED.md): the distributed fit of N controls and
 // the evaluation of M points, under mpirun -np K. Each rank makes only its own share: the unit cube
-// is cut into K slabs along x, and rank r draws its controls and points in slab r (seeded by r), so
-// no rank ever holds the whole set. One JSON line from rank 0: medians over --repeat runs of the
-// slowest rank's fit and evaluation, each rank's peak memory and halo, and at K = 1 the serial
-// SpaceMap (what csrbf runs without mpirun) in the same process, as the baseline.
+// is cut into K slabs along x, and rank r draws its controls (at random) and points (a lattice) in
+// slab r (seeded by r), so no rank ever holds the whole set. One JSON line from rank 0: medians over --repeat runs of
+// the slowest rank's fit and evaluation, each rank's peak memory and halo, and at K = 1 the serial SpaceMap (what csrbf
+// runs without mpirun) in the same process, as the baseline.
 //
 //   mpirun -np K build/bin/bench_mpi --controls 1e5 --points 1e7 [--neighbours 20] [--repeat 3]
 //       [--weak] [--threads 1] [--solver auto|mumps|cg] [--order coherent|random]
 //
 // --weak: N and M are per rank (the totals grow with K). --threads: TBB threads per rank (1: the
 // ranks alone make the parallelism, as on a cluster of single-core ranks). --order: the points in
-// a mesh's order (coherent: numbered layer by layer, as a structured or renumbered mesh is; the
+// a mesh's order (coherent: a jittered lattice numbered as a structured mesh is, x fastest; the
 // default) or in no order at all (random: the evaluation then gathers them by cell first, which
 // costs memory and time: docs/PERFORMANCE.md).
 #include "csrbf/mpi/distributed.hpp"
@@ -111,17 +111,23 @@ int main(int argc, char** argv) {
   std::vector<Vec3> s(n), d(n), x(m), out(m);
   for (auto& p : s) p = Vec3(slab(rng), u(rng), u(rng));
   for (std::size_t i = 0; i < n; ++i) d[i] = s[i] + field(s[i]);
-  for (auto& p : x) p = Vec3(slab(rng), u(rng), u(rng));
+  {
+    // The points: a jittered lattice over the slab, numbered as a structured mesh is (x fastest,
+    // neighbours 1/M^(1/3) apart: far closer than R), or shuffled (--order random).
+    const double width = 1.0 / k, spacing = std::cbrt(width / double(std::max<std::size_t>(m, 1)));
+    const auto nx = std::size_t(std::max(1.0, std::round(width / spacing)));
+    const auto ny = std::size_t(std::max(1.0, std::round(1.0 / spacing)));
+    const std::size_t nz = (m + nx * ny - 1) / (nx * ny);
+    std::uniform_real_distribution<double> jitter(-0.25, 0.25);
+    for (std::size_t i = 0; i < m; ++i) {
+      const std::size_t a = i % nx, b = (i / nx) % ny, c = i / (nx * ny);
+      x[i] = Vec3(double(r) / k + (double(a) + 0.5 + jitter(rng)) * width / double(nx),
+                  (double(b) + 0.5 + jitter(rng)) / double(ny), (double(c) + 0.5 + jitter(rng)) / double(nz));
+    }
+    if (!coherent) std::shuffle(x.begin(), x.end(), rng);
+  }
   FitOptions o;
   o.radius = std::cbrt(3.0 * neighbours / (4.0 * std::numbers::pi * double(n_total)));
-  if (coherent) {  // numbered as a mesh: by layers of z, rows of y (4 R thick), then along x
-    const double h = 4 * o.radius;
-    std::sort(x.begin(), x.end(), [h](const Vec3& a, const Vec3& b) {
-      const auto ka = std::make_tuple(std::floor(a.z() / h), std::floor(a.y() / h), a.x());
-      const auto kb = std::make_tuple(std::floor(b.z() / h), std::floor(b.y() / h), b.x());
-      return ka < kb;
-    });
-  }
   o.memory_limit_bytes = 64.0 * (1ull << 30);
   std::vector<double> fit_s, eval_s;
   std::vector<mpi::RankStats> stats(static_cast<std::size_t>(k));
