@@ -644,6 +644,12 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes) {
     if (global.size() != np)
       throw FileError(l.path.string() + ": " + std::to_string(global.size()) + " point labels, but points has " +
                       std::to_string(np) + " points");
+    std::vector<std::uint32_t> sorted(global);
+    std::sort(sorted.begin(), sorted.end());
+    const auto twice = std::adjacent_find(sorted.begin(), sorted.end());
+    if (twice != sorted.end())
+      throw FileError(l.path.string() + ": point label " + std::to_string(*twice) +
+                      " is given twice (each of the processor's points is one point of the whole mesh)");
     m.point_ids.assign(global.begin(), global.end());
   }
   return c;
