@@ -1,5 +1,9 @@
 #pragma once
 
+#ifdef CSRBF_WITH_MPI
+#include "csrbf/mpi/distributed.hpp"
+#endif
+
 #include <string>
 #include <vector>
 
@@ -12,6 +16,11 @@
 #include <string>
 
 namespace csrbf::cli {
+
+#ifdef CSRBF_WITH_MPI
+/// Each MPI rank's figures, for --json under mpirun (deform and morph).
+nlohmann::json rank_stats_json(const std::vector<mpi::RankStats>& ranks);
+#endif
 
 /// --solver's choices: the serial solvers, and "mumps" (the distributed one, under mpirun).
 std::vector<std::string> solver_choices();

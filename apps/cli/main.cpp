@@ -212,22 +212,7 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
                        {"iterations", backend.stats().iterations},
                        {"residual_relative", backend.stats().residual_relative},
                        {"ms", ms},
-                       {"per_rank", nlohmann::json::array()}};
-      for (const auto& r : ranks)
-        j["per_rank"].push_back({{"rank", r.rank},
-                                 {"controls_owned", r.controls_owned},
-                                 {"controls_halo", r.controls_halo},
-                                 {"eval_halo", r.eval_halo},
-                                 {"points", r.points},
-                                 {"matrix_nonzeros", r.matrix_nonzeros},
-                                 {"peak_bytes", r.peak_bytes},
-                                 {"bytes_sent", r.bytes_sent},
-                                 {"seconds",
-                                  {{"halo", r.seconds_halo},
-                                   {"assembly", r.seconds_assembly},
-                                   {"solve", r.seconds_solve},
-                                   {"residual", r.seconds_residual},
-                                   {"evaluate", r.seconds_evaluate}}}});
+                       {"per_rank", csrbf::cli::rank_stats_json(ranks)}};
       std::cout << j.dump(2) << '\n';
     } else {
       std::cout << "csrbf deform: " << p.size() << " vertices (" << count << " moved) of " << da.mesh_in << " by "

@@ -117,27 +117,6 @@ int run_morph(const MorphArgs& a) {
 #ifdef CSRBF_WITH_MPI
 namespace {
 
-nlohmann::json ranks_json(const std::vector<mpi::RankStats>& ranks) {
-  nlohmann::json a = nlohmann::json::array();
-  for (const auto& r : ranks)
-    a.push_back({{"rank", r.rank},
-                 {"controls_owned", r.controls_owned},
-                 {"controls_halo", r.controls_halo},
-                 {"controls_shared_dropped", r.controls_dropped},
-                 {"eval_halo", r.eval_halo},
-                 {"points", r.points},
-                 {"matrix_nonzeros", r.matrix_nonzeros},
-                 {"peak_bytes", r.peak_bytes},
-                 {"bytes_sent", r.bytes_sent},
-                 {"seconds",
-                  {{"halo", r.seconds_halo},
-                   {"assembly", r.seconds_assembly},
-                   {"solve", r.seconds_solve},
-                   {"residual", r.seconds_residual},
-                   {"evaluate", r.seconds_evaluate}}}});
-  return a;
-}
-
 void print_outcome(const MorphArgs& a, const morph::MorphOutcome& o, const std::vector<mpi::RankStats>& ranks,
                    const mpi::DistributedStats& st, const char* mode) {
   if (a.json) {
@@ -149,7 +128,7 @@ void print_outcome(const MorphArgs& a, const morph::MorphOutcome& o, const std::
                         {"iterations", st.iterations},
                         {"fell_back", st.fell_back},
                         {"residual_relative", st.residual_relative}};
-    j["per_rank"] = ranks_json(ranks);
+    j["per_rank"] = rank_stats_json(ranks);
     std::cout << j.dump(2) << '\n';
     return;
   }

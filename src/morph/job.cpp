@@ -90,17 +90,6 @@ std::string quality_table(const MeshQuality& qa, const MeshQuality& qb) {
   return s.str();
 }
 
-/// f's exception, if it threw (for MorphBackend::agree).
-template <class F>
-std::exception_ptr caught(F&& f) {
-  try {
-    f();
-  } catch (...) {
-    return std::current_exception();
-  }
-  return nullptr;
-}
-
 /// The quality of every part of a decomposed mesh (the part's own where alone). Faces between
 /// parts are boundary faces of each: their non-orthogonality is not counted, their skewness is
 /// measured as a boundary face's.

@@ -24,17 +24,6 @@ namespace {
 using io::FileError;
 using Clock = std::chrono::steady_clock;
 
-/// f's exception, if it threw (for MorphBackend::agree).
-template <class F>
-std::exception_ptr caught(F&& f) {
-  try {
-    f();
-  } catch (...) {
-    return std::current_exception();
-  }
-  return nullptr;
-}
-
 class LocalMapping final : public FittedMapping {
  public:
   explicit LocalMapping(SpaceMap map) : map_(std::move(map)) {}

@@ -20,6 +20,8 @@ namespace fs = std::filesystem;
 
 namespace csrbf::mpi {
 
+using morph::caught;
+
 namespace {
 
 enum Op : int { kFit = 1, kApply = 2, kDisplacements = 3, kStats = 4, kDone = 5 };
@@ -44,6 +46,30 @@ int checked_count(std::size_t n, const char* what) {
   return int(n);
 }
 
+/// Where each rank's share lies in root's array, in bytes, for MPI_Scatterv and MPI_Gatherv.
+struct Layout {
+  std::vector<int> counts, displs;
+  explicit Layout(int ranks) : counts(static_cast<std::size_t>(ranks), 0), displs(counts.size(), 0) {}
+  /// counts[r] values of `size` bytes for rank r; returns the values in all.
+  std::size_t fill(const std::vector<std::size_t>& values, std::size_t size, const char* what) {
+    std::size_t off = 0;
+    for (std::size_t r = 0; r < counts.size(); ++r) {
+      counts[r] = checked_count(values[r] * size, what);
+      displs[r] = checked_count(off * size, what);
+      off += values[r];
+    }
+    return off;
+  }
+};
+
+/// Root's string, on every rank.
+void broadcast(MPI_Comm comm, std::string& s) {
+  long long n = static_cast<long long>(s.size());
+  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm);
+  s.resize(std::size_t(n));
+  MPI_Bcast(s.data(), int(n), MPI_CHAR, 0, comm);
+}
+
 /// Root's values per rank (in rank order, counts[r] each), scattered; every rank's own share.
 template <class T>
 std::vector<T> scatter(MPI_Comm comm, const std::vector<T>& all, const std::vector<std::size_t>& counts,
@@ -51,20 +77,12 @@ std::vector<T> scatter(MPI_Comm comm, const std::vector<T>& all, const std::vect
   int rank = 0, size = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
-  std::vector<int> c(static_cast<std::size_t>(size), 0), d(static_cast<std::size_t>(size), 0);
-  if (rank == 0) {
-    std::size_t off = 0;
-    for (int r = 0; r < size; ++r) {
-      c[std::size_t(r)] = checked_count(counts[std::size_t(r)] * sizeof(T), "scattered data");
-      d[std::size_t(r)] = checked_count(off * sizeof(T), "scattered data");
-      off += counts[std::size_t(r)];
-    }
-    bytes += (off - counts[0]) * sizeof(T);
-  }
+  Layout l(size);
+  if (rank == 0) bytes += (l.fill(counts, sizeof(T), "scattered data") - counts[0]) * sizeof(T);
   int mine = 0;
-  MPI_Scatter(c.data(), 1, MPI_INT, &mine, 1, MPI_INT, 0, comm);
+  MPI_Scatter(l.counts.data(), 1, MPI_INT, &mine, 1, MPI_INT, 0, comm);
   std::vector<T> out(std::size_t(mine) / sizeof(T));
-  MPI_Scatterv(all.data(), c.data(), d.data(), MPI_BYTE, out.data(), mine, MPI_BYTE, 0, comm);
+  MPI_Scatterv(all.data(), l.counts.data(), l.displs.data(), MPI_BYTE, out.data(), mine, MPI_BYTE, 0, comm);
   return out;
 }
 
@@ -75,20 +93,14 @@ void gather(MPI_Comm comm, const std::vector<T>& mine, std::vector<T>& all, cons
   int rank = 0, size = 1;
   MPI_Comm_rank(comm, &rank);
   MPI_Comm_size(comm, &size);
-  std::vector<int> c(static_cast<std::size_t>(size), 0), d(static_cast<std::size_t>(size), 0);
+  Layout l(size);
   if (rank == 0) {
-    std::size_t off = 0;
-    for (int r = 0; r < size; ++r) {
-      c[std::size_t(r)] = checked_count(counts[std::size_t(r)] * sizeof(T), "gathered data");
-      d[std::size_t(r)] = checked_count(off * sizeof(T), "gathered data");
-      off += counts[std::size_t(r)];
-    }
-    all.resize(off);
+    all.resize(l.fill(counts, sizeof(T), "gathered data"));
   } else {
     bytes += mine.size() * sizeof(T);
   }
-  MPI_Gatherv(mine.data(), checked_count(mine.size() * sizeof(T), "gathered data"), MPI_BYTE, all.data(), c.data(),
-              d.data(), MPI_BYTE, 0, comm);
+  MPI_Gatherv(mine.data(), checked_count(mine.size() * sizeof(T), "gathered data"), MPI_BYTE, all.data(),
+              l.counts.data(), l.displs.data(), MPI_BYTE, 0, comm);
 }
 
 std::vector<RankStats> gather_stats(MPI_Comm comm, RankStats mine) {
@@ -342,16 +354,6 @@ class DecomposedMapping final : public morph::FittedMapping {
   RankStats& sink_;
 };
 
-template <class F>
-std::exception_ptr caught(F&& f) {
-  try {
-    f();
-  } catch (...) {
-    return std::current_exception();
-  }
-  return nullptr;
-}
-
 }  // namespace
 
 Decomposition find_decomposition(const fs::path& mesh) {
@@ -485,10 +487,7 @@ void DecomposedBackend::write_copy(const morph::VolumeFile& file, std::span<cons
     if (ec) throw io::FileError("cannot copy '" + d_.root.string() + "' to '" + out.string() + "': " + ec.message());
     where = partial->path().string();
   }));
-  long long n = static_cast<long long>(where.size());
-  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm_);
-  where.resize(std::size_t(n));
-  MPI_Bcast(where.data(), int(n), MPI_CHAR, 0, comm_);
+  broadcast(comm_, where);
   agree(caught([&] {
     morph::write_openfoam_points_into(*file.foam(), points, fs::path(where) / d_.parts[std::size_t(rank)].filename());
   }));
@@ -518,10 +517,7 @@ void DecomposedBackend::write_pieces_copy(const morph::VolumeFile& file, std::sp
     partial = std::make_unique<io::Partial>(folder, io::Partial::Kind::Folder);
     where = partial->path().string();
   }));
-  long long n = static_cast<long long>(where.size());
-  MPI_Bcast(&n, 1, MPI_LONG_LONG, 0, comm_);
-  where.resize(std::size_t(n));
-  MPI_Bcast(where.data(), int(n), MPI_CHAR, 0, comm_);
+  broadcast(comm_, where);
   agree(caught([&] { file.write_copy(points, fs::path(where) / d_.parts[std::size_t(rank)].filename()); }));
   agree(caught([&] {
     if (rank != 0) return;

@@ -61,4 +61,15 @@ class MorphBackend {
 /// The default: SpaceMap in this process.
 MorphBackend& local_backend();
 
+/// f's exception, if it threw: what a process hands to MorphBackend::agree.
+template <class F>
+std::exception_ptr caught(F&& f) {
+  try {
+    f();
+  } catch (...) {
+    return std::current_exception();
+  }
+  return nullptr;
+}
+
 }  // namespace csrbf::morph
