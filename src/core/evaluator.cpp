@@ -26,7 +26,7 @@
 
 namespace csrbf::detail {
 
-EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size_t max_bytes) {
+EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size_t max_bytes, int max_subdivision) {
   EvalGrid g;
   const std::size_t n = sources.size();
   if (n == 0) return g;
@@ -36,7 +36,7 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
     hi = hi.cwiseMax(s);
   }
   const double R2 = radius * radius;
-  for (int k = kMaxSubdivision; k >= 1; --k) {
+  for (int k = std::clamp(max_subdivision, 1, kMaxSubdivision); k >= 1; --k) {
     g.subdivision = k;
     g.radius = radius;
     g.h = radius / k;

@@ -39,8 +39,11 @@ struct EvalGrid {
   // memory, and measured no faster (M = 1e6, N = 1e4).
   static constexpr int kMaxSubdivision = 2;
 
-  /// max_bytes: the most memory the lists and the EvalData copies of both precisions may take.
-  static EvalGrid build(std::span<const Vec3> sources, double radius, std::size_t max_bytes);
+  /// max_bytes: the most memory the lists and the EvalData copies of both precisions may take;
+  /// max_subdivision: the finest K tried (1 for a map evaluated once over few points a source:
+  /// SpaceMap::from_solution's points).
+  static EvalGrid build(std::span<const Vec3> sources, double radius, std::size_t max_bytes,
+                        int max_subdivision = kMaxSubdivision);
   /// The neighbour graph of the sources (every pair closer than R), from the cell lists: the
   /// candidates of a source are its own cell's run. Requires usable.
   void neighbor_graph(std::span<const Vec3> sources, std::vector<std::size_t>& offsets,

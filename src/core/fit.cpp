@@ -461,7 +461,7 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
 
 SpaceMap SpaceMap::from_solution(std::span<const Vec3> sources, const Eigen::Matrix<double, Eigen::Dynamic, 3>& alpha,
                                  const Eigen::Matrix<double, 4, 3>& beta, const Vec3& center, double scale,
-                                 const FitOptions& options) {
+                                 const FitOptions& options, std::size_t points) {
   if (alpha.rows() != Eigen::Index(sources.size())) {
     std::ostringstream os;
     os << "from_solution: " << sources.size() << " sources but " << alpha.rows() << " coefficient rows";
@@ -483,6 +483,7 @@ SpaceMap SpaceMap::from_solution(std::span<const Vec3> sources, const Eigen::Mat
   st->center = center;
   st->scale = scale;
   st->solved_elsewhere = true;
+  if (points > 0 && points / kFineGridPointsPerSource < sources.size()) st->max_subdivision = 1;
   auto s = std::make_shared<State>();
   s->st = std::move(st);
   s->alpha = alpha;

@@ -43,8 +43,11 @@ struct SpaceMap::Structure {
   // (N > kBruteForceGraph), else on first evaluation.
   mutable std::once_flag grid_once;
   mutable detail::EvalGrid grid_;
+  int max_subdivision = detail::EvalGrid::kMaxSubdivision;  // from_solution: 1 for a map evaluated over few points
   const detail::EvalGrid& grid() const {
-    std::call_once(grid_once, [this] { grid_ = detail::EvalGrid::build(sources, options.radius, kEvalListBytes); });
+    std::call_once(grid_once, [this] {
+      grid_ = detail::EvalGrid::build(sources, options.radius, kEvalListBytes, max_subdivision);
+    });
     return grid_;
   }
   KernelMatrix a;                                // A, input order: its pattern is the neighbour graph

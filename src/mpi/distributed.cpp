@@ -723,7 +723,7 @@ void DistributedMap::apply(std::span<const Vec3> in, std::span<Vec3> out, double
     }
     Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(s.size()), 3);
     for (std::size_t k = 0; k < a.size(); ++k) alpha.row(Eigen::Index(k)) = a[k].transpose();
-    const SpaceMap local = SpaceMap::from_solution(s, alpha, beta_, center_, scale_, options_);
+    const SpaceMap local = SpaceMap::from_solution(s, alpha, beta_, center_, scale_, options_, in.size());
     local.apply(in, out, phase);
   });
   rank_stats_.points += in.size();

@@ -305,24 +305,30 @@ TEST(FastPaths, CellListsHoldEverySourceWithinReach) {
   std::mt19937 rng(104);
   const auto s = random_points(300, rng);
   const double r = 0.15;
+  // Cells of side R/2 (the default) and of side R (asked for by a map evaluated over few points).
+  const auto coarse = detail::EvalGrid::build(s, r, std::size_t(512) << 20, 1);
+  ASSERT_TRUE(coarse.usable);
+  EXPECT_EQ(coarse.subdivision, 1);
   const auto g = detail::EvalGrid::build(s, r, std::size_t(512) << 20);
   ASSERT_TRUE(g.usable);
   EXPECT_EQ(g.subdivision, 2);
+  EXPECT_LT(coarse.bytes() * 2, g.bytes());
   // Every probe's cell lists every source within R of the probe, exactly once.
-  for (const auto& q : random_points(2000, rng, -0.1, 1.1)) {
-    Vec3 corner;
-    const std::size_t cell = grid_cell(g, q, corner);
-    ASSERT_EQ((g.begin[cell + 1] - g.begin[cell]) % detail::EvalGrid::kLanes, 0u);
-    std::vector<int> seen(s.size(), 0);
-    for (std::uint32_t e = g.begin[cell]; e < g.begin[cell + 1]; ++e)
-      if (g.source[e] < s.size()) ++seen[g.source[e]];
-    for (std::size_t i = 0; i < s.size(); ++i) {
-      ASSERT_LE(seen[i], 1);
-      if ((s[i] - q).norm() < r) {
-        ASSERT_EQ(seen[i], 1) << "source " << i;
+  for (const auto& q : random_points(2000, rng, -0.1, 1.1))
+    for (const auto* grid : {&coarse, &g}) {
+      Vec3 corner;
+      const std::size_t cell = grid_cell(*grid, q, corner);
+      ASSERT_EQ((grid->begin[cell + 1] - grid->begin[cell]) % detail::EvalGrid::kLanes, 0u);
+      std::vector<int> seen(s.size(), 0);
+      for (std::uint32_t e = grid->begin[cell]; e < grid->begin[cell + 1]; ++e)
+        if (grid->source[e] < s.size()) ++seen[grid->source[e]];
+      for (std::size_t i = 0; i < s.size(); ++i) {
+        ASSERT_LE(seen[i], 1);
+        if ((s[i] - q).norm() < r) {
+          ASSERT_EQ(seen[i], 1) << "source " << i << " K " << grid->subdivision;
+        }
       }
     }
-  }
   // The neighbour graph from the lists equals the one from NeighborIndex.
   AdjacencyGraph a;
   g.neighbor_graph(s, a.offsets, a.neighbors, a.dist2);

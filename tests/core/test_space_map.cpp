@@ -373,6 +373,14 @@ TEST(SpaceMapFromSolution, EvaluatesAsTheFittedMap) {
     double worst = 0;
     for (std::size_t i = 0; i < x.size(); ++i) worst = std::max(worst, (a[i] - b[i]).norm());
     EXPECT_LT(worst, 1e-12) << polynomial_name(poly);
+    // Told it will evaluate only these points (fewer than kFineGridPointsPerSource a source), it
+    // builds the coarser cells and still evaluates the same.
+    const SpaceMap once = SpaceMap::from_solution(fitted.sources(), fitted.coefficients(),
+                                                  fitted.polynomial_coefficients(), Vec3::Zero(), 1.0, o, x.size());
+    once.apply(x, b, 0.7);
+    worst = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) worst = std::max(worst, (a[i] - b[i]).norm());
+    EXPECT_LT(worst, 1e-12) << polynomial_name(poly);
     std::vector<float> xf(3 * x.size()), af(xf.size()), bf(xf.size());
     for (std::size_t i = 0; i < x.size(); ++i)
       for (int c = 0; c < 3; ++c) xf[3 * i + std::size_t(c)] = float(x[i][c]);
