@@ -1,5 +1,6 @@
 // csrbf: the command-line program. Exit 0 on success, 2 on a usage error, 1 on bad data or failure.
 #include "animate.hpp"
+#include "export.hpp"
 #include "bench.hpp"
 #include "commands.hpp"
 #include "morph.hpp"
@@ -294,6 +295,21 @@ int main(int argc, char** argv) {
   bench->add_option("--data", bench_opts.data_dir,
                     "Folder with fish.obj, face.obj and their .controls (default: bundled)");
 
+  csrbf::cli::ExportOptions export_opts;
+  auto* exporter = app.add_subcommand(
+      "export", "Write a scene as glTF 2.0 for game engines, Blender and web pages (docs/export.md)");
+  exporter->add_option("scene", export_opts.scene, "Scene JSON file")->required();
+  exporter->add_option("-o,--output", export_opts.out, "OUT.glb (binary) or OUT.gltf (one JSON file)")->required();
+  exporter->add_option("--fps", export_opts.fps, "Sampling rate of what is sampled or baked (default: the scene's)")
+      ->check(finite_in(0.1, 1000.0, "--fps"));
+  exporter
+      ->add_option("--bake", export_opts.bake,
+                   "auto: bake what morph targets cannot hold exactly; always: every deforming part; never: refuse")
+      ->capture_default_str();
+  exporter->add_option("--html", export_opts.html,
+                       "Also write a new folder DIR with index.html, the .glb and three.js: a page that plays it");
+  exporter->add_flag("--json", export_opts.json, "Print the report as one JSON object");
+
   FitArgs info_args;
   bool json = false;
   csrbf::cli::AnimateOptions anim_opts;
@@ -404,6 +420,8 @@ int main(int argc, char** argv) {
       return csrbf::cli::run_morph(morph_args);
     } else if (*animate) {
       return csrbf::cli::run_animate(anim_opts);
+    } else if (*exporter) {
+      return csrbf::cli::run_export(export_opts);
     } else if (*bench) {
       csrbf::cli::run_bench(bench_opts);
     } else if (*info) {

@@ -1,5 +1,7 @@
 #include "csrbf/render/scene_renderer.hpp"
 
+#include "texture_coordinates.hpp"
+
 #include "csrbf/render/process.hpp"
 
 #include <vtkActor.h>
@@ -43,26 +45,6 @@ vtkSmartPointer<vtkCellArray> cells_of(const anim::Object& obj, const std::vecto
     for (const auto v : poly) cells->InsertCellPoint(vtkIdType(v));
   }
   return cells;
-}
-
-/// Texture coordinates projected from the rest shape, so the texture sticks to the surface as it
-/// deforms.
-vtkSmartPointer<vtkDataArray> texture_coordinates(vtkPolyData* rest, anim::TextureMapping mapping) {
-  vtkSmartPointer<vtkDataSetAlgorithm> map;
-  switch (mapping) {
-    case anim::TextureMapping::Sphere:
-      map = vtkSmartPointer<vtkTextureMapToSphere>::New();
-      break;
-    case anim::TextureMapping::Plane:
-      map = vtkSmartPointer<vtkTextureMapToPlane>::New();
-      break;
-    case anim::TextureMapping::Cylinder:
-      map = vtkSmartPointer<vtkTextureMapToCylinder>::New();
-      break;
-  }
-  map->SetInputData(rest);
-  map->Update();
-  return map->GetOutput()->GetPointData()->GetTCoords();
 }
 
 vtkSmartPointer<vtkTexture> load_texture(const std::string& file) {

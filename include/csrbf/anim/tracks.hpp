@@ -44,6 +44,10 @@ class PositionTrack {
   Vec3 velocity(double t) const;
   const std::vector<PositionKey>& keys() const noexcept { return keys_; }
   TrackEnds ends() const noexcept { return ends_; }
+  /// Per key, the Hermite tangents leaving it and arriving at it, per unit of the segment's
+  /// parameter (divide by the segment's duration for d position / dt): glTF's CUBICSPLINE keys.
+  const std::vector<Vec3>& out_tangents() const noexcept { return out_; }
+  const std::vector<Vec3>& in_tangents() const noexcept { return in_; }
 
  private:
   std::size_t segment(double t) const;  // i with keys_[i].time <= t < keys_[i + 1].time (clamped)

@@ -1,0 +1,174 @@
+#include "export.hpp"
+
+#include "animate.hpp"
+#include "csrbf/io/atomic_file.hpp"
+#include "csrbf/io/error.hpp"
+#include "csrbf/io/scene.hpp"
+#include "csrbf/render/gltf_export.hpp"
+#include "page_html.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+namespace csrbf::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Where three.js is: CSRBF_THREE_DIR, else Debian's libjs-three.
+fs::path three_dir() {
+  if (const char* d = std::getenv("CSRBF_THREE_DIR"); d && *d) return d;
+  return CSRBF_THREE_DIR;
+}
+
+void write_file(const fs::path& p, const std::string& bytes) {
+  std::ofstream out(p, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), std::streamsize(bytes.size()));
+  out.close();
+  std::error_code ec;
+  if (!out || fs::file_size(p, ec) != bytes.size())
+    throw io::FileError(p.string() + ": could not be written completely (disk full?)");
+}
+
+std::string read_all(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  if (!in)
+    throw io::FileError(p.string() + ": cannot be read; the page needs three.js (Debian: libjs-three, or set CSRBF_THREE_DIR)");
+  std::ostringstream s;
+  s << in.rdbuf();
+  if (in.bad()) throw io::FileError(p.string() + ": could not be read");
+  return s.str();
+}
+
+std::string replace_all(std::string s, const std::string& what, const std::string& with) {
+  for (std::size_t at = s.find(what); at != std::string::npos; at = s.find(what, at + with.size()))
+    s.replace(at, what.size(), with);
+  return s;
+}
+
+std::string html_escape(const std::string& s) {
+  std::string o;
+  for (const char c : s) {
+    if (c == '<') o += "&lt;";
+    else if (c == '>') o += "&gt;";
+    else if (c == '&') o += "&amp;";
+    else if (c == '"') o += "&quot;";
+    else o += c;
+  }
+  return o;
+}
+
+std::string kib(std::size_t bytes) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f KiB", double(bytes) / 1024.0);
+  return b;
+}
+
+}  // namespace
+
+int run_export(const ExportOptions& o) {
+  render::GltfOptions go;
+  if (o.bake == "auto") go.bake = render::Bake::Auto;
+  else if (o.bake == "always") go.bake = render::Bake::Always;
+  else if (o.bake == "never") go.bake = render::Bake::Never;
+  else throw UsageError("--bake: expected auto, always or never, got '" + o.bake + "'");
+  const fs::path out = o.out;
+  const std::string ext = out.extension().string();
+  if (ext != ".glb" && ext != ".gltf") throw UsageError("-o: the output must end in .glb or .gltf, got '" + o.out + "'");
+  // Check the targets before the (slow) scene load, so that a typo fails at once.
+  io::check_output_path(out);
+  fs::path page;
+  if (!o.html.empty()) {
+    page = fs::path(o.html);
+    if (page.filename().empty()) page = page.parent_path();
+    std::error_code ec;
+    if (fs::exists(fs::symlink_status(page, ec)))
+      throw UsageError("--html: '" + o.html + "' exists; the page is written into a new folder (csrbf replaces nothing it did not write)");
+    const fs::path parent = page.has_parent_path() ? page.parent_path() : fs::path(".");
+    if (!fs::is_directory(parent, ec)) throw UsageError("--html: the folder '" + parent.string() + "' does not exist");
+    for (const char* f : {"build/three.min.js", "examples/js/loaders/GLTFLoader.js"})
+      if (!fs::is_regular_file(three_dir() / f, ec))
+        throw io::FileError((three_dir() / f).string() +
+                            ": not found; the page needs three.js (Debian: libjs-three, or set CSRBF_THREE_DIR)");
+  }
+  anim::Scene scene = io::read_scene(o.scene);
+  if (o.fps) go.fps = *o.fps;
+
+  render::GltfReport r;
+  const std::vector<unsigned char> glb = render::gltf_binary(scene, go, r);
+  const std::string bytes = ext == ".glb" ? std::string(glb.begin(), glb.end()) : render::glb_to_gltf(glb);
+  io::write_atomically(out, [&](std::ostream& s) { s.write(bytes.data(), std::streamsize(bytes.size())); });
+  r.bytes = bytes.size();
+  if (!page.empty()) {
+    // Everything in a partial folder first, renamed to DIR only once complete.
+    io::Partial partial(page, io::Partial::Kind::Folder);
+    const std::string glb_name = out.stem().string() + ".glb";
+    std::string html = kPageHtml;
+    html = replace_all(html, "@TITLE@", html_escape(fs::path(o.scene).filename().string()));
+    html = replace_all(html, "@GLB@", html_escape(glb_name));
+    write_file(partial.path() / "index.html", html);
+    write_file(partial.path() / glb_name, std::string(glb.begin(), glb.end()));
+    write_file(partial.path() / "scene.glb.js", "window.CSRBF_GLB = \"" + render::base64(glb.data(), glb.size()) + "\";\n");
+    write_file(partial.path() / "three.min.js", read_all(three_dir() / "build/three.min.js"));
+    write_file(partial.path() / "GLTFLoader.js", read_all(three_dir() / "examples/js/loaders/GLTFLoader.js"));
+    write_file(partial.path() / "LICENSE-three.js.txt",
+               "three.js (https://threejs.org), copied from " + three_dir().string() +
+                   ": MIT License, Copyright (c) 2010-2019 three.js authors\n");
+    partial.commit_new(page);
+  }
+
+  if (o.json) {
+    nlohmann::json j;
+    j["output"] = o.out;
+    j["bytes"] = r.bytes;
+    j["frames"] = r.frames;
+    j["fps"] = r.fps;
+    j["scene_size"] = r.scene_size;
+    j["frame_vertex_bytes"] = r.frame_bytes;
+    j["csrbf_bytes"] = r.csrbf_bytes;
+    j["targets"] = r.targets;
+    j["max_active_targets"] = r.max_active;
+    for (const auto& ob : r.objects)
+      j["objects"].push_back({{"name", ob.name},
+                              {"vertices", ob.vertices},
+                              {"targets", ob.targets},
+                              {"max_active_targets", ob.max_active},
+                              {"rotation_deviation_deg", ob.rotation_deviation_deg},
+                              {"max_deviation", ob.max_deviation}});
+    j["parts"] = nlohmann::json::array();
+    for (const auto& p : r.parts)
+      j["parts"].push_back(
+          {{"object", p.object}, {"part", p.part}, {"targets", p.targets}, {"baked", p.baked}, {"why", p.why}});
+    if (!page.empty()) j["html"] = (page / "index.html").string();
+    std::cout << j.dump(2) << "\n";
+    return 0;
+  }
+  std::cout << "csrbf export: " << o.scene << " -> " << o.out << " (" << kib(r.bytes) << "), " << r.frames
+            << " frames at " << r.fps << " fps\n";
+  for (const auto& ob : r.objects) {
+    std::printf("  object '%s': %zu vertices, %zu morph targets, at most %zu active at once", ob.name.c_str(),
+                ob.vertices, ob.targets, ob.max_active);
+    if (ob.rotation_deviation_deg > 0) std::printf(", squad sampled (%.3g deg at most)", ob.rotation_deviation_deg);
+    std::printf(", largest vertex deviation %.3g (%.2g of the scene)\n", ob.max_deviation,
+                r.scene_size > 0 ? ob.max_deviation / r.scene_size : 0.0);
+  }
+  for (const auto& p : r.parts)
+    std::cout << "  part '" << p.object << "/" << p.part << "': "
+              << (p.baked ? "baked into " + std::to_string(p.targets) + " frame targets (" + p.why + ")"
+                          : std::to_string(p.targets) + " exact morph targets")
+              << "\n";
+  if (r.max_active > go.max_active)
+    std::cout << "  warning: " << r.max_active << " morph targets are active at once; many engines play only "
+              << go.max_active << " (three.js 8) — --bake auto keeps within that\n";
+  std::cout << "  sizes: glTF " << kib(r.bytes) << "; every frame's vertices " << kib(r.frame_bytes)
+            << "; csrbf's deformations " << kib(r.csrbf_bytes) << "\n";
+  if (!page.empty()) std::cout << "  page: " << (page / "index.html").string() << "\n";
+  return 0;
+}
+
+}  // namespace csrbf::cli

@@ -1,0 +1,18 @@
+#pragma once
+
+#include <optional>
+#include <string>
+
+namespace csrbf::cli {
+
+struct ExportOptions {
+  std::string scene, out, bake = "auto", html;
+  std::optional<double> fps;
+  bool json = false;
+};
+
+/// `csrbf export`: the scene as glTF 2.0 (and, with --html, a page that plays it). Returns the exit
+/// status; throws for bad input (UsageError: exit 2).
+int run_export(const ExportOptions& o);
+
+}  // namespace csrbf::cli

@@ -1,0 +1,80 @@
+// A scene as glTF 2.0 (`csrbf export`), for game engines, Blender and web pages: objects as nodes
+// with their meshes, parts as primitives with their materials, trajectories as translation
+// channels, orientations as rotation channels, and CSRBF deformations as morph targets whose
+// weights follow their phase schedules (docs/export.md).
+//
+// What is exact and what is sampled:
+// - A Kochanek-Bartels trajectory is a cubic Hermite curve in time: written as CUBICSPLINE with each
+//   key's in- and out-tangents, it is the same curve.
+// - A slerp orientation track is written key for key (glTF's LINEAR rotation is slerp); a squad track
+//   is sampled at the frame rate, and the largest angle between squad and the slerp of the samples
+//   is reported.
+// - A deformation T(x) = x + t d(x) is linear in its phase t: one morph target holding d over the
+//   vertices it moves (a sparse accessor), weighted by the phase. Summed deformations are sums of
+//   targets, so exact; the weights follow linear schedules exactly and smooth ones sampled at the
+//   frame rate (the largest vertex error is reported).
+// - Composed deformations (T2 o T1) and contact deformations are not linear in their phases: they are
+//   baked, one target a frame holding the part's displacement at that frame, the weights cross-fading
+//   from each frame to the next (two active at once).
+#pragma once
+
+#include "csrbf/anim/scene.hpp"
+
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace csrbf::render {
+
+enum class Bake {
+  Auto,    ///< bake what is not linear in its weights, and objects over the engine limit
+  Always,  ///< bake every deforming part
+  Never,   ///< refuse (InvalidInput) a scene that needs baking
+};
+
+struct GltfOptions {
+  double fps = 0;               ///< the sampling rate; 0: the scene's
+  Bake bake = Bake::Auto;
+  std::size_t max_active = 8;   ///< morph targets active at once in an object (three.js: 8)
+};
+
+struct GltfPartReport {
+  std::string object, part;
+  std::size_t targets = 0;
+  bool baked = false;
+  std::string why;  ///< why baked, or empty
+};
+
+struct GltfObjectReport {
+  std::string name;
+  std::size_t vertices = 0, targets = 0, max_active = 0;
+  double rotation_deviation_deg = 0;  ///< squad against the slerp of its samples, largest angle
+  double max_deviation = 0;           ///< the largest vertex error of sampled weights, rotations and baking (scene units)
+};
+
+struct GltfReport {
+  std::size_t bytes = 0;         ///< the file written
+  std::size_t frames = 0;        ///< sample times (the frame rate over the duration)
+  double fps = 0;
+  double scene_size = 0;         ///< diagonal of the box of every vertex at every frame
+  std::size_t frame_bytes = 0;   ///< every frame's vertices as float xyz (the paper's game engines)
+  std::size_t csrbf_bytes = 0;   ///< the deformations' sources, coefficients and radii, as doubles
+  std::size_t targets = 0, max_active = 0;
+  std::vector<GltfObjectReport> objects;
+  std::vector<GltfPartReport> parts;  ///< every part that deforms
+};
+
+/// Writes the scene to path (.glb: binary; .gltf: JSON with the buffer and images embedded as data
+/// URIs), atomically: nothing is written unless the whole file is. Throws InvalidInput for a scene
+/// that cannot be exported as asked, io::FileError for files.
+GltfReport export_gltf(const anim::Scene& scene, const std::filesystem::path& path, const GltfOptions& options = {});
+
+/// The glb bytes alone (for the web page, and tests).
+std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptions& options, GltfReport& report);
+/// Base64 (RFC 4648, padded): glTF's data URIs and the web page's embedded glb.
+std::string base64(const unsigned char* data, std::size_t size);
+/// A glb as one .gltf text: its JSON with the binary chunk as a base64 data URI.
+std::string glb_to_gltf(const std::vector<unsigned char>& glb);
+
+}  // namespace csrbf::render

@@ -1,0 +1,731 @@
+// glTF 2.0 export of a scene: see gltf_export.hpp for what is exact and what is sampled.
+#include "csrbf/render/gltf_export.hpp"
+
+#include "csrbf/io/atomic_file.hpp"
+#include "csrbf/io/error.hpp"
+#include "texture_coordinates.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <map>
+#include <numbers>
+#include <sstream>
+
+namespace csrbf::render {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+constexpr int kFloat = 5126, kUnsignedInt = 5125, kArrayBuffer = 34962, kElementArrayBuffer = 34963;
+
+/// The binary buffer and the JSON's accessors and buffer views that point into it.
+struct Builder {
+  json doc;
+  std::vector<unsigned char> bin;
+
+  std::size_t view(const void* data, std::size_t bytes, int target = 0) {
+    while (bin.size() % 4) bin.push_back(0);
+    const std::size_t offset = bin.size();
+    const auto* p = static_cast<const unsigned char*>(data);
+    bin.insert(bin.end(), p, p + bytes);
+    json v = {{"buffer", 0}, {"byteOffset", offset}, {"byteLength", bytes}};
+    if (target) v["target"] = target;
+    doc["bufferViews"].push_back(v);
+    return doc["bufferViews"].size() - 1;
+  }
+  std::size_t accessor(json a) {
+    doc["accessors"].push_back(std::move(a));
+    return doc["accessors"].size() - 1;
+  }
+  /// count x width floats (VEC3, VEC4, SCALAR), with min and max.
+  std::size_t floats(const std::vector<float>& v, int width, int target = 0) {
+    const std::size_t count = v.size() / std::size_t(width);
+    json mn = json::array(), mx = json::array();
+    for (int c = 0; c < width; ++c) {
+      float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+      for (std::size_t i = 0; i < count; ++i) {
+        lo = std::min(lo, v[i * std::size_t(width) + std::size_t(c)]);
+        hi = std::max(hi, v[i * std::size_t(width) + std::size_t(c)]);
+      }
+      mn.push_back(lo);
+      mx.push_back(hi);
+    }
+    const char* type = width == 1 ? "SCALAR" : width == 2 ? "VEC2" : width == 3 ? "VEC3" : "VEC4";
+    return accessor({{"bufferView", view(v.data(), v.size() * 4, target)},
+                     {"componentType", kFloat},
+                     {"count", count},
+                     {"type", type},
+                     {"min", mn},
+                     {"max", mx}});
+  }
+  /// A VEC3 accessor of count entries, zero but for (index, value) pairs (sparse, no buffer view).
+  /// min and max over every entry.
+  std::size_t sparse_vec3(std::size_t count, const std::vector<std::uint32_t>& index, const std::vector<float>& value) {
+    float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+    for (std::size_t i = 0; i < index.size(); ++i)
+      for (int c = 0; c < 3; ++c) {
+        lo[c] = std::min(lo[c], value[3 * i + std::size_t(c)]);
+        hi[c] = std::max(hi[c], value[3 * i + std::size_t(c)]);
+      }
+    json a = {{"componentType", kFloat},
+              {"count", count},
+              {"type", "VEC3"},
+              {"min", {lo[0], lo[1], lo[2]}},
+              {"max", {hi[0], hi[1], hi[2]}}};
+    // Sparse with one explicit zero where nothing moves: three.js's loader (r111) drops an
+    // accessor with neither a buffer view nor sparse values, and a target then fails to load.
+    std::vector<std::uint32_t> one_index = index;
+    std::vector<float> one_value = value;
+    if (one_index.empty()) {
+      one_index.push_back(0);
+      one_value.assign(3, 0.0f);
+    }
+    {
+      const std::vector<std::uint32_t>& index = one_index;
+      const std::vector<float>& value = one_value;
+      const std::size_t iv = view(index.data(), index.size() * 4);
+      const std::size_t vv = view(value.data(), value.size() * 4);
+      a["sparse"] = {{"count", index.size()},
+                     {"indices", {{"bufferView", iv}, {"componentType", kUnsignedInt}}},
+                     {"values", {{"bufferView", vv}}}};
+    }
+    return accessor(std::move(a));
+  }
+};
+
+/// Area-weighted vertex normals of a surface (polygons as fans).
+std::vector<Vec3> vertex_normals(const std::vector<Vec3>& p, const PolygonList& faces) {
+  std::vector<Vec3> n(p.size(), Vec3::Zero());
+  for (const auto f : faces)
+    for (std::size_t k = 1; k + 1 < f.size(); ++k) {
+      const Vec3 w = (p[f[k]] - p[f[0]]).cross(p[f[k + 1]] - p[f[0]]);
+      n[f[0]] += w;
+      n[f[k]] += w;
+      n[f[k + 1]] += w;
+    }
+  for (auto& v : n) {
+    const double l = v.norm();
+    v = l > 0 ? Vec3(v / l) : Vec3(0, 0, 1);
+  }
+  return n;
+}
+
+/// The (index, delta) pairs of a VEC3 field that differ from zero.
+void nonzero(const std::vector<Vec3>& delta, double tolerance, std::vector<std::uint32_t>& index,
+             std::vector<float>& value) {
+  index.clear();
+  value.clear();
+  for (std::size_t i = 0; i < delta.size(); ++i)
+    if (delta[i].cwiseAbs().maxCoeff() > tolerance) {
+      index.push_back(std::uint32_t(i));
+      for (int c = 0; c < 3; ++c) value.push_back(float(delta[i][c]));
+    }
+}
+
+/// A rotation that turns -Z onto dir with +Y as near up as it can (glTF cameras and lights look down -Z).
+Eigen::Quaterniond look_along(const Vec3& dir, const Vec3& up) {
+  const Vec3 z = (-dir).normalized();
+  Vec3 x = up.cross(z);
+  if (x.norm() < 1e-12) x = Vec3(0, 1, 0).cross(z).norm() > 1e-12 ? Vec3(0, 1, 0).cross(z) : Vec3(1, 0, 0).cross(z);
+  x.normalize();
+  const Vec3 y = z.cross(x);
+  Eigen::Matrix3d m;
+  m.col(0) = x;
+  m.col(1) = y;
+  m.col(2) = z;
+  return Eigen::Quaterniond(m).normalized();
+}
+
+json quat_json(const Eigen::Quaterniond& q) { return {q.x(), q.y(), q.z(), q.w()}; }
+json vec_json(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+double angle_between(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
+  return 2 * std::acos(std::min(1.0, std::abs(a.dot(b))));
+}
+
+/// Sorted, unique times in [0, end]: the given ones, merged where closer than 1e-9 s.
+std::vector<double> unique_times(std::vector<double> t, double end) {
+  t.erase(std::remove_if(t.begin(), t.end(), [&](double x) { return !(x >= 0 && x <= end); }), t.end());
+  std::sort(t.begin(), t.end());
+  std::vector<double> out;
+  for (const double x : t)
+    if (out.empty() || x - out.back() > 1e-9) out.push_back(x);
+  return out;
+}
+
+std::string image_mime(const std::vector<unsigned char>& bytes, const std::string& file) {
+  static const unsigned char png[8] = {0x89, 'P', 'N', 'G', 0x0d, 0x0a, 0x1a, 0x0a};
+  if (bytes.size() >= 8 && std::memcmp(bytes.data(), png, 8) == 0) return "image/png";
+  if (bytes.size() >= 3 && bytes[0] == 0xff && bytes[1] == 0xd8 && bytes[2] == 0xff) return "image/jpeg";
+  throw io::FileError("texture '" + file + "' is not a PNG or JPEG image (glTF takes only those)");
+}
+
+std::vector<unsigned char> read_bytes(const std::string& file) {
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw io::FileError("texture '" + file + "' cannot be opened: " + std::strerror(errno));
+  std::vector<unsigned char> b((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (in.bad()) throw io::FileError("texture '" + file + "' could not be read");
+  return b;
+}
+
+/// What one object's deforming parts become.
+struct ObjectPlan {
+  std::vector<int> owner;                 // per vertex: the last deforming part that holds it, or -1
+  std::vector<char> baked;                // per part
+  std::vector<std::string> why;           // per part: why baked
+  struct Exact {
+    std::size_t part, deformation;
+    std::vector<Vec3> d;  // per object vertex (zero where it does not move)
+    double largest = 0;   // max |d|
+  };
+  std::vector<Exact> exact;
+  bool any_baked() const { return std::find(baked.begin(), baked.end(), 1) != baked.end(); }
+};
+
+}  // namespace
+
+std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptions& options, GltfReport& report) {
+  const double fps = options.fps > 0 ? options.fps : scene.fps;
+  if (!(fps > 0) || !std::isfinite(fps)) throw InvalidInput("export: the frame rate must be > 0");
+  const double duration = scene.duration;
+  const std::size_t frames = std::size_t(std::floor(duration * fps + 1e-9)) + 1;
+  constexpr double kMaxFrames = 1e5;
+  if (double(frames) > kMaxFrames)
+    throw InvalidInput("export: " + std::to_string(frames) + " frames at " + std::to_string(fps) +
+                       " fps; at most 100000 are sampled");
+  std::vector<double> frame_t(frames);
+  for (std::size_t k = 0; k < frames; ++k) frame_t[k] = double(k) / fps;
+  report = GltfReport{};
+  report.fps = fps;
+  report.frames = frames;
+
+  // Which parts are exact and which are baked.
+  std::vector<ObjectPlan> plans(scene.objects.size());
+  for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+    const anim::Object& obj = scene.objects[o];
+    ObjectPlan& plan = plans[o];
+    plan.owner.assign(obj.rest.size(), -1);
+    plan.baked.assign(obj.parts.size(), 0);
+    plan.why.assign(obj.parts.size(), {});
+    for (std::size_t p = 0; p < obj.parts.size(); ++p) {
+      const anim::Part& part = obj.parts[p];
+      if (part.deformations.empty()) continue;
+      for (const auto v : part.vertices) plan.owner[v] = int(p);
+      bool contact = false;
+      for (const auto& d : part.deformations) contact |= d.contact.has_value();
+      if (contact)
+        plan.why[p] = "a contact deformation is refitted every frame";
+      else if (part.combine == anim::Combine::Compose && part.deformations.size() > 1)
+        plan.why[p] = "composed deformations (T2 o T1) are not linear in their phases";
+      else if (options.bake == Bake::Always)
+        plan.why[p] = "--bake always";
+      if (!plan.why[p].empty()) {
+        if (options.bake == Bake::Never)
+          throw InvalidInput("export: objects[" + std::to_string(o) + "] '" + obj.name + "' part '" + part.name +
+                             "' needs baking (" + plan.why[p] + "), and --bake never forbids it");
+        plan.baked[p] = 1;
+      }
+    }
+    // The exact targets, and the most active at once; over the limit, the object is baked.
+    const auto exact_targets = [&] {
+      plan.exact.clear();
+      for (std::size_t p = 0; p < obj.parts.size(); ++p) {
+        const anim::Part& part = obj.parts[p];
+        if (part.deformations.empty() || plan.baked[p]) continue;
+        for (std::size_t k = 0; k < part.deformations.size(); ++k) {
+          const anim::Deformation& def = part.deformations[k];
+          std::vector<Vec3> x;
+          std::vector<std::uint32_t> which;
+          for (const auto v : part.vertices) {
+            if (plan.owner[v] != int(p)) continue;
+            if (!def.area.empty() && !std::binary_search(def.area.begin(), def.area.end(), v)) continue;
+            which.push_back(v);
+            x.push_back(obj.rest[v]);
+          }
+          std::vector<Vec3> d(x.size());
+          if (!x.empty()) def.map->displacements(x.data()->data(), d.data()->data(), x.size());
+          ObjectPlan::Exact e{p, k, std::vector<Vec3>(obj.rest.size(), Vec3::Zero()), 0.0};
+          for (std::size_t i = 0; i < which.size(); ++i) {
+            if (!d[i].allFinite())
+              throw InvalidInput("export: objects[" + std::to_string(o) + "] '" + obj.name + "' part '" + part.name +
+                                 "' deformation '" + def.name + "' moves vertex " + std::to_string(which[i]) +
+                                 " to a non-finite position");
+            e.d[which[i]] = d[i];
+            e.largest = std::max(e.largest, d[i].norm());
+          }
+          plan.exact.push_back(std::move(e));
+        }
+      }
+    };
+    exact_targets();
+    const auto most_active = [&] {
+      std::size_t most = 0;
+      std::vector<double> times = frame_t;
+      for (const auto& e : plan.exact)
+        for (const auto& key : obj.parts[e.part].deformations[e.deformation].schedule.keys()) times.push_back(key.time);
+      for (const double t : unique_times(times, duration)) {
+        std::size_t n = plan.any_baked() ? 2 : 0;
+        for (const auto& e : plan.exact)
+          n += obj.parts[e.part].deformations[e.deformation].schedule.phase(t) != 0.0 && e.largest > 0;
+        most = std::max(most, n);
+      }
+      return most;
+    };
+    if (most_active() > options.max_active && options.bake == Bake::Auto) {
+      for (std::size_t p = 0; p < obj.parts.size(); ++p)
+        if (!obj.parts[p].deformations.empty() && !plan.baked[p]) {
+          plan.baked[p] = 1;
+          plan.why[p] = "the object would have more than " + std::to_string(options.max_active) +
+                        " morph targets active at once";
+        }
+      exact_targets();
+    }
+  }
+
+  // One pass of the player over the frames: the baked parts' displacements, and the scene's size.
+  anim::Player player(scene);
+  std::vector<std::vector<std::vector<Vec3>>> baked_frames(scene.objects.size());  // [object][frame][vertex]
+  Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+  std::vector<double> reach(scene.objects.size(), 0.0);  // largest distance of a vertex from the centre
+  for (std::size_t k = 0; k < frames; ++k) {
+    player.evaluate(frame_t[k]);
+    for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+      const anim::Object& obj = scene.objects[o];
+      for (const auto& p : player.positions(o)) {
+        lo = lo.cwiseMin(p);
+        hi = hi.cwiseMax(p);
+      }
+      for (const auto& p : player.deformed(o)) reach[o] = std::max(reach[o], (p - obj.centre).norm());
+      if (!plans[o].any_baked()) continue;
+      std::vector<Vec3> d(obj.rest.size(), Vec3::Zero());
+      const auto& model = player.deformed(o);
+      for (std::size_t v = 0; v < obj.rest.size(); ++v)
+        if (plans[o].owner[v] >= 0 && plans[o].baked[std::size_t(plans[o].owner[v])]) d[v] = model[v] - obj.rest[v];
+      baked_frames[o].push_back(std::move(d));
+    }
+  }
+  report.scene_size = (hi - lo).norm();
+
+  Builder b;
+  b.doc["asset"] = {{"version", "2.0"}, {"generator", "csrbf export"}};
+  b.doc["scene"] = 0;
+  b.doc["scenes"] = json::array({json{{"name", "scene"}, {"nodes", json::array()}}});
+  b.doc["scenes"][0]["extras"] = {{"csrbf", {{"duration", duration},
+                                             {"fps", fps},
+                                             {"background", vec_json(scene.background)},
+                                             {"view_angle", scene.camera.view_angle}}}};
+  b.doc["nodes"] = json::array();
+  b.doc["meshes"] = json::array();
+  b.doc["materials"] = json::array();
+  b.doc["accessors"] = json::array();
+  b.doc["bufferViews"] = json::array();
+  json animation = {{"name", "scene"}, {"channels", json::array()}, {"samplers", json::array()}};
+  const auto add_channel = [&](std::size_t node, const char* path, std::size_t input, std::size_t output,
+                               const char* interpolation) {
+    animation["samplers"].push_back({{"input", input}, {"output", output}, {"interpolation", interpolation}});
+    animation["channels"].push_back(
+        {{"sampler", animation["samplers"].size() - 1}, {"target", {{"node", node}, {"path", path}}}});
+  };
+  const auto time_accessor = [&](const std::vector<double>& t) {
+    std::vector<float> f(t.begin(), t.end());
+    return b.floats(f, 1);
+  };
+  std::map<std::string, std::size_t> images;  // file -> texture index
+  const auto material = [&](const anim::Material& m, const std::string& name) {
+    json mat = {{"name", name},
+                {"doubleSided", true},
+                {"pbrMetallicRoughness",
+                 {{"baseColorFactor", {m.color.x(), m.color.y(), m.color.z(), m.opacity}},
+                  {"metallicFactor", 0.0},
+                  {"roughnessFactor", std::clamp(1.0 - 0.8 * m.specular, 0.05, 1.0)}}}};
+    if (m.opacity < 1) mat["alphaMode"] = "BLEND";
+    if (!m.texture.empty()) {
+      auto it = images.find(m.texture);
+      if (it == images.end()) {
+        const std::vector<unsigned char> bytes = read_bytes(m.texture);
+        const std::string mime = image_mime(bytes, m.texture);
+        const std::size_t v = b.view(bytes.data(), bytes.size());
+        b.doc["images"].push_back({{"bufferView", v}, {"mimeType", mime}, {"name", fs::path(m.texture).filename().string()}});
+        b.doc["samplers"] = json::array({json{{"magFilter", 9729}, {"minFilter", 9987}, {"wrapS", 10497}, {"wrapT", 10497}}});
+        b.doc["textures"].push_back({{"sampler", 0}, {"source", b.doc["images"].size() - 1}});
+        it = images.emplace(m.texture, b.doc["textures"].size() - 1).first;
+      }
+      mat["pbrMetallicRoughness"]["baseColorTexture"] = {{"index", it->second}};
+    }
+    b.doc["materials"].push_back(mat);
+    return b.doc["materials"].size() - 1;
+  };
+
+  for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+    const anim::Object& obj = scene.objects[o];
+    const ObjectPlan& plan = plans[o];
+    GltfObjectReport orep;
+    orep.name = obj.name;
+    orep.vertices = obj.rest.size();
+    const std::size_t nv = obj.rest.size();
+    report.frame_bytes += frames * nv * 12;
+
+    // The shared attributes: rest positions and normals.
+    std::vector<float> pos(3 * nv), nor(3 * nv);
+    const std::vector<Vec3> rest_normals = vertex_normals(obj.rest, obj.faces);
+    for (std::size_t v = 0; v < nv; ++v)
+      for (int c = 0; c < 3; ++c) {
+        pos[3 * v + std::size_t(c)] = float(obj.rest[v][c]);
+        nor[3 * v + std::size_t(c)] = float(rest_normals[v][c]);
+      }
+    const std::size_t pos_acc = b.floats(pos, 3, kArrayBuffer), nor_acc = b.floats(nor, 3, kArrayBuffer);
+
+    // The morph targets: exact ones, then one a frame for the baked parts (frames where nothing
+    // moves have none).
+    json targets = json::array();
+    std::vector<std::uint32_t> index;
+    std::vector<float> value;
+    const auto add_target = [&](const std::vector<Vec3>& d) {
+      nonzero(d, 0.0, index, value);
+      const std::size_t pa = b.sparse_vec3(nv, index, value);
+      std::vector<Vec3> moved(nv);
+      for (std::size_t v = 0; v < nv; ++v) moved[v] = obj.rest[v] + d[v];
+      const std::vector<Vec3> n = vertex_normals(moved, obj.faces);
+      std::vector<Vec3> dn(nv);
+      for (std::size_t v = 0; v < nv; ++v) dn[v] = n[v] - rest_normals[v];
+      nonzero(dn, 1e-6, index, value);
+      const std::size_t na = b.sparse_vec3(nv, index, value);
+      targets.push_back({{"POSITION", pa}, {"NORMAL", na}});
+    };
+    std::vector<std::string> target_names;
+    for (const auto& e : plan.exact) {
+      add_target(e.d);
+      target_names.push_back(obj.parts[e.part].deformations[e.deformation].name);
+    }
+    std::vector<std::size_t> baked_frame;  // the frame of each baked target
+    if (plan.any_baked())
+      for (std::size_t k = 0; k < frames; ++k) {
+        bool moves = false;
+        for (const auto& d : baked_frames[o][k]) moves |= d != Vec3::Zero();
+        if (!moves) continue;
+        add_target(baked_frames[o][k]);
+        baked_frame.push_back(k);
+        char name[64];
+        std::snprintf(name, sizeof name, "baked frame %zu (t = %.4g s)", k, frame_t[k]);
+        target_names.push_back(name);
+      }
+    const std::size_t ntargets = targets.size();
+    orep.targets = ntargets;
+
+    // Weights at time t: the phases of the exact targets, and the baked frames' cross-fade.
+    const auto weights_at = [&](double t, std::vector<double>& w) {
+      w.assign(ntargets, 0.0);
+      for (std::size_t j = 0; j < plan.exact.size(); ++j) {
+        const auto& e = plan.exact[j];
+        w[j] = obj.parts[e.part].deformations[e.deformation].schedule.phase(t);
+      }
+      if (baked_frame.empty()) return;
+      const double u = std::clamp(t * fps, 0.0, double(frames - 1));
+      auto f0 = std::size_t(std::floor(u));
+      if (f0 >= frames - 1) f0 = frames - 1;
+      const double s = u - double(f0);
+      for (std::size_t j = 0; j < baked_frame.size(); ++j) {
+        if (baked_frame[j] == f0) w[plan.exact.size() + j] = 1 - s;
+        if (baked_frame[j] == f0 + 1) w[plan.exact.size() + j] = s;
+      }
+    };
+
+    // The primitives: faces in no part with the object's look, then each part's own faces.
+    json primitives = json::array();
+    std::vector<int> face_owner(obj.faces.size(), -1);
+    for (std::size_t p = 0; p < obj.parts.size(); ++p)
+      for (const auto f : obj.parts[p].faces) face_owner[f] = int(p);
+    for (int p = -1; p < int(obj.parts.size()); ++p) {
+      std::vector<std::uint32_t> tri;
+      std::vector<std::uint32_t> face_list;
+      for (std::size_t f = 0; f < obj.faces.size(); ++f)
+        if (face_owner[f] == p) {
+          face_list.push_back(std::uint32_t(f));
+          const auto poly = obj.faces[f];
+          for (std::size_t k = 1; k + 1 < poly.size(); ++k) tri.insert(tri.end(), {poly[0], poly[k], poly[k + 1]});
+        }
+      if (tri.empty()) continue;
+      const anim::Material& m = p < 0 ? obj.material : obj.parts[std::size_t(p)].material;
+      const std::string mname = obj.name + (p < 0 ? std::string() : " / " + obj.parts[std::size_t(p)].name);
+      json attrs = {{"POSITION", pos_acc}, {"NORMAL", nor_acc}};
+      if (!m.texture.empty()) {
+        const std::vector<float> uv = texture_coordinates(obj, face_list, m.mapping);
+        attrs["TEXCOORD_0"] = b.floats(uv, 2, kArrayBuffer);
+      }
+      const std::size_t iv = b.view(tri.data(), tri.size() * 4, kElementArrayBuffer);
+      const std::size_t ia = b.accessor({{"bufferView", iv},
+                                         {"componentType", kUnsignedInt},
+                                         {"count", tri.size()},
+                                         {"type", "SCALAR"},
+                                         {"min", {*std::min_element(tri.begin(), tri.end())}},
+                                         {"max", {*std::max_element(tri.begin(), tri.end())}}});
+      json prim = {{"attributes", attrs}, {"indices", ia}, {"material", material(m, mname)}, {"mode", 4}};
+      if (ntargets) prim["targets"] = targets;
+      primitives.push_back(prim);
+    }
+    json mesh = {{"name", obj.name}, {"primitives", primitives}};
+    std::vector<double> w0;
+    if (ntargets) {
+      weights_at(0.0, w0);
+      mesh["weights"] = w0;
+      mesh["extras"] = {{"targetNames", target_names}};
+    }
+    b.doc["meshes"].push_back(mesh);
+    const std::size_t mesh_index = b.doc["meshes"].size() - 1;
+
+    // The pivot (the centre of gravity, moved and turned) and, under it, the mesh (model coordinates).
+    const std::size_t pivot = b.doc["nodes"].size();
+    b.doc["nodes"].push_back({{"name", obj.name + " pivot"}, {"children", {pivot + 1}}});
+    b.doc["nodes"].push_back({{"name", obj.name}, {"mesh", mesh_index}, {"translation", vec_json(-obj.centre)}});
+    b.doc["scenes"][0]["nodes"].push_back(pivot);
+    const std::size_t mesh_node = pivot + 1;
+
+    // Translation: the trajectory, key for key (cut at 0 and at the duration), as CUBICSPLINE.
+    if (obj.trajectory && obj.trajectory->keys().size() > 1) {
+      const anim::PositionTrack& tr = *obj.trajectory;
+      const auto& keys = tr.keys();
+      std::vector<double> times = {0.0, duration};
+      for (const auto& k : keys) times.push_back(k.time);
+      times = unique_times(times, duration);
+      std::vector<float> out;
+      for (const double t : times) {
+        Vec3 in_tangent = Vec3::Zero(), out_tangent = Vec3::Zero();
+        const auto key = std::find_if(keys.begin(), keys.end(), [&](const auto& k) { return std::abs(k.time - t) <= 1e-9; });
+        if (key != keys.end()) {
+          const auto i = std::size_t(key - keys.begin());
+          if (i > 0) in_tangent = tr.in_tangents()[i] / (keys[i].time - keys[i - 1].time);
+          if (i + 1 < keys.size()) out_tangent = tr.out_tangents()[i] / (keys[i + 1].time - keys[i].time);
+        } else if (t > keys.front().time && t < keys.back().time) {
+          in_tangent = out_tangent = tr.velocity(t);
+        }
+        const Vec3 p = key != keys.end() ? key->position : tr.position(t);
+        for (const Vec3& v : {in_tangent, p, out_tangent})
+          for (int c = 0; c < 3; ++c) out.push_back(float(v[c]));
+      }
+      add_channel(pivot, "translation", time_accessor(times), b.floats(out, 3), "CUBICSPLINE");
+      b.doc["nodes"][pivot]["translation"] = vec_json(tr.position(0.0));
+    } else {
+      b.doc["nodes"][pivot]["translation"] = vec_json(anim::pose_at(obj, 0.0).position);
+    }
+
+    // Rotation: slerp tracks key for key; squad sampled at the frame rate (and at its keys).
+    const anim::OrientationTrack& ot = obj.orientation;
+    if (ot.keys().size() > 1) {
+      std::vector<double> times = {0.0, duration};
+      for (const auto& k : ot.keys()) times.push_back(k.time);
+      if (ot.interpolation() == anim::Rotation::Squad) times.insert(times.end(), frame_t.begin(), frame_t.end());
+      times = unique_times(times, duration);
+      std::vector<Eigen::Quaterniond> q;
+      for (const double t : times) {
+        Eigen::Quaterniond r = ot.rotation(t);
+        if (!q.empty() && q.back().dot(r) < 0) r.coeffs() = -r.coeffs();
+        q.push_back(r);
+      }
+      double worst = 0;
+      if (ot.interpolation() == anim::Rotation::Squad)
+        for (std::size_t i = 0; i + 1 < times.size(); ++i)
+          for (int s = 1; s < 8; ++s) {
+            const double h = s / 8.0;
+            worst = std::max(worst, angle_between(anim::slerp(q[i], q[i + 1], h),
+                                                  ot.rotation(times[i] + h * (times[i + 1] - times[i]))));
+          }
+      orep.rotation_deviation_deg = worst * 180 / std::numbers::pi;
+      orep.max_deviation += worst * reach[o];
+      std::vector<float> out;
+      for (const auto& r : q)
+        for (const double c : {r.x(), r.y(), r.z(), r.w()}) out.push_back(float(c));
+      add_channel(pivot, "rotation", time_accessor(times), b.floats(out, 4), "LINEAR");
+      b.doc["nodes"][pivot]["rotation"] = quat_json(q.front());
+    } else {
+      b.doc["nodes"][pivot]["rotation"] = quat_json(ot.rotation(0.0));
+    }
+
+    // Weights: at the frames, the phase keys and the duration, LINEAR.
+    if (ntargets) {
+      std::vector<double> times = frame_t;
+      times.push_back(duration);
+      for (const auto& e : plan.exact)
+        for (const auto& key : obj.parts[e.part].deformations[e.deformation].schedule.keys()) times.push_back(key.time);
+      times = unique_times(times, duration);
+      std::vector<float> out;
+      std::vector<std::vector<double>> w(times.size());
+      for (std::size_t i = 0; i < times.size(); ++i) {
+        weights_at(times[i], w[i]);
+        for (const double x : w[i]) out.push_back(float(x));
+      }
+      add_channel(mesh_node, "weights", time_accessor(times), b.floats(out, 1), "LINEAR");
+      // Between samples the engine interpolates the weights linearly: a smooth schedule's error,
+      // times its target's largest displacement.
+      double weight_error = 0;
+      for (std::size_t i = 0; i + 1 < times.size(); ++i)
+        for (int s = 1; s < 8; ++s) {
+          const double h = s / 8.0, t = times[i] + h * (times[i + 1] - times[i]);
+          double e = 0;
+          for (std::size_t j = 0; j < plan.exact.size(); ++j) {
+            const auto& x = plan.exact[j];
+            const double truth = obj.parts[x.part].deformations[x.deformation].schedule.phase(t);
+            e += std::abs(truth - ((1 - h) * w[i][j] + h * w[i + 1][j])) * x.largest;
+          }
+          weight_error = std::max(weight_error, e);
+        }
+      orep.max_deviation += weight_error;
+      // The most targets active at once.
+      for (const auto& wi : w) {
+        std::size_t n = 0;
+        for (const double x : wi) n += x != 0.0;
+        orep.max_active = std::max(orep.max_active, n);
+      }
+      if (!baked_frame.empty()) orep.max_active = std::max<std::size_t>(orep.max_active, 2);
+    }
+    report.targets += ntargets;
+    report.max_active = std::max(report.max_active, orep.max_active);
+    for (std::size_t p = 0; p < obj.parts.size(); ++p) {
+      if (obj.parts[p].deformations.empty()) continue;
+      GltfPartReport pr{obj.name, obj.parts[p].name, 0, plan.baked[p] != 0, plan.why[p]};
+      for (const auto& e : plan.exact) pr.targets += e.part == p;
+      if (pr.baked) pr.targets = baked_frame.size();
+      report.parts.push_back(pr);
+      for (const auto& def : obj.parts[p].deformations) {
+        // The deformation as csrbf keeps it: sources and coefficients (doubles) and the radius;
+        // a contact deformation's 13 controls.
+        const std::size_t n = def.map ? def.map->size() : 13;
+        report.csrbf_bytes += n * 48 + 8;
+      }
+    }
+    report.objects.push_back(orep);
+  }
+
+  // Baking's error between frames: the player at four points of every frame interval against the
+  // cross-fade of the two frames' targets.
+  bool any_baked = false;
+  for (const auto& p : plans) any_baked |= p.any_baked();
+  if (any_baked && frames > 1)
+    for (std::size_t k = 0; k + 1 < frames; ++k)
+      for (const double s : {0.25, 0.5, 0.75}) {
+        player.evaluate(frame_t[k] + s * (frame_t[k + 1] - frame_t[k]));
+        for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+          if (!plans[o].any_baked()) continue;
+          const auto& model = player.deformed(o);
+          const auto& a = baked_frames[o][k];
+          const auto& c = baked_frames[o][k + 1];
+          double e = 0;
+          for (std::size_t v = 0; v < model.size(); ++v)
+            if (plans[o].owner[v] >= 0 && plans[o].baked[std::size_t(plans[o].owner[v])])
+              e = std::max(e, (scene.objects[o].rest[v] + (1 - s) * a[v] + s * c[v] - model[v]).norm());
+          report.objects[o].max_deviation = std::max(report.objects[o].max_deviation, e);
+        }
+      }
+  // (Rotation and weight errors were added above; the baking error is the largest of its own.)
+
+  // The camera, looking from its position to its focal point, and the lights (KHR_lights_punctual).
+  const anim::Camera& cam = scene.camera;
+  const double distance = (cam.focal_point - cam.position).norm();
+  b.doc["cameras"] = json::array({json{{"name", "camera"},
+                                       {"type", "perspective"},
+                                       {"perspective",
+                                        {{"yfov", cam.view_angle * std::numbers::pi / 180},
+                                         {"znear", std::max(1e-6, 0.01 * distance)},
+                                         {"zfar", std::max(1.0, 100 * std::max(distance, report.scene_size))}}}}});
+  const std::size_t cam_node = b.doc["nodes"].size();
+  b.doc["nodes"].push_back({{"name", "camera"},
+                            {"camera", 0},
+                            {"translation", vec_json(cam.position)},
+                            {"rotation", quat_json(look_along(cam.focal_point - cam.position, cam.view_up))}});
+  b.doc["scenes"][0]["nodes"].push_back(cam_node);
+  std::vector<anim::Light> lights = scene.lights;
+  if (lights.empty()) lights.push_back(anim::Light{Vec3(1, 1, 1), Vec3(1, 1, 1), 1.0, true});
+  json khr = json::array();
+  for (std::size_t i = 0; i < lights.size(); ++i) {
+    const auto& l = lights[i];
+    khr.push_back({{"name", l.headlight ? "headlight" : "light " + std::to_string(i)},
+                   {"type", "directional"},
+                   {"color", vec_json(l.color)},
+                   {"intensity", l.intensity}});
+    const std::size_t node = b.doc["nodes"].size();
+    json n = {{"name", l.headlight ? "headlight" : "light " + std::to_string(i)},
+              {"extensions", {{"KHR_lights_punctual", {{"light", i}}}}}};
+    if (l.headlight) {
+      b.doc["nodes"][cam_node]["children"].push_back(node);
+    } else {
+      n["translation"] = vec_json(l.position);
+      n["rotation"] = quat_json(look_along(cam.focal_point - l.position, cam.view_up));
+      b.doc["scenes"][0]["nodes"].push_back(node);
+    }
+    b.doc["nodes"].push_back(n);
+  }
+  b.doc["extensionsUsed"] = {"KHR_lights_punctual"};
+  b.doc["extensions"] = {{"KHR_lights_punctual", {{"lights", khr}}}};
+  if (!animation["channels"].empty()) b.doc["animations"] = json::array({animation});
+  for (const char* key : {"materials", "accessors", "bufferViews", "meshes"})
+    if (b.doc[key].empty()) b.doc.erase(key);
+  while (b.bin.size() % 4) b.bin.push_back(0);
+  b.doc["buffers"] = json::array({json{{"byteLength", b.bin.size()}}});
+
+  // The glb: header, the JSON chunk (padded with spaces), the binary chunk.
+  std::string text = b.doc.dump();
+  while (text.size() % 4) text.push_back(' ');
+  std::vector<unsigned char> glb;
+  const auto u32 = [&](std::uint32_t x) {
+    for (int i = 0; i < 4; ++i) glb.push_back((unsigned char)(x >> (8 * i)));
+  };
+  const std::size_t total = 12 + 8 + text.size() + 8 + b.bin.size();
+  if (total > 0xffffffffu) throw InvalidInput("export: the glb would be " + std::to_string(total) + " bytes; glTF allows 4 GiB");
+  u32(0x46546C67);  // "glTF"
+  u32(2);
+  u32(std::uint32_t(total));
+  u32(std::uint32_t(text.size()));
+  u32(0x4E4F534A);  // "JSON"
+  glb.insert(glb.end(), text.begin(), text.end());
+  u32(std::uint32_t(b.bin.size()));
+  u32(0x004E4942);  // "BIN\0"
+  glb.insert(glb.end(), b.bin.begin(), b.bin.end());
+  report.bytes = glb.size();
+  return glb;
+}
+
+std::string base64(const unsigned char* p, std::size_t n) {
+  static const char* a = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((n + 2) / 3 * 4);
+  for (std::size_t i = 0; i < n; i += 3) {
+    const std::uint32_t v = std::uint32_t(p[i]) << 16 | (i + 1 < n ? std::uint32_t(p[i + 1]) << 8 : 0) |
+                            (i + 2 < n ? std::uint32_t(p[i + 2]) : 0);
+    out.push_back(a[v >> 18 & 63]);
+    out.push_back(a[v >> 12 & 63]);
+    out.push_back(i + 1 < n ? a[v >> 6 & 63] : '=');
+    out.push_back(i + 2 < n ? a[v & 63] : '=');
+  }
+  return out;
+}
+
+std::string glb_to_gltf(const std::vector<unsigned char>& glb) {
+  std::uint32_t json_len = 0;
+  std::memcpy(&json_len, glb.data() + 12, 4);
+  json doc = json::parse(glb.begin() + 20, glb.begin() + 20 + json_len);
+  const std::size_t bin_at = 20 + json_len + 8;
+  doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64(glb.data() + bin_at, glb.size() - bin_at);
+  std::string out = doc.dump(1);
+  out.push_back('\n');
+  return out;
+}
+
+GltfReport export_gltf(const anim::Scene& scene, const fs::path& path, const GltfOptions& options) {
+  const std::string ext = path.extension().string();
+  if (ext != ".glb" && ext != ".gltf")
+    throw InvalidInput("export: the output must end in .glb or .gltf, got '" + path.string() + "'");
+  io::check_output_path(path);
+  GltfReport report;
+  const std::vector<unsigned char> glb = gltf_binary(scene, options, report);
+  const std::string out = ext == ".glb" ? std::string(glb.begin(), glb.end()) : glb_to_gltf(glb);
+  io::write_atomically(path, [&](std::ostream& s) { s.write(out.data(), std::streamsize(out.size())); });
+  report.bytes = out.size();
+  return report;
+}
+
+}  // namespace csrbf::render

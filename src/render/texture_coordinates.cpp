@@ -1,0 +1,58 @@
+#include "texture_coordinates.hpp"
+
+#include <vtkCellArray.h>
+#include <vtkDataSetAlgorithm.h>
+#include <vtkNew.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkTextureMapToCylinder.h>
+#include <vtkTextureMapToPlane.h>
+#include <vtkTextureMapToSphere.h>
+
+namespace csrbf::render {
+
+vtkSmartPointer<vtkDataArray> texture_coordinates(vtkPolyData* rest, anim::TextureMapping mapping) {
+  vtkSmartPointer<vtkDataSetAlgorithm> map;
+  switch (mapping) {
+    case anim::TextureMapping::Sphere:
+      map = vtkSmartPointer<vtkTextureMapToSphere>::New();
+      break;
+    case anim::TextureMapping::Plane:
+      map = vtkSmartPointer<vtkTextureMapToPlane>::New();
+      break;
+    case anim::TextureMapping::Cylinder:
+      map = vtkSmartPointer<vtkTextureMapToCylinder>::New();
+      break;
+  }
+  map->SetInputData(rest);
+  map->Update();
+  return map->GetOutput()->GetPointData()->GetTCoords();
+}
+
+std::vector<float> texture_coordinates(const anim::Object& obj, const std::vector<std::uint32_t>& faces,
+                                       anim::TextureMapping mapping) {
+  // The renderer's surface: every rest vertex as float (its points are single precision), these faces.
+  vtkNew<vtkPoints> pts;
+  pts->SetDataTypeToFloat();
+  pts->SetNumberOfPoints(vtkIdType(obj.rest.size()));
+  for (std::size_t i = 0; i < obj.rest.size(); ++i)
+    pts->SetPoint(vtkIdType(i), obj.rest[i].x(), obj.rest[i].y(), obj.rest[i].z());
+  vtkNew<vtkCellArray> cells;
+  for (const auto f : faces) {
+    const auto poly = obj.faces[f];
+    cells->InsertNextCell(vtkIdType(poly.size()));
+    for (const auto v : poly) cells->InsertCellPoint(vtkIdType(v));
+  }
+  vtkNew<vtkPolyData> surface;
+  surface->SetPoints(pts);
+  surface->SetPolys(cells);
+  const vtkSmartPointer<vtkDataArray> st = texture_coordinates(surface, mapping);
+  std::vector<float> uv(2 * obj.rest.size());
+  for (std::size_t i = 0; i < obj.rest.size(); ++i) {
+    uv[2 * i] = float(st->GetComponent(vtkIdType(i), 0));
+    uv[2 * i + 1] = float(1.0 - st->GetComponent(vtkIdType(i), 1));
+  }
+  return uv;
+}
+
+}  // namespace csrbf::render
