@@ -30,7 +30,12 @@ packages=(
   python3-gmsh python3-meshio python3-h5py gmsh   # tests: Gmsh, meshio (h5py: its CGNS reader) read the morphed meshes
   openfoam openfoam-examples   # tests: checkMesh, blockMesh, foamFormatConvert judge `csrbf morph`; the airFoil2D and pitzDaily tutorials
   libopenmpi-dev openmpi-bin petsc-dev   # csrbf::mpi: `mpirun csrbf deform|morph`, PETSc's MUMPS Cholesky and CG
+  libjs-three            # csrbf export --html: three.js, copied beside the page
+  nodejs npm blender chromium   # tests: the Khronos glTF validator (npm, below), Blender's importer, the page in a browser
 )
+
+# npm packages, into the build folder (never globally): the Khronos glTF validator for the tests.
+npm_packages=(gltf-validator@2.0.0-dev.3.10)
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then
@@ -52,4 +57,14 @@ if [ "${#missing[@]}" -gt 0 ]; then
   $SUDO apt-get install -y -qq --no-install-recommends "${packages[@]}"
 else
   echo "install-deps: all ${#packages[@]} packages already installed"
+fi
+
+# The npm packages, into build/npm of this checkout (the tests look there: CSRBF_NODE_MODULES).
+root="$(cd "$(dirname "$0")/.." && pwd)"
+if [ ! -d "$root/build/npm/node_modules/gltf-validator" ]; then
+  mkdir -p "$root/build/npm"
+  echo "install-deps: npm install ${npm_packages[*]} into $root/build/npm"
+  npm install --prefix "$root/build/npm" --no-audit --no-fund --loglevel=error "${npm_packages[@]}"
+else
+  echo "install-deps: npm packages already in $root/build/npm"
 fi

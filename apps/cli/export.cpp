@@ -38,7 +38,8 @@ void write_file(const fs::path& p, const std::string& bytes) {
 std::string read_all(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
   if (!in)
-    throw io::FileError(p.string() + ": cannot be read; the page needs three.js (Debian: libjs-three, or set CSRBF_THREE_DIR)");
+    throw io::FileError(p.string() +
+                        ": cannot be read; the page needs three.js (Debian: libjs-three, or set CSRBF_THREE_DIR)");
   std::ostringstream s;
   s << in.rdbuf();
   if (in.bad()) throw io::FileError(p.string() + ": could not be read");
@@ -54,11 +55,16 @@ std::string replace_all(std::string s, const std::string& what, const std::strin
 std::string html_escape(const std::string& s) {
   std::string o;
   for (const char c : s) {
-    if (c == '<') o += "&lt;";
-    else if (c == '>') o += "&gt;";
-    else if (c == '&') o += "&amp;";
-    else if (c == '"') o += "&quot;";
-    else o += c;
+    if (c == '<')
+      o += "&lt;";
+    else if (c == '>')
+      o += "&gt;";
+    else if (c == '&')
+      o += "&amp;";
+    else if (c == '"')
+      o += "&quot;";
+    else
+      o += c;
   }
   return o;
 }
@@ -73,13 +79,18 @@ std::string kib(std::size_t bytes) {
 
 int run_export(const ExportOptions& o) {
   render::GltfOptions go;
-  if (o.bake == "auto") go.bake = render::Bake::Auto;
-  else if (o.bake == "always") go.bake = render::Bake::Always;
-  else if (o.bake == "never") go.bake = render::Bake::Never;
-  else throw UsageError("--bake: expected auto, always or never, got '" + o.bake + "'");
+  if (o.bake == "auto")
+    go.bake = render::Bake::Auto;
+  else if (o.bake == "always")
+    go.bake = render::Bake::Always;
+  else if (o.bake == "never")
+    go.bake = render::Bake::Never;
+  else
+    throw UsageError("--bake: expected auto, always or never, got '" + o.bake + "'");
   const fs::path out = o.out;
   const std::string ext = out.extension().string();
-  if (ext != ".glb" && ext != ".gltf") throw UsageError("-o: the output must end in .glb or .gltf, got '" + o.out + "'");
+  if (ext != ".glb" && ext != ".gltf")
+    throw UsageError("-o: the output must end in .glb or .gltf, got '" + o.out + "'");
   // Check the targets before the (slow) scene load, so that a typo fails at once.
   io::check_output_path(out);
   fs::path page;
@@ -88,7 +99,8 @@ int run_export(const ExportOptions& o) {
     if (page.filename().empty()) page = page.parent_path();
     std::error_code ec;
     if (fs::exists(fs::symlink_status(page, ec)))
-      throw UsageError("--html: '" + o.html + "' exists; the page is written into a new folder (csrbf replaces nothing it did not write)");
+      throw UsageError("--html: '" + o.html +
+                       "' exists; the page is written into a new folder (csrbf replaces nothing it did not write)");
     const fs::path parent = page.has_parent_path() ? page.parent_path() : fs::path(".");
     if (!fs::is_directory(parent, ec)) throw UsageError("--html: the folder '" + parent.string() + "' does not exist");
     for (const char* f : {"build/three.min.js", "examples/js/loaders/GLTFLoader.js"})
@@ -113,7 +125,8 @@ int run_export(const ExportOptions& o) {
     html = replace_all(html, "@GLB@", html_escape(glb_name));
     write_file(partial.path() / "index.html", html);
     write_file(partial.path() / glb_name, std::string(glb.begin(), glb.end()));
-    write_file(partial.path() / "scene.glb.js", "window.CSRBF_GLB = \"" + render::base64(glb.data(), glb.size()) + "\";\n");
+    write_file(partial.path() / "scene.glb.js",
+               "window.CSRBF_GLB = \"" + render::base64(glb.data(), glb.size()) + "\";\n");
     write_file(partial.path() / "three.min.js", read_all(three_dir() / "build/three.min.js"));
     write_file(partial.path() / "GLTFLoader.js", read_all(three_dir() / "examples/js/loaders/GLTFLoader.js"));
     write_file(partial.path() / "LICENSE-three.js.txt",

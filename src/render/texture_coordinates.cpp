@@ -1,6 +1,13 @@
 #include "texture_coordinates.hpp"
 
+#include "csrbf/io/error.hpp"
+
+#include <vtkCallbackCommand.h>
 #include <vtkCellArray.h>
+#include <vtkCommand.h>
+#include <vtkImageData.h>
+#include <vtkImageReader2.h>
+#include <vtkImageReader2Factory.h>
 #include <vtkDataSetAlgorithm.h>
 #include <vtkNew.h>
 #include <vtkPointData.h>
@@ -53,6 +60,25 @@ std::vector<float> texture_coordinates(const anim::Object& obj, const std::vecto
     uv[2 * i + 1] = float(1.0 - st->GetComponent(vtkIdType(i), 1));
   }
   return uv;
+}
+
+void check_image_decodes(const std::string& file) {
+  vtkNew<vtkImageReader2Factory> factory;
+  vtkSmartPointer<vtkImageReader2> reader;
+  reader.TakeReference(factory->CreateImageReader2(file.c_str()));
+  if (!reader) throw io::FileError("texture '" + file + "': not an image VTK can read (use PNG or JPEG)");
+  // VTK reports a broken file through its error events (and libpng's messages), not an exception.
+  bool failed = false;
+  vtkNew<vtkCallbackCommand> on_error;
+  on_error->SetClientData(&failed);
+  on_error->SetCallback([](vtkObject*, unsigned long, void* flag, void*) { *static_cast<bool*>(flag) = true; });
+  reader->AddObserver(vtkCommand::ErrorEvent, on_error);
+  reader->SetFileName(file.c_str());
+  reader->Update();
+  int dims[3] = {0, 0, 0};
+  reader->GetOutput()->GetDimensions(dims);
+  if (failed || reader->GetErrorCode() != 0 || dims[0] < 1 || dims[1] < 1)
+    throw io::FileError("texture '" + file + "' does not decode (a PNG or JPEG cut short or damaged?)");
 }
 
 }  // namespace csrbf::render

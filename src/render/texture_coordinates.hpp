@@ -9,6 +9,7 @@
 #include <vtkSmartPointer.h>
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 namespace csrbf::render {
@@ -20,5 +21,9 @@ vtkSmartPointer<vtkDataArray> texture_coordinates(vtkPolyData* rest, anim::Textu
 /// wants them: (u, v) a vertex, v = 0 at the image's top row.
 std::vector<float> texture_coordinates(const anim::Object& obj, const std::vector<std::uint32_t>& faces,
                                        anim::TextureMapping mapping);
+
+/// Decodes an image file with VTK (as the renderer does) and throws io::FileError naming it when it
+/// does not decode to a non-empty image: a texture cut short fails here, not in the user's engine.
+void check_image_decodes(const std::string& file);
 
 }  // namespace csrbf::render

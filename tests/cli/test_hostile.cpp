@@ -403,6 +403,32 @@ TEST(Hostile, TexturesAreCheckedBeforeDecoding) {
   }
 }
 
+TEST(Hostile, DamagedTexturesAreAnErrorNotACrash) {
+  // libpng under VTK dies of a segmentation fault on a PNG cut short: the whole file is checked
+  // first (every chunk's CRC, the image data inflating to the rows IHDR promises).
+  TempDir dir;
+  const std::string png = read_text(fs::path(CSRBF_SOURCE_DIR) / "examples" / "checker.png");
+  std::string flipped = png;
+  flipped[png.size() / 2] = char(flipped[png.size() / 2] ^ 0x40);
+  const std::vector<std::pair<std::string, std::string>> cases{{png.substr(0, 200), "runs past the end"},
+                                                               {png.substr(0, png.size() - 20), "cut short"},
+                                                               {flipped, "fails its CRC"}};
+  for (const auto& [bytes, words] : cases) {
+    write_text(dir / "t.png", bytes);
+    write_text(dir / "s.json", "{\"duration\": 1, \"objects\": [{\"mesh\": \"" + kFish + "\", \"texture\": \"" +
+                                   (dir / "t.png").string() + "\"}]}");
+    for (const std::string cmd : {"animate", "export"}) {
+      const std::string out = (dir / (cmd == "animate" ? "o.mp4" : "o.glb")).string();
+      const auto r = run_shell("env -u DISPLAY " + kCli + " " + cmd + " " + (dir / "s.json").string() +
+                               (cmd == "animate" ? " --to 0.1" : "") + " -o " + out);
+      EXPECT_EQ(r.code, 1) << cmd << " " << words << "\n" << r.out;
+      EXPECT_NE(r.out.find("objects[0].texture: texture file"), std::string::npos) << r.out;
+      EXPECT_NE(r.out.find(words), std::string::npos) << r.out;
+      EXPECT_FALSE(fs::exists(out));
+    }
+  }
+}
+
 TEST(Hostile, SceneNumbersNamedByPath) {
   TempDir dir;
   const std::string obj = "{\"mesh\": \"" + kFish + "\"";

@@ -34,9 +34,9 @@ enum class Bake {
 };
 
 struct GltfOptions {
-  double fps = 0;               ///< the sampling rate; 0: the scene's
+  double fps = 0;  ///< the sampling rate; 0: the scene's
   Bake bake = Bake::Auto;
-  std::size_t max_active = 8;   ///< morph targets active at once in an object (three.js: 8)
+  std::size_t max_active = 8;  ///< morph targets active at once in an object (three.js: 8)
 };
 
 struct GltfPartReport {
@@ -50,16 +50,16 @@ struct GltfObjectReport {
   std::string name;
   std::size_t vertices = 0, targets = 0, max_active = 0;
   double rotation_deviation_deg = 0;  ///< squad against the slerp of its samples, largest angle
-  double max_deviation = 0;           ///< the largest vertex error of sampled weights, rotations and baking (scene units)
+  double max_deviation = 0;  ///< the largest vertex error of sampled weights, rotations and baking (scene units)
 };
 
 struct GltfReport {
-  std::size_t bytes = 0;         ///< the file written
-  std::size_t frames = 0;        ///< sample times (the frame rate over the duration)
+  std::size_t bytes = 0;   ///< the file written
+  std::size_t frames = 0;  ///< sample times (the frame rate over the duration)
   double fps = 0;
-  double scene_size = 0;         ///< diagonal of the box of every vertex at every frame
-  std::size_t frame_bytes = 0;   ///< every frame's vertices as float xyz (the paper's game engines)
-  std::size_t csrbf_bytes = 0;   ///< the deformations' sources, coefficients and radii, as doubles
+  double scene_size = 0;        ///< diagonal of the box of every vertex at every frame
+  std::size_t frame_bytes = 0;  ///< every frame's vertices as float xyz (the paper's game engines)
+  std::size_t csrbf_bytes = 0;  ///< the deformations' sources, coefficients and radii, as doubles
   std::size_t targets = 0, max_active = 0;
   std::vector<GltfObjectReport> objects;
   std::vector<GltfPartReport> parts;  ///< every part that deforms

@@ -1,0 +1,332 @@
+// csrbf export against the scene it came from: a small glTF reader of our own (node TRS at time t,
+// the morph weights at time t, base plus weighted sparse targets) gives every vertex of every object,
+// which must equal the Player's (what `csrbf animate` draws) at every frame time, and between frames
+// within the deviation the export reports.
+#include "csrbf/io/scene.hpp"
+#include "csrbf/render/gltf_export.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+using namespace csrbf;
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+namespace {
+
+/// A glb read back: its JSON and binary chunk, and what a player of it needs.
+struct Glb {
+  json doc;
+  std::vector<unsigned char> bin;
+
+  explicit Glb(const std::vector<unsigned char>& bytes) {
+    auto u32 = [&](std::size_t at) {
+      std::uint32_t v;
+      std::memcpy(&v, bytes.data() + at, 4);
+      return v;
+    };
+    EXPECT_EQ(u32(0), 0x46546C67u);
+    EXPECT_EQ(u32(4), 2u);
+    EXPECT_EQ(u32(8), bytes.size());
+    const std::uint32_t jl = u32(12);
+    EXPECT_EQ(u32(16), 0x4E4F534Au);
+    doc = json::parse(bytes.begin() + 20, bytes.begin() + 20 + jl);
+    const std::size_t b = 20 + jl;
+    EXPECT_EQ(u32(b + 4), 0x004E4942u);
+    bin.assign(bytes.begin() + std::ptrdiff_t(b + 8), bytes.begin() + std::ptrdiff_t(b + 8 + u32(b)));
+  }
+
+  static int width(const std::string& type) {
+    return type == "SCALAR" ? 1 : type == "VEC2" ? 2 : type == "VEC3" ? 3 : type == "VEC4" ? 4 : 0;
+  }
+  template <class T>
+  std::vector<T> view(std::size_t v, std::size_t count) const {
+    const json& bv = doc["bufferViews"][v];
+    const std::size_t off = bv.value("byteOffset", std::size_t(0));
+    EXPECT_LE(count * sizeof(T), bv["byteLength"].get<std::size_t>());
+    std::vector<T> out(count);
+    std::memcpy(out.data(), bin.data() + off, count * sizeof(T));
+    return out;
+  }
+  /// A float accessor, dense, with its sparse values applied.
+  std::vector<float> floats(std::size_t a, std::size_t* sparse_count = nullptr) const {
+    const json& acc = doc["accessors"][a];
+    EXPECT_EQ(acc["componentType"], 5126);
+    const std::size_t w = std::size_t(width(acc["type"])), n = acc["count"];
+    std::vector<float> out(n * w, 0.0f);
+    if (acc.contains("bufferView")) out = view<float>(acc["bufferView"], n * w);
+    if (acc.contains("sparse")) {
+      const json& sp = acc["sparse"];
+      const std::size_t k = sp["count"];
+      const auto idx = view<std::uint32_t>(sp["indices"]["bufferView"], k);
+      const auto val = view<float>(sp["values"]["bufferView"], k * w);
+      for (std::size_t i = 0; i < k; ++i)
+        for (std::size_t c = 0; c < w; ++c) out[idx[i] * w + c] = val[i * w + c];
+      if (sparse_count) *sparse_count = k;
+    }
+    return out;
+  }
+
+  /// A channel's value at t (glTF's rules: clamped outside the keys; LINEAR lerps, or slerps
+  /// rotations; CUBICSPLINE is Hermite with the tangents scaled by the key interval).
+  std::vector<double> sample(const json& sampler, bool rotation, double t) const {
+    const auto in = floats(sampler["input"]);
+    const auto out = floats(sampler["output"]);
+    const bool cubic = sampler["interpolation"] == "CUBICSPLINE";
+    const std::size_t keys = in.size(), w = out.size() / keys / (cubic ? 3 : 1);
+    const auto value = [&](std::size_t k, int part) {  // part: 0 in-tangent, 1 value, 2 out-tangent
+      std::vector<double> v(w);
+      for (std::size_t c = 0; c < w; ++c) v[c] = out[(cubic ? (3 * k + std::size_t(part)) * w : k * w) + c];
+      return v;
+    };
+    if (t <= in.front()) return value(0, 1);
+    if (t >= in.back()) return value(keys - 1, 1);
+    std::size_t k = 0;
+    while (k + 2 < keys && t >= in[k + 1]) ++k;
+    const double td = double(in[k + 1]) - double(in[k]), s = (t - in[k]) / td;
+    std::vector<double> r(w);
+    if (cubic) {
+      const auto p0 = value(k, 1), b0 = value(k, 2), p1 = value(k + 1, 1), a1 = value(k + 1, 0);
+      const double s2 = s * s, s3 = s2 * s;
+      for (std::size_t c = 0; c < w; ++c)
+        r[c] = (2 * s3 - 3 * s2 + 1) * p0[c] + td * (s3 - 2 * s2 + s) * b0[c] + (-2 * s3 + 3 * s2) * p1[c] +
+               td * (s3 - s2) * a1[c];
+      return r;
+    }
+    const auto a = value(k, 1), b = value(k + 1, 1);
+    if (rotation) {
+      Eigen::Quaterniond qa(a[3], a[0], a[1], a[2]), qb(b[3], b[0], b[1], b[2]);
+      const Eigen::Quaterniond q = qa.slerp(s, qb);
+      return {q.x(), q.y(), q.z(), q.w()};
+    }
+    for (std::size_t c = 0; c < w; ++c) r[c] = (1 - s) * a[c] + s * b[c];
+    return r;
+  }
+  /// The sampler that animates node's path, or null.
+  const json* channel(std::size_t node, const std::string& path) const {
+    if (!doc.contains("animations")) return nullptr;
+    for (const auto& ch : doc["animations"][0]["channels"])
+      if (ch["target"]["node"] == node && ch["target"]["path"] == path)
+        return &doc["animations"][0]["samplers"][ch["sampler"].get<std::size_t>()];
+    return nullptr;
+  }
+  /// A node's local matrix at t.
+  Eigen::Affine3d local(std::size_t node, double t) const {
+    const json& n = doc["nodes"][node];
+    Vec3 tr = Vec3::Zero();
+    Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+    if (n.contains("translation")) tr = Vec3(n["translation"][0], n["translation"][1], n["translation"][2]);
+    if (n.contains("rotation")) q = Eigen::Quaterniond(n["rotation"][3], n["rotation"][0], n["rotation"][1], n["rotation"][2]);
+    if (const json* s = channel(node, "translation")) {
+      const auto v = sample(*s, false, t);
+      tr = Vec3(v[0], v[1], v[2]);
+    }
+    if (const json* s = channel(node, "rotation")) {
+      const auto v = sample(*s, true, t);
+      q = Eigen::Quaterniond(v[3], v[0], v[1], v[2]);
+    }
+    Eigen::Affine3d m = Eigen::Affine3d::Identity();
+    m.translate(tr);
+    m.rotate(q.normalized());
+    return m;
+  }
+  std::size_t node_named(const std::string& name) const {
+    for (std::size_t i = 0; i < doc["nodes"].size(); ++i)
+      if (doc["nodes"][i].value("name", "") == name && doc["nodes"][i].contains("mesh")) return i;
+    ADD_FAILURE() << "no mesh node named " << name;
+    return 0;
+  }
+  std::size_t parent(std::size_t node) const {
+    for (std::size_t i = 0; i < doc["nodes"].size(); ++i)
+      for (const auto& c : doc["nodes"][i].value("children", json::array()))
+        if (c == node) return i;
+    return std::size_t(-1);
+  }
+  /// Every vertex of the mesh node named name, in world coordinates, at t.
+  std::vector<Vec3> vertices(const std::string& name, double t) const {
+    const std::size_t node = node_named(name);
+    Eigen::Affine3d world = local(node, t);
+    for (std::size_t p = parent(node); p != std::size_t(-1); p = parent(p)) world = local(p, t) * world;
+    const json& mesh = doc["meshes"][doc["nodes"][node]["mesh"].get<std::size_t>()];
+    const json& prim = mesh["primitives"][0];
+    const auto base = floats(prim["attributes"]["POSITION"]);
+    std::vector<double> acc(base.begin(), base.end());
+    if (prim.contains("targets")) {
+      std::vector<double> w = mesh["weights"].get<std::vector<double>>();
+      if (const json* s = channel(node, "weights")) w = sample(*s, false, t);
+      for (std::size_t j = 0; j < prim["targets"].size(); ++j) {
+        if (w[j] == 0) continue;
+        const auto d = floats(prim["targets"][j]["POSITION"]);
+        for (std::size_t i = 0; i < acc.size(); ++i) acc[i] += w[j] * d[i];
+      }
+    }
+    std::vector<Vec3> out(acc.size() / 3);
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = world * Vec3(acc[3 * i], acc[3 * i + 1], acc[3 * i + 2]);
+    return out;
+  }
+};
+
+double worst_difference(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+  EXPECT_EQ(a.size(), b.size());
+  double w = 0;
+  for (std::size_t i = 0; i < std::min(a.size(), b.size()); ++i) w = std::max(w, (a[i] - b[i]).norm());
+  return w;
+}
+
+/// Every object at every frame time (1e-5 of the scene size), and at three points between frames
+/// (within the reported deviation, plus the same 1e-5).
+void expect_plays_as_the_scene(const anim::Scene& scene, const render::GltfOptions& o, const Glb& glb,
+                               const render::GltfReport& r) {
+  anim::Player player(scene);
+  const double tol = 1e-5 * r.scene_size;
+  ASSERT_GT(r.scene_size, 0);
+  for (std::size_t k = 0; k < r.frames; ++k)
+    for (const double s : {0.0, 0.3, 0.5, 0.85}) {
+      const double t = (double(k) + s) / r.fps;
+      if (t > scene.duration) continue;
+      player.evaluate(t);
+      for (std::size_t obj = 0; obj < scene.objects.size(); ++obj) {
+        const double w = worst_difference(glb.vertices(scene.objects[obj].name, t), player.positions(obj));
+        const double allowed = (s == 0.0 ? 0.0 : r.objects[obj].max_deviation) + tol;
+        ASSERT_LE(w, allowed) << scene.objects[obj].name << " at t = " << t << " (bake " << int(o.bake) << ")";
+      }
+    }
+}
+
+fs::path example(const std::string& name) { return fs::path(CSRBF_SOURCE_DIR) / "examples" / name; }
+
+}  // namespace
+
+TEST(GltfExport, EveryExamplePlaysAsTheScene) {
+  for (const char* name : {"fish.scene.json", "face.scene.json", "ball.scene.json"}) {
+    SCOPED_TRACE(name);
+    const anim::Scene scene = io::read_scene(example(name));
+    render::GltfReport r;
+    const render::GltfOptions o;
+    const Glb glb(render::gltf_binary(scene, o, r));
+    EXPECT_EQ(r.frames, scene.frame_count(0, scene.duration));
+    EXPECT_LE(r.max_active, 8u);
+    expect_plays_as_the_scene(scene, o, glb, r);
+    // The node that holds the mesh carries the object's name; its parent is the pivot.
+    for (const auto& obj : scene.objects) EXPECT_NE(glb.parent(glb.node_named(obj.name)), std::size_t(-1));
+  }
+}
+
+TEST(GltfExport, SummedDeformationsAreExactSparseTargets) {
+  // The fish: four summed deformations, four targets, each holding only the vertices its controls
+  // reach (compact support), and the trajectory as a cubic spline.
+  const anim::Scene scene = io::read_scene(example("fish.scene.json"));
+  render::GltfReport r;
+  const Glb glb(render::gltf_binary(scene, {}, r));
+  ASSERT_EQ(r.parts.size(), 1u);
+  EXPECT_FALSE(r.parts[0].baked);
+  EXPECT_EQ(r.parts[0].targets, 4u);
+  const json& prim = glb.doc["meshes"][0]["primitives"][0];
+  ASSERT_EQ(prim["targets"].size(), 4u);
+  const std::size_t nv = scene.objects[0].rest.size();
+  for (const auto& target : prim["targets"]) {
+    std::size_t moved = 0;
+    glb.floats(target["POSITION"], &moved);
+    EXPECT_GT(moved, 0u);
+    EXPECT_LT(moved, nv);
+  }
+  EXPECT_EQ(glb.doc["meshes"][0]["extras"]["targetNames"][0], "tail left");
+  const json* tr = glb.channel(glb.parent(glb.node_named("fish")), "translation");
+  ASSERT_NE(tr, nullptr);
+  EXPECT_EQ((*tr)["interpolation"], "CUBICSPLINE");
+  // Squad is sampled, and says by how much it may be off between samples.
+  EXPECT_GT(r.objects[0].rotation_deviation_deg, 0.0);
+  EXPECT_LT(r.objects[0].rotation_deviation_deg, 0.1);
+}
+
+TEST(GltfExport, ContactIsBakedWithTwoTargetsActive) {
+  const anim::Scene scene = io::read_scene(example("ball.scene.json"));
+  render::GltfReport r;
+  const Glb glb(render::gltf_binary(scene, {}, r));
+  bool baked = false;
+  for (const auto& p : r.parts) baked |= p.baked && p.object == "box";
+  EXPECT_TRUE(baked);
+  EXPECT_EQ(r.objects[0].max_active, 2u);
+  EXPECT_GT(r.objects[0].targets, 2u);
+  EXPECT_LT(r.objects[0].targets, r.frames);  // frames where the box is not dented have no target
+  // The textured ball: its UVs come with it, v flipped to glTF's top-left origin.
+  EXPECT_EQ(glb.doc["images"].size(), 1u);
+  EXPECT_EQ(glb.doc["images"][0]["mimeType"], "image/png");
+}
+
+TEST(GltfExport, BakeAlwaysAndNever) {
+  const anim::Scene fish = io::read_scene(example("fish.scene.json"));
+  render::GltfOptions o;
+  o.bake = render::Bake::Always;
+  o.fps = 10;
+  render::GltfReport r;
+  const Glb glb(render::gltf_binary(fish, o, r));
+  EXPECT_TRUE(r.parts[0].baked);
+  EXPECT_EQ(r.objects[0].max_active, 2u);
+  EXPECT_EQ(r.frames, 81u);
+  expect_plays_as_the_scene(fish, o, glb, r);
+  o.bake = render::Bake::Never;
+  const anim::Scene ball = io::read_scene(example("ball.scene.json"));
+  try {
+    render::gltf_binary(ball, o, r);
+    FAIL() << "a contact deformation cannot be exported without baking";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("'walls' needs baking"), std::string::npos) << e.what();
+  }
+}
+
+TEST(GltfExport, MoreThanEightActiveTargetsAreBaked) {
+  // Ten summed deformations on at once: past the engines' 8, --bake auto bakes the part.
+  const fs::path dir = fs::temp_directory_path() / ("csrbf-gltf-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  fs::copy_file(example("sphere.obj"), dir / "sphere.obj", fs::copy_options::overwrite_existing);
+  json defs = json::array();
+  for (int i = 0; i < 10; ++i) {
+    const double a = 0.6 * i;
+    defs.push_back({{"name", "bump " + std::to_string(i)},
+                    {"sources", {{0.2 * std::cos(a), 0.2 * std::sin(a), 0.0}}},
+                    {"destinations", {{0.22 * std::cos(a), 0.22 * std::sin(a), 0.0}}},
+                    {"radius", 0.15},
+                    {"phase", {{"easing", "linear"}, {"keys", {{{"time", 0}, {"phase", 0}}, {{"time", 1}, {"phase", 1}}}}}}});
+  }
+  json s = {{"duration", 1.0},
+            {"fps", 10},
+            {"objects", {{{"name", "ball"}, {"mesh", "sphere.obj"}, {"parts", {{{"name", "all"}, {"combine", "sum"}, {"deformations", defs}}}}}}}};
+  std::ofstream(dir / "s.scene.json") << s.dump();
+  const anim::Scene scene = io::read_scene(dir / "s.scene.json");
+  render::GltfReport r;
+  render::GltfOptions o;
+  const Glb glb(render::gltf_binary(scene, o, r));
+  EXPECT_TRUE(r.parts[0].baked);
+  EXPECT_NE(r.parts[0].why.find("more than 8"), std::string::npos);
+  EXPECT_LE(r.max_active, 2u);
+  expect_plays_as_the_scene(scene, o, glb, r);
+  // Allowed 10: exact targets, and linear schedules are exact between frames too.
+  o.max_active = 10;
+  const Glb exact(render::gltf_binary(scene, o, r));
+  EXPECT_FALSE(r.parts[0].baked);
+  EXPECT_EQ(r.max_active, 10u);
+  EXPECT_LT(r.objects[0].max_deviation, 1e-12);  // rounding only
+  expect_plays_as_the_scene(scene, o, exact, r);
+  fs::remove_all(dir);
+}
+
+TEST(GltfExport, GltfTextHoldsTheSameBuffer) {
+  const anim::Scene scene = io::read_scene(example("face.scene.json"));
+  render::GltfReport r;
+  const auto glb = render::gltf_binary(scene, {}, r);
+  const json doc = json::parse(render::glb_to_gltf(glb));
+  const std::string uri = doc["buffers"][0]["uri"];
+  ASSERT_EQ(uri.rfind("data:application/octet-stream;base64,", 0), 0u);
+  const Glb g(glb);
+  EXPECT_EQ(uri.size() - 37, (g.bin.size() + 2) / 3 * 4);
+  EXPECT_EQ(render::base64(reinterpret_cast<const unsigned char*>("csrbf"), 5), "Y3NyYmY=");
+}
