@@ -31,8 +31,13 @@ packages=(
   openfoam openfoam-examples   # tests: checkMesh, blockMesh, foamFormatConvert judge `csrbf morph`; the airFoil2D and pitzDaily tutorials
   libopenmpi-dev openmpi-bin petsc-dev   # csrbf::mpi: `mpirun csrbf deform|morph`, PETSc's MUMPS Cholesky and CG
   libjs-three            # csrbf export --html: three.js, copied beside the page
-  nodejs npm blender chromium   # tests: the Khronos glTF validator (npm, below), Blender's importer, the page in a browser
+  nodejs blender chromium   # tests: the Khronos glTF validator (npm, below), Blender's importer, the page in a browser
 )
+# npm: Debian's package, unless the machine's Node.js already brings its own (NodeSource's does, and
+# Debian's npm then cannot be installed beside it).
+if ! command -v npm > /dev/null 2>&1; then
+  packages+=(npm)
+fi
 
 # npm packages, into the build folder (never globally): the Khronos glTF validator for the tests.
 npm_packages=(gltf-validator@2.0.0-dev.3.10)

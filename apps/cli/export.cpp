@@ -94,6 +94,7 @@ int run_export(const ExportOptions& o) {
   // Check the targets before the (slow) scene load, so that a typo fails at once.
   io::check_output_path(out);
   fs::path page;
+  if (o.html_given && o.html.empty()) throw UsageError("--html: the folder name is empty");
   if (!o.html.empty()) {
     page = fs::path(o.html);
     if (page.filename().empty()) page = page.parent_path();
@@ -108,16 +109,29 @@ int run_export(const ExportOptions& o) {
         throw io::FileError((three_dir() / f).string() +
                             ": not found; the page needs three.js (Debian: libjs-three, or set CSRBF_THREE_DIR)");
   }
+  std::error_code ec;
+  if (fs::equivalent(out, fs::path(o.scene), ec)) throw UsageError("-o '" + o.out + "' is the scene file itself");
+  if (!page.empty() && fs::absolute(page).lexically_normal() == fs::absolute(out).lexically_normal())
+    throw UsageError("--html '" + o.html + "' and -o name the same path");
   anim::Scene scene = io::read_scene(o.scene);
   if (o.fps) go.fps = *o.fps;
+  for (const auto& obj : scene.objects)
+    for (const anim::Material* m : [&] {
+           std::vector<const anim::Material*> v{&obj.material};
+           for (const auto& p : obj.parts) v.push_back(&p.material);
+           return v;
+         }())
+      if (!m->texture.empty() && fs::equivalent(out, m->texture, ec))
+        throw UsageError("-o '" + o.out + "' is the scene's texture '" + m->texture + "'");
 
   render::GltfReport r;
   const std::vector<unsigned char> glb = render::gltf_binary(scene, go, r);
   const std::string bytes = ext == ".glb" ? std::string(glb.begin(), glb.end()) : render::glb_to_gltf(glb);
-  io::write_atomically(out, [&](std::ostream& s) { s.write(bytes.data(), std::streamsize(bytes.size())); });
-  r.bytes = bytes.size();
-  if (!page.empty()) {
-    // Everything in a partial folder first, renamed to DIR only once complete.
+  if (page.empty()) {
+    io::write_atomically(out, [&](std::ostream& s) { s.write(bytes.data(), std::streamsize(bytes.size())); });
+  } else {
+    // The page in a partial folder, renamed to DIR once complete; then the file. A file that then
+    // fails to be written takes the page (which this run made) with it: all or nothing.
     io::Partial partial(page, io::Partial::Kind::Folder);
     const std::string glb_name = out.stem().string() + ".glb";
     std::string html = kPageHtml;
@@ -133,7 +147,14 @@ int run_export(const ExportOptions& o) {
                "three.js (https://threejs.org), copied from " + three_dir().string() +
                    ": MIT License, Copyright (c) 2010-2019 three.js authors\n");
     partial.commit_new(page);
+    try {
+      io::write_atomically(out, [&](std::ostream& s) { s.write(bytes.data(), std::streamsize(bytes.size())); });
+    } catch (...) {
+      fs::remove_all(page, ec);
+      throw;
+    }
   }
+  r.bytes = bytes.size();
 
   if (o.json) {
     nlohmann::json j;

@@ -9,6 +9,7 @@ struct ExportOptions {
   std::string scene, out, bake = "auto", html;
   std::optional<double> fps;
   bool json = false;
+  bool html_given = false;  ///< --html was on the command line (an empty name is an error)
 };
 
 /// `csrbf export`: the scene as glTF 2.0 (and, with --html, a page that plays it). Returns the exit

@@ -421,6 +421,7 @@ int main(int argc, char** argv) {
     } else if (*animate) {
       return csrbf::cli::run_animate(anim_opts);
     } else if (*exporter) {
+      export_opts.html_given = exporter->count("--html") > 0;
       return csrbf::cli::run_export(export_opts);
     } else if (*bench) {
       csrbf::cli::run_bench(bench_opts);

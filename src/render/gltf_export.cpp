@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -15,6 +16,7 @@
 #include <map>
 #include <numbers>
 #include <sstream>
+#include <string_view>
 
 namespace csrbf::render {
 namespace {
@@ -28,6 +30,14 @@ constexpr int kFloat = 5126, kUnsignedInt = 5125, kArrayBuffer = 34962, kElement
 struct Builder {
   json doc;
   std::vector<unsigned char> bin;
+  std::string where;  // what is being written, for messages
+
+  void check_finite(const std::vector<float>& v, const char* what) const {
+    for (const float x : v)
+      if (!std::isfinite(x))
+        throw InvalidInput("export: " + where + ": " + what +
+                           " has a value beyond single precision (glTF stores float32): " + std::to_string(x));
+  }
 
   std::size_t view(const void* data, std::size_t bytes, int target = 0) {
     while (bin.size() % 4) bin.push_back(0);
@@ -44,7 +54,8 @@ struct Builder {
     return doc["accessors"].size() - 1;
   }
   /// count x width floats (VEC3, VEC4, SCALAR), with min and max.
-  std::size_t floats(const std::vector<float>& v, int width, int target = 0) {
+  std::size_t floats(const std::vector<float>& v, int width, const char* what, int target = 0) {
+    check_finite(v, what);
     const std::size_t count = v.size() / std::size_t(width);
     json mn = json::array(), mx = json::array();
     for (int c = 0; c < width; ++c) {
@@ -66,8 +77,14 @@ struct Builder {
   }
   /// A VEC3 accessor of count entries, zero but for (index, value) pairs (sparse, no buffer view).
   /// min and max over every entry.
-  std::size_t sparse_vec3(std::size_t count, const std::vector<std::uint32_t>& index, const std::vector<float>& value) {
-    float lo[3] = {0, 0, 0}, hi[3] = {0, 0, 0};
+  std::size_t sparse_vec3(std::size_t count, const std::vector<std::uint32_t>& index, const std::vector<float>& value,
+                          const char* what) {
+    check_finite(value, what);
+    // min and max of every entry: the zeros count only where some entry is not listed.
+    const float inf = std::numeric_limits<float>::infinity();
+    float lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
+    if (index.size() < count || index.empty())
+      for (int c = 0; c < 3; ++c) lo[c] = hi[c] = 0;
     for (std::size_t i = 0; i < index.size(); ++i)
       for (int c = 0; c < 3; ++c) {
         lo[c] = std::min(lo[c], value[3 * i + std::size_t(c)]);
@@ -149,13 +166,40 @@ double angle_between(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
   return 2 * std::acos(std::min(1.0, std::abs(a.dot(b))));
 }
 
-/// Sorted, unique times in [0, end]: the given ones, merged where closer than 1e-9 s.
+/// Sorted, unique times in [0, end] as glTF stores them (float32): the given ones, rounded, merged
+/// where they round to the same float.
 std::vector<double> unique_times(std::vector<double> t, double end) {
-  t.erase(std::remove_if(t.begin(), t.end(), [&](double x) { return !(x >= 0 && x <= end); }), t.end());
+  const double last = std::max(end, double(float(end)));
+  t.erase(std::remove_if(t.begin(), t.end(), [&](double x) { return !(x >= 0 && x <= last); }), t.end());
   std::sort(t.begin(), t.end());
   std::vector<double> out;
-  for (const double x : t)
-    if (out.empty() || x - out.back() > 1e-9) out.push_back(x);
+  for (const double x : t) {
+    const double f = double(float(x));
+    if (out.empty() || f > out.back()) out.push_back(f);
+  }
+  return out;
+}
+
+/// The index of the key at time t (within float rounding), or -1. Keys sorted by time.
+template <class Keys>
+std::ptrdiff_t key_at(const Keys& keys, double t) {
+  const auto it = std::lower_bound(keys.begin(), keys.end(), t, [](const auto& k, double x) { return k.time < x; });
+  const double tol = 1e-6 * std::max(1.0, std::abs(t));
+  if (it != keys.end() && std::abs(it->time - t) <= tol) return it - keys.begin();
+  if (it != keys.begin() && std::abs((it - 1)->time - t) <= tol) return (it - 1) - keys.begin();
+  return -1;
+}
+
+/// three.js binds animation tracks by node name after PropertyBinding.sanitizeNodeName (white
+/// space to '_', "[].:/" removed): names that become equal there would animate the wrong node.
+std::string sanitized(const std::string& name) {
+  std::string out;
+  for (const char c : name) {
+    if (std::isspace(static_cast<unsigned char>(c)))
+      out.push_back('_');
+    else if (std::string_view("[].:/").find(c) == std::string_view::npos)
+      out.push_back(c);
+  }
   return out;
 }
 
@@ -194,13 +238,21 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   const double fps = options.fps > 0 ? options.fps : scene.fps;
   if (!(fps > 0) || !std::isfinite(fps)) throw InvalidInput("export: the frame rate must be > 0");
   const double duration = scene.duration;
-  const std::size_t frames = std::size_t(std::floor(duration * fps + 1e-9)) + 1;
+  // The sample times: the frames k / fps, and the duration where it falls between two (so that
+  // what is sampled or baked is measured to the end). Times as glTF keeps them, in float32.
   constexpr double kMaxFrames = 1e5;
-  if (double(frames) > kMaxFrames)
-    throw InvalidInput("export: " + std::to_string(frames) + " frames at " + std::to_string(fps) +
-                       " fps; at most 100000 are sampled");
-  std::vector<double> frame_t(frames);
-  for (std::size_t k = 0; k < frames; ++k) frame_t[k] = double(k) / fps;
+  const double grid = std::floor(duration * fps + 1e-9) + 1;
+  if (!(grid <= kMaxFrames)) {
+    std::ostringstream m;
+    m << "export: the scene's duration " << duration << " s at " << fps << " fps is " << grid
+      << " frames; at most 100000 are sampled (lower --fps)";
+    throw InvalidInput(m.str());
+  }
+  std::vector<double> frame_t;
+  for (std::size_t k = 0; k < std::size_t(grid); ++k) frame_t.push_back(double(float(double(k) / fps)));
+  if (double(float(duration)) > frame_t.back() && duration - frame_t.back() > 1e-9)
+    frame_t.push_back(double(float(duration)));
+  const std::size_t frames = frame_t.size();
   report = GltfReport{};
   report.fps = fps;
   report.frames = frames;
@@ -288,6 +340,38 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     }
   }
 
+  // Memory, bounded before anything large is built: the exact targets (a displacement a vertex
+  // each, while written), the weights (a value a target and sample time), and baking's frames.
+  {
+    double target_bytes = 0, weight_bytes = 0;
+    for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+      const double nv = double(scene.objects[o].rest.size());
+      const double targets = double(plans[o].exact.size()) + (plans[o].any_baked() ? double(frames) : 0.0);
+      double times = double(frames) + 1;
+      for (const auto& part : scene.objects[o].parts)
+        for (const auto& def : part.deformations) times += double(def.schedule.keys().size());
+      target_bytes += double(plans[o].exact.size()) * nv * 24.0;
+      weight_bytes += times * targets * 12.0;
+    }
+    if (target_bytes > 2.0 * (1ull << 30) || weight_bytes > 0.5 * (1ull << 30)) {
+      std::ostringstream m;
+      m << "export: " << (target_bytes > 2.0 * (1ull << 30) ? "the morph targets" : "the morph weights")
+        << " would take " << std::llround(std::max(target_bytes, weight_bytes) / double(1 << 20))
+        << " MiB (at most 2048 for targets, 512 for weights): fewer deformations, a lower --fps, or less baking";
+      throw InvalidInput(m.str());
+    }
+  }
+  // Baking keeps every frame's displacement of the baked vertices until the file is written: bounded
+  // before the pass.
+  constexpr double kMaxBakedBytes = 4.0 * (1ull << 30);
+  double baked_bytes = 0;
+  for (std::size_t o = 0; o < scene.objects.size(); ++o)
+    if (plans[o].any_baked()) baked_bytes += double(frames) * double(scene.objects[o].rest.size()) * (24.0 + 24.0);
+  if (baked_bytes > kMaxBakedBytes)
+    throw InvalidInput("export: baking " + std::to_string(frames) + " frames would take " +
+                       std::to_string(std::llround(baked_bytes / double(1 << 20))) +
+                       " MiB (at most 4096): lower --fps, or bake less (--bake auto or never)");
+
   // One pass of the player over the frames: the baked parts' displacements, and the scene's size.
   anim::Player player(scene);
   std::vector<std::vector<std::vector<Vec3>>> baked_frames(scene.objects.size());  // [object][frame][vertex]
@@ -335,7 +419,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   };
   const auto time_accessor = [&](const std::vector<double>& t) {
     std::vector<float> f(t.begin(), t.end());
-    return b.floats(f, 1);
+    return b.floats(f, 1, "the animation times");
   };
   std::map<std::string, std::size_t> images;  // file -> texture index
   const auto material = [&](const anim::Material& m, const std::string& name) {
@@ -373,6 +457,12 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     orep.name = obj.name;
     orep.vertices = obj.rest.size();
     const std::size_t nv = obj.rest.size();
+    b.where = "objects[" + std::to_string(o) + "] '" + obj.name + "'";
+    bool triangles = false;
+    for (const auto f : obj.faces) triangles |= f.size() >= 3;
+    if (!triangles)
+      throw InvalidInput("export: " + b.where +
+                         " has no faces (polygons of 3 or more vertices): glTF draws meshes as triangles");
     report.frame_bytes += frames * nv * 12;
 
     // The shared attributes: rest positions and normals.
@@ -383,7 +473,8 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         pos[3 * v + std::size_t(c)] = float(obj.rest[v][c]);
         nor[3 * v + std::size_t(c)] = float(rest_normals[v][c]);
       }
-    const std::size_t pos_acc = b.floats(pos, 3, kArrayBuffer), nor_acc = b.floats(nor, 3, kArrayBuffer);
+    const std::size_t pos_acc = b.floats(pos, 3, "the rest positions", kArrayBuffer);
+    const std::size_t nor_acc = b.floats(nor, 3, "the rest normals", kArrayBuffer);
 
     // The morph targets: exact ones, then one a frame for the baked parts (frames where nothing
     // moves have none).
@@ -392,14 +483,14 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     std::vector<float> value;
     const auto add_target = [&](const std::vector<Vec3>& d) {
       nonzero(d, 0.0, index, value);
-      const std::size_t pa = b.sparse_vec3(nv, index, value);
+      const std::size_t pa = b.sparse_vec3(nv, index, value, "a morph target's displacements");
       std::vector<Vec3> moved(nv);
       for (std::size_t v = 0; v < nv; ++v) moved[v] = obj.rest[v] + d[v];
       const std::vector<Vec3> n = vertex_normals(moved, obj.faces);
       std::vector<Vec3> dn(nv);
       for (std::size_t v = 0; v < nv; ++v) dn[v] = n[v] - rest_normals[v];
       nonzero(dn, 1e-6, index, value);
-      const std::size_t na = b.sparse_vec3(nv, index, value);
+      const std::size_t na = b.sparse_vec3(nv, index, value, "a morph target's normals");
       targets.push_back({{"POSITION", pa}, {"NORMAL", na}});
     };
     std::vector<std::string> target_names;
@@ -430,10 +521,15 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         w[j] = obj.parts[e.part].deformations[e.deformation].schedule.phase(t);
       }
       if (baked_frame.empty()) return;
-      const double u = std::clamp(t * fps, 0.0, double(frames - 1));
-      auto f0 = std::size_t(std::floor(u));
-      if (f0 >= frames - 1) f0 = frames - 1;
-      const double s = u - double(f0);
+      // The sample interval [f0, f0 + 1] holding t, and how far into it.
+      std::size_t f0 = frames - 1;
+      double s = 0;
+      if (t <= frame_t.front()) {
+        f0 = 0;
+      } else if (t < frame_t.back()) {
+        f0 = std::size_t(std::upper_bound(frame_t.begin(), frame_t.end(), t) - frame_t.begin()) - 1;
+        s = (t - frame_t[f0]) / (frame_t[f0 + 1] - frame_t[f0]);
+      }
       for (std::size_t j = 0; j < baked_frame.size(); ++j) {
         if (baked_frame[j] == f0) w[plan.exact.size() + j] = 1 - s;
         if (baked_frame[j] == f0 + 1) w[plan.exact.size() + j] = s;
@@ -459,8 +555,14 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       const std::string mname = obj.name + (p < 0 ? std::string() : " / " + obj.parts[std::size_t(p)].name);
       json attrs = {{"POSITION", pos_acc}, {"NORMAL", nor_acc}};
       if (!m.texture.empty()) {
-        const std::vector<float> uv = texture_coordinates(obj, face_list, m.mapping);
-        attrs["TEXCOORD_0"] = b.floats(uv, 2, kArrayBuffer);
+        std::vector<float> uv;
+        try {
+          uv = texture_coordinates(obj, face_list, m.mapping);
+        } catch (const InvalidInput& e) {
+          throw InvalidInput("export: " + b.where + " " +
+                             (p < 0 ? std::string() : "part '" + obj.parts[std::size_t(p)].name + "' ") + e.what());
+        }
+        attrs["TEXCOORD_0"] = b.floats(uv, 2, "the texture coordinates", kArrayBuffer);
       }
       const std::size_t iv = b.view(tri.data(), tri.size() * 4, kElementArrayBuffer);
       const std::size_t ia = b.accessor({{"bufferView", iv},
@@ -500,10 +602,10 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       std::vector<float> out;
       for (const double t : times) {
         Vec3 in_tangent = Vec3::Zero(), out_tangent = Vec3::Zero();
-        const auto key =
-            std::find_if(keys.begin(), keys.end(), [&](const auto& k) { return std::abs(k.time - t) <= 1e-9; });
+        const std::ptrdiff_t at = key_at(keys, t);
+        const auto key = at < 0 ? keys.end() : keys.begin() + at;
         if (key != keys.end()) {
-          const auto i = std::size_t(key - keys.begin());
+          const auto i = std::size_t(at);
           if (i > 0) in_tangent = tr.in_tangents()[i] / (keys[i].time - keys[i - 1].time);
           if (i + 1 < keys.size()) out_tangent = tr.out_tangents()[i] / (keys[i + 1].time - keys[i].time);
         } else if (t > keys.front().time && t < keys.back().time) {
@@ -513,7 +615,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         for (const Vec3& v : {in_tangent, p, out_tangent})
           for (int c = 0; c < 3; ++c) out.push_back(float(v[c]));
       }
-      add_channel(pivot, "translation", time_accessor(times), b.floats(out, 3), "CUBICSPLINE");
+      add_channel(pivot, "translation", time_accessor(times), b.floats(out, 3, "the trajectory"), "CUBICSPLINE");
       b.doc["nodes"][pivot]["translation"] = vec_json(tr.position(0.0));
     } else {
       b.doc["nodes"][pivot]["translation"] = vec_json(anim::pose_at(obj, 0.0).position);
@@ -545,7 +647,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       std::vector<float> out;
       for (const auto& r : q)
         for (const double c : {r.x(), r.y(), r.z(), r.w()}) out.push_back(float(c));
-      add_channel(pivot, "rotation", time_accessor(times), b.floats(out, 4), "LINEAR");
+      add_channel(pivot, "rotation", time_accessor(times), b.floats(out, 4, "the orientation"), "LINEAR");
       b.doc["nodes"][pivot]["rotation"] = quat_json(q.front());
     } else {
       b.doc["nodes"][pivot]["rotation"] = quat_json(ot.rotation(0.0));
@@ -564,7 +666,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         weights_at(times[i], w[i]);
         for (const double x : w[i]) out.push_back(float(x));
       }
-      add_channel(mesh_node, "weights", time_accessor(times), b.floats(out, 1), "LINEAR");
+      add_channel(mesh_node, "weights", time_accessor(times), b.floats(out, 1, "the morph weights"), "LINEAR");
       // Between samples the engine interpolates the weights linearly: a smooth schedule's error,
       // times its target's largest displacement.
       double weight_error = 0;
@@ -628,7 +730,14 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
           bake_error[o] = std::max(bake_error[o], e);
         }
       }
-  for (std::size_t o = 0; o < scene.objects.size(); ++o) report.objects[o].max_deviation += bake_error[o];
+  for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+    report.objects[o].max_deviation += bake_error[o];
+    if (!std::isfinite(report.objects[o].max_deviation) || !std::isfinite(report.scene_size))
+      throw InvalidInput(
+          "export: objects[" + std::to_string(o) + "] '" + scene.objects[o].name +
+          "': its vertices or their deviation are not finite numbers (a deformation or trajectory beyond "
+          "double precision?)");
+  }
 
   // The camera, looking from its position to its focal point, and the lights (KHR_lights_punctual).
   const anim::Camera& cam = scene.camera;
@@ -665,6 +774,17 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       b.doc["scenes"][0]["nodes"].push_back(node);
     }
     b.doc["nodes"].push_back(n);
+  }
+  // Node names as three.js binds animations to them: two equal after sanitizing would animate the
+  // wrong node (an object "a pivot" beside an object "a", or "x y" beside "x_y").
+  std::map<std::string, std::string> seen;
+  for (const auto& n : b.doc["nodes"]) {
+    const std::string name = n.value("name", "");
+    const auto [it, fresh] = seen.emplace(sanitized(name), name);
+    if (!fresh)
+      throw InvalidInput("export: the nodes '" + it->second + "' and '" + name +
+                         "' have the same name once engines sanitize it (three.js: '" + it->first +
+                         "'); rename the object so that animations reach the right node");
   }
   b.doc["extensionsUsed"] = {"KHR_lights_punctual"};
   b.doc["extensions"] = {{"KHR_lights_punctual", {{"lights", khr}}}};

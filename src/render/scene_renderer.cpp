@@ -2,6 +2,8 @@
 
 #include "texture_coordinates.hpp"
 
+#include "csrbf/errors.hpp"
+
 #include "csrbf/render/process.hpp"
 
 #include <vtkActor.h>
@@ -84,7 +86,11 @@ struct SceneRenderer::Impl {
     vtkSmartPointer<vtkTexture> texture;
     if (!m.texture.empty()) {
       texture = load_texture(m.texture);
-      poly->GetPointData()->SetTCoords(texture_coordinates(poly, m.mapping));
+      try {
+        poly->GetPointData()->SetTCoords(texture_coordinates(poly, m.mapping));
+      } catch (const InvalidInput& e) {
+        throw InvalidInput("object '" + obj.name + "': " + e.what());
+      }
     }
     vtkNew<vtkPolyDataNormals> normals;  // recomputed each frame from the moved points
     normals->SetInputData(poly);

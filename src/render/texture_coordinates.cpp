@@ -1,5 +1,6 @@
 #include "texture_coordinates.hpp"
 
+#include "csrbf/errors.hpp"
 #include "csrbf/io/error.hpp"
 
 #include <vtkCallbackCommand.h>
@@ -15,6 +16,8 @@
 #include <vtkTextureMapToCylinder.h>
 #include <vtkTextureMapToPlane.h>
 #include <vtkTextureMapToSphere.h>
+
+#include <cmath>
 
 namespace csrbf::render {
 
@@ -33,7 +36,21 @@ vtkSmartPointer<vtkDataArray> texture_coordinates(vtkPolyData* rest, anim::Textu
   }
   map->SetInputData(rest);
   map->Update();
-  return map->GetOutput()->GetPointData()->GetTCoords();
+  // A surface the mapping cannot be fitted to (all its points on one line or at one point: "bad
+  // cylinder axis", a plane through a line) gives no coordinates, or NaN ones.
+  vtkSmartPointer<vtkDataArray> st = map->GetOutput()->GetPointData()->GetTCoords();
+  bool finite = st != nullptr && st->GetNumberOfTuples() == rest->GetNumberOfPoints();
+  for (vtkIdType i = 0; finite && i < st->GetNumberOfTuples(); ++i)
+    finite = std::isfinite(st->GetComponent(i, 0)) && std::isfinite(st->GetComponent(i, 1));
+  if (!finite) {
+    const char* name = mapping == anim::TextureMapping::Sphere  ? "sphere"
+                       : mapping == anim::TextureMapping::Plane ? "plane"
+                                                                : "cylinder";
+    throw InvalidInput(
+        std::string("texture_mapping '") + name +
+        "' cannot be fitted to this surface (its points lie on a line or at a point): no texture coordinates");
+  }
+  return st;
 }
 
 std::vector<float> texture_coordinates(const anim::Object& obj, const std::vector<std::uint32_t>& faces,

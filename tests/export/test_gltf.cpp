@@ -124,7 +124,8 @@ struct Glb {
     Vec3 tr = Vec3::Zero();
     Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
     if (n.contains("translation")) tr = Vec3(n["translation"][0], n["translation"][1], n["translation"][2]);
-    if (n.contains("rotation")) q = Eigen::Quaterniond(n["rotation"][3], n["rotation"][0], n["rotation"][1], n["rotation"][2]);
+    if (n.contains("rotation"))
+      q = Eigen::Quaterniond(n["rotation"][3], n["rotation"][0], n["rotation"][1], n["rotation"][2]);
     if (const json* s = channel(node, "translation")) {
       const auto v = sample(*s, false, t);
       tr = Vec3(v[0], v[1], v[2]);
@@ -283,6 +284,24 @@ TEST(GltfExport, BakeAlwaysAndNever) {
   }
 }
 
+TEST(GltfExport, BakingIsBoundedBeforeItStarts) {
+  // 50001 frames of the face baked: 50001 targets weighted at 50001 times, and 14 GiB of frames,
+  // refused before the first frame.
+  anim::Scene face = io::read_scene(example("face.scene.json"));
+  face.duration = 50;
+  render::GltfOptions o;
+  o.bake = render::Bake::Always;
+  o.fps = 1000;
+  render::GltfReport r;
+  try {
+    render::gltf_binary(face, o, r);
+    FAIL() << "baking 50001 frames of 6158 vertices was not refused";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("would take"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("lower --fps"), std::string::npos) << e.what();
+  }
+}
+
 TEST(GltfExport, MoreThanEightActiveTargetsAreBaked) {
   // Ten summed deformations on at once: past the engines' 8, --bake auto bakes the part.
   const fs::path dir = fs::temp_directory_path() / ("csrbf-gltf-" + std::to_string(::getpid()));
@@ -291,15 +310,19 @@ TEST(GltfExport, MoreThanEightActiveTargetsAreBaked) {
   json defs = json::array();
   for (int i = 0; i < 10; ++i) {
     const double a = 0.6 * i;
-    defs.push_back({{"name", "bump " + std::to_string(i)},
-                    {"sources", {{0.2 * std::cos(a), 0.2 * std::sin(a), 0.0}}},
-                    {"destinations", {{0.22 * std::cos(a), 0.22 * std::sin(a), 0.0}}},
-                    {"radius", 0.15},
-                    {"phase", {{"easing", "linear"}, {"keys", {{{"time", 0}, {"phase", 0}}, {{"time", 1}, {"phase", 1}}}}}}});
+    defs.push_back(
+        {{"name", "bump " + std::to_string(i)},
+         {"sources", {{0.2 * std::cos(a), 0.2 * std::sin(a), 0.0}}},
+         {"destinations", {{0.22 * std::cos(a), 0.22 * std::sin(a), 0.0}}},
+         {"radius", 0.15},
+         {"phase", {{"easing", "linear"}, {"keys", {{{"time", 0}, {"phase", 0}}, {{"time", 1}, {"phase", 1}}}}}}});
   }
   json s = {{"duration", 1.0},
             {"fps", 10},
-            {"objects", {{{"name", "ball"}, {"mesh", "sphere.obj"}, {"parts", {{{"name", "all"}, {"combine", "sum"}, {"deformations", defs}}}}}}}};
+            {"objects",
+             {{{"name", "ball"},
+               {"mesh", "sphere.obj"},
+               {"parts", {{{"name", "all"}, {"combine", "sum"}, {"deformations", defs}}}}}}}};
   std::ofstream(dir / "s.scene.json") << s.dump();
   const anim::Scene scene = io::read_scene(dir / "s.scene.json");
   render::GltfReport r;
