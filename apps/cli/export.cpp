@@ -185,16 +185,17 @@ int run_export(const ExportOptions& o) {
   std::cout << "csrbf export: " << o.scene << " -> " << o.out << " (" << kib(r.bytes) << "), " << r.frames
             << " frames at " << r.fps << " fps\n";
   for (const auto& ob : r.objects) {
-    std::printf("  object '%s': %zu vertices, %zu morph targets, at most %zu active at once", ob.name.c_str(),
-                ob.vertices, ob.targets, ob.max_active);
+    std::printf("  object '%s': %zu vertices, %zu morph target%s, at most %zu active at once", ob.name.c_str(),
+                ob.vertices, ob.targets, ob.targets == 1 ? "" : "s", ob.max_active);
     if (ob.rotation_deviation_deg > 0) std::printf(", squad sampled (%.3g deg at most)", ob.rotation_deviation_deg);
     std::printf(", largest vertex deviation %.3g (%.2g of the scene)\n", ob.max_deviation,
                 r.scene_size > 0 ? ob.max_deviation / r.scene_size : 0.0);
   }
   for (const auto& p : r.parts)
     std::cout << "  part '" << p.object << "/" << p.part << "': "
-              << (p.baked ? "baked into " + std::to_string(p.targets) + " frame targets (" + p.why + ")"
-                          : std::to_string(p.targets) + " exact morph targets")
+              << (p.baked ? "baked into " + std::to_string(p.targets) + " frame target" + (p.targets == 1 ? "" : "s") +
+                                " (" + p.why + ")"
+                          : std::to_string(p.targets) + " exact morph target" + (p.targets == 1 ? "" : "s"))
               << "\n";
   if (r.max_active > go.max_active)
     std::cout << "  warning: " << r.max_active << " morph targets are active at once; many engines play only "
