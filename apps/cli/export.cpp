@@ -126,9 +126,8 @@ int run_export(const ExportOptions& o) {
 
   render::GltfReport r;
   const std::vector<unsigned char> glb = render::gltf_binary(scene, go, r);
-  const std::string bytes = ext == ".glb" ? std::string(glb.begin(), glb.end()) : render::glb_to_gltf(glb);
   if (page.empty()) {
-    io::write_atomically(out, [&](std::ostream& s) { s.write(bytes.data(), std::streamsize(bytes.size())); });
+    r.bytes = render::write_gltf(glb, out);
   } else {
     // The page in a partial folder, renamed to DIR once complete; then the file. A file that then
     // fails to be written takes the page (which this run made) with it: all or nothing.
@@ -148,13 +147,12 @@ int run_export(const ExportOptions& o) {
                    ": MIT License, Copyright (c) 2010-2019 three.js authors\n");
     partial.commit_new(page);
     try {
-      io::write_atomically(out, [&](std::ostream& s) { s.write(bytes.data(), std::streamsize(bytes.size())); });
+      r.bytes = render::write_gltf(glb, out);
     } catch (...) {
       fs::remove_all(page, ec);
       throw;
     }
   }
-  r.bytes = bytes.size();
 
   if (o.json) {
     nlohmann::json j;

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <numbers>
@@ -206,7 +207,7 @@ void check_texture(const JsonNode& t, const fs::path& file) {
            " pixels; textures must be 1 to 16384 pixels a side and at most 67108864 pixels in all");
   // The whole file, before an image library decodes it: libpng under VTK crashes on a PNG cut short
   // (a segmentation fault, not an error), so a damaged image must be told here.
-  const std::string problem = head.compare(0, 4, "\x89PNG") == 0 ? png_problem(file) : jpeg_problem(file);
+  const std::string problem = texture_problem(file);
   if (!problem.empty()) t.fail("texture file '" + file.string() + "' is damaged: " + problem);
 }
 
@@ -567,6 +568,16 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
 }
 
 }  // namespace
+
+std::string texture_problem(const fs::path& file) {
+  char head[4] = {};
+  std::ifstream in(file, std::ios::binary);
+  in.read(head, 4);
+  if (in.gcount() == 4 && std::memcmp(head, "\x89PNG", 4) == 0) return png_problem(file);
+  if (in.gcount() >= 2 && static_cast<unsigned char>(head[0]) == 0xFF && static_cast<unsigned char>(head[1]) == 0xD8)
+    return jpeg_problem(file);
+  return "it is not a PNG or JPEG image";
+}
 
 anim::Scene read_scene(const fs::path& path) {
   const nlohmann::json j = detail::read_json_file(path);

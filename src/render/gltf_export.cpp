@@ -3,6 +3,7 @@
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/scene.hpp"
 #include "texture_coordinates.hpp"
 
 #include <nlohmann/json.hpp>
@@ -77,7 +78,7 @@ struct Builder {
   }
   /// A VEC3 accessor of count entries, zero but for (index, value) pairs (sparse, no buffer view).
   /// min and max over every entry.
-  std::size_t sparse_vec3(std::size_t count, const std::vector<std::uint32_t>& index, const std::vector<float>& value,
+  std::size_t sparse_vec3(std::size_t count, std::vector<std::uint32_t> index, std::vector<float> value,
                           const char* what) {
     check_finite(value, what);
     // min and max of every entry: the zeros count only where some entry is not listed.
@@ -97,21 +98,15 @@ struct Builder {
               {"max", {hi[0], hi[1], hi[2]}}};
     // Sparse with one explicit zero where nothing moves: three.js's loader (r111) drops an
     // accessor with neither a buffer view nor sparse values, and a target then fails to load.
-    std::vector<std::uint32_t> one_index = index;
-    std::vector<float> one_value = value;
-    if (one_index.empty()) {
-      one_index.push_back(0);
-      one_value.assign(3, 0.0f);
+    if (index.empty()) {
+      index.push_back(0);
+      value.assign(3, 0.0f);
     }
-    {
-      const std::vector<std::uint32_t>& index = one_index;
-      const std::vector<float>& value = one_value;
-      const std::size_t iv = view(index.data(), index.size() * 4);
-      const std::size_t vv = view(value.data(), value.size() * 4);
-      a["sparse"] = {{"count", index.size()},
-                     {"indices", {{"bufferView", iv}, {"componentType", kUnsignedInt}}},
-                     {"values", {{"bufferView", vv}}}};
-    }
+    const std::size_t iv = view(index.data(), index.size() * 4);
+    const std::size_t vv = view(value.data(), value.size() * 4);
+    a["sparse"] = {{"count", index.size()},
+                   {"indices", {{"bufferView", iv}, {"componentType", kUnsignedInt}}},
+                   {"values", {{"bufferView", vv}}}};
     return accessor(std::move(a));
   }
 };
@@ -438,6 +433,10 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       if (it == images.end()) {
         const std::vector<unsigned char> bytes = read_bytes(m.texture);
         const std::string mime = image_mime(bytes, m.texture);
+        // Checked whole before VTK decodes it (libpng under VTK crashes on a PNG cut short): a
+        // scene built without read_scene has not been.
+        if (const std::string problem = io::texture_problem(m.texture); !problem.empty())
+          throw io::FileError("texture '" + m.texture + "' is damaged: " + problem);
         check_image_decodes(m.texture);
         const std::size_t v = b.view(bytes.data(), bytes.size());
         b.doc["images"].push_back(
@@ -846,16 +845,20 @@ std::string glb_to_gltf(const std::vector<unsigned char>& glb) {
   return out;
 }
 
-GltfReport export_gltf(const anim::Scene& scene, const fs::path& path, const GltfOptions& options) {
+std::size_t write_gltf(const std::vector<unsigned char>& glb, const fs::path& path) {
   const std::string ext = path.extension().string();
   if (ext != ".glb" && ext != ".gltf")
     throw InvalidInput("export: the output must end in .glb or .gltf, got '" + path.string() + "'");
+  const std::string out = ext == ".glb" ? std::string(glb.begin(), glb.end()) : glb_to_gltf(glb);
+  io::write_atomically(path, [&](std::ostream& s) { s.write(out.data(), std::streamsize(out.size())); });
+  return out.size();
+}
+
+GltfReport export_gltf(const anim::Scene& scene, const fs::path& path, const GltfOptions& options) {
   io::check_output_path(path);
   GltfReport report;
   const std::vector<unsigned char> glb = gltf_binary(scene, options, report);
-  const std::string out = ext == ".glb" ? std::string(glb.begin(), glb.end()) : glb_to_gltf(glb);
-  io::write_atomically(path, [&](std::ostream& s) { s.write(out.data(), std::streamsize(out.size())); });
-  report.bytes = out.size();
+  report.bytes = write_gltf(glb, path);
   return report;
 }
 

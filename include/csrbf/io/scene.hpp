@@ -20,4 +20,11 @@ anim::Scene read_scene(const std::filesystem::path& path);
 /// resolves relative paths.
 anim::Scene read_scene_text(const std::string& text, const std::string& name, const std::filesystem::path& base);
 
+/// What is wrong with a PNG or JPEG texture file as a whole, or empty when it is sound: a PNG's
+/// every chunk with its CRC, IHDR first and IEND last, its image data inflating to the rows IHDR
+/// promises with valid filter types; a JPEG ending with its end-of-image marker. Image libraries
+/// under VTK crash on a PNG cut short: read_scene checks every texture with this, and so does
+/// anything that hands a texture to them from a scene built otherwise.
+std::string texture_problem(const std::filesystem::path& file);
+
 }  // namespace csrbf::io

@@ -74,6 +74,9 @@ GltfReport export_gltf(const anim::Scene& scene, const std::filesystem::path& pa
 std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptions& options, GltfReport& report);
 /// Base64 (RFC 4648, padded): glTF's data URIs and the web page's embedded glb.
 std::string base64(const unsigned char* data, std::size_t size);
+/// Writes glb bytes to path atomically, as they are (.glb) or as one .gltf text (glb_to_gltf);
+/// returns the bytes written. Throws InvalidInput for another extension, io::FileError for files.
+std::size_t write_gltf(const std::vector<unsigned char>& glb, const std::filesystem::path& path);
 /// A glb as one .gltf text: its JSON with the binary chunk as a base64 data URI.
 std::string glb_to_gltf(const std::vector<unsigned char>& glb);
 
