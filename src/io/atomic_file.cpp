@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <atomic>
 #include <csignal>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstdio>
@@ -18,6 +19,7 @@
 #include <random>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <sys/xattr.h>
 #include <system_error>
 #include <unistd.h>
 #include <vector>
@@ -29,6 +31,10 @@ namespace csrbf::io {
 namespace {
 
 constexpr const char* kMarker = ".csrbf-partial-";
+// The proof that a partial is csrbf's: an extended attribute holding the random part of its name,
+// set on the file or folder right after its exclusive creation. A stale partial is removed only
+// with that proof, never by its name alone (a user's folder may be named like one).
+constexpr const char* kOwnerAttr = "user.csrbf.partial";
 
 std::string unique_suffix() {
   static thread_local std::mt19937_64 rng([] {
@@ -45,15 +51,33 @@ fs::path folder_of(const fs::path& target) { return target.has_parent_path() ? t
 std::string errno_text() { return std::strerror(errno); }
 
 /// ".NAME.csrbf-partial-RANDOM.ext", NAME cut so that the whole stays within 255 bytes.
-std::string partial_name(const fs::path& target, const std::string& ext) {
+std::string partial_name(const fs::path& target, const std::string& ext, std::string& token) {
+  token = unique_suffix();
   std::string base = target.filename().string();
   if (base.size() > 180) base.resize(180);
   std::string s(".");  // built by appends: GCC 12 warns falsely on '"." + string' (-Wrestrict, PR 105329)
   s += base;
   s += kMarker;
-  s += unique_suffix();
+  s += token;
   s += ext.size() <= 16 ? ext : ext.substr(0, 16);
   return s;
+}
+
+/// The random part of a partial's name (16 hex digits after the marker), or empty.
+std::string token_in_name(const std::string& name) {
+  const auto at = name.rfind(kMarker);
+  if (at == std::string::npos || name.size() < at + std::strlen(kMarker) + 16) return {};
+  std::string t = name.substr(at + std::strlen(kMarker), 16);
+  for (char c : t)
+    if (!std::isxdigit(static_cast<unsigned char>(c))) return {};
+  return t;
+}
+
+/// Whether the open file or folder fd carries csrbf's proof of ownership for this token.
+bool owned(int fd, const std::string& token) {
+  char buf[64];
+  const ssize_t n = ::fgetxattr(fd, kOwnerAttr, buf, sizeof buf);
+  return !token.empty() && n == ssize_t(token.size()) && std::memcmp(buf, token.data(), token.size()) == 0;
 }
 
 /// Removes a partial folder and everything csrbf wrote into it (a copied case holds folders and
@@ -134,7 +158,7 @@ void remove_stale_partials(const fs::path& folder) noexcept {
     if (std::time(nullptr) - st.st_ctime < 2) continue;
     const int fd = ::open(it->path().c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | (dir ? O_DIRECTORY : 0));
     if (fd < 0) continue;
-    if (::flock(fd, LOCK_EX | LOCK_NB) == 0) {
+    if (owned(fd, token_in_name(name)) && ::flock(fd, LOCK_EX | LOCK_NB) == 0) {
       if (dir)
         remove_partial_folder(it->path());
       else
@@ -151,8 +175,9 @@ Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : ki
   sigset_t all, old;
   sigfillset(&all);
   pthread_sigmask(SIG_BLOCK, &all, &old);
+  std::string token;
   for (int attempt = 0; attempt < 8; ++attempt) {
-    path_ = dir / partial_name(target, ext);
+    path_ = dir / partial_name(target, ext, token);
     if (kind == Kind::File) {
       lock_fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     } else if (::mkdir(path_.c_str(), 0777) == 0) {
@@ -165,6 +190,9 @@ Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : ki
   const int open_errno = errno;
   if (lock_fd_ >= 0) {
     ::flock(lock_fd_, LOCK_EX | LOCK_NB);
+    // Without the attribute (a file system without user xattrs) a partial left by a killed run is
+    // not removed by later runs: better left than a user's file removed by its name.
+    ::fsetxattr(lock_fd_, kOwnerAttr, token.data(), token.size(), 0);
     if (kind == Kind::File) slot_ = register_partial(path_);
   }
   pthread_sigmask(SIG_SETMASK, &old, nullptr);
@@ -203,9 +231,19 @@ fs::path resolve_output(const fs::path& target) {
   return target;
 }
 
+void Partial::disown() noexcept {
+  if (lock_fd_ >= 0) ::fremovexattr(lock_fd_, kOwnerAttr);
+}
+
+void Partial::release() noexcept {
+  disown();
+  committed_ = true;
+}
+
 void Partial::commit(const fs::path& target) {
   check_output_path(target);  // again: the target may have changed while we wrote
   keep_mode(target, path_);   // a replaced file keeps its permissions
+  disown();
   std::error_code ec;
   fs::rename(path_, target, ec);
   if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
@@ -218,6 +256,7 @@ void Partial::commit(const fs::path& target) {
 void Partial::commit_new(const fs::path& target) {
   // RENAME_NOREPLACE: an existing target, even an empty folder that rename(2) would replace, is
   // never replaced.
+  disown();
   if (::renameat2(AT_FDCWD, path_.c_str(), AT_FDCWD, target.c_str(), RENAME_NOREPLACE) != 0)
     throw FileError(
         "cannot write '" + target.string() + "': " +
@@ -248,9 +287,17 @@ void check_output_path(const fs::path& target) {
   }
 }
 
+namespace {
+bool exists_no_follow(const fs::path& p) {
+  std::error_code ec;
+  return fs::symlink_status(p, ec).type() != fs::file_type::not_found;
+}
+}  // namespace
+
 void write_atomically(const fs::path& target_in, const std::function<void(std::ostream&)>& write) {
   const fs::path target = resolve_output(target_in);
   check_output_path(target);
+  const bool existed = exists_no_follow(target);
   Partial partial(target, Partial::Kind::File);
   std::streamoff written = 0;
   {
@@ -270,12 +317,24 @@ void write_atomically(const fs::path& target_in, const std::function<void(std::o
   if (ec || std::streamoff(size) != written)
     throw FileError("cannot write '" + target.string() + "': only " + std::to_string(ec ? 0 : size) + " of " +
                     std::to_string(written) + " bytes reached the disk");
-  partial.commit(target);
+  // A target that was new is created without replacing (of concurrent writers, one wins and the
+  // others fail with "exists"); one that existed is replaced.
+  if (existed)
+    partial.commit(target);
+  else
+    partial.commit_new(target);
 }
 
 void write_atomically_via_folder(const fs::path& target_in, const std::function<void(const fs::path&)>& write) {
   const fs::path target = resolve_output(target_in);
   check_output_path(target);
+  // The names that exist now may be replaced (each checked below); any other is created new.
+  std::vector<fs::path> existed;
+  {
+    std::error_code ec;
+    for (fs::directory_iterator it(folder_of(target), ec), end; !ec && it != end; it.increment(ec))
+      existed.push_back(it->path().filename());
+  }
   Partial partial(target, Partial::Kind::Folder);
   const fs::path dir = partial.path();
   write(dir / target.filename());
@@ -307,10 +366,25 @@ void write_atomically_via_folder(const fs::path& target_in, const std::function<
   if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
   // The main file last: once it is there, its side files are too.
   std::stable_partition(made.begin(), made.end(), [&](const fs::path& p) { return p.filename() != target.filename(); });
+  std::vector<fs::path> placed;  // files this call created that were new names
   for (const auto& p : made) {
-    keep_mode(folder_of(target) / p.filename(), p);
-    fs::rename(p, folder_of(target) / p.filename(), ec);
-    if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
+    const fs::path dest = folder_of(target) / p.filename();
+    const bool was_new = std::find(existed.begin(), existed.end(), p.filename()) == existed.end();
+    keep_mode(dest, p);
+    int rc = 0;
+    if (was_new)
+      rc = ::renameat2(AT_FDCWD, p.c_str(), AT_FDCWD, dest.c_str(), RENAME_NOREPLACE);
+    else
+      rc = ::rename(p.c_str(), dest.c_str());
+    if (rc != 0) {
+      const int e = errno;
+      for (const auto& q : placed) ::unlink(q.c_str());  // made by this call a moment ago
+      throw FileError("cannot write '" + dest.string() + "': " +
+                      (e == EEXIST ? std::string("it exists (it was new when csrbf started; another program made it "
+                                                 "meanwhile, and csrbf does not replace it)")
+                                   : std::string(std::strerror(e))));
+    }
+    if (was_new) placed.push_back(dest);
   }
 }
 

@@ -8,7 +8,11 @@
 #include <chrono>
 #include <cstdlib>
 #include <sys/stat.h>
+#include <atomic>
+#include <sys/wait.h>
 #include <thread>
+#include <unistd.h>
+#include <vector>
 
 using namespace csrbf;
 
@@ -82,27 +86,91 @@ TEST(AtomicFile, OnlyRegularFilesAreReplaced) {
 
 TEST(AtomicFile, PartialsOfDeadWritersAreRemovedAndNothingElse) {
   test::TempDir dir;
-  // A partial whose writer is alive (its lock is held) stays; one whose writer died is removed by
-  // the next Partial in that folder once it is 2 s old; files of the user's stay, even with
-  // partial-looking names that lack the marker.
+  // A partial whose writer is alive (its lock is held) stays; one whose writer died (a child that
+  // made a file and a folder partial and was gone without cleaning up, as after kill -9) is removed
+  // by the next Partial in that folder once it is 2 s old. The user's files stay, even named as
+  // partials are: csrbf removes only what carries its mark (an extended attribute), never by name.
   io::Partial live(dir / "a.obj", io::Partial::Kind::File);
-  test::write_text(dir / ".b.obj.csrbf-partial-0123456789abcdef", "dead");  // nobody holds its lock
-  std::filesystem::create_directory(dir / ".frames.csrbf-partial-00000000deadbeef");
-  test::write_text(dir / ".frames.csrbf-partial-00000000deadbeef" / "frame_00000.png", "png");
+  const pid_t child = ::fork();
+  ASSERT_GE(child, 0);
+  if (child == 0) {
+    auto* f = new io::Partial(dir / "b.obj", io::Partial::Kind::File);
+    auto* d = new io::Partial(dir / "frames", io::Partial::Kind::Folder);
+    test::write_text(d->path() / "frame_00000.png", "png");
+    (void)f;
+    ::_exit(0);  // no destructors: what a killed run leaves
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(child, &status, 0), child);
+  test::write_text(dir / ".c.obj.csrbf-partial-0123456789abcdef", "the user's, named as a partial");
+  std::filesystem::create_directory(dir / ".d.csrbf-partial-00000000deadbeef");
+  test::write_text(dir / ".d.csrbf-partial-00000000deadbeef" / "notes.txt", "the user's");
   test::write_text(dir / ".b.obj.tmp-1234", "the user's");
   test::write_text(dir / "notes.txt", "the user's");
-  EXPECT_EQ(test::files_in(dir.path), 5u);
+  EXPECT_EQ(test::files_in(dir.path), 7u);
   io::remove_stale_partials(dir.path);  // all younger than 2 s: kept
-  EXPECT_EQ(test::files_in(dir.path), 5u);
+  EXPECT_EQ(test::files_in(dir.path), 7u);
   std::this_thread::sleep_for(std::chrono::milliseconds(2100));
   io::write_atomically(dir / "c.obj", [](std::ostream& o) { o << "c"; });
   EXPECT_TRUE(std::filesystem::exists(live.path()));
-  EXPECT_FALSE(std::filesystem::exists(dir / ".b.obj.csrbf-partial-0123456789abcdef"));
-  EXPECT_FALSE(std::filesystem::exists(dir / ".frames.csrbf-partial-00000000deadbeef"));
+  for (const auto& e : std::filesystem::directory_iterator(dir.path)) {
+    const std::string name = e.path().filename().string();
+    EXPECT_FALSE(name.starts_with(".b.obj.csrbf-partial-") || name.starts_with(".frames.csrbf-partial-")) << name;
+  }
+  EXPECT_EQ(test::read_text(dir / ".c.obj.csrbf-partial-0123456789abcdef"), "the user's, named as a partial");
+  EXPECT_EQ(test::read_text(dir / ".d.csrbf-partial-00000000deadbeef" / "notes.txt"), "the user's");
   EXPECT_EQ(test::read_text(dir / ".b.obj.tmp-1234"), "the user's");
   EXPECT_EQ(test::read_text(dir / "notes.txt"), "the user's");
   EXPECT_EQ(test::read_text(dir / "c.obj"), "c");
-  EXPECT_EQ(test::files_in(dir.path), 4u);
+  EXPECT_EQ(test::files_in(dir.path), 6u);
+}
+
+TEST(AtomicFile, ANewTargetIsCreatedOnceByConcurrentWriters) {
+  test::TempDir dir;
+  // Each writer found the name new; exactly one may create it, the others fail with "exists"
+  // (a check, then a rename that replaces, let several succeed).
+  std::atomic<int> ok{0}, exists{0};
+  std::vector<std::thread> writers;
+  for (int w = 0; w < 8; ++w)
+    writers.emplace_back([&, w] {
+      try {
+        io::write_atomically(dir / "new.txt", [&](std::ostream& o) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(50));
+          o << "writer " << w;
+        });
+        ++ok;
+      } catch (const io::FileError& e) {
+        if (std::string(e.what()).find("exists") != std::string::npos) ++exists;
+      }
+    });
+  for (auto& t : writers) t.join();
+  EXPECT_EQ(ok.load(), 1);
+  EXPECT_EQ(exists.load(), 7);
+  EXPECT_EQ(test::files_in(dir.path), 1u);
+  // The same through a folder (glTF with its .bin).
+  ok = 0;
+  exists = 0;
+  writers.clear();
+  for (int w = 0; w < 8; ++w)
+    writers.emplace_back([&] {
+      try {
+        io::write_atomically_via_folder(dir / "m.gltf", [](const std::filesystem::path& p) {
+          std::this_thread::sleep_for(std::chrono::milliseconds(50));
+          test::write_text(p, "gltf");
+          test::write_text(p.parent_path() / "m.bin", "bin");
+        });
+        ++ok;
+      } catch (const io::FileError& e) {
+        if (std::string(e.what()).find("exist") != std::string::npos) ++exists;
+      }
+    });
+  for (auto& t : writers) t.join();
+  EXPECT_EQ(ok.load(), 1);
+  EXPECT_EQ(exists.load(), 7);
+  EXPECT_EQ(test::files_in(dir.path), 3u);
+  // An existing target is still replaced.
+  io::write_atomically(dir / "new.txt", [](std::ostream& o) { o << "again"; });
+  EXPECT_EQ(test::read_text(dir / "new.txt"), "again");
 }
 
 TEST(AtomicFile, PartialNamesStayShortAndFramesAreRecognised) {

@@ -4,8 +4,9 @@
 // - a target may only be a new name or an existing regular file (never a folder, device, FIFO or
 //   socket);
 // - partials are named ".NAME.csrbf-partial-RANDOM[.ext]" and locked (flock) by the process that
-//   writes them; a partial left by a killed run (its lock released by the kernel) is removed by the
-//   next csrbf write into that folder.
+//   writes them, and marked by an extended attribute (user.csrbf.partial) holding the random part of
+//   their name; a partial left by a killed run (its lock released by the kernel) is removed by the
+//   next csrbf write into that folder only when it carries that mark, never by its name alone.
 #pragma once
 
 #include <filesystem>
@@ -51,9 +52,11 @@ class Partial {
   /// replaced, not even an empty folder. Throws FileError.
   void commit_new(const std::filesystem::path& target);
   /// The partial is gone or has been moved by the caller: nothing to remove.
-  void release() noexcept { committed_ = true; }
+  /// (Also drops the partial's proof of ownership, so that the moved file or folder is the user's.)
+  void release() noexcept;
 
  private:
+  void disown() noexcept;
   std::filesystem::path path_;
   Kind kind_;
   int lock_fd_ = -1;
