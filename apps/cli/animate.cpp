@@ -1,4 +1,7 @@
 #include "animate.hpp"
+#include "commands.hpp"
+#include "csrbf/io/atomic_file.hpp"
+#include "csrbf/io/inputs.hpp"
 
 #include "csrbf/io/scene.hpp"
 #include "csrbf/render/movie.hpp"
@@ -84,6 +87,18 @@ int run_animate(const AnimateOptions& o) {
   render::check_movie_output(o.out);
   if (render::movie_format_for(o.out) == render::MovieFormat::Mp4 && (width % 2 || height % 2))
     throw UsageError("--size: H.264 (.mp4) needs an even width and height, got '" + o.size + "'");
+  {
+    std::vector<std::filesystem::path> inputs{o.scene};
+    for (auto& f : io::referenced_files(o.scene)) inputs.push_back(std::move(f));
+    check_not_an_input("-o", o.out, inputs);
+    // A folder of PNG frames replaces the frame files in it: none of them may be an input.
+    std::error_code ec;
+    if (std::filesystem::is_directory(o.out, ec))
+      for (const auto& in : inputs)
+        if (io::is_frame_name(in.filename().string()) && std::filesystem::equivalent(in.parent_path(), o.out, ec))
+          throw UsageError("-o '" + o.out + "': its frame file '" + in.string() +
+                           "' is an input of the scene; csrbf never writes an input: choose another folder");
+  }
   anim::Scene scene = io::read_scene(o.scene);
   if (o.fps) scene.fps = *o.fps;
   const double from = o.from.value_or(0.0), to = o.to.value_or(scene.duration);

@@ -1,6 +1,7 @@
 #include "commands.hpp"
 
 #include "animate.hpp"
+#include "csrbf/io/inputs.hpp"
 #include "csrbf/names.hpp"
 
 #include <charconv>
@@ -9,6 +10,14 @@
 #include <sstream>
 
 namespace csrbf::cli {
+
+void check_not_an_input(const std::string& option, const std::filesystem::path& output,
+                        const std::vector<std::filesystem::path>& inputs) {
+  const std::filesystem::path same = io::same_file_as(output, inputs);
+  if (!same.empty())
+    throw UsageError(option + " '" + output.string() + "' is the input '" + same.string() +
+                     "' (the same file, by name or through a link); csrbf never writes an input: choose another name");
+}
 
 #ifdef CSRBF_WITH_MPI
 nlohmann::json rank_stats_json(const std::vector<mpi::RankStats>& ranks) {

@@ -4,6 +4,7 @@
 #include "csrbf/mpi/distributed.hpp"
 #endif
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -21,6 +22,12 @@ namespace csrbf::cli {
 /// Each MPI rank's figures, for --json under mpirun (deform and morph).
 nlohmann::json rank_stats_json(const std::vector<mpi::RankStats>& ranks);
 #endif
+
+/// Refuses (UsageError, exit 2) an output that is one of the command's inputs: the same file by
+/// device and inode once links are followed, so that a symbolic or hard link to an input is that
+/// input too. Checked before anything large is read. option names the output ("-o").
+void check_not_an_input(const std::string& option, const std::filesystem::path& output,
+                        const std::vector<std::filesystem::path>& inputs);
 
 /// --solver's choices: the serial solvers, and "mumps" (the distributed one, under mpirun).
 std::vector<std::string> solver_choices();

@@ -1,8 +1,10 @@
 #include "export.hpp"
 
 #include "animate.hpp"
+#include "commands.hpp"
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/inputs.hpp"
 #include "csrbf/io/scene.hpp"
 #include "csrbf/render/gltf_export.hpp"
 #include "page_html.hpp"
@@ -110,7 +112,11 @@ int run_export(const ExportOptions& o) {
                             ": not found; the page needs three.js (Debian: libjs-three, or set CSRBF_THREE_DIR)");
   }
   std::error_code ec;
-  if (fs::equivalent(out, fs::path(o.scene), ec)) throw UsageError("-o '" + o.out + "' is the scene file itself");
+  {
+    std::vector<fs::path> inputs{o.scene};
+    for (auto& f : io::referenced_files(o.scene)) inputs.push_back(std::move(f));
+    check_not_an_input("-o", out, inputs);
+  }
   if (!page.empty() && fs::absolute(page).lexically_normal() == fs::absolute(out).lexically_normal())
     throw UsageError("--html '" + o.html + "' and -o name the same path");
   anim::Scene scene = io::read_scene(o.scene);

@@ -7,7 +7,9 @@
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/deformation.hpp"
+#include "csrbf/io/inputs.hpp"
 #include "csrbf/io/mesh.hpp"
+#include "csrbf/errors.hpp"
 #include "csrbf/folds.hpp"
 #include "csrbf/names.hpp"
 #include "csrbf/space_map.hpp"
@@ -38,6 +40,17 @@ struct FitArgs {
   std::string kernel = "c2", polynomial = "none", ordering = "auto", solver = "auto";
   double memory_limit_gib = 4.0;
 };
+
+/// The files deform reads: the mesh, the controls or the deformation and the files it names.
+std::vector<std::filesystem::path> deform_inputs(const FitArgs& a, const std::string& mesh) {
+  std::vector<std::filesystem::path> in{mesh};
+  if (!a.controls.empty()) in.emplace_back(a.controls);
+  if (!a.deformation.empty()) {
+    in.emplace_back(a.deformation);
+    for (auto& f : csrbf::io::referenced_files(a.deformation)) in.push_back(std::move(f));
+  }
+  return in;
+}
 
 CLI::Validator positive_finite(const char* what) {
   // The radius is limited as SpaceMap::fit limits it, so that a bad value is a usage error (2).
@@ -120,7 +133,7 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
     o.kernel = *csrbf::parse_kernel(a.kernel);
     o.polynomial = *csrbf::parse_polynomial(a.polynomial);
   }
-  for (const auto& w : controls.warnings) std::cerr << "csrbf: warning: " << w << '\n';
+  for (const auto& w : controls.warnings) std::cerr << "csrbf: warning: " << csrbf::printable(w) << '\n';
   o.ordering = *csrbf::parse_ordering(a.ordering);
   o.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
   o.solver = distributed && a.solver == "mumps" ? csrbf::Solver::Auto : csrbf::cli::serial_solver(a.solver);
@@ -175,6 +188,7 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
   int code = 0;
   try {
     csrbf::io::check_output_path(csrbf::io::resolve_output(da.mesh_out));
+    csrbf::cli::check_not_an_input("-o", da.mesh_out, deform_inputs(fa, da.mesh_in));
     if (csrbf::io::format_for(da.mesh_out) == csrbf::io::MeshFormat::Assimp)
       throw csrbf::cli::UsageError("-o: unknown output format '" +
                                    std::filesystem::path(da.mesh_out).extension().string() +
@@ -222,16 +236,17 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
                 << da.phase << " -> " << da.mesh_out << " (" << ms << " ms)\n";
     }
   } catch (const csrbf::cli::UsageError& e) {
-    std::cerr << "csrbf: error: " << e.what() << '\n';
+    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
     code = 2;
   } catch (const mpi::Failure& e) {
-    std::cerr << "csrbf: error: " << e.what() << (e.rank() ? " (rank " + std::to_string(e.rank()) + ")" : "") << '\n';
+    std::cerr << "csrbf: error: " << csrbf::printable(e.what())
+              << (e.rank() ? " (rank " + std::to_string(e.rank()) + ")" : "") << '\n';
     code = e.exit_code();
   } catch (const std::bad_alloc&) {
     std::cerr << "csrbf: error: out of memory on rank 0 (it holds the whole mesh: docs/DISTRIBUTED.md)\n";
     code = 1;
   } catch (const std::exception& e) {
-    std::cerr << "csrbf: error: " << e.what() << '\n';
+    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
     code = 1;
   }
   backend.finish(code);
@@ -365,8 +380,13 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    std::ostringstream sink;
-    const int code = quiet ? app.exit(e, sink, sink) : app.exit(e);
+    // CLI11 quotes the values it refuses: printed with their control characters escaped.
+    std::ostringstream out, err;
+    const int code = app.exit(e, out, err);
+    if (!quiet) {
+      std::cout << csrbf::printable(out.str(), true);
+      std::cerr << csrbf::printable(err.str(), true);
+    }
     return leave(code == 0 ? 0 : 2);
   }
 #ifdef CSRBF_WITH_MPI
@@ -385,6 +405,7 @@ int main(int argc, char** argv) {
   try {
     if (*deform) {
       csrbf::io::check_output_path(csrbf::io::resolve_output(mesh_out));
+      csrbf::cli::check_not_an_input("-o", mesh_out, deform_inputs(deform_args, mesh_in));
       if (csrbf::io::format_for(mesh_out) == csrbf::io::MeshFormat::Assimp)
         throw csrbf::cli::UsageError("-o: unknown output format '" +
                                      std::filesystem::path(mesh_out).extension().string() +
@@ -448,14 +469,14 @@ int main(int argc, char** argv) {
       }
     }
   } catch (const csrbf::cli::UsageError& e) {
-    std::cerr << "csrbf: error: " << e.what() << '\n';
+    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
     return 2;
   } catch (const std::bad_alloc&) {
     std::cerr
         << "csrbf: error: out of memory (a limit such as ulimit -v, or --memory-limit too high for this machine)\n";
     return 1;
   } catch (const std::exception& e) {
-    std::cerr << "csrbf: error: " << e.what() << '\n';
+    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
     return 1;
   }
   return 0;

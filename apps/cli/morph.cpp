@@ -100,7 +100,7 @@ int run_morph(const MorphArgs& a) {
   {
     std::error_code ec;
     if (std::filesystem::is_directory(std::filesystem::path(a.mesh) / "processor0", ec))
-      std::cerr << "csrbf: warning: " << a.mesh
+      std::cerr << "csrbf: warning: " << csrbf::printable(a.mesh)
                 << " is decomposed (processor folders): one process morphs its constant/polyMesh and "
                    "leaves the processor folders as they are; mpirun -np PROCESSORS csrbf morph morphs them\n";
   }
@@ -179,7 +179,7 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
     try {
       job = job_of(a, true);  // the same on every rank: its usage errors too
     } catch (const UsageError& e) {
-      if (rt.rank() == 0) std::cerr << "csrbf: error: " << e.what() << '\n';
+      if (rt.rank() == 0) std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
       return 2;
     }
     job.backend = &backend;
@@ -206,7 +206,7 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
       return f.exit_code();
     } catch (const std::exception& e) {
       // Not agreed with the other ranks, which may wait for this one: report, and end the job.
-      std::cerr << "csrbf: error (rank " << rt.rank() << "): " << e.what() << '\n';
+      std::cerr << "csrbf: error (rank " << rt.rank() << "): " << csrbf::printable(e.what()) << '\n';
       MPI_Abort(rt.comm(), 1);
     }
   }
@@ -227,13 +227,13 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
     print_outcome(a, o, ranks, backend.stats(), "scattered from rank 0");
     code = report_inversion(a, o);
   } catch (const UsageError& e) {
-    std::cerr << "csrbf: error: " << e.what() << '\n';
+    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
     code = 2;
   } catch (const mpi::Failure& f) {
     print_error(f.what(), f.rank());
     code = f.exit_code();
   } catch (const std::exception& e) {
-    std::cerr << "csrbf: error: " << e.what() << '\n';
+    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
     code = 1;
   }
   backend.finish(code);

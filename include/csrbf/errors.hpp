@@ -14,13 +14,35 @@
 #include <cstddef>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 
 namespace csrbf {
 
-/// The base of every exception csrbf throws on purpose.
+/// text with every control character (below 0x20, and DEL) written as a JSON-style escape
+/// ("\u001b"), so that a name from a file cannot drive the terminal, forge a line of output, or end
+/// a message early (a NUL would end what()). keep_newlines: for many-line texts such as --help.
+inline std::string printable(std::string_view text, bool keep_newlines = false) {
+  std::string out;
+  out.reserve(text.size());
+  for (const char ch : text) {
+    const auto c = static_cast<unsigned char>(ch);
+    if ((c < 0x20 && !(keep_newlines && c == '\n')) || c == 0x7f) {
+      static constexpr char hex[] = "0123456789abcdef";
+      out += "\\u00";
+      out += hex[c >> 4];
+      out += hex[c & 15];
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
+
+/// The base of every exception csrbf throws on purpose. Its message is printable() text.
 class Error : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  explicit Error(const std::string& message) : std::runtime_error(printable(message)) {}
+  explicit Error(const char* message) : std::runtime_error(printable(message)) {}
 };
 
 /// Bad input: sizes, non-finite numbers, a radius <= 0, an unknown name.

@@ -1,0 +1,23 @@
+// Which files a command reads, and whether an output would be one of them (csrbf never writes an
+// input: not by its name, a symbolic link or a hard link to it).
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace csrbf::io {
+
+/// The files a csrbf JSON document (a scene, a deformation, a motion file) names, resolved against
+/// its folder: meshes, textures, deformation, controls and displacement files, and, for each JSON
+/// among them, the files it names (three levels at most). Reads only the JSON documents (each
+/// bounded as read_json_file bounds it); a document that cannot be read contributes nothing, as
+/// its reader reports it later. The document itself is not listed.
+std::vector<std::filesystem::path> referenced_files(const std::filesystem::path& json);
+
+/// The first input that is the same file as output (the same device and inode once links are
+/// followed), or empty. An output that does not exist yet is no input.
+std::filesystem::path same_file_as(const std::filesystem::path& output,
+                                   const std::vector<std::filesystem::path>& inputs);
+
+}  // namespace csrbf::io
