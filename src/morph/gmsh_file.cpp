@@ -1,6 +1,7 @@
 // Gmsh .msh 2.2 and 4.1, ASCII or binary, read through Gmsh's library (libgmsh): physical groups
 // are the patches, node tags the point numbers. The output is the input with the coordinates of
 // its $Nodes section replaced, every other byte kept (version, encoding, numbering, elements).
+#include "child_reader.hpp"
 #include "volume_formats.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
@@ -369,78 +370,17 @@ class GmshFile final : public VolumeFile {
   }
 
   /// Gmsh's library crashes on some corrupt files (a node count one short, a node tag past the
-  /// nodes). It reads in a child process, which sends the mesh back through a pipe: a crash is then
-  /// an error naming the file, never csrbf's own crash. The child dies with its parent.
+  /// nodes). It reads in a child process (child_reader.hpp), which sends the mesh back: a crash is
+  /// then an error naming the file, never csrbf's own crash.
   void read_in_child(double max_bytes) {
-    int fds[2];
-    if (::pipe2(fds, O_CLOEXEC) != 0)
-      throw FileError(path_.string() + ": cannot start Gmsh's reader: " + std::strerror(errno));
-    std::fflush(nullptr);
-    const pid_t parent = ::getpid();
-    const pid_t pid = ::fork();
-    if (pid < 0) {
-      ::close(fds[0]);
-      ::close(fds[1]);
-      throw FileError(path_.string() + ": cannot start Gmsh's reader: " + std::strerror(errno));
-    }
-    if (pid == 0) {
-      ::close(fds[0]);
-      ::prctl(PR_SET_PDEATHSIG, SIGKILL);
-      if (::getppid() != parent) ::_exit(5);  // the parent died before prctl
-      // The parent's handlers remove its partial files: not the child's business.
-      for (int sig :
-           {SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU})
-        ::signal(sig, SIG_DFL);
-      int status = 0;
-      std::string out;
-      try {
-        start_gmsh();
-        gm::clear();
-        gm::open(path_.string());
-        read();
-        out = "M" + serialize();
-      } catch (const std::string& e) {
-        out = "E" + (e.empty() ? std::string("Gmsh gave no reason") : e);
-        status = 3;
-      } catch (const std::exception& e) {
-        out = "E" + std::string(e.what());
-        status = 3;
-      }
-      for (std::size_t done = 0; done < out.size();) {
-        const ssize_t n = ::write(fds[1], out.data() + done, out.size() - done);
-        if (n <= 0) ::_exit(4);
-        done += std::size_t(n);
-      }
-      ::_exit(status);
-    }
-    ::close(fds[1]);
-    std::string in;
-    char buf[1 << 16];
-    bool too_big = false;
-    for (;;) {
-      const ssize_t n = ::read(fds[0], buf, sizeof buf);
-      if (n < 0 && errno == EINTR) continue;
-      if (n <= 0) break;
-      if (double(in.size()) + double(n) > 4 * max_bytes) {
-        too_big = true;
-        ::kill(pid, SIGKILL);
-        break;
-      }
-      in.append(buf, std::size_t(n));
-    }
-    ::close(fds[0]);
-    int status = 0;
-    while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
-    if (too_big) throw FileError(path_.string() + ": the mesh passes the memory limit");
-    if (WIFSIGNALED(status))
-      throw FileError(path_.string() + ": Gmsh's library crashed reading it (signal " +
-                      std::to_string(WTERMSIG(status)) + "): the file is corrupt or truncated");
-    if (!in.empty() && in[0] == 'E') throw FileError(path_.string() + ": Gmsh cannot read it: " + in.substr(1));
-    if (!WIFEXITED(status) || WEXITSTATUS(status) != 0 || in.empty() || in[0] != 'M')
-      throw FileError(path_.string() + ": Gmsh's reader failed (exit status " + std::to_string(WEXITSTATUS(status)) +
-                      ")");
-    deserialize(std::string_view(in).substr(1));
+    const std::string reply = detail::read_in_child(path_, "Gmsh", max_bytes, [&] {
+      start_gmsh();
+      gm::clear();
+      gm::open(path_.string());
+      read();
+      return serialize();
+    });
+    deserialize(reply);
   }
 
   template <class T>

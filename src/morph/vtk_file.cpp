@@ -1,6 +1,7 @@
 // .vtu and legacy .vtk unstructured grids, through VTK's own readers and writers: every point and
 // cell data array is kept, and so are the encoding (ASCII, binary, appended, the compressor) and
 // the points' data type; only the coordinates change.
+#include "child_reader.hpp"
 #include "volume_formats.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
@@ -8,6 +9,7 @@
 
 #include <vtkCellData.h>
 #include <vtkCellType.h>
+#include <vtkCellTypes.h>
 #include <vtkCommand.h>
 #include <vtkDataArray.h>
 #include <vtkDoubleArray.h>
@@ -25,6 +27,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <map>
 #include <set>
@@ -73,7 +76,8 @@ void check_count(const std::string& head, const std::string& key, std::size_t by
 
 class VtkFile final : public VolumeFile {
  public:
-  VtkFile(const fs::path& path, const OpenOptions& o) : path_(path), xml_(path.extension() == ".vtu") {
+  VtkFile(const fs::path& path, const OpenOptions& o)
+      : path_(path), memory_limit_(o.max_file_bytes), xml_(path.extension() == ".vtu") {
     io::check_readable(path, "a VTK unstructured grid");
     std::error_code ec;
     const double size = double(fs::file_size(path, ec));
@@ -81,7 +85,6 @@ class VtkFile final : public VolumeFile {
       throw FileError(path.string() + ": " + std::to_string(std::uint64_t(size)) + " bytes, more than the limit of " +
                       std::to_string(std::uint64_t(o.max_file_bytes)));
     const std::string head = head_of(path, 1 << 16);
-    vtkNew<ErrorCatcher> errors;
     if (xml_) {
       if (head.find("<VTKFile") == std::string::npos || head.find("UnstructuredGrid") == std::string::npos)
         throw FileError(path.string() + ": not a VTK XML unstructured grid (.vtu)");
@@ -92,12 +95,6 @@ class VtkFile final : public VolumeFile {
       uint64_headers_ = head.find("header_type=\"UInt64\"") != std::string::npos;
       for (const char* c : {"vtkZLibDataCompressor", "vtkLZ4DataCompressor", "vtkLZMADataCompressor"})
         if (head.find(c) != std::string::npos) compressor_ = c;
-      vtkNew<vtkXMLUnstructuredGridReader> reader;
-      reader->AddObserver(vtkCommand::ErrorEvent, errors);
-      reader->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, errors);
-      reader->SetFileName(path.c_str());
-      update(reader, path);
-      grid_ = reader->GetOutput();
     } else {
       if (head.rfind("# vtk DataFile", 0) != 0)
         throw FileError(path.string() + ": not a legacy VTK file (no '# vtk DataFile' line)");
@@ -119,22 +116,35 @@ class VtkFile final : public VolumeFile {
                           " cannot fit in the " + std::to_string(std::uint64_t(size)) +
                           "-byte file (truncated, or a count that lies)");
       }
-      vtkNew<vtkUnstructuredGridReader> reader;
-      reader->AddObserver(vtkCommand::ErrorEvent, errors);
-      reader->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, errors);
-      reader->SetFileName(path.c_str());
-      reader->ReadAllScalarsOn();
-      reader->ReadAllVectorsOn();
-      reader->ReadAllNormalsOn();
-      reader->ReadAllTensorsOn();
-      reader->ReadAllColorScalarsOn();
-      reader->ReadAllTCoordsOn();
-      reader->ReadAllFieldsOn();
-      update(reader, path);
-      grid_ = reader->GetOutput();
     }
-    if (!errors->message.empty())
-      throw FileError(path.string() + ": VTK cannot read it: " + first_line(errors->message));
+    // VTK's readers trust the counts and offsets in the file, and crash (or allocate without
+    // bound) on some that lie: they read in a child process, which checks the grid and passes it
+    // back as VTK's own XML (trusted, as csrbf made it).
+    const bool xml = xml_;
+    // A legacy file's stated counts: VTK's reader drops cells it cannot read (a polyhedron without
+    // its faces) without an error.
+    const auto stated_legacy = [&](const char* key) -> long long {
+      const auto at = head.find(std::string("\n") + key);
+      if (xml || at == std::string::npos) return -1;
+      long long v = -1;
+      const char* b = head.data() + at + 1 + std::strlen(key);
+      std::from_chars(b, head.data() + head.size(), v);
+      return v;
+    };
+    const long long points_stated = stated_legacy("POINTS "), cells_stated = stated_legacy("CELLS ");
+    grid_ = parse_grid(detail::read_in_child(path, "VTK", o.max_file_bytes, [&] {
+      auto g = read_grid(path, xml);
+      check_cells(g);
+      if (g && ((points_stated >= 0 && g->GetNumberOfPoints() != points_stated) ||
+                (cells_stated >= 0 && g->GetNumberOfCells() != cells_stated)))
+        throw std::runtime_error("the file states " + std::to_string(points_stated) + " points and " +
+                                 std::to_string(cells_stated) + " cells, but VTK read " +
+                                 std::to_string(g->GetNumberOfPoints()) + " and " +
+                                 std::to_string(g->GetNumberOfCells()) +
+                                 " (a cell it cannot read, such as a polyhedron without its faces, or a count that "
+                                 "lies)");
+      return serialize_grid(g);
+    }));
     if (!grid_ || !grid_->GetPoints() || grid_->GetNumberOfPoints() == 0)
       throw FileError(path.string() + ": no points (empty, truncated or not an unstructured grid)");
     if (xml_) {  // VTK's reader gives what it could read of a truncated file without an error
@@ -193,12 +203,142 @@ class VtkFile final : public VolumeFile {
     return names;
   }
 
-  static void update(vtkAlgorithm* reader, const fs::path& path) {
-    try {
+  /// The grid as VTK's reader gives it; VTK's errors are thrown (in the reading child).
+  static vtkSmartPointer<vtkUnstructuredGrid> read_grid(const fs::path& path, bool xml) {
+    vtkNew<ErrorCatcher> errors;
+    vtkSmartPointer<vtkUnstructuredGrid> grid;
+    if (xml) {
+      vtkNew<vtkXMLUnstructuredGridReader> reader;
+      reader->AddObserver(vtkCommand::ErrorEvent, errors);
+      reader->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, errors);
+      reader->SetFileName(path.c_str());
       reader->Update();
-    } catch (const std::bad_alloc&) {
-      throw FileError(path.string() + ": not enough memory to read it (a count in it that lies?)");
+      grid = reader->GetOutput();
+    } else {
+      vtkNew<vtkUnstructuredGridReader> reader;
+      reader->AddObserver(vtkCommand::ErrorEvent, errors);
+      reader->GetExecutive()->AddObserver(vtkCommand::ErrorEvent, errors);
+      reader->SetFileName(path.c_str());
+      reader->ReadAllScalarsOn();
+      reader->ReadAllVectorsOn();
+      reader->ReadAllNormalsOn();
+      reader->ReadAllTensorsOn();
+      reader->ReadAllColorScalarsOn();
+      reader->ReadAllTCoordsOn();
+      reader->ReadAllFieldsOn();
+      reader->Update();
+      grid = reader->GetOutput();
     }
+    if (!errors->message.empty()) throw std::runtime_error(first_line(errors->message));
+    return grid;
+  }
+
+  /// Every cell of a type VTK knows, with the points its type needs (a hexahedron 8, a polyhedron
+  /// its faces), naming points that exist; every point and cell data array one tuple a point or
+  /// cell. VTK's reader drops or misreads cells that break these, and its writer would then write
+  /// a mesh that has lost cells.
+  static void check_cells(vtkUnstructuredGrid* g) {
+    if (!g || !g->GetPoints()) return;  // reported by the caller
+    const vtkIdType n = g->GetNumberOfPoints(), cells = g->GetNumberOfCells();
+    for (vtkIdType c = 0; c < cells; ++c) {
+      const int type = g->GetCellType(c);
+      if (type <= VTK_EMPTY_CELL || type >= VTK_NUMBER_OF_CELL_TYPES ||
+          std::string(vtkCellTypes::GetClassNameFromTypeId(type)) == "UnknownClass")
+        throw std::runtime_error("cell " + std::to_string(c) + " has type " + std::to_string(type) +
+                                 ", which is not a VTK cell type");
+      vtkIdType npts = 0;
+      const vtkIdType* ids = nullptr;
+      g->GetCellPoints(c, npts, ids);
+      const int need = fixed_points(type);
+      if (need > 0 && npts != need)
+        throw std::runtime_error("cell " + std::to_string(c) + " of type " + std::to_string(type) + " (" +
+                                 vtkCellTypes::GetClassNameFromTypeId(type) + ") has " + std::to_string(npts) +
+                                 " points; its type has " + std::to_string(need));
+      if (type == VTK_POLYHEDRON) {
+        vtkIdType* faces = g->GetFaces(c);
+        if (!faces || faces[0] < 4)
+          throw std::runtime_error("cell " + std::to_string(c) + " is a polyhedron (type 42) without its faces");
+      }
+      for (vtkIdType k = 0; k < npts; ++k)
+        if (ids[k] < 0 || ids[k] >= n)
+          throw std::runtime_error("cell " + std::to_string(c) + " uses point " + std::to_string(ids[k]) +
+                                   ", but there are " + std::to_string(n) +
+                                   " points (truncated, or a count that lies)");
+    }
+    for (vtkFieldData* d :
+         {static_cast<vtkFieldData*>(g->GetPointData()), static_cast<vtkFieldData*>(g->GetCellData())})
+      for (int i = 0; i < d->GetNumberOfArrays(); ++i) {
+        vtkAbstractArray* a = d->GetAbstractArray(i);
+        const vtkIdType want = d == g->GetPointData() ? n : cells;
+        if (a && a->GetNumberOfTuples() != want)
+          throw std::runtime_error(std::string(d == g->GetPointData() ? "point" : "cell") + " data array '" +
+                                   (a->GetName() ? a->GetName() : "") + "' has " +
+                                   std::to_string(a->GetNumberOfTuples()) + " values for " + std::to_string(want) +
+                                   (d == g->GetPointData() ? " points" : " cells"));
+      }
+  }
+
+  /// The points a cell of a fixed-size linear or quadratic type has; 0 for types of any size.
+  static int fixed_points(int type) {
+    switch (type) {
+      case VTK_VERTEX:
+        return 1;
+      case VTK_LINE:
+        return 2;
+      case VTK_TRIANGLE:
+        return 3;
+      case VTK_PIXEL:
+      case VTK_QUAD:
+      case VTK_TETRA:
+        return 4;
+      case VTK_VOXEL:
+      case VTK_HEXAHEDRON:
+        return 8;
+      case VTK_WEDGE:
+        return 6;
+      case VTK_PYRAMID:
+        return 5;
+      case VTK_QUADRATIC_EDGE:
+        return 3;
+      case VTK_QUADRATIC_TRIANGLE:
+        return 6;
+      case VTK_QUADRATIC_QUAD:
+        return 8;
+      case VTK_BIQUADRATIC_QUAD:
+        return 9;
+      case VTK_QUADRATIC_TETRA:
+        return 10;
+      case VTK_QUADRATIC_HEXAHEDRON:
+        return 20;
+      case VTK_TRIQUADRATIC_HEXAHEDRON:
+        return 27;
+      case VTK_QUADRATIC_WEDGE:
+        return 15;
+      case VTK_QUADRATIC_PYRAMID:
+        return 13;
+      default:
+        return 0;
+    }
+  }
+
+  /// A grid as VTK's XML, appended raw (exact, and quick to read back).
+  static std::string serialize_grid(vtkUnstructuredGrid* g) {
+    vtkNew<vtkXMLUnstructuredGridWriter> w;
+    w->SetInputData(g);
+    w->WriteToOutputStringOn();
+    w->SetDataModeToAppended();
+    w->EncodeAppendedDataOff();
+    w->SetCompressorTypeToNone();
+    w->SetHeaderTypeToUInt64();
+    if (!w->Write()) throw std::runtime_error("the grid read could not be passed back");
+    return w->GetOutputString();
+  }
+  static vtkSmartPointer<vtkUnstructuredGrid> parse_grid(const std::string& xml) {
+    vtkNew<vtkXMLUnstructuredGridReader> r;
+    r->ReadFromInputStringOn();
+    r->SetInputString(xml);
+    r->Update();
+    return r->GetOutput();
   }
   static std::string first_line(const std::string& s) {
     std::string t = s.substr(0, s.find('\n', s.find('\n') + 1));
@@ -354,10 +494,24 @@ class VtkFile final : public VolumeFile {
       if (!ok || !errors->message.empty() || fs::file_size(path, ec) == 0 || ec)
         throw FileError("cannot write '" + target.string() + "': VTK's writer failed" +
                         (errors->message.empty() ? std::string() : ": " + first_line(errors->message)));
+      // Read back: the file written must hold every point and cell (a writer that drops cells
+      // would otherwise go unnoticed).
+      const bool xml = xml_;
+      const std::string counts = detail::read_in_child(path, "VTK", memory_limit_, [&] {
+        auto g = read_grid(path, xml);
+        return std::to_string(g && g->GetPoints() ? g->GetNumberOfPoints() : 0) + " " +
+               std::to_string(g ? g->GetNumberOfCells() : 0);
+      });
+      const std::string want =
+          std::to_string(grid->GetNumberOfPoints()) + " " + std::to_string(grid->GetNumberOfCells());
+      if (counts != want)
+        throw FileError("cannot write '" + target.string() + "': read back, the file written holds " + counts +
+                        " points and cells where " + want + " were written; nothing written");
     });
   }
 
   fs::path path_;
+  double memory_limit_ = 4.0 * (1ull << 30);
   bool xml_;
   bool ascii_ = false, appended_ = false, uint64_headers_ = false, legacy_42_ = false;
   std::string compressor_;
