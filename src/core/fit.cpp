@@ -108,6 +108,7 @@ struct FitPhases {
     for (std::size_t i = 0; i < n; ++i) u.row(Eigen::Index(i)) = (sources[i] - st.center) / st.scale;
     const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::MatrixXd>(u).singularValues();
     const double tol = 1e-9 * std::max(sv(0), 1e-300);
+    st.poly_condition = sv(2) > 0 ? sv(0) / sv(2) : std::numeric_limits<double>::infinity();
     if (sv(2) <= tol) {
       std::ostringstream os;
       os << "polynomial 'linear' needs control sources that span 3-D space, but the " << n << " sources are "
@@ -316,6 +317,36 @@ struct FitPhases {
     st.stats.seconds_solve += seconds_since(t0) - (st.fell_back ? st.fallback_seconds : 0.0);
   }
 
+  /// Near-coplanar (or near-collinear) sources pass the rank test but leave the linear
+  /// polynomial's gradient across their plane to the noise of the data: displacements of 0.1 then
+  /// gave +-103 a radius away. The linear part's largest change over the sources' cube (u in
+  /// [-1, 1]^3) against the largest control displacement measures it: an affine map the controls
+  /// admit gives at most sqrt(3) x 2 or so; beyond kMaxAmplification the fit is refused, with the
+  /// polynomial block's condition and the remedy.
+  static void check_amplification(const Structure& st, const State& s, std::span<const Vec3> destinations) {
+    constexpr double kMaxAmplification = 100.0;
+    double largest = 0.0;
+    for (std::size_t i = 0; i < st.sources.size(); ++i)
+      largest = std::max(largest, (destinations[i] - st.sources[i]).norm());
+    if (!(largest > 0.0)) return;
+    double change = 0.0;  // max over the cube's corners of |B^T u|, B the gradient rows 1..3
+    for (int corner = 0; corner < 8; ++corner) {
+      Eigen::Vector3d v = Eigen::Vector3d::Zero();
+      for (int a = 0; a < 3; ++a) v += ((corner >> a) & 1 ? 1.0 : -1.0) * s.beta.row(1 + a).transpose();
+      change = std::max(change, v.norm());
+    }
+    const double ratio = change / largest;
+    if (ratio > kMaxAmplification || !std::isfinite(ratio)) {
+      std::ostringstream os;
+      os << "polynomial 'linear': the sources are nearly "
+         << "coplanar or collinear (condition of the polynomial block " << st.poly_condition
+         << "), and their linear part would move points up to " << ratio
+         << " times the largest control displacement within the sources' extent (" << change << " against " << largest
+         << "); use polynomial 'constant' or 'none', or add controls off that plane or line";
+      throw DegeneratePolynomial(os.str());
+    }
+  }
+
   /// A z = g, beta = (P^T Y)^-1 P^T z, alpha = z - Y beta. `previous` (a map with the same
   /// structure) gives CG its starting point: its z.
   static void solve(const Structure& st, State& s, std::span<const Vec3> destinations, const State* previous) {
@@ -343,6 +374,7 @@ struct FitPhases {
     }
     s.alpha.resize(Eigen::Index(n), 3);
     for (std::size_t k = 0; k < n; ++k) s.alpha.row(st.order[k]) = z.row(Eigen::Index(k));
+    if (st.terms == 4) check_amplification(st, s, destinations);
     s.poly.center = st.center;
     s.poly.inv_scale = 1.0 / st.scale;
     for (int r = 0; r < 4; ++r)

@@ -59,6 +59,7 @@ struct SpaceMap::Structure {
   int terms = 0;                                 // columns of P
   Vec3 center = Vec3::Zero();                    // polynomial coordinates u = (x - center) / scale
   double scale = 1.0;
+  double poly_condition = 1.0;        // linear polynomial: the sources' largest over smallest singular value in u
   RowMatrix p;                        // N x terms, in `order`
   RowMatrix y;                        // A^{-1} P, in `order`
   Eigen::LLT<Eigen::MatrixXd> schur;  // P^T A^{-1} P

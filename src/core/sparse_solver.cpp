@@ -343,7 +343,30 @@ class BatchedCg final : public SparseFactor {
     std::vector<Sums> best;  // best[k]: the smallest residuals up to step k
     if (probe_.steps > 0) best.reserve(max_iterations_ + 1);
     Sums rr_best = rr_start;
+    // Stagnation: the smallest residual so far (the worst column's) has not fallen 10x in the last
+    // kCgStagnationWindow steps. CG that still converges falls much faster than that.
+    Sums rr_low = rr_start;
+    std::vector<double> lowest;  // lowest[k]: the worst column's smallest squared relative residual up to step k
+    lowest.reserve(std::min<std::size_t>(max_iterations_, 1u << 20) + 1);
     for (; !all_done() && it < max_iterations_; ++it) {
+      {
+        double worst_low = 0;
+        for (std::size_t c = 0; c < m; ++c) {
+          rr_low[c] = std::min(rr_low[c], rr[c]);
+          if (!done[c] && rr0[c] > 0) worst_low = std::max(worst_low, rr_low[c] / rr0[c]);
+        }
+        lowest.push_back(worst_low);
+        if (it >= kCgStagnationWindow && !(worst_low < 1e-2 * lowest[it - kCgStagnationWindow])) {
+          iterations_ = it;
+          residual_ = std::sqrt(worst_low);
+          std::ostringstream os;
+          os << "conjugate gradients stagnated: the relative residual (" << std::sqrt(worst_low)
+             << ") has not fallen 10x in the last " << kCgStagnationWindow << " of " << it
+             << " steps (the matrix is too ill-conditioned for them: a smaller radius, or a direct solver, "
+                "--solver cholmod, can solve it)";
+          throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
+        }
+      }
       if (probe_.steps > 0) {
         for (std::size_t c = 0; c < m; ++c) rr_best[c] = std::min(rr_best[c], rr[c]);
         best.push_back(rr_best);
@@ -394,7 +417,8 @@ class BatchedCg final : public SparseFactor {
     residual_ = worst;
     if (!all_done() || !std::isfinite(worst)) {
       std::ostringstream os;
-      os << "conjugate gradients stagnated at a relative residual of " << worst << " after " << it << " steps";
+      os << "conjugate gradients stopped at a relative residual of " << worst << " after " << it
+         << " steps (their limit; a smaller radius, or a direct solver, --solver cholmod, can solve it)";
       throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
     }
     for (std::size_t k = 0; k < n; ++k)

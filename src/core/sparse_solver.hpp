@@ -34,6 +34,9 @@ class SparseFactor {
 };
 
 /// CG did not reach its tolerance within its step limit (the caller falls back to a direct solver).
+/// CG gives up when its residual has not fallen 10x over this many steps (docs/RELIABILITY.md).
+inline constexpr std::size_t kCgStagnationWindow = 500;
+
 class CgStagnated : public std::runtime_error {
  public:
   CgStagnated(const std::string& what, double predicted_steps, std::size_t steps_taken)
@@ -62,7 +65,8 @@ struct CgProbe {
 /// step serves all of them (a block of independent recurrences, not a block-Krylov method). A's
 /// diagonal is phi(0) everywhere, so Jacobi preconditioning would change nothing. Rows are stored in
 /// `order` (a bandwidth-reducing ordering of the sources) for locality. Stops at a relative residual
-/// of `tolerance` per column; throws CgStagnated after `max_iterations`.
+/// of `tolerance` per column; throws CgStagnated after `max_iterations`, or as soon as the worst
+/// column's smallest relative residual has not fallen 10x in the last kCgStagnationWindow steps.
 std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
                                                   double tolerance, std::size_t max_iterations, CgProbe probe = {});
 
