@@ -92,7 +92,9 @@ namespace {
 /// Relative paths of `j` from folder `from` rewritten for folder `to` (absolute ones where no
 /// relative path leads there).
 void rebase(Json& j, const fs::path& from, const fs::path& to) {
-  const fs::path old_base = fs::absolute(from), new_base = fs::absolute(to);
+  // An empty folder is the current one (a scene opened by a bare name: fs::absolute("") throws).
+  const fs::path old_base = fs::absolute(from.empty() ? fs::path(".") : from).lexically_normal(),
+                 new_base = fs::absolute(to.empty() ? fs::path(".") : to).lexically_normal();
   if (old_base == new_base) return;
   for_each_path(j, [&](Json& p) {
     if (!p.is_string()) return;
@@ -108,6 +110,13 @@ void rebase(Json& j, const fs::path& from, const fs::path& to) {
 void Document::set_json(Json j, const fs::path& from_base) {
   rebase(j, from_base, base_);
   json_ = std::move(j);
+}
+
+void Document::adopt(Json j, const fs::path& base, const fs::path& path) {
+  json_ = std::move(j);
+  if (!json_.contains("objects")) json_["objects"] = Json::array();
+  base_ = base;
+  path_ = path;
 }
 
 void Document::open(const fs::path& file) {
@@ -127,8 +136,9 @@ void Document::open(const fs::path& file) {
   io::read_scene_text(text.str(), file.string(), file.parent_path());  // the whole check
   json_ = Json::parse(text.str());
   if (!json_.contains("objects")) json_["objects"] = Json::array();
-  base_ = file.parent_path();
-  path_ = file;
+  // Absolute from here on: a bare name ("fish.scene.json") has an empty parent folder.
+  path_ = fs::absolute(file).lexically_normal();
+  base_ = path_.parent_path();
 }
 
 void Document::save(const fs::path& file) {
@@ -138,7 +148,7 @@ void Document::save(const fs::path& file) {
   io::write_atomically(file, [&](std::ostream& o) { o << out.dump(1) << '\n'; });
   json_ = std::move(out);
   base_ = new_base;
-  path_ = file;
+  path_ = fs::absolute(file).lexically_normal();
 }
 
 anim::Scene Document::build() const {
@@ -154,7 +164,7 @@ anim::Scene Document::build() const {
 
 std::string Document::relative(const fs::path& file) const {
   const fs::path abs = fs::absolute(file).lexically_normal();
-  const fs::path rel = abs.lexically_relative(fs::absolute(base_));
+  const fs::path rel = abs.lexically_relative(fs::absolute(base_.empty() ? fs::path(".") : base_));
   return rel.empty() ? abs.string() : rel.string();
 }
 

@@ -27,6 +27,9 @@ class Document {
   /// rewritten for this document's folder, so that a state from before a Save As into another folder
   /// still names the same files.
   void set_json(nlohmann::json j, const std::filesystem::path& from_base);
+  /// Takes a recovered document whole: its JSON, the folder its relative paths are for, and the
+  /// file it was opened from or saved to (empty: never saved).
+  void adopt(nlohmann::json j, const std::filesystem::path& base, const std::filesystem::path& path);
   /// Folder that relative paths in the JSON are relative to (the scene file's folder).
   const std::filesystem::path& base() const noexcept { return base_; }
   const std::filesystem::path& path() const noexcept { return path_; }

@@ -502,6 +502,10 @@ void ComposerWindow::refresh_deformation_panel() {
   }
   deformations_->setCurrentRow(deformation_);
   const bool has_def = deformation_ >= 0 && std::size_t(deformation_) < n;
+  // A phase key past the schedule's (one just deleted, or an undo's) selects nothing.
+  const std::size_t phase_keys =
+      has_def ? doc_.key_times(std::size_t(object_), Document::Track::Phase, std::size_t(deformation_)).size() : 0;
+  if (phase_key_ >= 0 && std::size_t(phase_key_) >= phase_keys) phase_key_ = -1;
   const bool has_key = has_def && phase_key_ >= 0;
   def_name_->setEnabled(has_def);
   easing_->setEnabled(has_def);
@@ -516,7 +520,7 @@ void ComposerWindow::refresh_deformation_panel() {
                                   : "smooth");
   if (has_key) {
     const auto times = doc_.key_times(std::size_t(object_), Document::Track::Phase, std::size_t(deformation_));
-    phase_time_->setValue(std::size_t(phase_key_) < times.size() ? times[std::size_t(phase_key_)] : 0.0);
+    phase_time_->setValue(times[std::size_t(phase_key_)]);
     phase_value_->setValue(doc_.phase_value(std::size_t(object_), std::size_t(deformation_), std::size_t(phase_key_)));
   } else {
     phase_time_->setValue(0);

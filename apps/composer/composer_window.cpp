@@ -48,9 +48,73 @@ ComposerWindow::ComposerWindow(QWidget* parent) : QMainWindow(parent) {
   connect(timer_, &QTimer::timeout, this, [this] { tick(); });
   rebuild();
   undo_.setClean();
+  recovery_timer_ = new QTimer(this);
+  recovery_timer_->setInterval(gui::recovery_seconds() * 1000);
+  connect(recovery_timer_, &QTimer::timeout, this, [this] { write_recovery(); });
+  recovery_timer_->start();
+  // Saved (or undone back to the saved state): nothing left to recover.
+  connect(&undo_, &QUndoStack::cleanChanged, this, [this](bool clean) {
+    if (clean) recovery_.remove();
+  });
+}
+
+bool ComposerWindow::write_recovery() {
+  if (undo_.isClean()) return false;
+  const json j{{"format", "csrbf-composer-recovery"},
+               {"path", doc_.path().string()},
+               {"base", doc_.base().string()},
+               {"scene", doc_.json()}};
+  return recovery_.write(j.dump(1));
+}
+
+bool ComposerWindow::recover() {
+  json j;
+  try {
+    j = json::parse(recovery_.read());
+    if (!j.is_object() || j.value("format", "") != "csrbf-composer-recovery" || !j.contains("scene") ||
+        !j["scene"].is_object())
+      throw std::runtime_error("not a Composer recovery file");
+    Document next;
+    next.adopt(j["scene"], j.value("base", ""), j.value("path", ""));
+    next.build();  // the whole check, before it replaces anything
+    play(false);
+    doc_ = std::move(next);
+  } catch (const std::exception& e) {
+    show_error("Cannot recover " + recovery_.path() + ": " + e.what());
+    return false;
+  }
+  undo_.clear();
+  object_ = doc_.object_count() > 0 ? 0 : -1;
+  key_ = deformation_ = phase_key_ = -1;
+  time_ = 0;
+  clear_error();
+  scene_.reset();
+  rebuild();
+  look_through_scene_camera();
+  undo_.resetClean();  // recovered work is unsaved work
+  const QString name =
+      doc_.path().empty() ? QString("untitled") : QFileInfo(QString::fromStdString(doc_.path().string())).fileName();
+  setWindowTitle(name + "[*] - csrbf Animation Composer");
+  setWindowModified(true);
+  statusBar()->showMessage("Recovered unsaved work: save it (Ctrl+S) to keep it", 10000);
+  return true;
+}
+
+void ComposerWindow::offer_recovery() {
+  if (!recovery_.exists()) return;
+  const auto answer = QMessageBox::question(this, "Recover unsaved work?",
+                                            "The Composer found work that was not saved when it last closed (" +
+                                                recovery_.when().toString("yyyy-MM-dd hh:mm:ss") + ").\nRecover it?",
+                                            QMessageBox::Yes | QMessageBox::No, QMessageBox::Yes);
+  if (answer == QMessageBox::Yes)
+    recover();
+  else
+    recovery_.remove();
 }
 
 ComposerWindow::~ComposerWindow() {
+  // QUndoStack's destructor emits cleanChanged: nothing of this window may answer it any more.
+  QObject::disconnect(&undo_, nullptr, this, nullptr);
   timer_->stop();
   if (scene_renderer_) window_->RemoveRenderer(scene_renderer_->renderer());
 }
@@ -284,12 +348,24 @@ bool ComposerWindow::edit(const QString& what, const std::function<void(Document
     return false;
   }
   const json before = doc_.json();
-  doc_ = std::move(next);
-  clear_error();
-  info_->hide();
+  const std::filesystem::path before_base = doc_.base();
+  const int selection[4] = {object_, key_, deformation_, phase_key_};
+  try {
+    doc_ = std::move(next);
+    clear_error();
+    info_->hide();
+    scene_ = std::move(scene);
+    rebuild();
+  } catch (const std::exception& e) {
+    // Showing the edited scene failed: back to the scene before the edit, with no undo step.
+    doc_.set_json(before, before_base);
+    object_ = selection[0], key_ = selection[1], deformation_ = selection[2], phase_key_ = selection[3];
+    scene_.reset();
+    rebuild();
+    show_error(what + ": " + e.what() + "\nThe scene is unchanged.");
+    return false;
+  }
   undo_.push(new JsonCommand(this, before, doc_.json(), doc_.base(), what));
-  scene_ = std::move(scene);
-  rebuild();
   return true;
 }
 
@@ -393,10 +469,12 @@ bool ComposerWindow::maybe_save() {
 
 void ComposerWindow::closeEvent(QCloseEvent* e) {
   play(false);
-  if (maybe_save())
+  if (maybe_save()) {
+    if (!property("noPrompt").toBool()) recovery_.remove();  // saved, or discarded on purpose
     e->accept();
-  else
+  } else {
     e->ignore();
+  }
 }
 
 }  // namespace csrbf::composer

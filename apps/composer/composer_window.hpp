@@ -63,6 +63,16 @@ class ComposerWindow : public QMainWindow {
   bool save_scene(const QString& path);
   /// Save, Discard or Cancel when the scene has unsaved edits: true to go on.
   bool maybe_save();
+  /// Unsaved work kept for the next start (gui::Recovery): written every recovery_seconds() while
+  /// there are unsaved edits, removed when they are saved or discarded.
+  const gui::Recovery& recovery() const { return recovery_; }
+  /// Writes the recovery file now if there are unsaved edits; true when written.
+  bool write_recovery();
+  /// Loads the recovery file as an unsaved scene (the file it came from stays as it was); false with
+  /// the error shown when it cannot be read.
+  bool recover();
+  /// At start: when a recovery file exists, asks whether to recover it (and removes it on No).
+  void offer_recovery();
   bool add_object(const QString& mesh);
   bool attach_deformation(const QString& file);
   /// Renders the scene to a movie with a progress dialog, through the renderer `csrbf animate` uses.
@@ -149,6 +159,9 @@ class ComposerWindow : public QMainWindow {
   void live_edit(const std::function<void(Document&)>& change);
 
   Document doc_;
+  // Before undo_: its destructor still emits cleanChanged (the destructor disconnects it first).
+  gui::Recovery recovery_{"composer"};
+  QTimer* recovery_timer_ = nullptr;
   QUndoStack undo_;
   std::unique_ptr<anim::Scene> scene_;
   std::unique_ptr<anim::Player> player_;

@@ -17,7 +17,7 @@ int main(int argc, char** argv) {
   const auto display = csrbf::gui::ensure_display("csrbf-composer", have_display);
   if (!have_display) return 1;
   QSurfaceFormat::setDefaultFormat(QVTKOpenGLNativeWidget::defaultFormat());
-  QApplication app(argc, argv);
+  csrbf::gui::SafeApplication app(argc, argv);
   QApplication::setApplicationName("csrbf-composer");
   QCommandLineParser parser;
   parser.setApplicationDescription("Build an animation scene by hand, play it, export a movie");
@@ -54,5 +54,6 @@ int main(int argc, char** argv) {
     w.setProperty("noPrompt", true);
     return 0;
   }
+  w.offer_recovery();
   return QApplication::exec();
 }

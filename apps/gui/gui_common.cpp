@@ -1,8 +1,14 @@
 #include "gui_common.hpp"
 
+#include "csrbf/errors.hpp"
+#include "csrbf/io/atomic_file.hpp"
+
 #include <QAction>
+#include <QStandardPaths>
+#include <QTimer>
 #include <QDialog>
 #include <QDir>
+#include <QFile>
 #include <QFileInfo>
 #include <QTextBrowser>
 #include <QVBoxLayout>
@@ -21,10 +27,81 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
 #include <iostream>
+#include <sstream>
 #include <limits>
 
 namespace csrbf::gui {
+
+namespace {
+QString g_last_caught;
+}
+
+QString last_caught_error() { return g_last_caught; }
+
+bool SafeApplication::notify(QObject* receiver, QEvent* event) {
+  QString message;
+  try {
+    return QApplication::notify(receiver, event);
+  } catch (const std::exception& e) {
+    message = QString::fromStdString(printable(e.what()));
+  } catch (...) {
+    message = "an unknown error";
+  }
+  g_last_caught = message;
+  std::cerr << applicationName().toStdString() << ": error: " << message.toStdString() << '\n';
+  // Shown after this event, not inside it: a box of its own, not modal (a test or a drag goes on).
+  QTimer::singleShot(0, [message] {
+    auto* box = new QMessageBox(QMessageBox::Critical, applicationName(),
+                                "Something went wrong; nothing was lost, and the document is as it was before the "
+                                "last action.\n\n" +
+                                    message,
+                                QMessageBox::Ok, activeWindow());
+    box->setObjectName("caughtError");
+    box->setAttribute(Qt::WA_DeleteOnClose);
+    box->setModal(false);
+    box->show();
+  });
+  return false;
+}
+
+Recovery::Recovery(const QString& program) {
+  const QString dir = QStandardPaths::writableLocation(QStandardPaths::GenericDataLocation) + "/csrbf";
+  path_ = dir + "/" + program + "-recovery.json";
+}
+
+bool Recovery::exists() const { return QFileInfo(path_).isFile(); }
+
+QDateTime Recovery::when() const { return exists() ? QFileInfo(path_).lastModified() : QDateTime(); }
+
+bool Recovery::write(const std::string& text) const {
+  try {
+    QDir().mkpath(QFileInfo(path_).absolutePath());
+    io::write_atomically(path_.toStdString(), [&](std::ostream& o) { o << text; });
+    return true;
+  } catch (const std::exception& e) {
+    std::cerr << "csrbf: warning: cannot write the recovery file: " << printable(e.what()) << '\n';
+    return false;
+  }
+}
+
+std::string Recovery::read() const {
+  std::ifstream in(path_.toStdString(), std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return in ? s.str() : std::string();
+}
+
+void Recovery::remove() const { QFile::remove(path_); }
+
+int recovery_seconds() {
+  if (const char* e = std::getenv("CSRBF_RECOVERY_SECONDS")) {
+    const int v = std::atoi(e);
+    if (v >= 1 && v <= 3600) return v;
+  }
+  return 60;
+}
 
 std::unique_ptr<render::Display> ensure_display(const char* program, bool& ok) {
   ok = true;

@@ -5,6 +5,8 @@
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/render/process.hpp"
 
+#include <QApplication>
+#include <QDateTime>
 #include <QDoubleSpinBox>
 #include <QMessageBox>
 #include <QPoint>
@@ -13,6 +15,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <string>
 
 class QLabel;
 class QMenu;
@@ -23,6 +26,41 @@ class QVTKOpenGLNativeWidget;
 class vtkRenderer;
 
 namespace csrbf::gui {
+
+/// A QApplication whose event delivery catches what a handler throws: the message is shown in a
+/// box (not modal, after the event) and the program goes on, instead of Qt ending it with
+/// std::terminate and the unsaved work with it. Handlers that edit a document keep it as it was
+/// before the edit themselves (the Composer's and the Picker's edit()).
+class SafeApplication : public QApplication {
+ public:
+  SafeApplication(int& argc, char** argv) : QApplication(argc, argv) {}
+  bool notify(QObject* receiver, QEvent* event) override;
+};
+/// The last message SafeApplication caught, or empty; for tests.
+QString last_caught_error();
+
+/// Unsaved work kept aside for the next start, as office programs and Blender do: a program writes
+/// it every recovery_seconds() while it has unsaved changes, removes it once they are saved or
+/// discarded, and offers it at its next start (so a crash loses at most that long). The file is
+/// <AppDataLocation>/<program>-recovery.json (~/.local/share/csrbf-composer/...), written atomically.
+class Recovery {
+ public:
+  explicit Recovery(const QString& program);
+  QString path() const { return path_; }
+  bool exists() const;
+  /// When the file was written (invalid when there is none).
+  QDateTime when() const;
+  /// Writes text; false (and nothing changed) when it cannot.
+  bool write(const std::string& text) const;
+  /// The file's text; empty when there is none or it cannot be read.
+  std::string read() const;
+  void remove() const;
+
+ private:
+  QString path_;
+};
+/// Seconds between recovery writes: CSRBF_RECOVERY_SECONDS (1 to 3600) or 60.
+int recovery_seconds();
 
 /// Call before QApplication: without DISPLAY, starts a private Xvfb (Qt and Debian's VTK need X).
 /// Returns null when DISPLAY is set; prints "program: error: ..." and returns null with ok = false

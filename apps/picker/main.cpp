@@ -21,7 +21,7 @@ int main(int argc, char** argv) {
   const auto display = csrbf::gui::ensure_display("csrbf-picker", have_display);
   if (!have_display) return 1;
   QSurfaceFormat::setDefaultFormat(QVTKOpenGLNativeWidget::defaultFormat());
-  QApplication app(argc, argv);
+  csrbf::gui::SafeApplication app(argc, argv);
   QApplication::setApplicationName("csrbf-picker");
   QCommandLineParser parser;
   parser.setApplicationDescription("Pick control points on a mesh, drag their destinations, see the deformation live");

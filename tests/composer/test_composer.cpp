@@ -1,4 +1,4 @@
-// The Animation Composer's real window, driven with QTest (run under xvfb-run).
+// The Animation Composer's real window, driven with QTest (run on a private Xvfb: tests/with-xvfb.sh).
 #include "composer_window.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/deformation.hpp"
@@ -15,6 +15,8 @@
 #include <QLabel>
 #include <QLineEdit>
 #include <QListWidget>
+#include <QMessageBox>
+#include <QTimer>
 #include <QScrollArea>
 #include <QPushButton>
 #include <QSurfaceFormat>
@@ -32,6 +34,7 @@
 #include <vtkRendererCollection.h>
 
 #include <fstream>
+#include <unistd.h>
 
 namespace fs = std::filesystem;
 using csrbf::Vec3;
@@ -398,10 +401,119 @@ TEST_F(Fixture, SceneCameraLightsColoursAndViewsAreEditedInTheComposer) {
   EXPECT_FALSE(w.findChild<QDoubleSpinBox*>("keyTime")->isEnabled());
 }
 
+// Issue 30: no edit ends the program, a bare file name saves, and unsaved work survives a crash.
+TEST_F(Fixture, DeletingPhaseKeysDownToTheLastNeverEndsTheProgram) {
+  ASSERT_TRUE(w.open_scene(QString::fromStdString(kExamples + "fish.scene.json")));
+  const std::size_t d = 3;
+  auto keys = [&] { return w.document().key_times(0, Track::Phase, d).size(); };
+  ASSERT_GE(keys(), 2u);
+  // Deleting the last key of the row (the highest index) left the panel asking for it: EditError
+  // "no phase key N" escaped the refresh and Qt ended the program.
+  while (keys() > 1) {
+    const std::size_t n = keys();
+    w.select_phase_key(int(d), int(n - 1));
+    QTest::mouseClick(w.findChild<QPushButton*>("deletePhaseKey"), Qt::LeftButton);
+    QApplication::processEvents();
+    EXPECT_EQ(keys(), n - 1);
+    EXPECT_EQ(w.selected_phase_key(), -1);
+    EXPECT_TRUE(w.error_text().isEmpty()) << w.error_text().toStdString();
+  }
+  // The very last one stays, with a message; the scene is unchanged.
+  const auto before = w.document().json();
+  w.select_phase_key(int(d), 0);
+  QTest::mouseClick(w.findChild<QPushButton*>("deletePhaseKey"), Qt::LeftButton);
+  QApplication::processEvents();
+  EXPECT_EQ(keys(), 1u);
+  EXPECT_EQ(w.document().json(), before);
+  EXPECT_NE(w.error_text().indexOf("keeps at least one key"), -1) << w.error_text().toStdString();
+  // Undo brings every deleted key back.
+  while (w.undo_stack().canUndo()) w.undo_stack().undo();
+  QApplication::processEvents();
+  EXPECT_GE(w.document().key_times(0, Track::Phase, d).size(), 2u);
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "composer-last-phase-key.png").string())));
+}
+
+TEST_F(Fixture, AnExceptionInAnyHandlerIsShownAndTheProgramGoesOn) {
+  QTimer::singleShot(0, [] { throw std::runtime_error("a handler that throws"); });
+  QApplication::processEvents();
+  QApplication::processEvents();
+  EXPECT_NE(csrbf::gui::last_caught_error().indexOf("a handler that throws"), -1);
+  auto* box = w.findChild<QMessageBox*>("caughtError");
+  QMessageBox* shown = box;
+  for (QWidget* top : QApplication::topLevelWidgets())
+    if (top->objectName() == "caughtError") shown = qobject_cast<QMessageBox*>(top);
+  ASSERT_NE(shown, nullptr);
+  EXPECT_TRUE(shown->isVisible());
+  EXPECT_NE(shown->text().indexOf("a handler that throws"), -1);
+  shown->close();
+  ASSERT_TRUE(w.open_scene(QString::fromStdString(kExamples + "fish.scene.json")));  // still working
+}
+
+TEST_F(Fixture, ASceneOpenedByABareFileNameSaves) {
+  csrbf::test::TempDir dir;
+  for (const auto& e : fs::directory_iterator(kExamples))
+    if (e.path().filename().string().starts_with("fish")) fs::copy_file(e.path(), dir / e.path().filename().string());
+  const fs::path was = fs::current_path();
+  fs::current_path(dir.path);
+  const bool opened = w.open_scene("fish.scene.json");
+  bool edited = false, saved = false, again = false;
+  if (opened) {
+    edited = w.edit("Rename", [](csrbf::composer::Document& d) { d.set_deformation_name(0, 0, "jaw"); });
+    saved = w.save_scene("fish.scene.json");
+    again = w.open_scene("fish.scene.json");
+  }
+  fs::current_path(was);
+  ASSERT_TRUE(opened) << w.error_text().toStdString();
+  EXPECT_TRUE(edited) << w.error_text().toStdString();
+  EXPECT_TRUE(saved) << w.error_text().toStdString();
+  EXPECT_TRUE(again) << w.error_text().toStdString();
+  EXPECT_EQ(w.document().deformation_name(0, 0), "jaw");
+  EXPECT_NO_THROW(csrbf::io::read_scene(dir / "fish.scene.json"));
+}
+
+TEST_F(Fixture, UnsavedWorkIsKeptAsideAndOfferedAgain) {
+  csrbf::test::TempDir dir;
+  fs::copy_file(kExamples + "fish.scene.json", dir / "fish.scene.json");
+  for (const auto& e : fs::directory_iterator(kExamples))
+    if (e.path().filename().string().starts_with("fish-") || e.path().filename() == "fish.obj")
+      fs::copy_file(e.path(), dir / e.path().filename().string());
+  ASSERT_TRUE(w.open_scene(QString::fromStdString((dir / "fish.scene.json").string())));
+  w.recovery().remove();
+  EXPECT_FALSE(w.write_recovery()) << "nothing unsaved, nothing written";
+  ASSERT_TRUE(w.edit("Rename", [](csrbf::composer::Document& d) { d.set_deformation_name(0, 1, "unsaved work"); }));
+  ASSERT_TRUE(w.write_recovery());
+  ASSERT_TRUE(w.recovery().exists());
+  // The next start (after a crash) offers it: recovered, unsaved, the scene file untouched.
+  {
+    ComposerWindow next;
+    ASSERT_TRUE(csrbf::test::show_for_test(next, 1280, 820));
+    ASSERT_TRUE(next.recovery().exists());
+    ASSERT_TRUE(next.recover()) << next.error_text().toStdString();
+    EXPECT_EQ(next.document().deformation_name(0, 1), "unsaved work");
+    EXPECT_EQ(next.document().json(), w.document().json());
+    EXPECT_EQ(next.document().path(), fs::absolute(dir / "fish.scene.json").lexically_normal());
+    EXPECT_TRUE(next.isWindowModified());
+    EXPECT_FALSE(next.undo_stack().isClean());
+    ASSERT_TRUE(next.save_screenshot(QString::fromStdString((kShots / "composer-recovered.png").string())));
+    next.setProperty("noPrompt", true);
+  }
+  EXPECT_EQ(csrbf::io::read_scene(dir / "fish.scene.json").objects[0].parts.size(),
+            csrbf::io::read_scene(kExamples + "fish.scene.json").objects[0].parts.size());
+  // Saved: nothing left to recover.
+  ASSERT_TRUE(w.save_scene(QString::fromStdString((dir / "fish.scene.json").string())));
+  EXPECT_FALSE(w.recovery().exists());
+}
+
 int main(int argc, char** argv) {
   QSurfaceFormat::setDefaultFormat(QVTKOpenGLNativeWidget::defaultFormat());
-  QApplication app(argc, argv);
+  // The recovery file goes to a folder of the test's own, never the user's.
+  const fs::path data = fs::temp_directory_path() / ("csrbf-composer-test-" + std::to_string(::getpid()));
+  ::setenv("XDG_DATA_HOME", data.c_str(), 1);
+  csrbf::gui::SafeApplication app(argc, argv);
   fs::create_directories(kShots);
   ::testing::InitGoogleTest(&argc, argv);
-  return RUN_ALL_TESTS();
+  const int status = RUN_ALL_TESTS();
+  std::error_code ec;
+  fs::remove_all(data, ec);
+  return status;
 }
