@@ -16,7 +16,7 @@ packages=(
   libopenblas0-pthread   # BLAS under CHOLMOD (replaces reference BLAS by alternatives): 3-5x faster big fits
   libvtk9-dev            # render (csrbf animate), the `peers` benchmark, tests against vtkKochanekSpline
   libvtk9-qt-dev qtbase5-dev   # csrbf-picker (Qt 5 widgets + VTK's QVTKOpenGLNativeWidget)
-  xvfb xauth             # csrbf animate without a display starts a private Xvfb; tests use xvfb-run
+  xvfb xauth             # csrbf animate without a display starts a private Xvfb; GUI tests start their own (tests/with-xvfb.sh)
   libx11-dev             # render: checks that a DISPLAY opens before VTK uses it (XOpenDisplay)
   ffmpeg                 # csrbf animate writes movies through the ffmpeg program; tests read them with ffprobe
   pybind11-dev python3-dev python3-numpy   # the Python module (Debian's /usr/bin/python3)

@@ -14,6 +14,9 @@ cmake --build build-asan --parallel "$(nproc)"
 asan=abort_on_error=1:strict_string_checks=1:detect_stack_use_after_return=1:intercept_strndup=0
 export LSAN_OPTIONS=suppressions=$PWD/scripts/lsan.supp:print_suppressions=0
 export UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+# No test depends on the caller's display (scripts/test.sh).
+unset DISPLAY
+export HWLOC_COMPONENTS=-gl
 # Processes that render (label "gl") are checked for memory errors but not for leaks: Mesa's driver
 # is unloaded at exit before LeakSanitizer can name what it allocated. Everything else is checked
 # for leaks too. The "consumer" tests (OpenFOAM, Gmsh, VTK and meshio judging csrbf morph's

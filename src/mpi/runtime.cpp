@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <string>
 #include <vector>
 
 namespace csrbf::mpi {
@@ -43,6 +44,14 @@ int launched_rank() noexcept {
 }
 
 Runtime::Runtime(int* argc, char*** argv) {
+  // A rank draws nothing: Open MPI's hwloc must not open the X display (its GL component probes
+  // it), as Xlib ends the process when that server closes later (a GUI test's Xvfb did so).
+  const char* components = std::getenv("HWLOC_COMPONENTS");
+  if (!components || !*components)
+    ::setenv("HWLOC_COMPONENTS", "-gl", 1);
+  else if (std::string(components).find("gl") == std::string::npos)
+    ::setenv("HWLOC_COMPONENTS", (std::string(components) + ",-gl").c_str(), 1);
+  ::unsetenv("DISPLAY");
   int provided = 0;
   MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided);
   MPI_Comm_rank(MPI_COMM_WORLD, &rank_);

@@ -151,8 +151,9 @@ TEST(Animate, FullFrameAviAndPngFolder) {
 
 TEST(Animate, UsesAnExistingDisplay) {
   TempDir dir;
-  const Shell r = shell("xvfb-run -a " + kCli + " animate " + kExamples + "face.scene.json -o " +
-                        (dir / "f.mp4").string() + " --size 64x64 --to 0.1");
+  const Shell r =
+      shell("bash " + std::string(CSRBF_SOURCE_DIR) + "/tests/with-xvfb.sh 1280x1024x24 " + kCli + " animate " +
+            kExamples + "face.scene.json -o " + (dir / "f.mp4").string() + " --size 64x64 --to 0.1");
   ASSERT_EQ(r.code, 0) << r.out;
   EXPECT_EQ(r.out.find("private X display"), std::string::npos) << r.out;
   EXPECT_EQ(probe(dir / "f.mp4").frames, 3);

@@ -611,6 +611,49 @@ TEST(Gmsh, ReadsGroupsAndRefusesBrokenFiles) {
   EXPECT_NE(broken("$MeshFormat\n3.0 0 8\n$EndMeshFormat\n").find("csrbf reads 2.2 and 4.1"), std::string::npos);
 }
 
+// Issue 30: legacy VTK files that crashed VTK's reader inside csrbf (a cell whose point count lies:
+// "malloc(): invalid size", SIGSEGV), and cells VTK reads but drops or misreads. VTK now reads in a
+// child process that checks every cell: each is an error naming the file, never a crash.
+TEST(Hostile, VtkFilesThatCrashOrLoseCellsAreErrors) {
+  TempDir dir;
+  const auto grid = [](const std::string& cells, const std::string& types, int count = 2, int size = 10) {
+    return "# vtk DataFile Version 4.2\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 double\n"
+           "0 0 0 1 0 0 0 1 0 0 0 1 0 0 -1\nCELLS " +
+           std::to_string(count) + " " + std::to_string(size) + "\n" + cells + "CELL_TYPES " + std::to_string(count) +
+           "\n" + types + "POINT_DATA 5\nSCALARS s float 1\nLOOKUP_TABLE default\n1 2 3 4 5\n";
+  };
+  const std::vector<std::pair<std::string, std::string>> cases{
+      // Found by fuzzing VTK's reader with the counts of a cell (each crashed it).
+      {grid("4 0 1 2 3\n42 0 2 1 4\n", "10\n10\n"), ""},
+      {grid("4 0 1 2 3\n99999999 0 2 1 4\n", "99999999\n10\n"), ""},
+      // Read, but dropped or misread: a type VTK does not have, a tetrahedron of 3 points, a
+      // polyhedron without its faces.
+      {grid("4 0 1 2 3\n4 0 2 1 4\n", "10\n99\n"), "cell 1 has type 99, which is not a VTK cell type"},
+      {grid("4 0 1 2 3\n3 0 2 1\n", "10\n10\n", 2, 9), "cell 1 of type 10 (vtkTetra) has 3 points; its type has 4"},
+      {grid("4 0 1 2 3\n4 0 2 1 4\n", "10\n42\n"), "states 5 points and 2 cells, but VTK read 5 and 1"},
+  };
+  int k = 0;
+  for (const auto& [text, message] : cases) {
+    const fs::path f = dir / ("bad" + std::to_string(k++) + ".vtk");
+    csrbf::test::write_text(f, text);
+    const std::string e = error_of([&] { open_volume(f); });
+    EXPECT_NE(e.find(f.string() + ": VTK"), std::string::npos) << f << ": " << e;
+    if (!message.empty()) {
+      EXPECT_NE(e.find(message), std::string::npos) << e;
+    }
+  }
+  // A sound file still reads, with its point data, and is written back whole.
+  csrbf::test::write_text(dir / "good.vtk", grid("4 0 1 2 3\n4 0 2 1 4\n", "10\n10\n"));
+  const auto good = open_volume(dir / "good.vtk");
+  EXPECT_EQ(good->mesh().points.size(), 5u);
+  std::vector<Vec3> p = good->mesh().points;
+  p[3].z() = 1.5;
+  good->write_copy(p, dir / "out.vtk");
+  const auto back = open_volume(dir / "out.vtk");
+  EXPECT_EQ(back->mesh().points[3].z(), 1.5);
+  EXPECT_NE(csrbf::test::read_text(dir / "out.vtk").find("SCALARS s float"), std::string::npos);
+}
+
 // Found by an attacker's trial: each was a crash, a hang or a false success.
 TEST(Hostile, LiesAndShortFilesAreErrorsNotCrashes) {
   TempDir dir;

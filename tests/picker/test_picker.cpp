@@ -1,4 +1,4 @@
-// The Picker's real window, driven with QTest mouse and key events (run under xvfb-run).
+// The Picker's real window, driven with QTest mouse and key events (run on a private Xvfb: tests/with-xvfb.sh).
 #include "csrbf/anim/scene.hpp"
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/scene.hpp"
