@@ -23,6 +23,8 @@
 #endif
 
 #include <charconv>
+#include <sys/resource.h>
+#include <unistd.h>
 #include <csignal>
 #include <chrono>
 #include <cmath>
@@ -254,9 +256,25 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
 }
 #endif
 
+/// OpenBLAS (under CHOLMOD) starts its threads as it is loaded, each taking a 128 MiB buffer. Under
+/// an address-space limit (ulimit -v) or a tight process limit they cannot get it and spin, and the
+/// exit then waits for them for ever. OPENBLAS_NUM_THREADS is read only at load: under such a limit
+/// csrbf runs itself again with it set to 1 (CHOLMOD's factorisations then use one thread).
+void single_blas_thread_under_limits(char** argv) {
+  if (std::getenv("OPENBLAS_NUM_THREADS")) return;
+  rlimit as{}, procs{};
+  const bool limited =
+      (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) ||
+      (::getrlimit(RLIMIT_NPROC, &procs) == 0 && procs.rlim_cur != RLIM_INFINITY && procs.rlim_cur < 4096);
+  if (!limited) return;
+  ::setenv("OPENBLAS_NUM_THREADS", "1", 1);
+  ::execv("/proc/self/exe", argv);  // on failure, go on as we are
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  single_blas_thread_under_limits(argv);
   // A file size limit (ulimit -f, or a quota) must fail the write, so that the temporary file is
   // removed and the target kept, rather than kill the process with SIGXFSZ half-way.
   std::signal(SIGXFSZ, SIG_IGN);

@@ -35,7 +35,7 @@ class SparseFactor {
 
 /// CG did not reach its tolerance within its step limit (the caller falls back to a direct solver).
 /// CG gives up when its residual has not fallen 10x over this many steps (docs/RELIABILITY.md).
-inline constexpr std::size_t kCgStagnationWindow = 500;
+inline constexpr std::size_t kCgStagnationWindow = 1000;
 
 class CgStagnated : public std::runtime_error {
  public:

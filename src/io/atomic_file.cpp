@@ -131,8 +131,16 @@ void remove_partials_on_signals() noexcept {
   struct sigaction sa {};
   sa.sa_handler = remove_partials_and_die;
   sigemptyset(&sa.sa_mask);
-  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU})
+  sigset_t handled;
+  sigemptyset(&handled);
+  for (int sig : {SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGPROF, SIGXCPU}) {
     ::sigaction(sig, &sa, nullptr);
+    sigaddset(&handled, sig);
+  }
+  // A mask is inherited: mpirun starts its ranks from a thread that blocks these signals, so a
+  // rank never saw mpirun's SIGTERM and wrote its output after mpirun had gone. Threads started
+  // after this call inherit the unblocked mask.
+  ::pthread_sigmask(SIG_UNBLOCK, &handled, nullptr);
 }
 
 bool is_frame_name(const std::string& name) {

@@ -131,7 +131,10 @@ class VtkFile final : public VolumeFile {
       std::from_chars(b, head.data() + head.size(), v);
       return v;
     };
-    const long long points_stated = stated_legacy("POINTS "), cells_stated = stated_legacy("CELLS ");
+    // Version 5 states the count of cell offsets, one more than the cells.
+    const bool offsets = head.rfind("# vtk DataFile Version 5", 0) == 0;
+    const long long points_stated = stated_legacy("POINTS "),
+                    cells_stated = stated_legacy("CELLS ") - (offsets && stated_legacy("CELLS ") > 0 ? 1 : 0);
     grid_ = parse_grid(detail::read_in_child(path, "VTK", o.max_file_bytes, [&] {
       auto g = read_grid(path, xml);
       check_cells(g);

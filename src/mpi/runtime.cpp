@@ -1,9 +1,15 @@
 #include "csrbf/mpi/runtime.hpp"
 
+#include "csrbf/io/atomic_file.hpp"
+
 #include <petscsys.h>
+#include <csignal>
+#include <unistd.h>
 #include <sys/resource.h>
 
 #include <algorithm>
+#include <chrono>
+#include <thread>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -25,6 +31,31 @@ int env_int(const char* name) {
   char* end = nullptr;
   const long n = std::strtol(v, &end, 10);
   return (end && *end == 0 && n > 0 && n < (1 << 24)) ? int(n) : 0;
+}
+
+/// mpirun answers a SIGTERM or SIGINT by sending its ranks SIGCONT at once, and SIGTERM only a
+/// second later: time enough for a rank to finish and write its output. A SIGCONT from the
+/// launcher (this process's parent) is therefore taken as the SIGTERM to come.
+extern "C" void launcher_stops_us(int, siginfo_t* info, void*) {
+  if (info && info->si_pid == ::getppid()) ::kill(::getpid(), SIGTERM);
+}
+
+void end_on_launchers_sigcont() {
+  struct sigaction sa {};
+  sa.sa_sigaction = launcher_stops_us;
+  sa.sa_flags = SA_SIGINFO | SA_RESTART;
+  sigemptyset(&sa.sa_mask);
+  ::sigaction(SIGCONT, &sa, nullptr);
+}
+
+/// A rank whose launcher (mpirun, or its daemon) is gone would go on alone and write its output:
+/// it ends itself as if it had been sent SIGTERM (partials removed, nothing written).
+void watch_parent() {
+  const pid_t parent = ::getppid();
+  std::thread([parent] {
+    while (::getppid() == parent) std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    ::kill(::getpid(), SIGTERM);
+  }).detach();
 }
 
 }  // namespace
@@ -63,6 +94,13 @@ Runtime::Runtime(int* argc, char*** argv) {
     MPI_Abort(MPI_COMM_WORLD, 1);
   }
   PetscPushErrorHandler(quiet_handler, nullptr);
+  // PETSc and Open MPI install signal handlers of their own: a SIGTERM or SIGINT from mpirun (a
+  // Ctrl-C) must end the rank as it ends csrbf alone, its partial files removed and nothing
+  // written.
+  PetscPopSignalHandler();
+  io::remove_partials_on_signals();
+  end_on_launchers_sigcont();
+  watch_parent();
 }
 
 Runtime::~Runtime() {

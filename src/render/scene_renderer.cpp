@@ -6,6 +6,15 @@
 
 #include "csrbf/render/process.hpp"
 
+#include <cerrno>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <fcntl.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <vtkActor.h>
 #include <vtkCamera.h>
 #include <vtkCellArray.h>
@@ -191,7 +200,45 @@ void SceneRenderer::update(const anim::Player& player) {
 vtkRenderer* SceneRenderer::renderer() const { return impl_->renderer; }
 vtkRenderWindow* SceneRenderer::window() const { return impl_->window; }
 
+namespace {
+
+/// VTK aborts the process when it cannot create an OpenGL context, which Mesa cannot under a tight
+/// address-space limit (ulimit -v). Under such a limit the context is first made in a child
+/// process: its death is then an error, not csrbf's abort.
+void probe_context_under_limits(int width, int height) {
+  rlimit as{};
+  if (::getrlimit(RLIMIT_AS, &as) != 0 || as.rlim_cur == RLIM_INFINITY) return;
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw RenderError(std::string("cannot start the OpenGL probe: ") + std::strerror(errno));
+  if (pid == 0) {
+    ::prctl(PR_SET_PDEATHSIG, SIGKILL);
+    if (const int null = ::open("/dev/null", O_WRONLY | O_CLOEXEC); null >= 0) {
+      ::dup2(null, 1);
+      ::dup2(null, 2);
+    }
+    vtkNew<vtkRenderWindow> w;
+    w->SetOffScreenRendering(1);
+    w->SetSize(width, height);
+    w->SetMultiSamples(4);
+    vtkNew<vtkRenderer> r;
+    w->AddRenderer(r);
+    w->Render();
+    ::_exit(w->SupportsOpenGL() ? 0 : 3);
+  }
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    throw RenderError("cannot create an OpenGL context of " + std::to_string(width) + "x" + std::to_string(height) +
+                      " within the address-space limit (ulimit -v " + std::to_string(as.rlim_cur / 1024) +
+                      " KiB): Mesa needs more; raise the limit or give a smaller --size");
+}
+
+}  // namespace
+
 void SceneRenderer::open_offscreen(int width, int height) {
+  probe_context_under_limits(width, height);
   impl_->width = width;
   impl_->height = height;
   impl_->window = vtkSmartPointer<vtkRenderWindow>::New();

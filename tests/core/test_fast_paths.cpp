@@ -685,3 +685,31 @@ TEST(FastPaths, EvaluationLoopSelection) {
   set_evaluation_loop(EvaluationLoop::Auto);
   EXPECT_EQ(evaluation_loop_name(), start);
 }
+
+TEST(FastPaths, ConjugateGradientsStopWhenTheirResidualStopsFalling) {
+  // A matrix too ill-conditioned for CG (C6, each source with a twin 1e-7 R away): its residual
+  // falls ever more slowly. CG stops once it has not fallen 10x in kCgStagnationWindow steps, far
+  // before its step limit, and says what was reached and what to do (it ran to the limit, 245 s in
+  // one user's fit, silent).
+  std::mt19937 rng(110);
+  auto cloud = random_points(1500, rng);
+  const std::size_t n = cloud.size();
+  for (std::size_t i = 0; i < n; ++i) cloud.push_back(cloud[i] + Vec3(1e-7 * 0.2, 0, 0));
+  const KernelMatrix a(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.2), cloud), Kernel::C6, 0.2);
+  std::vector<std::uint32_t> order(cloud.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = std::uint32_t(i);
+  const auto cg = detail::conjugate_gradients(a, order, 1e-10, 1000000);
+  RowMatrix b = RowMatrix::Random(Eigen::Index(cloud.size()), 3);
+  try {
+    cg->solve_in_place(b);
+    FAIL() << "converged in " << cg->iterations() << " steps";
+  } catch (const detail::CgStagnated& e) {
+    EXPECT_GE(e.steps_taken(), detail::kCgStagnationWindow);
+    EXPECT_LT(e.steps_taken(), 100 * detail::kCgStagnationWindow);
+    EXPECT_TRUE(std::isinf(e.predicted_steps()));
+    const std::string what = e.what();
+    EXPECT_NE(what.find("has not fallen 10x in the last 1000 of"), std::string::npos) << what;
+    EXPECT_NE(what.find("--solver cholmod"), std::string::npos) << what;
+    EXPECT_GT(cg->residual(), 1e-10) << what;
+  }
+}

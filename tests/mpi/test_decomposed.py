@@ -477,5 +477,48 @@ class Decomposed(unittest.TestCase):
                 self.assertLess(np.abs(va - vb).max(), 1e-10 * np.abs(va - v0).max(), (kernel, poly))
 
 
+class Signals(unittest.TestCase):
+    """Issue 30: SIGTERM or SIGINT to mpirun while the ranks write wrote the output anyway (mpirun
+    sends its ranks SIGCONT, then SIGTERM a second later: time enough to finish). A rank now takes
+    its launcher's SIGCONT as the end: no output, no partial, no process left."""
+
+    def test_a_signal_to_mpirun_writes_nothing(self):
+        import signal
+        import time
+        tmp = tempfile.mkdtemp(prefix="csrbf-mpi-signal-")
+        self.addCleanup(shutil.rmtree, tmp, True)
+        rng = np.random.default_rng(30)
+        with open(os.path.join(tmp, "big.ply"), "w") as f:
+            p = rng.random((1000000, 3))
+            f.write("ply\nformat ascii 1.0\nelement vertex %d\nproperty float x\nproperty float y\n"
+                    "property float z\nend_header\n" % len(p))
+            np.savetxt(f, p, fmt="%.6f")
+        controls = os.path.join(SOURCE, "examples", "fish.controls")
+        judged = 0
+        for sig in (signal.SIGTERM, signal.SIGINT, signal.SIGTERM, signal.SIGINT):
+            out = os.path.join(tmp, "out.ply")
+            proc = subprocess.Popen(MPIRUN + ["2", CLI, "deform", "--mesh", os.path.join(tmp, "big.ply"),
+                                              "--controls", controls, "--radius", "0.3", "-o", out],
+                                    env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+            # The signal comes while rank 0 writes (its partial file is there), sent until mpirun ends.
+            sent = False
+            deadline = time.time() + 300
+            while proc.poll() is None and time.time() < deadline:
+                if any(".csrbf-partial-" in n for n in os.listdir(tmp)):
+                    proc.send_signal(sig)
+                    sent = True
+                time.sleep(0.005)
+            proc.communicate(timeout=60)
+            if not sent:
+                continue  # it finished between two looks: nothing to judge
+            judged += 1
+            self.assertNotEqual(proc.returncode, 0, sig)
+            self.assertFalse(os.path.exists(out), sig)
+            time.sleep(0.5)
+            left = subprocess.run(["pgrep", "-f", out], capture_output=True, text=True).stdout.split()
+            self.assertEqual(left, [], "ranks left running after mpirun ended")
+            self.assertEqual([n for n in os.listdir(tmp) if "csrbf-partial" in n], [])
+        self.assertGreater(judged, 0, "no signal came while rank 0 wrote")
+
 if __name__ == "__main__":
     unittest.main()

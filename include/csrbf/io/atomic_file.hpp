@@ -66,7 +66,8 @@ class Partial {
 
 /// Installs handlers for SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT, SIGUSR1/2, SIGALRM, SIGVTALRM,
 /// SIGPROF and SIGXCPU that remove this process's
-/// partial files, then die of the signal as before. (Partial folders, and partials of a process
+/// partial files, then die of the signal as before, and unblocks them in the calling thread (a
+/// launcher such as mpirun may start processes with them blocked). (Partial folders, and partials of a process
 /// killed by SIGKILL, are removed by the next run.) For programs, not libraries.
 void remove_partials_on_signals() noexcept;
 
