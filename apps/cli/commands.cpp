@@ -17,6 +17,16 @@ void check_not_an_input(const std::string& option, const std::filesystem::path& 
   if (!same.empty())
     throw UsageError(option + " '" + output.string() + "' is the input '" + same.string() +
                      "' (the same file, by name or through a link); csrbf never writes an input: choose another name");
+  // A .gltf output writes its buffer beside it, NAME.bin: that must not be an input either.
+  if (output.extension() == ".gltf") {
+    std::filesystem::path bin = output;
+    bin.replace_extension(".bin");
+    const std::filesystem::path side = io::same_file_as(bin, inputs);
+    if (!side.empty())
+      throw UsageError(option + " '" + output.string() + "' would write its buffer '" + bin.string() +
+                       "', which is the input '" + side.string() +
+                       "'; csrbf never writes an input: choose another name");
+  }
 }
 
 #ifdef CSRBF_WITH_MPI

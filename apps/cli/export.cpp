@@ -116,6 +116,7 @@ int run_export(const ExportOptions& o) {
     std::vector<fs::path> inputs{o.scene};
     for (auto& f : io::referenced_files(o.scene)) inputs.push_back(std::move(f));
     check_not_an_input("-o", out, inputs);
+    io::must_be_new(io::resolve_output(out));
   }
   if (!page.empty() && fs::absolute(page).lexically_normal() == fs::absolute(out).lexically_normal())
     throw UsageError("--html '" + o.html + "' and -o name the same path");
@@ -186,8 +187,8 @@ int run_export(const ExportOptions& o) {
     std::cout << j.dump(2) << "\n";
     return 0;
   }
-  std::cout << "csrbf export: " << o.scene << " -> " << o.out << " (" << kib(r.bytes) << "), " << r.frames
-            << " frames at " << r.fps << " fps\n";
+  std::cout << "csrbf export: " << printable(o.scene) << " -> " << printable(o.out) << " (" << kib(r.bytes) << "), "
+            << r.frames << " frames at " << r.fps << " fps\n";
   for (const auto& ob : r.objects) {
     std::printf("  object '%s': %zu vertices, %zu morph target%s, at most %zu active at once", ob.name.c_str(),
                 ob.vertices, ob.targets, ob.targets == 1 ? "" : "s", ob.max_active);

@@ -46,6 +46,7 @@ struct FitArgs {
 /// The files deform reads: the mesh, the controls or the deformation and the files it names.
 std::vector<std::filesystem::path> deform_inputs(const FitArgs& a, const std::string& mesh) {
   std::vector<std::filesystem::path> in{mesh};
+  for (auto& f : csrbf::io::mesh_side_files(mesh)) in.push_back(std::move(f));
   if (!a.controls.empty()) in.emplace_back(a.controls);
   if (!a.deformation.empty()) {
     in.emplace_back(a.deformation);
@@ -106,12 +107,14 @@ struct Fitted {
   csrbf::io::Controls controls;
   csrbf::SpaceMap map;
   std::optional<csrbf::io::ActiveArea> area;  // the deformation file's active area, if any
+  std::optional<double> phase;                // the deformation file's phase, if any
 };
 
 struct FitInput {
   csrbf::io::Controls controls;
   csrbf::FitOptions options;
   std::optional<csrbf::io::ActiveArea> area;
+  std::optional<double> phase;  // the deformation file's
 };
 
 /// The controls or deformation file and the fit's options; a deformation's active area is checked
@@ -121,9 +124,11 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
   csrbf::io::Controls controls;
   csrbf::FitOptions o;
   std::optional<csrbf::io::ActiveArea> area;
+  std::optional<double> phase;
   if (!a.deformation.empty()) {
     auto spec = csrbf::io::read_deformation(a.deformation);
     area = std::move(spec.area);
+    phase = spec.phase;
     if (area && mesh) csrbf::io::check_active_area(*area, mesh->positions(), a.deformation, mesh_name);
     controls.sources = spec.sources;
     controls.destinations = spec.destinations;
@@ -142,12 +147,12 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
   if (o.ordering != csrbf::Ordering::Auto && (o.solver == csrbf::Solver::Eigen || o.solver == csrbf::Solver::Cholmod))
     throw csrbf::cli::UsageError("--ordering " + a.ordering + ": solver '" + a.solver +
                                  "' orders the matrix itself; --ordering applies to the envelope solver and cg");
-  return {std::move(controls), o, std::move(area)};
+  return {std::move(controls), o, std::move(area), phase};
 }
 
 /// The fit of the controls or deformation file.
 Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, const std::string& mesh_name = {}) {
-  auto [controls, o, area] = read_fit_input(a, mesh, mesh_name);
+  auto [controls, o, area, phase] = read_fit_input(a, mesh, mesh_name);
   // Where control i came from: "file:line" for controls text, "file: sources[i]" for JSON.
   const bool json_file = !a.deformation.empty();
   const auto where = [&](std::size_t i) {
@@ -158,7 +163,7 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
     return json_file ? "sources[" + std::to_string(i) + "]" : "line " + std::to_string(controls.lines[i]);
   };
   try {
-    return {controls, csrbf::SpaceMap::fit(controls.sources, controls.destinations, o), std::move(area)};
+    return {controls, csrbf::SpaceMap::fit(controls.sources, controls.destinations, o), std::move(area), phase};
   } catch (const csrbf::DuplicateSource& e) {
     throw csrbf::io::FileError(where(e.second()) + ": source is the same as on " + which(e.first()));
   } catch (const csrbf::NotPositiveDefinite& e) {
@@ -175,6 +180,7 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
 struct DeformArgs {
   std::string mesh_in, mesh_out;
   double phase = 1.0;
+  bool phase_given = false;  // else a deformation file's phase, where it has one
   bool json = false;
 };
 
@@ -191,6 +197,7 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
   try {
     csrbf::io::check_output_path(csrbf::io::resolve_output(da.mesh_out));
     csrbf::cli::check_not_an_input("-o", da.mesh_out, deform_inputs(fa, da.mesh_in));
+    csrbf::io::must_be_new(csrbf::io::resolve_output(da.mesh_out));
     if (csrbf::io::format_for(da.mesh_out) == csrbf::io::MeshFormat::Assimp)
       throw csrbf::cli::UsageError("-o: unknown output format '" +
                                    std::filesystem::path(da.mesh_out).extension().string() +
@@ -198,6 +205,7 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
     const auto t0 = std::chrono::steady_clock::now();
     auto mesh = csrbf::io::MeshDocument::load(da.mesh_in, fa.memory_limit_gib * double(1ull << 30));
     FitInput in = read_fit_input(fa, &mesh, da.mesh_in, true);
+    const double phase = !da.phase_given && in.phase ? *in.phase : da.phase;
     auto& p = mesh.positions();
     std::vector<csrbf::Vec3> part;  // the active area's vertices, or all
     if (in.area)
@@ -209,7 +217,7 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
     for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = in.controls.lines.empty() ? i : in.controls.lines[i];
     auto mapping = backend.fit(in.controls.sources, in.controls.destinations, in.options, ids);
     std::vector<csrbf::Vec3> moved(evaluated.size());
-    mapping->apply(evaluated, moved, da.phase);
+    mapping->apply(evaluated, moved, phase);
     std::size_t count = 0;
     for (std::size_t i = 0; i < moved.size(); ++i) {
       const std::size_t v = in.area ? in.area->vertices[i] : i;
@@ -235,7 +243,7 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
       std::cout << "csrbf deform: " << p.size() << " vertices (" << count << " moved) of " << da.mesh_in << " by "
                 << backend.stats().controls << " controls on " << ranks.size() << " ranks ("
                 << mpi::distributed_solver_name(backend.stats().solver) << "), R = " << in.options.radius << ", phase "
-                << da.phase << " -> " << da.mesh_out << " (" << ms << " ms)\n";
+                << phase << " -> " << da.mesh_out << " (" << ms << " ms)\n";
     }
   } catch (const csrbf::cli::UsageError& e) {
     std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
@@ -415,6 +423,7 @@ int main(int argc, char** argv) {
                   << " runs on one process; under mpirun with more than one rank, csrbf runs deform and morph\n";
       return leave(2);
     }
+    da.phase_given = deform->count("--phase") > 0;
     return leave(*deform ? deform_distributed(*rt, deform_args, da)
                          : csrbf::cli::run_morph_distributed(morph_args, *rt));
   }
@@ -424,6 +433,7 @@ int main(int argc, char** argv) {
     if (*deform) {
       csrbf::io::check_output_path(csrbf::io::resolve_output(mesh_out));
       csrbf::cli::check_not_an_input("-o", mesh_out, deform_inputs(deform_args, mesh_in));
+      csrbf::io::must_be_new(csrbf::io::resolve_output(mesh_out));
       if (csrbf::io::format_for(mesh_out) == csrbf::io::MeshFormat::Assimp)
         throw csrbf::cli::UsageError("-o: unknown output format '" +
                                      std::filesystem::path(mesh_out).extension().string() +
@@ -431,6 +441,7 @@ int main(int argc, char** argv) {
       const auto t0 = std::chrono::steady_clock::now();
       auto mesh = csrbf::io::MeshDocument::load(mesh_in, deform_args.memory_limit_gib * double(1ull << 30));
       Fitted f = fit(deform_args, &mesh, mesh_in);
+      if (deform->count("--phase") == 0 && f.phase) phase = *f.phase;  // as it was seen in the Picker
       auto& p = mesh.positions();
       const std::vector<csrbf::Vec3> before = p;
       csrbf::io::apply_deformation(f.map, f.area, p, phase);
@@ -448,13 +459,14 @@ int main(int argc, char** argv) {
         std::cout << j.dump(2) << '\n';
         return 0;
       }
-      std::cout << "csrbf deform: " << p.size() << " vertices (" << moved << " moved) of " << mesh_in << " by "
-                << f.map.size() << " controls, R = " << f.map.radius() << ", kernel "
+      std::cout << "csrbf deform: " << p.size() << " vertices (" << moved << " moved) of " << csrbf::printable(mesh_in)
+                << " by " << f.map.size() << " controls, R = " << f.map.radius() << ", kernel "
                 << csrbf::kernel_name(f.map.kernel()) << ", polynomial " << csrbf::polynomial_name(f.map.polynomial())
                 << ", phase " << phase
                 << (f.area ? ", active area of " + std::to_string(f.area->vertices.size()) + " vertices"
                            : std::string())
-                << " -> " << mesh_out << " (" << std::chrono::duration<double, std::milli>(t1 - t0).count() << " ms)\n";
+                << " -> " << csrbf::printable(mesh_out) << " ("
+                << std::chrono::duration<double, std::milli>(t1 - t0).count() << " ms)\n";
     } else if (*morph) {
       return csrbf::cli::run_morph(morph_args);
     } else if (*animate) {

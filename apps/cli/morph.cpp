@@ -110,7 +110,7 @@ int run_morph(const MorphArgs& a) {
   } catch (const morph::JobError& e) {
     throw UsageError(std::string("morph: ") + e.what());
   }
-  std::cout << (a.json ? morph::outcome_json(o) + "\n" : morph::outcome_text(o));
+  std::cout << (a.json ? morph::outcome_json(o) + "\n" : csrbf::printable(morph::outcome_text(o), true));
   return report_inversion(a, o);
 }
 
@@ -132,7 +132,7 @@ void print_outcome(const MorphArgs& a, const morph::MorphOutcome& o, const std::
     std::cout << j.dump(2) << '\n';
     return;
   }
-  std::cout << morph::outcome_text(o) << "  distributed (" << mode << ") over " << ranks.size()
+  std::cout << csrbf::printable(morph::outcome_text(o), true) << "  distributed (" << mode << ") over " << ranks.size()
             << " ranks: " << st.controls << " controls, solver " << mpi::distributed_solver_name(st.solver) << "\n";
   for (const auto& r : ranks)
     std::cout << "    rank " << r.rank << ": " << r.controls_owned << " controls (+" << r.controls_halo << " halo), "

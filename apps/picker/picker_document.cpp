@@ -83,6 +83,7 @@ io::DeformationSpec Document::deformation() const {
     d.destinations.push_back(c.destination);
   }
   d.area = area(state_);
+  d.phase = state_.phase;  // what the user saw: csrbf deform with the file gives the same mesh
   return d;
 }
 
@@ -99,6 +100,7 @@ State Document::state_from(const io::DeformationSpec& spec, const std::string& w
   s.radius = spec.options.radius;
   s.kernel = spec.options.kernel;
   s.polynomial = spec.options.polynomial;
+  if (spec.phase) s.phase = *spec.phase;
   s.region.clear();
   if (spec.area) {
     io::check_active_area(*spec.area, rest_, where, mesh_path_.filename().string());

@@ -65,7 +65,8 @@ class Document {
   FoldReport folds() const;
 
   /// The deformation file (docs/scene-format.md) of the current state, its active area included, and
-  /// reading one back (as a state with the current phase; the file's active area, or the whole mesh).
+  /// reading one back (as a state with the file's phase, or the current one where it has none; the
+  /// file's active area, or the whole mesh). The file holds the phase shown.
   /// state_from throws io::FileError when the file's area was picked on a mesh of another vertex count.
   io::DeformationSpec deformation() const;
   State state_from(const io::DeformationSpec& spec, const std::string& where = "the deformation") const;

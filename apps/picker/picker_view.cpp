@@ -404,7 +404,7 @@ void PickerWindow::select_region(int x0, int y0, int x1, int y1) {
     statusBar()->showMessage("No vertex in the selected rectangle", 5000);
     return;
   }
-  edit(next, "Select active area");
+  if (edit(next, "Select active area")) area_from_file_ = false;
 }
 
 void PickerWindow::delete_selected() {

@@ -165,6 +165,7 @@ bool PickerWindow::open_mesh(const QString& path) {
   }
   undo_.clear();
   selected_ = -1;
+  area_from_file_ = false;
   vtkNew<vtkCellArray> polys;
   for (const auto& f : doc_.mesh().faces()) {
     polys->InsertNextCell(vtkIdType(f.size()));
@@ -194,11 +195,13 @@ bool PickerWindow::load_deformation(const QString& path) {
   try {
     const auto spec = io::read_deformation(path.toStdString());
     if (!edit(doc_.state_from(spec, path.toStdString()), "Load deformation")) return false;
+    area_from_file_ = spec.area.has_value();
   } catch (const std::exception& e) {
     show_error(e.what());
     return false;
   }
   deformation_path_ = path;
+  undo_.setClean();  // what is shown is what the file holds (undo still goes back)
   statusBar()->showMessage("Loaded " + path, 5000);
   return true;
 }
@@ -214,6 +217,9 @@ bool PickerWindow::load_controls(const QString& path, std::optional<double> radi
     io::DeformationSpec spec = doc_.deformation();
     spec.sources = c.sources;
     spec.destinations = c.destinations;
+    // An area picked here stays (controls loaded to act inside it); one that came with the last
+    // deformation file belongs to that file, and goes with it.
+    if (area_from_file_) spec.area.reset();
     State next = doc_.state_from(spec);
     if (radius) {
       next.radius = *radius;
@@ -228,6 +234,7 @@ bool PickerWindow::load_controls(const QString& path, std::optional<double> radi
                      .arg(next.controls.size());
     }
     if (!edit(next, "Load controls")) return false;
+    area_from_file_ = false;
     const FoldReport folds = radius ? FoldReport{} : doc_.folds();
     if (!radius)
       proposal.replace(". Change it", folds.folded == 0 && folds.edge_flipped == 0

@@ -152,7 +152,8 @@ class PickerWindow : public QMainWindow {
   QLabel* hint_ = nullptr;
   QAction* wireframe_ = nullptr;
   QString deformation_path_;
-  QString proposal_;  // the last proposed radius, said in the hint until the next edit
+  bool area_from_file_ = false;  ///< the active area came with a loaded deformation file (not picked here)
+  QString proposal_;             // the last proposed radius, said in the hint until the next edit
   double drag_fps_ = 0;
   std::vector<double> frame_ms_;  // the last drag frames' times
 

@@ -193,7 +193,9 @@ void EvalData<T>::assign(const EvalGrid& g, std::span<const Vec3> sources, const
       ax[e] = ay[e] = az[e] = T(0);
       return;
     }
-    const Vec3 p = (std::is_same_v<T, double> ? sources[s] : Vec3(sources[s] - g.origin)) * inv_r;
+    // Relative to the grid's origin, in double too: far from 0 (coordinates of 1e6 and more) a
+    // distance from absolute coordinates kept only the digits their difference had left (issue 30).
+    const Vec3 p = Vec3(sources[s] - g.origin) * inv_r;
     x[e] = T(p.x()), y[e] = T(p.y()), z[e] = T(p.z());
     ax[e] = T(lead * alpha[3 * s]), ay[e] = T(lead * alpha[3 * s + 1]), az[e] = T(lead * alpha[3 * s + 2]);
   };

@@ -77,8 +77,8 @@ class Buffer {
   std::size_t size_ = 0;
 };
 
-/// The runs of EvalGrid copied out: coordinates in units of R (double: absolute, as the simple
-/// path; float: relative to the grid's origin, to keep digits) and coefficients alpha, by entry.
+/// The runs of EvalGrid copied out: coordinates in units of R relative to the grid's origin (to keep
+/// digits far from 0, in double and float) and coefficients alpha, by entry.
 /// Padding entries lie far away (r clips to 1, phi(1) = 0) with zero coefficients.
 ///
 /// Large grids (kSortEntries entries or more) also sort each run by the sources' distance from the

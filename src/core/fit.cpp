@@ -319,14 +319,14 @@ struct FitPhases {
 
   /// Near-coplanar (or near-collinear) sources pass the rank test but leave the linear
   /// polynomial's gradient across their plane to the noise of the data: displacements of 0.1 then
-  /// gave +-103 a radius away. Refused where the sources' condition (largest over smallest singular
-  /// value, centred and scaled) passes kMaxCondition and the linear part's largest change over the
-  /// sources' cube (u in [-1, 1]^3) passes kMaxAmplification times the largest control displacement:
-  /// an affine map the controls admit changes by about 2 times that, however flat the sources, so
-  /// a flat part turned or moved rigidly still fits. The message gives the condition and the remedy.
+  /// gave +-103 a radius away. The linear part's largest change over the sources' cube (u in
+  /// [-1, 1]^3) against the largest control displacement measures it: an affine map the controls
+  /// admit changes by about 2 times that, however flat the sources, so a flat part turned or moved
+  /// rigidly still fits. Refused beyond kMaxAmplification, or beyond kFlatAmplification where the
+  /// sources' condition (largest over smallest singular value, centred and scaled) passes
+  /// kMaxCondition. The message gives the condition and the remedy.
   static void check_amplification(const Structure& st, const State& s, std::span<const Vec3> destinations) {
-    constexpr double kMaxCondition = 1000.0, kMaxAmplification = 10.0;
-    if (!(st.poly_condition > kMaxCondition)) return;
+    constexpr double kMaxCondition = 1000.0, kFlatAmplification = 10.0, kMaxAmplification = 100.0;
     double largest = 0.0;
     for (std::size_t i = 0; i < st.sources.size(); ++i)
       largest = std::max(largest, (destinations[i] - st.sources[i]).norm());
@@ -338,7 +338,8 @@ struct FitPhases {
       change = std::max(change, v.norm());
     }
     const double ratio = change / largest;
-    if (ratio > kMaxAmplification || !std::isfinite(ratio)) {
+    if (ratio > kMaxAmplification || (st.poly_condition > kMaxCondition && ratio > kFlatAmplification) ||
+        !std::isfinite(ratio)) {
       std::ostringstream os;
       os << "polynomial 'linear': the sources are nearly "
          << "coplanar or collinear (condition of the polynomial block " << st.poly_condition

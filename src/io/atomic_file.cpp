@@ -16,6 +16,7 @@
 #include <fstream>
 #include <poll.h>
 #include <pthread.h>
+#include <mutex>
 #include <random>
 #include <sys/file.h>
 #include <sys/stat.h>
@@ -300,12 +301,33 @@ bool exists_no_follow(const fs::path& p) {
   std::error_code ec;
   return fs::symlink_status(p, ec).type() != fs::file_type::not_found;
 }
+
+std::mutex g_new_mutex;
+std::vector<fs::path> g_new_outputs;  // must_be_new(): absolute, lexically normal
+
+fs::path normal(const fs::path& p) {
+  std::error_code ec;
+  const fs::path a = fs::absolute(p, ec);
+  return (ec ? p : a).lexically_normal();
+}
+
+/// Whether target was new when its command started (must_be_new), so that it is never replaced.
+bool registered_new(const fs::path& target) {
+  std::lock_guard lock(g_new_mutex);
+  return std::find(g_new_outputs.begin(), g_new_outputs.end(), normal(target)) != g_new_outputs.end();
+}
 }  // namespace
+
+void must_be_new(const fs::path& target) {
+  if (exists_no_follow(target)) return;
+  std::lock_guard lock(g_new_mutex);
+  g_new_outputs.push_back(normal(target));
+}
 
 void write_atomically(const fs::path& target_in, const std::function<void(std::ostream&)>& write) {
   const fs::path target = resolve_output(target_in);
   check_output_path(target);
-  const bool existed = exists_no_follow(target);
+  const bool existed = exists_no_follow(target) && !registered_new(target);
   Partial partial(target, Partial::Kind::File);
   std::streamoff written = 0;
   {
@@ -341,7 +363,7 @@ void write_atomically_via_folder(const fs::path& target_in, const std::function<
   {
     std::error_code ec;
     for (fs::directory_iterator it(folder_of(target), ec), end; !ec && it != end; it.increment(ec))
-      existed.push_back(it->path().filename());
+      if (!registered_new(it->path())) existed.push_back(it->path().filename());
   }
   Partial partial(target, Partial::Kind::Folder);
   const fs::path dir = partial.path();

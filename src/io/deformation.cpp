@@ -85,12 +85,14 @@ DeformationSpec parse_deformation(const JsonNode& node, const std::filesystem::p
 namespace {
 DeformationSpec from_json(const nlohmann::json& j, const std::string& name, const std::filesystem::path& base) {
   const detail::JsonNode root(j, name);
-  root.only(
-      {"format", "version", "kernel", "radius", "polynomial", "sources", "destinations", "controls", "active_area"});
+  root.only({"format", "version", "kernel", "radius", "polynomial", "sources", "destinations", "controls",
+             "active_area", "phase"});
   if (root.has("format") && root["format"].string() != "csrbf-deformation")
     root["format"].expected("\"csrbf-deformation\"");
   if (root.has("version") && root["version"].number() != 1) root["version"].expected("1");
-  return detail::parse_deformation(root, base);
+  DeformationSpec spec = detail::parse_deformation(root, base);
+  if (root.has("phase")) spec.phase = root["phase"].number(0.0, 1.0);
+  return spec;
 }
 }  // namespace
 
@@ -121,6 +123,7 @@ void write_deformation(const std::filesystem::path& path, const DeformationSpec&
         << "  \"kernel\": \"" << kernel_name(spec.options.kernel) << "\",\n"
         << "  \"radius\": " << format_number(spec.options.radius) << ",\n"
         << "  \"polynomial\": \"" << polynomial_name(spec.options.polynomial) << "\",\n";
+    if (spec.phase) out << "  \"phase\": " << format_number(*spec.phase) << ",\n";
     for (int which = 0; which < 2; ++which) {
       const auto& pts = which == 0 ? spec.sources : spec.destinations;
       out << "  \"" << (which == 0 ? "sources" : "destinations") << "\": [";

@@ -409,6 +409,15 @@ class Checker {
       const std::string where = "nodes[" + std::to_string(k) + "]";
       if (!nodes[k].is_object()) fail(where, "is not an object");
       if (nodes[k].contains("mesh")) index(nodes[k], "mesh", where, "meshes");
+      // A transform that is not numbers became the identity in assimp, silently.
+      for (const auto& [key, count] :
+           {std::pair<const char*, std::size_t>{"matrix", 16}, {"translation", 3}, {"rotation", 4}, {"scale", 3}}) {
+        if (!nodes[k].contains(key)) continue;
+        const json& t = nodes[k][key];
+        bool ok = t.is_array() && t.size() == count;
+        for (std::size_t i = 0; ok && i < t.size(); ++i) ok = t[i].is_number() && std::isfinite(t[i].get<double>());
+        if (!ok) fail(where + "." + key, shown(t) + " is not an array of " + std::to_string(count) + " finite numbers");
+      }
       if (!nodes[k].contains("children")) continue;
       const json& children = nodes[k]["children"];
       if (!children.is_array()) fail(where + ".children", "is not an array");

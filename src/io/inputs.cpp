@@ -4,6 +4,8 @@
 
 #include <sys/stat.h>
 
+#include <cctype>
+
 namespace fs = std::filesystem;
 
 namespace csrbf::io {
@@ -51,9 +53,36 @@ void walk(const fs::path& json, int level, std::vector<fs::path>& out) {
 
 }  // namespace
 
+std::vector<fs::path> mesh_side_files(const fs::path& mesh) {
+  std::vector<fs::path> out;
+  std::string ext = mesh.extension().string();
+  for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
+  if (ext != ".gltf") return out;
+  nlohmann::json j;
+  try {
+    j = detail::read_json_file(mesh);
+  } catch (const std::exception&) {
+    return out;  // its reader reports it
+  }
+  if (!j.is_object()) return out;
+  for (const char* key : {"buffers", "images"}) {
+    if (!j.contains(key) || !j[key].is_array()) continue;
+    for (const auto& e : j[key]) {
+      if (!e.is_object() || !e.contains("uri") || !e["uri"].is_string()) continue;
+      const std::string& uri = e["uri"].get_ref<const std::string&>();
+      if (uri.empty() || uri.rfind("data:", 0) == 0 || uri.find('\0') != std::string::npos) continue;
+      out.push_back(mesh.parent_path() / uri);
+    }
+  }
+  return out;
+}
+
 std::vector<fs::path> referenced_files(const fs::path& json) {
   std::vector<fs::path> out;
   walk(json, 1, out);
+  const std::size_t named = out.size();
+  for (std::size_t i = 0; i < named; ++i)
+    for (auto& f : mesh_side_files(out[i])) out.push_back(std::move(f));
   return out;
 }
 

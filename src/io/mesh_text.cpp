@@ -65,7 +65,7 @@ using detail::strip_comment;
 
 void MeshDocument::Impl::load_obj(const std::string& text) {
   lines = split_lines(text, path);
-  std::size_t vn_count = 0;
+  std::size_t vn_count = 0, vt_count = 0;
   std::vector<std::string> current_groups;
   std::string current_material;
   for (std::size_t li = 0; li < lines.size(); ++li) {
@@ -88,6 +88,8 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
         normal_slots.push_back({Slot{li, 1}, Slot{li, 2}, Slot{li, 3}});
         ++vn_count;
       }
+    } else if (tok[0] == "vt") {
+      ++vt_count;  // kept as text; a face's reference to it is checked below
     } else if (tok[0] == "f") {
       if (tok.size() < 4) throw FileError(where(li) + "a face needs at least 3 vertices: '" + detail::cut(body) + "'");
       std::vector<std::uint32_t> f;
@@ -106,6 +108,19 @@ void MeshDocument::Impl::load_obj(const std::string& text) {
         std::int64_t n_id = -1;
         if (s1 != std::string_view::npos) {
           const auto s2 = t.find('/', s1 + 1);
+          // The texture coordinate ("v/vt" or "v/vt/vn"): written back as it was, so it must name one.
+          const auto vt_text = t.substr(s1 + 1, s2 == std::string_view::npos ? std::string_view::npos : s2 - s1 - 1);
+          if (!vt_text.empty()) {
+            std::int64_t ti = 0;
+            if (!parse_int(vt_text, ti) || ti == 0)
+              throw FileError(where(li) + "bad texture coordinate reference '" + detail::cut(t) + "'");
+            if (ti < 0) ti += std::int64_t(vt_count) + 1;
+            if (ti < 1 || ti > std::int64_t(vt_count))
+              throw FileError(where(li) + "texture coordinate reference '" + detail::cut(t) + "' is out of range (" +
+                              std::to_string(vt_count) + " texture coordinates so far)");
+          }
+          if (s2 != std::string_view::npos && t.find('/', s2 + 1) != std::string_view::npos)
+            throw FileError(where(li) + "bad vertex reference '" + detail::cut(t) + "' (v, v/vt, v//vn or v/vt/vn)");
           if (s2 != std::string_view::npos && s2 + 1 < t.size()) {
             if (!parse_int(t.substr(s2 + 1), ni) || ni == 0)
               throw FileError(where(li) + "bad normal reference '" + detail::cut(t) + "'");

@@ -1,5 +1,7 @@
 #include "csrbf/morph/job.hpp"
 
+#include "csrbf/io/atomic_file.hpp"
+
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/morph/volume_file.hpp"
@@ -176,6 +178,7 @@ MorphOutcome run_job(const MorphJob& job) {
         throw io::FileError(
             "cannot write '" + job.out.string() +
             "': it exists (csrbf morph writes a new case folder or file; --in-place rewrites the input)");
+      io::must_be_new(job.out);  // never replaced, even by a copy another morph finishes first
       const fs::path parent = job.out.has_parent_path() ? job.out.parent_path() : fs::path(".");
       if (!fs::is_directory(parent, ec))
         throw io::FileError("cannot write '" + job.out.string() + "': folder '" + parent.string() + "' does not exist");

@@ -76,14 +76,18 @@ TEST(Trust, OfEightWritersOfOneNewFileExactlyOneSucceeds) {
   TempDir dir;
   write_gmsh_case(dir.path);
   const std::string d = dir.path.string();
-  for (int round = 0; round < 3; ++round) {
+  // A small mesh, and the airfoil (0.3 s a morph: the first writer finishes while the others are
+  // still fitting, and found the name new when they started).
+  const std::vector<std::string> meshes{
+      d + "/two.msh --motion " + d + "/motion.json",
+      kExamples + "airfoil/airfoil.msh --motion " + kExamples + "airfoil/motion.json"};
+  for (int round = 0; round < 4; ++round) {
     const std::string out = d + "/new" + std::to_string(round) + ".msh";
+    const std::string& mesh = meshes[std::size_t(round) % 2];
     std::vector<ShellRun> runs(8);
     std::vector<std::thread> threads;
     for (auto& r : runs)
-      threads.emplace_back([&r, &d, &out] {
-        r = run_shell(kCli + " morph " + d + "/two.msh --motion " + d + "/motion.json -o " + out);
-      });
+      threads.emplace_back([&r, &mesh, &out] { r = run_shell(kCli + " morph " + mesh + " -o " + out); });
     for (auto& t : threads) t.join();
     int ok = 0;
     for (const auto& r : runs) {
@@ -96,8 +100,59 @@ TEST(Trust, OfEightWritersOfOneNewFileExactlyOneSucceeds) {
     }
     EXPECT_EQ(ok, 1) << "round " << round;
   }
+  // deform and export replace an existing output, but never one that was new when they started:
+  // each run succeeds or fails with "exists" (one that starts after another finished replaces it),
+  // and the file is whole.
+  for (const std::string& cmd : {"deform --mesh " + kExamples + "bunny.obj --controls " + kExamples +
+                                     "bunny.controls --radius 2.5 -o " + d + "/new.obj",
+                                 "export " + kExamples + "face.scene.json -o " + d + "/new.glb"}) {
+    std::vector<ShellRun> runs(8);
+    std::vector<std::thread> threads;
+    for (auto& r : runs) threads.emplace_back([&r, &cmd] { r = run_shell(kCli + " " + cmd); });
+    for (auto& t : threads) t.join();
+    int ok = 0;
+    for (const auto& r : runs) {
+      ok += r.code == 0;
+      if (r.code != 0) {
+        EXPECT_EQ(r.code, 1) << r.out;
+        EXPECT_NE(r.out.find("exists"), std::string::npos) << r.out;
+      }
+    }
+    EXPECT_GE(ok, 1) << cmd;
+  }
+  EXPECT_EQ(run_shell(kCli + " deform --mesh " + d + "/new.obj --controls " + kExamples +
+                      "bunny.controls --radius 2.5 -o " + d + "/again.obj")
+                .code,
+            0);
   for (const auto& e : fs::directory_iterator(dir.path))
     EXPECT_EQ(e.path().filename().string().find(".csrbf-partial-"), std::string::npos) << e.path();
+}
+
+TEST(Trust, AGltfInputsBuffersAreInputsToo) {
+  TempDir dir;
+  const std::string d = dir.path.string();
+  ASSERT_EQ(
+      run_shell(kCli + " deform --mesh " + kFish + " --controls " + kFishControls + " --radius 0.3 -o " + d + "/a.gltf")
+          .code,
+      0);
+  const std::string bin = read_text(dir / "a.bin");
+  ASSERT_FALSE(bin.empty());
+  fs::create_symlink(dir / "a.bin", dir / "link.obj");
+  const std::string deform = kCli + " deform --mesh " + d + "/a.gltf --controls " + kFishControls + " --radius 0.3 -o ";
+  // Its buffer through a link, and as the side file a .gltf output would write.
+  auto r = run_shell(deform + d + "/link.obj");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("is the input '" + d + "/a.bin'"), std::string::npos) << r.out;
+  fs::copy_file(dir / "a.gltf", dir / "c.gltf");
+  r = run_shell(deform + d + "/c.gltf");  // c.gltf is new enough, but its c.bin would be... a.bin? no:
+  EXPECT_EQ(r.code, 0) << r.out;          // c.bin is not an input: written
+  fs::create_hard_link(dir / "a.bin", dir / "h.bin");
+  r = run_shell(deform + d + "/h.gltf");
+  EXPECT_EQ(r.code, 2) << r.out;
+  EXPECT_NE(r.out.find("would write its buffer '" + d + "/h.bin', which is the input '" + d + "/a.bin'"),
+            std::string::npos)
+      << r.out;
+  EXPECT_EQ(read_text(dir / "a.bin"), bin);
 }
 
 TEST(Trust, PartialsAreRemovedOnlyWithProofNeverByName) {
@@ -129,6 +184,12 @@ TEST(Trust, ControlCharactersInNamesArePrintedEscaped) {
   EXPECT_EQ(r.out.find('\x1b'), std::string::npos) << r.out;
   EXPECT_EQ(r.out.find('\x07'), std::string::npos) << r.out;
   EXPECT_NE(r.out.find("a\\u001b[2J\\u0007.obj"), std::string::npos) << r.out;
+  // Names in a successful run's report too.
+  const auto ok = run_shell(kCli + " deform --mesh " + kFish + " --controls " + kFishControls + " --radius 0.3 -o '" +
+                            d + "/b\x1b[31m.obj'");
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_EQ(ok.out.find('\x1b'), std::string::npos) << ok.out;
+  EXPECT_NE(ok.out.find("b\\u001b[31m.obj"), std::string::npos) << ok.out;
   // A refused option value, through CLI11.
   const auto k = run_shell(kCli + " deform --mesh " + kFish + " --controls " + kFishControls +
                            " --radius 0.3 --kernel $'c\\x1b[31m' -o " + d + "/o.obj");

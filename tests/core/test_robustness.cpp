@@ -80,36 +80,49 @@ TEST(Robustness, NearDuplicatesInterpolateWithinTheBoundOrSayWhyNot) {
 }
 
 TEST(Robustness, HugeCoordinatesGiveTheCentredProblemsResults) {
-  // A scene 1e6 units from the origin: the same displacements as at the origin, to the rounding of
-  // the inputs themselves (an ulp of 1e6 is 1.2e-10).
+  // A scene far from the origin: the same displacements as the same scene (the same represented
+  // points, exactly translated) at the origin, relative to the largest displacement, at any offset.
+  // Before issue 30 the double path took distances from absolute coordinates scaled by 1/R, which
+  // kept only the digits the offset left: 6.2e-9 at 1e6.
   std::mt19937 rng(1);
   std::uniform_real_distribution<double> u(0, 1);
-  std::vector<Vec3> s, d;
+  std::vector<Vec3> s0, d0;
   for (int i = 0; i < 400; ++i) {
     const Vec3 p(u(rng), u(rng), u(rng));
-    s.push_back(p);
-    d.push_back(p + Vec3(0.01 * u(rng), 0.02, 0));
+    s0.push_back(p);
+    d0.push_back(p + Vec3(0.01 * u(rng), 0.02, 0));
   }
-  std::vector<double> x;
+  std::vector<double> x0;
   for (int i = 0; i < 3000; ++i)
-    for (int c = 0; c < 3; ++c) x.push_back(u(rng));
-  for (Polynomial poly : {Polynomial::None, Polynomial::Linear}) {
-    const Vec3 off(1e6, -1e6, 1e6);
-    std::vector<Vec3> so = s, dof = d;
-    for (auto& p : so) p += off;
-    for (auto& p : dof) p += off;
-    const auto centred = SpaceMap::fit(s, d, FitOptions{0.3, Kernel::C2, poly});
-    const auto far = SpaceMap::fit(so, dof, FitOptions{0.3, Kernel::C2, poly});
-    std::vector<double> xo = x;
-    for (std::size_t i = 0; i < xo.size(); ++i) xo[i] += off[Eigen::Index(i % 3)];
-    std::vector<double> a(x.size()), b(x.size());
-    centred.displacements(x.data(), a.data(), x.size() / 3);
-    far.displacements(xo.data(), b.data(), x.size() / 3);
-    double worst = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
-    EXPECT_LT(worst, 1e-9) << "polynomial " << int(poly);
-    EXPECT_LT(far.stats().residual_relative, 1e-12);
-  }
+    for (int c = 0; c < 3; ++c) x0.push_back(u(rng));
+  for (const double o : {1e3, 1e6, 1e8, 1e10})
+    for (Polynomial poly : {Polynomial::None, Polynomial::Linear}) {
+      const Vec3 off(o, -o, 0.5 * o);
+      // The far scene as a user has it, and its points translated back exactly (Sterbenz).
+      std::vector<Vec3> so = s0, dof = d0, s = s0, d = d0;
+      for (std::size_t i = 0; i < s0.size(); ++i) {
+        so[i] += off, dof[i] += off;
+        s[i] = so[i] - off, d[i] = dof[i] - off;
+      }
+      std::vector<double> xo = x0, x = x0;
+      for (std::size_t i = 0; i < xo.size(); ++i) {
+        xo[i] += off[Eigen::Index(i % 3)];
+        x[i] = xo[i] - off[Eigen::Index(i % 3)];
+      }
+      const auto centred = SpaceMap::fit(s, d, FitOptions{0.3, Kernel::C2, poly});
+      const auto far = SpaceMap::fit(so, dof, FitOptions{0.3, Kernel::C2, poly});
+      std::vector<double> a(x.size()), b(x.size());
+      centred.displacements(x.data(), a.data(), x.size() / 3);
+      far.displacements(xo.data(), b.data(), x.size() / 3);
+      double worst = 0, largest = 0;
+      for (std::size_t i = 0; i < a.size(); ++i) {
+        worst = std::max(worst, std::abs(a[i] - b[i]));
+        largest = std::max(largest, std::abs(a[i]));
+      }
+      EXPECT_LT(worst / largest, 1e-12) << "offset " << o << ", polynomial " << int(poly);
+      EXPECT_LT(far.stats().residual_relative, 1e-12);
+      // Single precision far from 0 is refused by float_trusted() (an ulp of 1e6 in float is 0.06).
+    }
 }
 
 namespace {

@@ -88,6 +88,18 @@ TEST(SpaceMap, AgreesWithDenseSolveOfTheWholeSystem) {
           EXPECT_THROW(SpaceMap::fit(s, d, o), DegeneratePolynomial);
           continue;
         }
+        if (p == Polynomial::Linear && n <= 7) {
+          // A few random sources fix the linear part by their noise alone: where it would move
+          // points more than 100x the control displacements (a thin tetrahedron at n = 4), the fit is
+          // refused (issue 30); otherwise it must equal the dense solve below.
+          try {
+            SpaceMap::fit(s, d, o);
+          } catch (const DegeneratePolynomial& e) {
+            EXPECT_NE(std::string(e.what()).find("times the largest control displacement"), std::string::npos)
+                << e.what();
+            continue;
+          }
+        }
         const SpaceMap map = SpaceMap::fit(s, d, o);
         const DenseSolution ref =
             n <= 500 ? dense_solve<long double>(s, d, k, r, p) : dense_solve<double>(s, d, k, r, p);

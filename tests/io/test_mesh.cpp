@@ -77,6 +77,23 @@ TEST(Mesh, ObjErrorsNameTheLine) {
   e = error_of(dir / "bad2.obj");
   EXPECT_NE(e.find("bad2.obj:4:"), std::string::npos) << e;
   EXPECT_NE(e.find("out of range"), std::string::npos) << e;
+  // Issue 30: texture coordinate references past the end were accepted (and written back so).
+  const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\n";
+  const std::vector<std::pair<std::string, std::string>> refs{
+      {"f 1/1 2/2 3/1\n",
+       "vt.obj:6: texture coordinate reference '2/2' is out of range (1 texture coordinates so far)"},
+      {"f 1/-2 2/1 3/1\n", "texture coordinate reference '1/-2' is out of range"},
+      {"f 1/x 2/1 3/1\n", "vt.obj:6: bad texture coordinate reference '1/x'"},
+      {"f 1/1/2 2/1/1 3/1/1\n", "vt.obj:6: normal reference '1/1/2' is out of range"},
+      {"f 1/1/1/1 2/1/1 3/1/1\n", "vt.obj:6: bad vertex reference '1/1/1/1'"},
+  };
+  for (const auto& [face, message] : refs) {
+    test::write_text(dir / "vt.obj", tri + face);
+    e = error_of(dir / "vt.obj");
+    EXPECT_NE(e.find(message), std::string::npos) << face << e;
+  }
+  test::write_text(dir / "vt.obj", tri + "f 1/1/1 2/-1/1 3//1\n");
+  EXPECT_EQ(error_of(dir / "vt.obj"), "no error");
   test::write_text(dir / "empty.obj", "# nothing\n");
   EXPECT_NE(error_of(dir / "empty.obj").find("no vertices"), std::string::npos);
   EXPECT_NE(error_of(dir / "missing.obj").find("no such file"), std::string::npos);
@@ -387,6 +404,15 @@ TEST(Mesh, GltfStructureIsCheckedBeforeAssimpTrustsIt) {
       << e;
   e = edited([&](nlohmann::json& j) { j["asset"]["version"] = "1.0"; });
   EXPECT_NE(e.find("glTF asset.version \"1.0\" is not 2.x"), std::string::npos) << e;
+  // Issue 30: a transform that is not numbers became the identity in assimp.
+  e = edited([&](nlohmann::json& j) { j["nodes"][0]["matrix"] = "1 0 0 0 0 1 0 0 0 0 1 0 5 5 5 1"; });
+  EXPECT_NE(e.find("nodes[0].matrix \"1 0 0 0 0 1 0 0 0 0 1 0 5 5 5 1\" is not an array of 16 finite numbers"),
+            std::string::npos)
+      << e;
+  e = edited([&](nlohmann::json& j) { j["nodes"][0]["translation"] = {1, "2", 3}; });
+  EXPECT_NE(e.find("nodes[0].translation [1,\"2\",3] is not an array of 3 finite numbers"), std::string::npos) << e;
+  e = edited([&](nlohmann::json& j) { j["nodes"][0]["rotation"] = {0, 0, 0}; });
+  EXPECT_NE(e.find("nodes[0].rotation [0,0,0] is not an array of 4"), std::string::npos) << e;
   // JSON a million levels deep overflowed assimp's recursive parser.
   std::string deep = g;
   deep.insert(deep.rfind('}'), ", \"extras\": " + std::string(100000, '[') + std::string(100000, ']'));

@@ -514,9 +514,54 @@ TEST_F(Fixture, HintsLegendRadiusBoxAndFrameRate) {
   ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-linear-hint.png").string())));
 }
 
+// Issue 30: the saved deformation holds the phase shown, so csrbf deform gives what the user saw; a
+// loaded deformation is not unsaved work; an active area that came with a file goes with it.
+TEST_F(Fixture, SavedDeformationsHoldThePhaseShownAndLoadClean) {
+  const auto& doc = w.document();
+  csrbf::test::TempDir dir;
+  ASSERT_TRUE(w.load_controls(QString::fromStdString(kExamples + "fish.controls"), 0.3));
+  w.findChild<QSlider*>("phase")->setValue(40);
+  QApplication::processEvents();
+  ASSERT_DOUBLE_EQ(doc.state().phase, 0.4);
+  ASSERT_TRUE(w.save_deformation(QString::fromStdString((dir / "d.json").string())));
+  ASSERT_TRUE(w.export_mesh(QString::fromStdString((dir / "picker.obj").string())));
+  EXPECT_EQ(csrbf::io::read_deformation(dir / "d.json").phase, 0.4);
+  const auto cli =
+      csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "fish.obj --deformation " +
+                             (dir / "d.json").string() + " -o " + (dir / "cli.obj").string());
+  ASSERT_EQ(cli.code, 0) << cli.out;
+  EXPECT_NE(cli.out.find("phase 0.4"), std::string::npos) << cli.out;
+  EXPECT_EQ(csrbf::test::read_text(dir / "cli.obj"), csrbf::test::read_text(dir / "picker.obj"));
+  // --phase still wins.
+  const auto one =
+      csrbf::test::run_shell(std::string(CSRBF_CLI) + " deform --mesh " + kExamples + "fish.obj --deformation " +
+                             (dir / "d.json").string() + " --phase 1 -o " + (dir / "one.obj").string());
+  EXPECT_NE(one.out.find("phase 1 "), std::string::npos) << one.out;
+
+  // Loaded back elsewhere: the phase it was saved at, and nothing unsaved.
+  w.findChild<QSlider*>("phase")->setValue(100);
+  ASSERT_TRUE(w.save_deformation(QString::fromStdString((dir / "other.json").string())));
+  ASSERT_TRUE(w.load_deformation(QString::fromStdString((dir / "d.json").string())));
+  EXPECT_DOUBLE_EQ(doc.state().phase, 0.4);
+  EXPECT_EQ(w.findChild<QSlider*>("phase")->value(), 40);
+  EXPECT_FALSE(w.isWindowModified()) << "a freshly loaded deformation is not unsaved work";
+
+  // A file's active area does not stay when controls are loaded next.
+  csrbf::io::DeformationSpec spec = csrbf::io::read_deformation(dir / "d.json");
+  std::vector<std::uint32_t> some;
+  for (std::uint32_t v = 0; v < 200; ++v) some.push_back(v);
+  spec.area = csrbf::io::ActiveArea::of(doc.rest(), some);
+  csrbf::io::write_deformation(dir / "area.json", spec);
+  ASSERT_TRUE(w.load_deformation(QString::fromStdString((dir / "area.json").string())));
+  EXPECT_EQ(doc.state().region.size(), 200u);
+  ASSERT_TRUE(w.load_controls(QString::fromStdString(kExamples + "fish.controls"), 0.3));
+  EXPECT_TRUE(doc.state().region.empty()) << "the last file's active area went with it";
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-phase-saved.png").string())));
+}
+
 int main(int argc, char** argv) {
   QSurfaceFormat::setDefaultFormat(QVTKOpenGLNativeWidget::defaultFormat());
-  QApplication app(argc, argv);
+  csrbf::gui::SafeApplication app(argc, argv);
   fs::create_directories(kShots);
   ::testing::InitGoogleTest(&argc, argv);
   return RUN_ALL_TESTS();

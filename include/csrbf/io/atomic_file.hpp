@@ -26,6 +26,13 @@ void check_output_path(const std::filesystem::path& target);
 /// the partial is removed and target is untouched.
 void write_atomically(const std::filesystem::path& target, const std::function<void(std::ostream&)>& write);
 
+/// Declares, at a command's start, that target (and, through a folder writer, any file named
+/// target) must be created new: if it does not exist now, a later write_atomically or
+/// write_atomically_via_folder never replaces it, even if another process made it meanwhile (of
+/// concurrent writers of one new name exactly one succeeds; the others fail with "it exists"). Does
+/// nothing when target exists now. Thread-safe.
+void must_be_new(const std::filesystem::path& target);
+
 /// For writers that need a path of their own (and may write side files, like glTF's .bin): calls
 /// write(path) with path = a fresh partial folder / target's file name, then moves every file the
 /// writer made there into target's folder (each must be new there or replace a regular file). On

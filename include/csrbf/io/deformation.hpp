@@ -36,6 +36,9 @@ struct DeformationSpec {
   FitOptions options;  ///< radius, kernel, polynomial (ordering and solver stay at their defaults)
   std::vector<Vec3> sources, destinations;
   std::optional<ActiveArea> area;  ///< empty: every vertex
+  /// The phase in [0, 1] it was made to be seen at (the Picker writes the one it showed); `csrbf
+  /// deform` uses it where --phase is not given. A scene's schedule sets its own phase instead.
+  std::optional<double> phase;
   SpaceMap fit() const { return SpaceMap::fit(sources, destinations, options); }
 };
 

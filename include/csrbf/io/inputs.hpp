@@ -15,6 +15,10 @@ namespace csrbf::io {
 /// its reader reports it later. The document itself is not listed.
 std::vector<std::filesystem::path> referenced_files(const std::filesystem::path& json);
 
+/// The files a mesh file reads besides itself: a .gltf's buffers and images named by a relative or
+/// absolute URI (not data: URIs); nothing for other formats, or when the file cannot be read.
+std::vector<std::filesystem::path> mesh_side_files(const std::filesystem::path& mesh);
+
 /// The first input that is the same file as output (the same device and inode once links are
 /// followed), or empty. An output that does not exist yet is no input.
 std::filesystem::path same_file_as(const std::filesystem::path& output,
