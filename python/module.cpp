@@ -257,7 +257,8 @@ kernel: 'c0', 'c2' (default), 'c4' or 'c6' (Wendland); polynomial: 'none' (defau
 local), 'constant' or 'linear'. Keyword-only: solver: 'auto' (default), 'envelope', 'eigen',
 'cholmod' or 'cg'; ordering (of the envelope solver and CG's rows): 'auto' (default),
 'breadth-first', 'reverse-breadth-first', 'rcm' or 'identity'; memory_limit: the most memory the fit
-may take, in bytes (default 4 GiB; beyond it MemoryError). The fit releases the GIL.)doc")
+may take, in GiB as `csrbf --memory-limit` takes it (a float, default 4.0; beyond it MemoryError). The fit
+releases the GIL.)doc")
       .def(py::init([](const py::array& sources, const py::array& destinations, double radius,
                        const std::string& kernel, const std::string& polynomial, const std::string& solver,
                        const std::string& ordering, double memory_limit) {
@@ -270,13 +271,21 @@ may take, in bytes (default 4 GiB; beyond it MemoryError). The fit releases the 
                                  named<csrbf::Polynomial>(polynomial, "polynomial")};
              o.solver = named<csrbf::Solver>(solver, "solver");
              o.ordering = named<csrbf::Ordering>(ordering, "ordering");
-             o.memory_limit_bytes = memory_limit;
+             // GiB, as the command line and csrbf.morph take it (it was bytes here: a value in bytes is refused).
+             if (!(memory_limit > 0 && memory_limit <= 1e6))
+               throw py::value_error(
+                   "memory_limit is in GiB, as csrbf's --memory-limit: a number in (0, 1e6], got " +
+                   csrbf::io::format_number(memory_limit) +
+                   (memory_limit > 1e6
+                        ? " (bytes? " + csrbf::io::format_number(memory_limit / double(1ull << 30)) + " GiB)"
+                        : std::string()));
+             o.memory_limit_bytes = memory_limit * double(1ull << 30);
              py::gil_scoped_release release;
              return csrbf::SpaceMap::fit(s, d, o);
            }),
            py::arg("sources"), py::arg("destinations"), py::arg("radius"), py::arg("kernel") = "c2",
            py::arg("polynomial") = "none", py::kw_only(), py::arg("solver") = "auto", py::arg("ordering") = "auto",
-           py::arg("memory_limit") = 4.0 * double(1ull << 30))
+           py::arg("memory_limit") = 4.0)
       .def(
           "with_destinations",
           [](const csrbf::SpaceMap& map, const py::array& destinations) {

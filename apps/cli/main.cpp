@@ -126,7 +126,8 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
   std::optional<csrbf::io::ActiveArea> area;
   std::optional<double> phase;
   if (!a.deformation.empty()) {
-    auto spec = csrbf::io::read_deformation(a.deformation);
+    // Parsed JSON takes about 16 times its text: the text within a sixteenth of the memory limit.
+    auto spec = csrbf::io::read_deformation(a.deformation, a.memory_limit_gib * double(1ull << 30) / 16.0);
     area = std::move(spec.area);
     phase = spec.phase;
     if (area && mesh) csrbf::io::check_active_area(*area, mesh->positions(), a.deformation, mesh_name);
@@ -135,7 +136,8 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
     controls.name = a.deformation;
     o = spec.options;
   } else {
-    controls = csrbf::io::read_controls(a.controls);
+    // A control's text (about 100 bytes) takes less once parsed: the text within the memory limit.
+    controls = csrbf::io::read_controls(a.controls, a.memory_limit_gib * double(1ull << 30));
     o.radius = a.radius;
     o.kernel = *csrbf::parse_kernel(a.kernel);
     o.polynomial = *csrbf::parse_polynomial(a.polynomial);

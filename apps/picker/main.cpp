@@ -81,5 +81,6 @@ int main(int argc, char** argv) {
     w.setProperty("noPrompt", true);
     return 0;
   }
+  w.offer_recovery();
   return QApplication::exec();
 }

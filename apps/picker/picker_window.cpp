@@ -4,10 +4,17 @@
 
 #include "picker_undo.hpp"
 
+#include "csrbf/errors.hpp"
 #include "csrbf/io/controls.hpp"
+#include "csrbf/io/deformation.hpp"
 #include "gui_common.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <QAction>
+#include <QDir>
+#include <QFile>
+#include <QTimer>
 #include <QCheckBox>
 #include <QCloseEvent>
 #include <QDragEnterEvent>
@@ -25,6 +32,9 @@
 #include <vtkNew.h>
 #include <vtkPolyData.h>
 
+#include <filesystem>
+#include <iostream>
+
 namespace csrbf::picker {
 
 PickerWindow::PickerWindow(QWidget* parent) : QMainWindow(parent) {
@@ -35,9 +45,79 @@ PickerWindow::PickerWindow(QWidget* parent) : QMainWindow(parent) {
   build_ui();
   build_menus();
   refresh();
+  auto* recovery_timer = new QTimer(this);
+  recovery_timer->setInterval(gui::recovery_seconds() * 1000);
+  connect(recovery_timer, &QTimer::timeout, this, [this] { write_recovery(); });
+  recovery_timer->start();
+  connect(&undo_, &QUndoStack::cleanChanged, this, [this](bool clean) {
+    if (clean) recovery_.remove();
+  });
 }
 
-PickerWindow::~PickerWindow() = default;
+PickerWindow::~PickerWindow() {
+  // QUndoStack's destructor emits cleanChanged: nothing of this window may answer it any more.
+  QObject::disconnect(&undo_, nullptr, this, nullptr);
+}
+
+bool PickerWindow::write_recovery() {
+  if (undo_.isClean() || !doc_.has_mesh()) return false;
+  // The deformation as its file holds it, inside the recovery file with the mesh it was made on.
+  const QString deformation = recovery_.path() + ".deformation.json";
+  try {
+    QDir().mkpath(QFileInfo(recovery_.path()).absolutePath());
+    io::write_deformation(deformation.toStdString(), doc_.deformation());
+  } catch (const std::exception& e) {
+    std::cerr << "csrbf-picker: warning: cannot write the recovery file: " << printable(e.what()) << '\n';
+    return false;
+  }
+  const nlohmann::json j{{"format", "csrbf-picker-recovery"},
+                         {"mesh", std::filesystem::absolute(doc_.mesh_path()).string()},
+                         {"path", deformation_path_.toStdString()},
+                         {"deformation", deformation.toStdString()}};
+  return recovery_.write(j.dump(1));
+}
+
+bool PickerWindow::recover() {
+  try {
+    const nlohmann::json j = nlohmann::json::parse(recovery_.read());
+    if (!j.is_object() || j.value("format", "") != "csrbf-picker-recovery")
+      throw std::runtime_error("not a Picker recovery file");
+    const auto spec = io::read_deformation(j.value("deformation", ""));
+    if (!open_mesh(QString::fromStdString(j.value("mesh", "")))) return false;
+    if (!edit(doc_.state_from(spec, j.value("deformation", "")), "Recover unsaved work")) return false;
+    deformation_path_ = QString::fromStdString(j.value("path", ""));
+  } catch (const std::exception& e) {
+    show_error("Cannot recover " + recovery_.path() + ": " + e.what());
+    return false;
+  }
+  undo_.resetClean();  // recovered work is unsaved work
+  setWindowModified(true);
+  statusBar()->showMessage("Recovered unsaved work: save it (Ctrl+S) to keep it", 10000);
+  return true;
+}
+
+void PickerWindow::offer_recovery() {
+  if (!recovery_.exists()) return;
+  QString mesh = "a mesh";
+  try {
+    const nlohmann::json j = nlohmann::json::parse(recovery_.read());
+    if (j.is_object() && !j.value("mesh", "").empty()) mesh = QString::fromStdString(j.value("mesh", ""));
+  } catch (const std::exception&) {
+    // recover() reports a damaged file
+  }
+  const auto answer = QMessageBox::question(
+      this, "Recover unsaved work?",
+      "The Picker found a deformation of " + mesh + " that was not saved when it last closed (" +
+          recovery_.when().toString("yyyy-MM-dd hh:mm:ss") +
+          ").\n\nYes opens it in place of what is shown now, as unsaved work.\nNo discards it for good.",
+      QMessageBox::Yes | QMessageBox::No, QMessageBox::Yes);
+  if (answer == QMessageBox::Yes) {
+    recover();
+  } else {
+    recovery_.remove();
+    QFile::remove(recovery_.path() + ".deformation.json");
+  }
+}
 
 void PickerWindow::build_menus() {
   auto* file = menuBar()->addMenu("&File");
@@ -375,6 +455,7 @@ void PickerWindow::closeEvent(QCloseEvent* e) {
     e->ignore();
     return;
   }
+  if (!property("noPrompt").toBool()) recovery_.remove();  // saved, or discarded on purpose
   e->accept();
 }
 

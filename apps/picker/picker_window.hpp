@@ -77,6 +77,16 @@ class PickerWindow : public QMainWindow {
   const QString& deformation_path() const { return deformation_path_; }
   /// Save, Discard or Cancel when the deformation has unsaved edits: true to go on.
   bool maybe_save();
+  /// Unsaved work kept for the next start (gui::Recovery, as the Composer's): the mesh's path and
+  /// the deformation, written every recovery_seconds() while there are unsaved edits, removed when
+  /// they are saved or discarded.
+  const gui::Recovery& recovery() const { return recovery_; }
+  /// Writes the recovery file now if there are unsaved edits; true when written.
+  bool write_recovery();
+  /// Opens the recovered mesh and deformation as unsaved work; false with the error shown.
+  bool recover();
+  /// At start: when a recovery file exists, asks whether to recover it (and removes it on No).
+  void offer_recovery();
   /// The hint shown below the panel (an extrapolating polynomial, a radius that moves nothing, a
   /// proposed radius), or empty.
   QString hint() const;
@@ -122,6 +132,8 @@ class PickerWindow : public QMainWindow {
   void delete_selected();
 
   Document doc_;
+  // Before undo_: its destructor still emits cleanChanged (the destructor disconnects it first).
+  gui::Recovery recovery_{"picker"};
   QUndoStack undo_;
   QVTKOpenGLNativeWidget* view_ = nullptr;
   vtkSmartPointer<vtkGenericOpenGLRenderWindow> window_;

@@ -70,10 +70,11 @@ struct Block {
       return std::size_t((std::int64_t(fz) * g.ny + std::int64_t(fy)) * g.nx + std::int64_t(fx));
     return none;
   }
-  /// Point i in units of R relative to the grid's origin, as EvalData stores the sources (the
-  /// difference from the origin is exact for points near the sources, however far from 0).
+  /// Point i in units of R as EvalData stores the sources: double relative to the grid's shift
+  /// (exact for points near the sources, however far from 0), float relative to its origin.
   void local(std::size_t i, T (&t)[3]) const {
-    for (int c = 0; c < 3; ++c) t[c] = T((double(in[3 * i + c]) - g.origin[c]) * inv_r);
+    constexpr bool dbl = std::is_same_v<T, double>;
+    for (int c = 0; c < 3; ++c) t[c] = T((double(in[3 * i + c]) - (dbl ? g.shift[c] : g.origin[c])) * inv_r);
   }
   /// Writes point i's output from its CSRBF sum d (the polynomial part added here).
   void finish(std::size_t i, const T (&d)[3]) const {

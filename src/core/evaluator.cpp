@@ -35,6 +35,12 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
     lo = lo.cwiseMin(s);
     hi = hi.cwiseMax(s);
   }
+  for (int c = 0; c < 3; ++c) {
+    const double extent = std::max(hi[c] - lo[c] + 2 * radius, 1e-300);
+    const double e = std::exp2(std::ceil(std::log2(extent)));
+    const double centre = 0.5 * (lo[c] + hi[c]);
+    g.shift[c] = std::abs(centre) < 4 * e ? 0.0 : std::nearbyint(centre / e) * e;
+  }
   const double R2 = radius * radius;
   for (int k = std::clamp(max_subdivision, 1, kMaxSubdivision); k >= 1; --k) {
     g.subdivision = k;
@@ -193,9 +199,10 @@ void EvalData<T>::assign(const EvalGrid& g, std::span<const Vec3> sources, const
       ax[e] = ay[e] = az[e] = T(0);
       return;
     }
-    // Relative to the grid's origin, in double too: far from 0 (coordinates of 1e6 and more) a
-    // distance from absolute coordinates kept only the digits their difference had left (issue 30).
-    const Vec3 p = Vec3(sources[s] - g.origin) * inv_r;
+    // Relative to a point near the sources: in double the grid's shift (exact differences far from
+    // 0, where absolute coordinates kept only the digits the offset left: issue 30; the bits of
+    // before near 0), in float its origin (float differences are never exact; the nearest base).
+    const Vec3 p = Vec3(sources[s] - (std::is_same_v<T, double> ? g.shift : g.origin)) * inv_r;
     x[e] = T(p.x()), y[e] = T(p.y()), z[e] = T(p.z());
     ax[e] = T(lead * alpha[3 * s]), ay[e] = T(lead * alpha[3 * s + 1]), az[e] = T(lead * alpha[3 * s + 2]);
   };

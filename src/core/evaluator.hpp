@@ -30,6 +30,10 @@ struct EvalGrid {
   bool usable = false;         // false: lists too large; SpaceMap uses NeighborIndex instead
   int subdivision = 0;         // K: h = R / K
   Vec3 origin = Vec3::Zero();  // lower corner of the grid (sources' box grown by R)
+  /// Subtracted from every coordinate before distances are taken: 0 for sources near the origin
+  /// (the bits of before), else, per axis, the multiple of the power of two 2^k >= the box's extent
+  /// nearest the box's centre, so that x - shift is exact for every x within reach (Sterbenz).
+  Vec3 shift = Vec3::Zero();
   double h = 0, inv_h = 0, radius = 0;
   std::int64_t nx = 0, ny = 0, nz = 0;
   std::vector<std::uint32_t> begin;   // begin[cell] .. begin[cell+1]: the cell's entries
@@ -77,8 +81,9 @@ class Buffer {
   std::size_t size_ = 0;
 };
 
-/// The runs of EvalGrid copied out: coordinates in units of R relative to the grid's origin (to keep
-/// digits far from 0, in double and float) and coefficients alpha, by entry.
+/// The runs of EvalGrid copied out: coordinates in units of R relative to the grid's shift (double:
+/// exact differences far from 0) or its origin (float: to keep digits) and coefficients alpha, by
+/// entry.
 /// Padding entries lie far away (r clips to 1, phi(1) = 0) with zero coefficients.
 ///
 /// Large grids (kSortEntries entries or more) also sort each run by the sources' distance from the

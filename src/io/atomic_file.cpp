@@ -111,11 +111,22 @@ void unregister_partial(int slot) noexcept {
   if (slot >= 0) g_used[slot].store(0);
 }
 
-extern "C" void remove_partials_and_die(int sig) {
+std::atomic<bool> g_cancelled{false};
+
+void unlink_partials() noexcept {
   for (int i = 0; i < kSlots; ++i)
     if (g_used[i].load() == 1) ::unlink(g_partials[i]);
+}
+
+extern "C" void remove_partials_and_die(int sig) {
+  unlink_partials();
   ::signal(sig, SIG_DFL);
   ::raise(sig);
+}
+
+void check_not_cancelled(const fs::path& target) {
+  if (g_cancelled.load())
+    throw FileError("cannot write '" + target.string() + "': the run was cancelled by a signal (nothing written)");
 }
 
 }  // namespace
@@ -126,6 +137,11 @@ int pipe_timeout_seconds(int fallback) {
     if (v >= 1 && v <= 86400) return v;
   }
   return fallback;
+}
+
+void cancel_writes() noexcept {
+  g_cancelled.store(true);
+  unlink_partials();
 }
 
 void remove_partials_on_signals() noexcept {
@@ -250,6 +266,7 @@ void Partial::release() noexcept {
 }
 
 void Partial::commit(const fs::path& target) {
+  check_not_cancelled(target);
   check_output_path(target);  // again: the target may have changed while we wrote
   keep_mode(target, path_);   // a replaced file keeps its permissions
   disown();
@@ -265,6 +282,7 @@ void Partial::commit(const fs::path& target) {
 void Partial::commit_new(const fs::path& target) {
   // RENAME_NOREPLACE: an existing target, even an empty folder that rename(2) would replace, is
   // never replaced.
+  check_not_cancelled(target);
   disown();
   if (::renameat2(AT_FDCWD, path_.c_str(), AT_FDCWD, target.c_str(), RENAME_NOREPLACE) != 0)
     throw FileError(
@@ -396,6 +414,7 @@ void write_atomically_via_folder(const fs::path& target_in, const std::function<
   if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
   // The main file last: once it is there, its side files are too.
   std::stable_partition(made.begin(), made.end(), [&](const fs::path& p) { return p.filename() != target.filename(); });
+  check_not_cancelled(target);
   std::vector<fs::path> placed;  // files this call created that were new names
   for (const auto& p : made) {
     const fs::path dest = folder_of(target) / p.filename();

@@ -3,6 +3,7 @@
 #include "csrbf/io/atomic_file.hpp"
 #include "text.hpp"
 
+#include <algorithm>
 #include <array>
 #include <charconv>
 #include <cmath>
@@ -98,9 +99,9 @@ Controls parse_controls(std::istream& in, const std::string& name) {
   return c;
 }
 
-Controls read_controls(const std::filesystem::path& path) {
+Controls read_controls(const std::filesystem::path& path, double max_bytes) {
   // 1 GiB holds about 1.5e7 controls; a larger file is refused before it is read.
-  std::istringstream in(read_input(path, "a controls file", double(1ull << 30)));
+  std::istringstream in(read_input(path, "a controls file", std::min(max_bytes, double(1ull << 30))));
   return parse_controls(in, path.string());
 }
 

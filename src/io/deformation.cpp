@@ -96,8 +96,8 @@ DeformationSpec from_json(const nlohmann::json& j, const std::string& name, cons
 }
 }  // namespace
 
-DeformationSpec read_deformation(const std::filesystem::path& path) {
-  return from_json(detail::read_json_file(path), path.string(), path.parent_path());
+DeformationSpec read_deformation(const std::filesystem::path& path, double max_bytes) {
+  return from_json(detail::read_json_file(path, max_bytes), path.string(), path.parent_path());
 }
 
 DeformationSpec read_deformation_text(const std::string& text, const std::string& name,

@@ -2,6 +2,7 @@
 
 #include "text.hpp"
 
+#include <algorithm>
 #include <fstream>
 #include <set>
 #include <vector>
@@ -50,9 +51,9 @@ nlohmann::json parse_json(const std::string& text, const std::string& name) {
   }
 }
 
-nlohmann::json read_json_file(const std::filesystem::path& path) {
+nlohmann::json read_json_file(const std::filesystem::path& path, double max_bytes) {
   // csrbf's documents are small (controls inline take about 100 bytes each): 1 GiB at most.
-  return parse_json(read_input(path, "a JSON file", double(1ull << 30)), path.string());
+  return parse_json(read_input(path, "a JSON file", std::min(max_bytes, double(1ull << 30))), path.string());
 }
 
 namespace {

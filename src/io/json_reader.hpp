@@ -21,7 +21,8 @@ constexpr int kMaxJsonDepth = 64;
 
 /// Parses a whole file; a syntax error names the line and column; nesting deeper than
 /// kMaxJsonDepth is refused.
-nlohmann::json read_json_file(const std::filesystem::path& path);
+/// At most max_bytes of text (and 1 GiB), also from a pipe.
+nlohmann::json read_json_file(const std::filesystem::path& path, double max_bytes = double(1ull << 30));
 /// Parses text; name is the file name used in messages.
 nlohmann::json parse_json(const std::string& text, const std::string& name);
 

@@ -31,6 +31,8 @@
 #include <fstream>
 #include <map>
 #include <set>
+#include <string_view>
+#include <optional>
 
 namespace fs = std::filesystem;
 
@@ -72,6 +74,93 @@ void check_count(const std::string& head, const std::string& key, std::size_t by
       throw FileError(file.string() + ": " + key + " " + head.substr(b, std::size_t(r.ptr - head.data()) - b) +
                       " needs more than the " + std::to_string(std::uint64_t(limit)) + "-byte limit; refused");
   }
+}
+
+/// The values an uncompressed .vtu's cell "types" arrays hold in the file (summed over its pieces),
+/// read from the array's own length (ASCII tokens, or the byte count in a binary or appended
+/// block's header); empty where that cannot be told (a compressor, an unknown layout). VTK reads
+/// only NumberOfCells of them, and a file whose arrays hold more lost the cells past it.
+std::optional<std::uint64_t> types_in_file(const std::string& t, bool uint64_headers) {
+  const auto attr = [](const std::string& tag, const std::string& key) -> std::string {
+    const auto at = tag.find(" " + key + "=\"");
+    if (at == std::string::npos) return {};
+    const auto b = at + key.size() + 3, e = tag.find('"', b);
+    return e == std::string::npos ? std::string() : tag.substr(b, e - b);
+  };
+  const std::size_t header = uint64_headers ? 8 : 4;
+  const auto decode = [](const std::string& text, std::size_t at, std::size_t bytes, std::string& out) {
+    static constexpr std::string_view table = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    std::uint32_t acc = 0;
+    int bits = 0;
+    for (std::size_t i = at; i < text.size() && out.size() < bytes; ++i) {
+      const char c = text[i];
+      if (c == ' ' || c == '\n' || c == '\r' || c == '\t') continue;
+      const auto v = table.find(c);
+      if (v == std::string_view::npos) return false;
+      acc = (acc << 6) | std::uint32_t(v);
+      bits += 6;
+      if (bits >= 8) {
+        bits -= 8;
+        out.push_back(char((acc >> bits) & 0xff));
+      }
+    }
+    return out.size() == bytes;
+  };
+  const auto count_of = [&](const std::string& bytes) {
+    std::uint64_t n = 0;
+    for (std::size_t k = 0; k < bytes.size(); ++k) n |= std::uint64_t(static_cast<unsigned char>(bytes[k])) << (8 * k);
+    return n;
+  };
+  std::uint64_t total = 0;
+  bool any = false;
+  for (std::size_t at = t.find("Name=\"types\""); at != std::string::npos; at = t.find("Name=\"types\"", at + 1)) {
+    const auto open = t.rfind("<DataArray", at), close = t.find('>', at);
+    if (open == std::string::npos || close == std::string::npos) return std::nullopt;
+    const std::string tag = t.substr(open, close - open);
+    const std::string type = attr(tag, "type"), format = attr(tag, "format");
+    const std::size_t width = type == "UInt8" || type == "Int8"     ? 1
+                              : type == "Int32" || type == "UInt32" ? 4
+                              : type == "Int64" || type == "UInt64" ? 8
+                                                                    : 0;
+    if (width == 0) return std::nullopt;
+    std::uint64_t values = 0;
+    if (format == "ascii") {
+      const auto end = t.find("</DataArray>", close);
+      if (end == std::string::npos) return std::nullopt;
+      bool in = false;
+      for (std::size_t i = close + 1; i < end; ++i) {
+        const bool space = t[i] == ' ' || t[i] == '\n' || t[i] == '\r' || t[i] == '\t';
+        values += !space && !in;
+        in = !space;
+      }
+    } else if (format == "binary") {
+      std::string h;
+      if (!decode(t, close + 1, header, h)) return std::nullopt;
+      values = count_of(h) / width;
+    } else if (format == "appended") {
+      const auto data = t.find("<AppendedData");
+      if (data == std::string::npos) return std::nullopt;
+      const auto tag_end = t.find('>', data), mark = t.find('_', tag_end == std::string::npos ? data : tag_end);
+      if (tag_end == std::string::npos || mark == std::string::npos) return std::nullopt;
+      const std::string encoding = attr(t.substr(data, tag_end - data), "encoding");
+      std::uint64_t offset = 0;
+      const std::string off = attr(tag, "offset");
+      if (std::from_chars(off.data(), off.data() + off.size(), offset).ec != std::errc()) return std::nullopt;
+      std::string h;
+      if (encoding == "raw") {
+        if (mark + 1 + offset + header > t.size()) return std::nullopt;
+        h = t.substr(mark + 1 + offset, header);
+      } else if (!decode(t, mark + 1 + offset, header, h)) {
+        return std::nullopt;
+      }
+      values = count_of(h) / width;
+    } else {
+      return std::nullopt;
+    }
+    total += values;
+    any = true;
+  }
+  return any ? std::optional<std::uint64_t>(total) : std::nullopt;
 }
 
 class VtkFile final : public VolumeFile {
@@ -167,6 +256,16 @@ class VtkFile final : public VolumeFile {
                         " points and " + std::to_string(stated("NumberOfCells")) + " cells, but holds " +
                         std::to_string(grid_->GetNumberOfPoints()) + " and " +
                         std::to_string(grid_->GetNumberOfCells()) + " (truncated or corrupt)");
+      // A NumberOfCells below what the cell arrays hold: VTK reads the stated count, and the cells
+      // past it would be gone from the output.
+      if (compressor_.empty()) {
+        const auto types =
+            types_in_file(io::read_input(path, "a VTK unstructured grid", o.max_file_bytes), uint64_headers_);
+        if (types && *types != std::uint64_t(grid_->GetNumberOfCells()))
+          throw FileError(path.string() + ": NumberOfCells says " + std::to_string(grid_->GetNumberOfCells()) +
+                          " cells, but its cell types array holds " + std::to_string(*types) +
+                          " (cells would be lost; a count that lies)");
+      }
     }
     fill_mesh(o);
   }

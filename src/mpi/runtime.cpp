@@ -35,9 +35,11 @@ int env_int(const char* name) {
 
 /// mpirun answers a SIGTERM or SIGINT by sending its ranks SIGCONT at once, and SIGTERM only a
 /// second later: time enough for a rank to finish and write its output. A SIGCONT from the
-/// launcher (this process's parent) is therefore taken as the SIGTERM to come.
+/// launcher (this process's parent) therefore announces the end: the partial files go at once and
+/// no output may be committed any more. (A rank that ended itself now would have its launcher kill
+/// the others at once, before the one writing had removed its partial.)
 extern "C" void launcher_stops_us(int, siginfo_t* info, void*) {
-  if (info && info->si_pid == ::getppid()) ::kill(::getpid(), SIGTERM);
+  if (info && info->si_pid == ::getppid()) io::cancel_writes();
 }
 
 void end_on_launchers_sigcont() {

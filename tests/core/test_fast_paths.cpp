@@ -378,11 +378,11 @@ TEST(FastPaths, SortedRunsKeepEverySourceWithinReach) {
       for (std::uint32_t j = k; j < k + detail::EvalGrid::kLanes; ++j)
         if (a.x[j] < 1e17) {  // not padding
           ASSERT_LE(double(a.reach[k / detail::EvalGrid::kLanes]),
-                    (Vec3(a.x[j], a.y[j], a.z[j]) * r + g.origin - centre).norm() / r);
+                    (Vec3(a.x[j], a.y[j], a.z[j]) * r + g.shift - centre).norm() / r);
         }
     std::size_t within = 0, found = 0;
     for (const auto& p : s) within += (p - q).norm() < r;
-    for (std::uint32_t j = b; j < end; ++j) found += (Vec3(a.x[j], a.y[j], a.z[j]) * r + g.origin - q).norm() < r;
+    for (std::uint32_t j = b; j < end; ++j) found += (Vec3(a.x[j], a.y[j], a.z[j]) * r + g.shift - q).norm() < r;
     ASSERT_EQ(found, within) << "probe " << q.transpose();
   }
   EXPECT_LT(double(kept), 0.95 * double(listed));  // the trim does cut

@@ -654,6 +654,32 @@ TEST(Hostile, VtkFilesThatCrashOrLoseCellsAreErrors) {
   EXPECT_NE(csrbf::test::read_text(dir / "out.vtk").find("SCALARS s float"), std::string::npos);
 }
 
+// Issue 30: a .vtu whose NumberOfCells is below what its cell arrays hold lost the cells past it
+// (VTK reads the stated count), with exit 0. Each layout of the types array is measured.
+TEST(Hostile, AVtuThatStatesFewerCellsThanItHoldsIsAnError) {
+  TempDir dir;
+  const auto vtu = [](int cells, const std::string& types) {
+    return "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
+           "header_type=\"UInt64\">\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"5\" NumberOfCells=\"" +
+           std::to_string(cells) +
+           "\">\n<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 0 0 0 1 0 0 "
+           "0 1 0 0 -1</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" "
+           "format=\"ascii\">0 1 2 3 0 2 1 4</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" "
+           "format=\"ascii\">4 8</DataArray>\n" +
+           types + "\n</Cells>\n</Piece>\n</UnstructuredGrid>\n</VTKFile>\n";
+  };
+  const std::string ascii = "<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">10 10</DataArray>";
+  const std::string binary = "<DataArray type=\"UInt8\" Name=\"types\" format=\"binary\">AgAAAAAAAAA=Cgo=</DataArray>";
+  for (const auto& types : {ascii, binary}) {
+    csrbf::test::write_text(dir / "good.vtu", vtu(2, types));
+    const auto good = open_volume(dir / "good.vtu");
+    EXPECT_EQ(good->mesh().cells.type.size(), 2u);
+    csrbf::test::write_text(dir / "lies.vtu", vtu(1, types));
+    const std::string e = error_of([&] { open_volume(dir / "lies.vtu"); });
+    EXPECT_NE(e.find("lies.vtu: NumberOfCells says 1 cells, but its cell types array holds 2"), std::string::npos) << e;
+  }
+}
+
 // Found by an attacker's trial: each was a crash, a hang or a false success.
 TEST(Hostile, LiesAndShortFilesAreErrorsNotCrashes) {
   TempDir dir;

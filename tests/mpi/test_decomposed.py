@@ -500,11 +500,13 @@ class Signals(unittest.TestCase):
             proc = subprocess.Popen(MPIRUN + ["2", CLI, "deform", "--mesh", os.path.join(tmp, "big.ply"),
                                               "--controls", controls, "--radius", "0.3", "-o", out],
                                     env=ENV, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-            # The signal comes while rank 0 writes (its partial file is there), sent until mpirun ends.
+            # The signal comes once while rank 0 writes (its partial file is there), as one Ctrl-C
+            # does (a second one within 5 s makes mpirun kill its ranks at once, as kill -9 would:
+            # then the partial stays for the next run to remove).
             sent = False
             deadline = time.time() + 300
             while proc.poll() is None and time.time() < deadline:
-                if any(".csrbf-partial-" in n for n in os.listdir(tmp)):
+                if not sent and any(".csrbf-partial-" in n for n in os.listdir(tmp)):
                     proc.send_signal(sig)
                     sent = True
                 time.sleep(0.005)

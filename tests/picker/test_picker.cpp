@@ -36,6 +36,7 @@
 #include <vtkScalarBarActor.h>
 
 #include <filesystem>
+#include <unistd.h>
 #include <fstream>
 
 namespace fs = std::filesystem;
@@ -559,10 +560,44 @@ TEST_F(Fixture, SavedDeformationsHoldThePhaseShownAndLoadClean) {
   ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-phase-saved.png").string())));
 }
 
+TEST_F(Fixture, UnsavedWorkIsKeptAsideAndOfferedAgain) {
+  const auto& doc = w.document();
+  csrbf::test::TempDir dir;
+  w.recovery().remove();
+  EXPECT_FALSE(w.write_recovery()) << "nothing unsaved, nothing written";
+  ASSERT_TRUE(w.load_controls(QString::fromStdString(kExamples + "fish.controls"), 0.3));
+  w.findChild<QSlider*>("phase")->setValue(60);
+  QApplication::processEvents();
+  ASSERT_TRUE(w.isWindowModified());
+  ASSERT_TRUE(w.write_recovery());
+  ASSERT_TRUE(w.recovery().exists());
+  {
+    // The next start, after a crash: the same mesh, controls and phase, unsaved.
+    csrbf::picker::PickerWindow next;
+    ASSERT_TRUE(csrbf::test::show_for_test(next, 1200, 760));
+    ASSERT_TRUE(next.recover()) << next.error_text().toStdString();
+    EXPECT_EQ(next.document().rest().size(), doc.rest().size());
+    EXPECT_EQ(next.document().state().controls.size(), doc.state().controls.size());
+    EXPECT_DOUBLE_EQ(next.document().state().phase, 0.6);
+    EXPECT_EQ(next.document().deformed(), doc.deformed());
+    EXPECT_TRUE(next.isWindowModified());
+    ASSERT_TRUE(next.save_screenshot(QString::fromStdString((kShots / "picker-recovered.png").string())));
+    next.setProperty("noPrompt", true);
+  }
+  ASSERT_TRUE(w.save_deformation(QString::fromStdString((dir / "d.json").string())));
+  EXPECT_FALSE(w.recovery().exists()) << "saved: nothing left to recover";
+}
+
 int main(int argc, char** argv) {
   QSurfaceFormat::setDefaultFormat(QVTKOpenGLNativeWidget::defaultFormat());
+  // The recovery file goes to a folder of the test's own, never the user's.
+  const fs::path data = fs::temp_directory_path() / ("csrbf-picker-test-" + std::to_string(::getpid()));
+  ::setenv("XDG_DATA_HOME", data.c_str(), 1);
   csrbf::gui::SafeApplication app(argc, argv);
   fs::create_directories(kShots);
   ::testing::InitGoogleTest(&argc, argv);
-  return RUN_ALL_TESTS();
+  const int status = RUN_ALL_TESTS();
+  std::error_code ec;
+  fs::remove_all(data, ec);
+  return status;
 }

@@ -167,7 +167,10 @@ class AgainstScipy(unittest.TestCase):
         with self.assertRaisesRegex(ValueError, "solver 'cholmod' orders the matrix itself"):
             csrbf.SpaceMap(s, s + g, radius, solver="CHOLMOD", ordering="rcm")
         with self.assertRaisesRegex(MemoryError, "above the limit"):
-            csrbf.SpaceMap(s, s + g, 0.9, memory_limit=1e6)
+            csrbf.SpaceMap(s, s + g, 0.9, memory_limit=1e6 / 2**30)
+        # GiB, as the command line takes it (issue 30: it was bytes here, GiB in csrbf.morph).
+        with self.assertRaisesRegex(ValueError, r"memory_limit is in GiB, as csrbf's --memory-limit: .* got 1e\+09 \(bytes\? 0.931"):
+            csrbf.SpaceMap(s, s + g, radius, memory_limit=1e9)
 
 
 class Arrays(unittest.TestCase):

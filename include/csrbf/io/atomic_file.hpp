@@ -78,6 +78,11 @@ class Partial {
 /// killed by SIGKILL, are removed by the next run.) For programs, not libraries.
 void remove_partials_on_signals() noexcept;
 
+/// Removes this process's partial files and makes every later commit of a partial fail ("cancelled
+/// by a signal"): for a signal that announces the end (mpirun's SIGCONT) while the process goes on
+/// for a moment. Async-signal-safe.
+void cancel_writes() noexcept;
+
 /// How long csrbf waits on a pipe that makes no progress (a FIFO nobody writes to, a child that
 /// stops reading) before failing: the environment variable CSRBF_PIPE_TIMEOUT (seconds, 1 to
 /// 86400) or fallback.

@@ -53,7 +53,9 @@ void apply_deformation(const SpaceMap& map, const std::optional<ActiveArea>& are
                        double phase);
 
 /// Throws FileError naming the file and the JSON path of a bad or unknown value.
-DeformationSpec read_deformation(const std::filesystem::path& path);
+/// max_bytes bounds the JSON text (also from a pipe; parsed JSON takes about 16 times its text):
+/// at most 1 GiB.
+DeformationSpec read_deformation(const std::filesystem::path& path, double max_bytes = double(1ull << 30));
 /// The same from JSON text: name is used in messages, base resolves a "controls" file.
 DeformationSpec read_deformation_text(const std::string& text, const std::string& name,
                                       const std::filesystem::path& base);
