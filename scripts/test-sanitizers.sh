@@ -21,7 +21,7 @@ export HWLOC_COMPONENTS=-gl
 # is unloaded at exit before LeakSanitizer can name what it allocated. Everything else is checked
 # for leaks too. The "consumer" tests (OpenFOAM, Gmsh, VTK and meshio judging csrbf morph's
 # outputs) are left out: test_morph runs the same readers and writers under the sanitizers; so is
-# the hostile-case generator ("attack": 400 whole-program runs), whose cases the catalogues repeat.
+# the hostile-case generator ("attack": 250 whole-program runs), whose cases the catalogues repeat.
 status=0
 ASAN_OPTIONS=$asan:detect_leaks=0 ctest --test-dir build-asan --output-on-failure --parallel "$(nproc)" \
   --timeout 300 -L gl || status=$?

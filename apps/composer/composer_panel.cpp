@@ -179,9 +179,14 @@ QGroupBox* ComposerWindow::build_key_box(QWidget* panel) {
   for (int c = 0; c < 3; ++c) {
     key_pos_[c] = spin_box(keybox, c == 0 ? "keyX" : c == 1 ? "keyY" : "keyZ", -1e6, 1e6, 0.05, 3);
     pos_row->addWidget(key_pos_[c]);
-    connect(key_pos_[c], qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this] {
-      if (updating_ || object_ < 0 || key_ < 0) return;
-      const Vec3 p(key_pos_[0]->value(), key_pos_[1]->value(), key_pos_[2]->value());
+    connect(key_pos_[c], qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this, c] {
+      if (updating_ || !has_object() || key_ < 0) return;
+      const auto& trajectory = scene_->objects[std::size_t(object_)].trajectory;
+      if (!trajectory || std::size_t(key_) >= trajectory->keys().size()) return;
+      // Only the coordinate edited changes: the others keep their full precision (the boxes show 3
+      // decimals, and writing all three back rounded the other two).
+      Vec3 p = trajectory->keys()[std::size_t(key_)].position;
+      p[c] = key_pos_[c]->value();
       edit("Key position", [&](Document& d) { d.set_position(std::size_t(object_), std::size_t(key_), p); });
     });
   }

@@ -183,6 +183,12 @@ void ComposerWindow::apply_wireframe() {
       a->GetProperty()->SetRepresentation(wireframe_->isChecked() ? VTK_WIREFRAME : VTK_SURFACE);
 }
 
+void ComposerWindow::frame_all() {
+  if (!scene_renderer_) return;
+  scene_renderer_->renderer()->ResetCamera();
+  view_->renderWindow()->Render();
+}
+
 void ComposerWindow::reset_camera(gui::View view) {
   if (!scene_renderer_ || !player_) return;
   double b[6] = {0, 1, 0, 1, 0, 1};

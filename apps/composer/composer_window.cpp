@@ -197,6 +197,7 @@ void ComposerWindow::build_menus() {
 
   auto* viewm = menuBar()->addMenu("&View");
   add(viewm, "&Reset camera (front, fit)", QKeySequence("R"), [this] { reset_camera(); });
+  add(viewm, "&Frame all", QKeySequence("Home"), [this] { frame_all(); });  // as Blender's View All
   gui::add_view_actions(viewm, this, [this](gui::View v) { reset_camera(v); });
   viewm->addSeparator();
   add(viewm, "Set scene &camera from view", QKeySequence("Ctrl+Shift+C"), [this] { set_scene_camera_from_view(); });
@@ -216,7 +217,7 @@ void ComposerWindow::build_menus() {
 
   auto* playm = menuBar()->addMenu("&Animation");
   add(playm, "&Play / pause", QKeySequence("Space"), [this] { play_->toggle(); });
-  add(playm, "To the &start", QKeySequence("Home"), [this] { set_time(0); });
+  add(playm, "To the &start", QKeySequence("Shift+Left"), [this] { set_time(0); });  // as in Blender
   add(playm, "&Next frame", QKeySequence("Right"), [this] { set_time(time_ + 1.0 / doc_.fps()); });
   add(playm, "P&revious frame", QKeySequence("Left"), [this] { set_time(time_ - 1.0 / doc_.fps()); });
 

@@ -109,6 +109,8 @@ class ComposerWindow : public QMainWindow {
   void select_phase_key(int deformation, int key);
   /// R: front view fitted to the scene at the current time; 1 / 3 / 7 side and top.
   void reset_camera(gui::View view = gui::View::Front);
+  /// Home: the whole scene in view, from where the camera looks now (Blender's View All).
+  void frame_all();
   /// "Set scene camera from view": the movie's camera becomes the view's (one undoable edit).
   bool set_scene_camera_from_view();
   /// "Look through scene camera": the view's camera becomes the movie's.

@@ -269,6 +269,11 @@ void PickerWindow::refresh_view() {
   view_->renderWindow()->Render();
 }
 
+void PickerWindow::frame_all() {
+  renderer_->ResetCamera();
+  view_->renderWindow()->Render();
+}
+
 void PickerWindow::reset_camera(gui::View view) {
   double b[6] = {-1, 1, -1, 1, -1, 1};
   const auto& pos = doc_.deformed();

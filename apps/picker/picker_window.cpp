@@ -191,6 +191,7 @@ void PickerWindow::build_menus() {
 
   auto* viewm = menuBar()->addMenu("&View");
   add(viewm, "&Reset camera (front, fit)", QKeySequence("R"), [this] { reset_camera(); });
+  add(viewm, "&Frame all", QKeySequence("Home"), [this] { frame_all(); });  // as Blender's View All
   gui::add_view_actions(viewm, this, [this](gui::View v) { reset_camera(v); });
   viewm->addSeparator();
   QAction* supports =

@@ -73,6 +73,8 @@ class PickerWindow : public QMainWindow {
   bool save_screenshot(const QString& path);
   /// R: the front view, zoomed to fit the mesh; also the side and top views (numpad 3, 7).
   void reset_camera(gui::View view = gui::View::Front);
+  /// Home: the whole mesh in view, from where the camera looks now (Blender's View All).
+  void frame_all();
   /// The deformation file Ctrl+S writes to; empty until one was saved or loaded.
   const QString& deformation_path() const { return deformation_path_; }
   /// Save, Discard or Cancel when the deformation has unsaved edits: true to go on.

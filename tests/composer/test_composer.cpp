@@ -504,6 +504,41 @@ TEST_F(Fixture, UnsavedWorkIsKeptAsideAndOfferedAgain) {
   EXPECT_FALSE(w.recovery().exists());
 }
 
+TEST_F(Fixture, EditingOneCoordinateKeepsTheOthersFullPrecision) {
+  ASSERT_TRUE(w.open_scene(QString::fromStdString(kExamples + "fish.scene.json")));
+  const Vec3 exact(0.123456789012, -1.987654321098, 0.333333333333);
+  ASSERT_TRUE(w.edit("Place", [&](csrbf::composer::Document& d) { d.set_position(0, 1, exact); }));
+  w.select_key(1);
+  QApplication::processEvents();
+  auto* y = w.findChild<QDoubleSpinBox*>("keyY");
+  ASSERT_NE(y, nullptr);
+  y->setValue(0.5);  // the box shows 3 decimals; x and z were written back rounded to them
+  QApplication::processEvents();
+  const auto j = w.document().json()["objects"][0]["trajectory"]["keys"][1]["position"];
+  EXPECT_EQ(j[0].get<double>(), exact.x());
+  EXPECT_EQ(j[1].get<double>(), 0.5);
+  EXPECT_EQ(j[2].get<double>(), exact.z());
+}
+
+TEST_F(Fixture, HomeFramesTheWholeScene) {
+  ASSERT_TRUE(w.open_scene(QString::fromStdString(kExamples + "fish.scene.json")));
+  vtkCamera* cam = view_renderer(w)->GetActiveCamera();
+  cam->Dolly(20);  // far too close
+  const double before = cam->GetDistance();
+  double dir0[3];
+  cam->GetDirectionOfProjection(dir0);
+  w.setFocus();
+  QTest::keyClick(&w, Qt::Key_Home);
+  QApplication::processEvents();
+  EXPECT_GT(cam->GetDistance(), 5 * before) << "Home frames the whole scene";
+  double dir1[3];
+  cam->GetDirectionOfProjection(dir1);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(dir1[k], dir0[k], 1e-9) << "from where the camera looked";
+  w.set_time(2.0);
+  QTest::keyClick(&w, Qt::Key_Left, Qt::ShiftModifier);
+  EXPECT_EQ(w.time(), 0.0) << "Shift+Left goes to the start";
+}
+
 int main(int argc, char** argv) {
   QSurfaceFormat::setDefaultFormat(QVTKOpenGLNativeWidget::defaultFormat());
   // The recovery file goes to a folder of the test's own, never the user's.

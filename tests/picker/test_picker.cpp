@@ -588,6 +588,20 @@ TEST_F(Fixture, UnsavedWorkIsKeptAsideAndOfferedAgain) {
   EXPECT_FALSE(w.recovery().exists()) << "saved: nothing left to recover";
 }
 
+TEST_F(Fixture, HomeFramesTheWholeMesh) {
+  vtkCamera* cam = w.renderer()->GetActiveCamera();
+  cam->Dolly(20);
+  const double before = cam->GetDistance();
+  double dir0[3], dir1[3];
+  cam->GetDirectionOfProjection(dir0);
+  w.setFocus();
+  QTest::keyClick(&w, Qt::Key_Home);
+  QApplication::processEvents();
+  EXPECT_GT(cam->GetDistance(), 5 * before) << "Home frames the whole mesh (it did nothing)";
+  cam->GetDirectionOfProjection(dir1);
+  for (int k = 0; k < 3; ++k) EXPECT_NEAR(dir1[k], dir0[k], 1e-9);
+}
+
 int main(int argc, char** argv) {
   QSurfaceFormat::setDefaultFormat(QVTKOpenGLNativeWidget::defaultFormat());
   // The recovery file goes to a folder of the test's own, never the user's.
