@@ -4,6 +4,7 @@
 // the GIL. docs/python.md is the tutorial.
 #include "csrbf/anim/scene.hpp"
 #include "csrbf/displacement_field.hpp"
+#include "csrbf/errors.hpp"
 #include "csrbf/names.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/deformation.hpp"
@@ -43,6 +44,35 @@ std::string shape_of(const py::array& a) {
 }
 
 /// Checks an (n, 3) array of real numbers; `what` names the argument in messages.
+/// obj as a numpy array. What numpy cannot make one of (a ragged list, a list of objects) is a
+/// TypeError naming the argument, its type and length and the first element that is not three
+/// numbers, never the whole value (pybind11 printed every element of a bad list).
+py::array as_array(const py::object& obj, const char* what) {
+  if (py::isinstance<py::array>(obj)) return py::reinterpret_borrow<py::array>(obj);
+  if (py::array a = py::array::ensure(obj)) return a;  // ensure clears numpy's error when it fails
+  std::ostringstream m;
+  m << what << " must be an array of shape (n, 3) of numbers, got a "
+    << py::str(obj.get_type().attr("__name__")).cast<std::string>();
+  if (py::hasattr(obj, "__len__") && py::hasattr(obj, "__iter__")) {
+    m << " of " << py::len(obj) << " elements";
+    std::size_t k = 0;
+    for (const py::handle item : obj) {
+      bool ok = py::hasattr(item, "__len__") && py::len(item) == 3;
+      if (ok)
+        for (const py::handle x : item) ok = ok && (py::isinstance<py::float_>(x) || py::isinstance<py::int_>(x));
+      if (!ok) {
+        std::string shown = py::repr(item).cast<std::string>();
+        if (shown.size() > 60) shown = shown.substr(0, 57) + "...";
+        m << "; element [" << k << "] is " << csrbf::printable(shown) << " ("
+          << py::str(item.get_type().attr("__name__")).cast<std::string>() << ")";
+        break;
+      }
+      ++k;
+    }
+  }
+  throw py::type_error(m.str());
+}
+
 void check_points(const py::array& a, const char* what, bool allow_empty = true) {
   if (a.ndim() != 2 || a.shape(1) != 3)
     throw py::value_error(std::string(what) + " must have shape (n, 3), got " + shape_of(a));
@@ -81,7 +111,8 @@ A ensure_array(const py::array& a, const char* what) {
   return r;
 }
 
-std::vector<Vec3> to_vec3(const py::array& a, const char* what, bool allow_empty = false) {
+std::vector<Vec3> to_vec3(const py::object& obj, const char* what, bool allow_empty = false) {
+  const py::array a = as_array(obj, what);
   check_points(a, what, allow_empty);
   const Dbl d = ensure_array<Dbl>(a, what);
   const std::size_t n = std::size_t(d.shape(0));
@@ -190,7 +221,8 @@ py::array apply_typed(const py::array& points, const char* what, const py::objec
 }
 
 template <class F64, class F32>
-py::array apply_points(const py::array& points, const char* what, const py::object& out, F64&& f64, F32&& f32) {
+py::array apply_points(const py::object& obj, const char* what, const py::object& out, F64&& f64, F32&& f32) {
+  const py::array points = as_array(obj, what);
   check_points(points, what);
   if (points.dtype().is(py::dtype::of<float>())) return apply_typed<float>(points, what, out, f32);
   return apply_typed<double>(points, what, out, f64);
@@ -259,7 +291,7 @@ local), 'constant' or 'linear'. Keyword-only: solver: 'auto' (default), 'envelop
 'breadth-first', 'reverse-breadth-first', 'rcm' or 'identity'; memory_limit: the most memory the fit
 may take, in GiB as `csrbf --memory-limit` takes it (a float, default 4.0; beyond it MemoryError). The fit
 releases the GIL.)doc")
-      .def(py::init([](const py::array& sources, const py::array& destinations, double radius,
+      .def(py::init([](const py::object& sources, const py::object& destinations, double radius,
                        const std::string& kernel, const std::string& polynomial, const std::string& solver,
                        const std::string& ordering, double memory_limit) {
              const auto s = to_vec3(sources, "sources");
@@ -288,7 +320,7 @@ releases the GIL.)doc")
            py::arg("memory_limit") = 4.0)
       .def(
           "with_destinations",
-          [](const csrbf::SpaceMap& map, const py::array& destinations) {
+          [](const csrbf::SpaceMap& map, const py::object& destinations) {
             const auto d = to_vec3(destinations, "destinations");
             py::gil_scoped_release release;
             return map.with_destinations(d);
@@ -299,7 +331,7 @@ releases the GIL.)doc")
           "start from this map's solution (stats['warm_start']). For animation frames.")
       .def(
           "__call__",
-          [](const csrbf::SpaceMap& map, const py::array& points, double phase, const py::object& out) {
+          [](const csrbf::SpaceMap& map, const py::object& points, double phase, const py::object& out) {
             csrbf::check_phase(phase);
             return apply_points(
                 points, "points", out, [&](const double* i, double* o, std::size_t n) { map.apply(i, o, n, phase); },
@@ -310,7 +342,7 @@ releases the GIL.)doc")
           "C-contiguous (n, 3) array of that type, the input itself allowed) receives it instead of a new array")
       .def(
           "displacement",
-          [](const csrbf::SpaceMap& map, const py::array& points, const py::object& out) {
+          [](const csrbf::SpaceMap& map, const py::object& points, const py::object& out) {
             return apply_points(
                 points, "points", out, [&](const double* i, double* o, std::size_t n) { map.displacements(i, o, n); },
                 [&](const float* i, float* o, std::size_t n) { map.displacements(i, o, n); });
@@ -319,7 +351,7 @@ releases the GIL.)doc")
           "d(points), the displacement at phase 1: an (n, 3) array (or into `out`, as for calls)")
       .def(
           "jacobian",
-          [](const csrbf::SpaceMap& map, const py::array& points, double phase) {
+          [](const csrbf::SpaceMap& map, const py::object& points, double phase) {
             csrbf::check_phase(phase);
             const auto x = to_vec3(points, "points", true);
             py::array_t<double> out({py::ssize_t(x.size()), py::ssize_t(3), py::ssize_t(3)});
@@ -375,7 +407,8 @@ releases the GIL.)doc")
   py::class_<csrbf::DisplacementField<double>>(m, "DisplacementField", R"doc(
 Per-vertex displacements of one point set under a SpaceMap, kept so that a new phase costs one pass
 over memory: field(phase) = rest + phase * d(rest).)doc")
-      .def(py::init([](const csrbf::SpaceMap& map, const py::array& rest) {
+      .def(py::init([](const csrbf::SpaceMap& map, const py::object& rest_obj) {
+             const py::array rest = as_array(rest_obj, "rest");
              check_points(rest, "rest");
              const Dbl r = ensure_array<Dbl>(rest, "rest");
              check_finite(r.data(), std::size_t(r.shape(0)), "rest");
@@ -413,7 +446,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       py::arg("path"), "(positions (n, 3), faces as lists of vertex indices) of a mesh file");
   m.def(
       "write_mesh",
-      [](const std::filesystem::path& template_path, const py::array& positions, const std::filesystem::path& path) {
+      [](const std::filesystem::path& template_path, const py::object& positions, const std::filesystem::path& path) {
         auto mesh = csrbf::io::MeshDocument::load(template_path);
         const auto p = to_vec3(positions, "positions");
         if (p.size() != mesh.positions().size())
@@ -452,7 +485,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       "The active area of a deformation JSON file: the sorted vertex indices it moves, or None for every vertex");
   m.def(
       "apply_deformation",
-      [](const std::filesystem::path& path, const py::array& positions, double phase) {
+      [](const std::filesystem::path& path, const py::object& positions, double phase) {
         csrbf::check_phase(phase);
         const auto d = csrbf::io::read_deformation(path);
         auto p = to_vec3(positions, "positions", true);

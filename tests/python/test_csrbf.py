@@ -168,6 +168,15 @@ class AgainstScipy(unittest.TestCase):
             csrbf.SpaceMap(s, s + g, radius, solver="CHOLMOD", ordering="rcm")
         with self.assertRaisesRegex(MemoryError, "above the limit"):
             csrbf.SpaceMap(s, s + g, 0.9, memory_limit=1e6 / 2**30)
+        # A list numpy cannot make an array of: its type, length and first bad element, not the whole list
+        # (issue 30: pybind11 printed every element).
+        ragged = [[0.0, 0.0, 0.0]] * 5000 + [[1.0, 2.0]] + [[0.0, 0.0, 0.0]] * 5000
+        with self.assertRaises(TypeError) as caught:
+            csrbf.SpaceMap(ragged, ragged, radius)
+        message = str(caught.exception)
+        self.assertIn("sources must be an array of shape (n, 3) of numbers, got a list of 10001 elements; "
+                      "element [5000] is [1.0, 2.0] (list)", message)
+        self.assertLess(len(message), 300, message)
         # GiB, as the command line takes it (issue 30: it was bytes here, GiB in csrbf.morph).
         with self.assertRaisesRegex(ValueError, r"memory_limit is in GiB, as csrbf's --memory-limit: .* got 1e\+09 \(bytes\? 0.931"):
             csrbf.SpaceMap(s, s + g, radius, memory_limit=1e9)
