@@ -88,8 +88,7 @@ int run_animate(const AnimateOptions& o) {
   if (render::movie_format_for(o.out) == render::MovieFormat::Mp4 && (width % 2 || height % 2))
     throw UsageError("--size: H.264 (.mp4) needs an even width and height, got '" + o.size + "'");
   {
-    std::vector<std::filesystem::path> inputs{o.scene};
-    for (auto& f : io::referenced_files(o.scene)) inputs.push_back(std::move(f));
+    const std::vector<std::filesystem::path> inputs = io::referenced_files(o.scene);
     check_not_an_input("-o", o.out, inputs);
     // A folder of PNG frames replaces the frame files in it: none of them may be an input.
     std::error_code ec;

@@ -113,9 +113,7 @@ int run_export(const ExportOptions& o) {
   }
   std::error_code ec;
   {
-    std::vector<fs::path> inputs{o.scene};
-    for (auto& f : io::referenced_files(o.scene)) inputs.push_back(std::move(f));
-    check_not_an_input("-o", out, inputs);
+    check_not_an_input("-o", out, io::referenced_files(o.scene));
     io::must_be_new(io::resolve_output(out));
   }
   if (!page.empty() && fs::absolute(page).lexically_normal() == fs::absolute(out).lexically_normal())

@@ -48,10 +48,8 @@ std::vector<std::filesystem::path> deform_inputs(const FitArgs& a, const std::st
   std::vector<std::filesystem::path> in{mesh};
   for (auto& f : csrbf::io::mesh_side_files(mesh)) in.push_back(std::move(f));
   if (!a.controls.empty()) in.emplace_back(a.controls);
-  if (!a.deformation.empty()) {
-    in.emplace_back(a.deformation);
+  if (!a.deformation.empty())
     for (auto& f : csrbf::io::referenced_files(a.deformation)) in.push_back(std::move(f));
-  }
   return in;
 }
 

@@ -101,15 +101,7 @@ bool ComposerWindow::recover() {
 }
 
 void ComposerWindow::offer_recovery() {
-  if (!recovery_.exists()) return;
-  const auto answer = QMessageBox::question(this, "Recover unsaved work?",
-                                            "The Composer found work that was not saved when it last closed (" +
-                                                recovery_.when().toString("yyyy-MM-dd hh:mm:ss") + ").\nRecover it?",
-                                            QMessageBox::Yes | QMessageBox::No, QMessageBox::Yes);
-  if (answer == QMessageBox::Yes)
-    recover();
-  else
-    recovery_.remove();
+  if (recovery_.offer(this, "The Composer found work on %1", "path", "an untitled scene")) recover();
 }
 
 ComposerWindow::~ComposerWindow() {

@@ -8,7 +8,10 @@
 #include <QTimer>
 #include <QDialog>
 #include <QDir>
+#include <QByteArray>
 #include <QFile>
+#include <QJsonDocument>
+#include <QJsonObject>
 #include <QFileInfo>
 #include <QTextBrowser>
 #include <QVBoxLayout>
@@ -66,7 +69,7 @@ bool SafeApplication::notify(QObject* receiver, QEvent* event) {
   return false;
 }
 
-Recovery::Recovery(const QString& program) {
+Recovery::Recovery(const QString& program, QStringList side) : side_(std::move(side)) {
   const QString dir = QStandardPaths::writableLocation(QStandardPaths::GenericDataLocation) + "/csrbf";
   path_ = dir + "/" + program + "-recovery.json";
 }
@@ -93,7 +96,26 @@ std::string Recovery::read() const {
   return in ? s.str() : std::string();
 }
 
-void Recovery::remove() const { QFile::remove(path_); }
+void Recovery::remove() const {
+  QFile::remove(path_);
+  for (const QString& s : side_) QFile::remove(side_path(s));
+}
+
+bool Recovery::offer(QWidget* parent, const QString& found, const char* key, const QString& unnamed) const {
+  if (!exists()) return false;
+  // A damaged file names nothing here; recovering it then says what is wrong.
+  const QString named = QJsonDocument::fromJson(QByteArray::fromStdString(read())).object().value(key).toString();
+  const auto answer = QMessageBox::question(
+      parent, "Recover unsaved work?",
+      found.arg(named.isEmpty() ? unnamed : named) + " that was not saved when it last closed (" +
+          when().toString("yyyy-MM-dd hh:mm:ss") +
+          ").\n\nYes opens it in place of what is shown now, as unsaved work (the file on disk stays as it "
+          "is until you save).\nNo discards it for good.",
+      QMessageBox::Yes | QMessageBox::No, QMessageBox::Yes);
+  if (answer == QMessageBox::Yes) return true;
+  remove();
+  return false;
+}
 
 int recovery_seconds() {
   if (const char* e = std::getenv("CSRBF_RECOVERY_SECONDS")) {

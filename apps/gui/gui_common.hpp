@@ -11,6 +11,7 @@
 #include <QMessageBox>
 #include <QPoint>
 #include <QString>
+#include <QStringList>
 
 #include <functional>
 #include <memory>
@@ -45,8 +46,11 @@ QString last_caught_error();
 /// <AppDataLocation>/<program>-recovery.json (~/.local/share/csrbf-composer/...), written atomically.
 class Recovery {
  public:
-  explicit Recovery(const QString& program);
+  /// side: suffixes of files kept beside it (the Picker's deformation, ".deformation.json").
+  explicit Recovery(const QString& program, QStringList side = {});
   QString path() const { return path_; }
+  /// path() with one of the side suffixes.
+  QString side_path(const QString& suffix) const { return path_ + suffix; }
   bool exists() const;
   /// When the file was written (invalid when there is none).
   QDateTime when() const;
@@ -54,10 +58,16 @@ class Recovery {
   bool write(const std::string& text) const;
   /// The file's text; empty when there is none or it cannot be read.
   std::string read() const;
+  /// Removes the file and its side files.
   void remove() const;
+  /// At a program's start, when the file exists: asks whether to recover it, in `found` with %1 the
+  /// document its JSON names under `key` (else `unnamed`). True for Yes; on No the file (and its
+  /// side files) are removed, the work discarded.
+  bool offer(QWidget* parent, const QString& found, const char* key, const QString& unnamed) const;
 
  private:
   QString path_;
+  QStringList side_;
 };
 /// Seconds between recovery writes: CSRBF_RECOVERY_SECONDS (1 to 3600) or 60.
 int recovery_seconds();

@@ -13,7 +13,6 @@
 
 #include <QAction>
 #include <QDir>
-#include <QFile>
 #include <QTimer>
 #include <QCheckBox>
 #include <QCloseEvent>
@@ -62,7 +61,7 @@ PickerWindow::~PickerWindow() {
 bool PickerWindow::write_recovery() {
   if (undo_.isClean() || !doc_.has_mesh()) return false;
   // The deformation as its file holds it, inside the recovery file with the mesh it was made on.
-  const QString deformation = recovery_.path() + ".deformation.json";
+  const QString deformation = recovery_.side_path(kRecoveredDeformation);
   try {
     QDir().mkpath(QFileInfo(recovery_.path()).absolutePath());
     io::write_deformation(deformation.toStdString(), doc_.deformation());
@@ -97,26 +96,7 @@ bool PickerWindow::recover() {
 }
 
 void PickerWindow::offer_recovery() {
-  if (!recovery_.exists()) return;
-  QString mesh = "a mesh";
-  try {
-    const nlohmann::json j = nlohmann::json::parse(recovery_.read());
-    if (j.is_object() && !j.value("mesh", "").empty()) mesh = QString::fromStdString(j.value("mesh", ""));
-  } catch (const std::exception&) {
-    // recover() reports a damaged file
-  }
-  const auto answer = QMessageBox::question(
-      this, "Recover unsaved work?",
-      "The Picker found a deformation of " + mesh + " that was not saved when it last closed (" +
-          recovery_.when().toString("yyyy-MM-dd hh:mm:ss") +
-          ").\n\nYes opens it in place of what is shown now, as unsaved work.\nNo discards it for good.",
-      QMessageBox::Yes | QMessageBox::No, QMessageBox::Yes);
-  if (answer == QMessageBox::Yes) {
-    recover();
-  } else {
-    recovery_.remove();
-    QFile::remove(recovery_.path() + ".deformation.json");
-  }
+  if (recovery_.offer(this, "The Picker found a deformation of %1", "mesh", "a mesh")) recover();
 }
 
 void PickerWindow::build_menus() {

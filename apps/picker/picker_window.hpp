@@ -135,7 +135,9 @@ class PickerWindow : public QMainWindow {
 
   Document doc_;
   // Before undo_: its destructor still emits cleanChanged (the destructor disconnects it first).
-  gui::Recovery recovery_{"picker"};
+  /// The recovered deformation: a deformation file beside the recovery file.
+  static inline const QString kRecoveredDeformation = ".deformation.json";
+  gui::Recovery recovery_{"picker", {kRecoveredDeformation}};
   QUndoStack undo_;
   QVTKOpenGLNativeWidget* view_ = nullptr;
   vtkSmartPointer<vtkGenericOpenGLRenderWindow> window_;

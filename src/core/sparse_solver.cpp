@@ -357,18 +357,17 @@ class BatchedCg final : public SparseFactor {
     // monotonic: the probe judges by the smallest seen so far.
     std::vector<Sums> best;  // best[k]: the smallest residuals up to step k
     if (probe_.steps > 0) best.reserve(max_iterations_ + 1);
-    Sums rr_best = rr_start;
+    Sums rr_best = rr_start;  // the smallest residuals so far, per column
     // Stagnation: the smallest residual so far (the worst column's) has not fallen 10x in the last
     // kCgStagnationWindow steps. CG that still converges falls much faster than that.
-    Sums rr_low = rr_start;
     std::vector<double> lowest;  // lowest[k]: the worst column's smallest squared relative residual up to step k
     lowest.reserve(std::min<std::size_t>(max_iterations_, 1u << 20) + 1);
     for (; !all_done() && it < max_iterations_; ++it) {
       {
         double worst_low = 0;
         for (std::size_t c = 0; c < m; ++c) {
-          rr_low[c] = std::min(rr_low[c], rr[c]);
-          if (!done[c] && rr0[c] > 0) worst_low = std::max(worst_low, rr_low[c] / rr0[c]);
+          rr_best[c] = std::min(rr_best[c], rr[c]);
+          if (!done[c] && rr0[c] > 0) worst_low = std::max(worst_low, rr_best[c] / rr0[c]);
         }
         lowest.push_back(worst_low);
         if (it >= kCgStagnationWindow && !(worst_low < 1e-2 * lowest[it - kCgStagnationWindow])) {
@@ -382,10 +381,7 @@ class BatchedCg final : public SparseFactor {
           throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
         }
       }
-      if (probe_.steps > 0) {
-        for (std::size_t c = 0; c < m; ++c) rr_best[c] = std::min(rr_best[c], rr[c]);
-        best.push_back(rr_best);
-      }
+      if (probe_.steps > 0) best.push_back(rr_best);
       if (probe_.steps > 0 && it > 0 && it % probe_.steps == 0) {
         // The steps this solve needs in all, were the residual to keep falling at its recent rate.
         const std::size_t mark = it / 3;

@@ -78,7 +78,7 @@ std::vector<fs::path> mesh_side_files(const fs::path& mesh) {
 }
 
 std::vector<fs::path> referenced_files(const fs::path& json) {
-  std::vector<fs::path> out;
+  std::vector<fs::path> out{json};
   walk(json, 1, out);
   const std::size_t named = out.size();
   for (std::size_t i = 0; i < named; ++i)

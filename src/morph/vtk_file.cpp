@@ -222,8 +222,8 @@ class VtkFile final : public VolumeFile {
     };
     // Version 5 states the count of cell offsets, one more than the cells.
     const bool offsets = head.rfind("# vtk DataFile Version 5", 0) == 0;
-    const long long points_stated = stated_legacy("POINTS "),
-                    cells_stated = stated_legacy("CELLS ") - (offsets && stated_legacy("CELLS ") > 0 ? 1 : 0);
+    const long long points_stated = stated_legacy("POINTS "), cells_line = stated_legacy("CELLS "),
+                    cells_stated = cells_line - (offsets && cells_line > 0 ? 1 : 0);
     grid_ = parse_grid(detail::read_in_child(path, "VTK", o.max_file_bytes, [&] {
       auto g = read_grid(path, xml);
       check_cells(g);
@@ -507,11 +507,8 @@ class VtkFile final : public VolumeFile {
         default:
           break;  // lines, vertices, polyhedra: moved, not measured
       }
-      for (vtkIdType k = 0; k < npts; ++k)
-        if (ids[k] < 0 || ids[k] >= n)
-          throw FileError(path_.string() + ": cell " + std::to_string(c) + " uses point " + std::to_string(ids[k]) +
-                          ", but there are " + std::to_string(n) + " points (truncated, or a count that lies)");
-      if (keep == 0 || npts < keep) continue;
+      // Every point index and point count was checked in the reading child (check_cells).
+      if (keep == 0) continue;
       corners.assign(ids, ids + keep);
       mesh_.cells.add(as, corners);
     }

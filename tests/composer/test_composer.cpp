@@ -497,6 +497,25 @@ TEST_F(Fixture, UnsavedWorkIsKeptAsideAndOfferedAgain) {
     ASSERT_TRUE(next.save_screenshot(QString::fromStdString((kShots / "composer-recovered.png").string())));
     next.setProperty("noPrompt", true);
   }
+  {
+    // The offer at start names the scene the work belongs to; No discards it.
+    ComposerWindow next;
+    ASSERT_TRUE(csrbf::test::show_for_test(next, 1280, 820));
+    QString asked;
+    QTimer::singleShot(200, [&] {
+      if (auto* box = qobject_cast<QMessageBox*>(QApplication::activeModalWidget())) {
+        asked = box->text();
+        box->button(QMessageBox::No)->click();
+      }
+    });
+    next.offer_recovery();
+    EXPECT_NE(asked.indexOf(QString::fromStdString(fs::absolute(dir / "fish.scene.json").lexically_normal().string())),
+              -1)
+        << asked.toStdString();
+    EXPECT_NE(asked.indexOf("No discards it for good"), -1) << asked.toStdString();
+    EXPECT_FALSE(next.recovery().exists());
+    ASSERT_TRUE(w.write_recovery());  // still unsaved in w
+  }
   EXPECT_EQ(csrbf::io::read_scene(dir / "fish.scene.json").objects[0].parts.size(),
             csrbf::io::read_scene(kExamples + "fish.scene.json").objects[0].parts.size());
   // Saved: nothing left to recover.

@@ -8,11 +8,11 @@
 
 namespace csrbf::io {
 
-/// The files a csrbf JSON document (a scene, a deformation, a motion file) names, resolved against
-/// its folder: meshes, textures, deformation, controls and displacement files, and, for each JSON
-/// among them, the files it names (three levels at most). Reads only the JSON documents (each
-/// bounded as read_json_file bounds it); a document that cannot be read contributes nothing, as
-/// its reader reports it later. The document itself is not listed.
+/// A csrbf JSON document (a scene, a deformation, a motion file) and the files it names, resolved
+/// against its folder: the document first, then meshes, textures, deformation, controls and
+/// displacement files, for each JSON among them the files it names (three levels at most), and a
+/// .gltf mesh's buffers and images. Reads only the JSON documents (each bounded as read_json_file
+/// bounds it); a document that cannot be read contributes nothing more, as its reader reports it.
 std::vector<std::filesystem::path> referenced_files(const std::filesystem::path& json);
 
 /// The files a mesh file reads besides itself: a .gltf's buffers and images named by a relative or
