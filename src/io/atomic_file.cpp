@@ -331,8 +331,19 @@ fs::path normal(const fs::path& p) {
 
 /// Whether target was new when its command started (must_be_new), so that it is never replaced.
 bool registered_new(const fs::path& target) {
+  const fs::path t = normal(target);
   std::lock_guard lock(g_new_mutex);
-  return std::find(g_new_outputs.begin(), g_new_outputs.end(), normal(target)) != g_new_outputs.end();
+  return std::find(g_new_outputs.begin(), g_new_outputs.end(), t) != g_new_outputs.end();
+}
+
+/// The names in folder that must_be_new registered.
+std::vector<fs::path> registered_new_in(const fs::path& folder) {
+  const fs::path f = normal(folder / "x").parent_path();
+  std::vector<fs::path> names;
+  std::lock_guard lock(g_new_mutex);
+  for (const auto& p : g_new_outputs)
+    if (p.parent_path() == f) names.push_back(p.filename());
+  return names;
 }
 }  // namespace
 
@@ -376,12 +387,15 @@ void write_atomically(const fs::path& target_in, const std::function<void(std::o
 void write_atomically_via_folder(const fs::path& target_in, const std::function<void(const fs::path&)>& write) {
   const fs::path target = resolve_output(target_in);
   check_output_path(target);
-  // The names that exist now may be replaced (each checked below); any other is created new.
+  // The names that exist now may be replaced (each checked below), unless they were new when the
+  // command started; any other is created new.
   std::vector<fs::path> existed;
   {
+    const std::vector<fs::path> fresh = registered_new_in(folder_of(target));
     std::error_code ec;
     for (fs::directory_iterator it(folder_of(target), ec), end; !ec && it != end; it.increment(ec))
-      if (!registered_new(it->path())) existed.push_back(it->path().filename());
+      if (std::find(fresh.begin(), fresh.end(), it->path().filename()) == fresh.end())
+        existed.push_back(it->path().filename());
   }
   Partial partial(target, Partial::Kind::Folder);
   const fs::path dir = partial.path();
