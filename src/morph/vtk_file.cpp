@@ -15,6 +15,7 @@
 #include <vtkDoubleArray.h>
 #include <vtkExecutive.h>
 #include <vtkNew.h>
+#include <vtkOutputWindow.h>
 #include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkSmartPointer.h>
@@ -52,6 +53,40 @@ class ErrorCatcher : public vtkCommand {
   std::string message;
 };
 
+/// VTK's readers report some failures only as a warning to the output window, and go on: a legacy
+/// file's data array cut short ("Error reading ascii data. Possible mismatch of datasize with
+/// declaration.") is read with its missing values uninitialised. While a reader runs, this window
+/// keeps the first warning or error, which the read then throws.
+class TextCatcher : public vtkOutputWindow {
+ public:
+  static TextCatcher* New() { return new TextCatcher; }
+  void DisplayErrorText(const char* t) override { keep(t); }
+  void DisplayWarningText(const char* t) override { keep(t); }
+  void DisplayGenericWarningText(const char* t) override { keep(t); }
+  std::string message;
+
+ private:
+  /// VTK's text is "Generic Warning: In FILE, line N\nWHAT\n\n": keep WHAT.
+  void keep(const char* t) {
+    if (!message.empty() || !t) return;
+    std::string s = t;
+    const auto nl = s.find('\n');
+    if (nl != std::string::npos && s.substr(0, nl).find(", line ") != std::string::npos) s.erase(0, nl + 1);
+    while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
+    message = s.empty() ? std::string(t) : s;
+  }
+};
+
+/// Installs a TextCatcher as VTK's output window for its lifetime.
+struct CatchVtkText {
+  CatchVtkText() : old(vtkOutputWindow::GetInstance()) { vtkOutputWindow::SetInstance(window); }
+  ~CatchVtkText() { vtkOutputWindow::SetInstance(old); }
+  CatchVtkText(const CatchVtkText&) = delete;
+  CatchVtkText& operator=(const CatchVtkText&) = delete;
+  vtkNew<TextCatcher> window;
+  vtkSmartPointer<vtkOutputWindow> old;
+};
+
 /// The first bytes of a file, to read the encoding VTK does not report.
 std::string head_of(const fs::path& p, std::size_t bytes) {
   std::ifstream in(p, std::ios::binary);
@@ -76,11 +111,12 @@ void check_count(const std::string& head, const std::string& key, std::size_t by
   }
 }
 
-/// The values an uncompressed .vtu's cell "types" arrays hold in the file (summed over its pieces),
-/// read from the array's own length (ASCII tokens, or the byte count in a binary or appended
-/// block's header); empty where that cannot be told (a compressor, an unknown layout). VTK reads
-/// only NumberOfCells of them, and a file whose arrays hold more lost the cells past it.
-std::optional<std::uint64_t> types_in_file(const std::string& t, bool uint64_headers) {
+/// The values a .vtu's cell "types" arrays hold in the file (summed over its pieces), read from the
+/// array's own length: ASCII tokens, or the byte count in a binary or appended block's header (for a
+/// compressed block, its uncompressed size: (blocks - 1) x block size + the last block's size, as
+/// vtkXMLDataParser reads it); empty where that cannot be told (an unknown layout). VTK reads only
+/// NumberOfCells of them, and a file whose arrays hold more lost the cells past it.
+std::optional<std::uint64_t> types_in_file(const std::string& t, bool uint64_headers, bool compressed) {
   const auto attr = [](const std::string& tag, const std::string& key) -> std::string {
     const auto at = tag.find(" " + key + "=\"");
     if (at == std::string::npos) return {};
@@ -106,10 +142,20 @@ std::optional<std::uint64_t> types_in_file(const std::string& t, bool uint64_hea
     }
     return out.size() == bytes;
   };
-  const auto count_of = [&](const std::string& bytes) {
+  const auto word = [&](const std::string& bytes, std::size_t i) {
     std::uint64_t n = 0;
-    for (std::size_t k = 0; k < bytes.size(); ++k) n |= std::uint64_t(static_cast<unsigned char>(bytes[k])) << (8 * k);
+    for (std::size_t k = 0; k < header; ++k)
+      n |= std::uint64_t(static_cast<unsigned char>(bytes[i * header + k])) << (8 * k);
     return n;
+  };
+  // The data's size in bytes from a block header: one word, or [blocks, block size, last size, ...].
+  const std::size_t header_bytes = compressed ? 3 * header : header;
+  const auto count_of = [&](const std::string& bytes) -> std::optional<std::uint64_t> {
+    if (!compressed) return word(bytes, 0);
+    const std::uint64_t blocks = word(bytes, 0), size = word(bytes, 1), last = word(bytes, 2);
+    if (blocks == 0) return 0;
+    if (size > (std::uint64_t(1) << 40) || blocks > (std::uint64_t(1) << 20) || last > size) return std::nullopt;
+    return (blocks - 1) * size + (last == 0 ? size : last);
   };
   std::uint64_t total = 0;
   bool any = false;
@@ -135,8 +181,10 @@ std::optional<std::uint64_t> types_in_file(const std::string& t, bool uint64_hea
       }
     } else if (format == "binary") {
       std::string h;
-      if (!decode(t, close + 1, header, h)) return std::nullopt;
-      values = count_of(h) / width;
+      if (!decode(t, close + 1, header_bytes, h)) return std::nullopt;
+      const auto bytes = count_of(h);
+      if (!bytes) return std::nullopt;
+      values = *bytes / width;
     } else if (format == "appended") {
       const auto data = t.find("<AppendedData");
       if (data == std::string::npos) return std::nullopt;
@@ -148,12 +196,14 @@ std::optional<std::uint64_t> types_in_file(const std::string& t, bool uint64_hea
       if (std::from_chars(off.data(), off.data() + off.size(), offset).ec != std::errc()) return std::nullopt;
       std::string h;
       if (encoding == "raw") {
-        if (mark + 1 + offset + header > t.size()) return std::nullopt;
-        h = t.substr(mark + 1 + offset, header);
-      } else if (!decode(t, mark + 1 + offset, header, h)) {
+        if (offset > t.size() || mark + 1 + offset + header_bytes > t.size()) return std::nullopt;
+        h = t.substr(mark + 1 + offset, header_bytes);
+      } else if (!decode(t, mark + 1 + offset, header_bytes, h)) {
         return std::nullopt;
       }
-      values = count_of(h) / width;
+      const auto bytes = count_of(h);
+      if (!bytes) return std::nullopt;
+      values = *bytes / width;
     } else {
       return std::nullopt;
     }
@@ -258,14 +308,12 @@ class VtkFile final : public VolumeFile {
                         std::to_string(grid_->GetNumberOfCells()) + " (truncated or corrupt)");
       // A NumberOfCells below what the cell arrays hold: VTK reads the stated count, and the cells
       // past it would be gone from the output.
-      if (compressor_.empty()) {
-        const auto types =
-            types_in_file(io::read_input(path, "a VTK unstructured grid", o.max_file_bytes), uint64_headers_);
-        if (types && *types != std::uint64_t(grid_->GetNumberOfCells()))
-          throw FileError(path.string() + ": NumberOfCells says " + std::to_string(grid_->GetNumberOfCells()) +
-                          " cells, but its cell types array holds " + std::to_string(*types) +
-                          " (cells would be lost; a count that lies)");
-      }
+      const auto types = types_in_file(io::read_input(path, "a VTK unstructured grid", o.max_file_bytes),
+                                       uint64_headers_, !compressor_.empty());
+      if (types && *types != std::uint64_t(grid_->GetNumberOfCells()))
+        throw FileError(path.string() + ": NumberOfCells says " + std::to_string(grid_->GetNumberOfCells()) +
+                        " cells, but its cell types array holds " + std::to_string(*types) +
+                        " (cells would be lost; a count that lies)");
     }
     fill_mesh(o);
   }
@@ -308,6 +356,7 @@ class VtkFile final : public VolumeFile {
   /// The grid as VTK's reader gives it; VTK's errors are thrown (in the reading child).
   static vtkSmartPointer<vtkUnstructuredGrid> read_grid(const fs::path& path, bool xml) {
     vtkNew<ErrorCatcher> errors;
+    CatchVtkText text;
     vtkSmartPointer<vtkUnstructuredGrid> grid;
     if (xml) {
       vtkNew<vtkXMLUnstructuredGridReader> reader;
@@ -332,6 +381,7 @@ class VtkFile final : public VolumeFile {
       grid = reader->GetOutput();
     }
     if (!errors->message.empty()) throw std::runtime_error(first_line(errors->message));
+    if (!text.window->message.empty()) throw std::runtime_error(first_line(text.window->message));
     return grid;
   }
 

@@ -225,6 +225,10 @@ bool MovieWriter::finish() {
       fail(std::string(e.what()).substr(out_.string().size() + 2));
     }
     if (fs::exists(out_, ec)) {
+      if (io::registered_new(out_))
+        fail(
+            "it was made by another program while the frames were rendered (csrbf writes a new folder, and never "
+            "replaces it)");
       // Move the old frames aside under a partial's name (so that even a crash now leaves nothing
       // that the next run would not remove), then the new folder in, then drop the old frames.
       std::unique_ptr<io::Partial> old;
@@ -246,9 +250,11 @@ bool MovieWriter::finish() {
       partial_->release();
       old.reset();  // removes the earlier frames (regular files) and their folder
     } else {
-      fs::rename(partial_->path(), out_, ec);
-      if (ec) fail("cannot move the frames into place: " + ec.message());
-      partial_->release();
+      try {
+        partial_->commit_new(out_);  // a folder made there since the start is never replaced
+      } catch (const io::FileError& e) {
+        fail(e.what());
+      }
     }
   } else {
     if (fs::file_size(partial_->path(), ec) == 0 || ec) fail("ffmpeg wrote an empty file" + why);

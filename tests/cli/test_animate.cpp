@@ -211,28 +211,38 @@ TEST(Animate, AFullDiskLeavesNothing) {
   EXPECT_EQ(entries(dir.path), 1u);
 }
 
-TEST(Animate, CtrlCStopsCleanly) {
-  TempDir dir;
-  const fs::path out = dir / "fish.mp4", log = dir.path.parent_path() / (dir.path.filename().string() + ".log");
-  // The whole 8 s fish at 640x480 takes seconds: interrupt it once frames are flowing.
+namespace {
+/// csrbf animate SCENE -o OUT started in the background, its output going to log; returns its pid
+/// once it prints its first frame (0 when it never does within 60 s).
+pid_t start_animate(const std::string& scene, const fs::path& out, const fs::path& log) {
   posix_spawn_file_actions_t fa;
   posix_spawn_file_actions_init(&fa);
   posix_spawn_file_actions_addopen(&fa, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
   posix_spawn_file_actions_adddup2(&fa, 1, 2);
-  const std::string scene = kExamples + "fish.scene.json";
   std::vector<std::string> args{kCli, "animate", scene, "-o", out.string()};
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
   pid_t pid = 0;
-  ASSERT_EQ(posix_spawn(&pid, kCli.c_str(), &fa, nullptr, argv.data(), environ), 0);
+  const int rc = posix_spawn(&pid, kCli.c_str(), &fa, nullptr, argv.data(), environ);
   posix_spawn_file_actions_destroy(&fa);
-  bool started = false;
-  for (int i = 0; i < 600 && !started; ++i) {  // up to 60 s for the first progress line
+  if (rc != 0) return 0;
+  for (int i = 0; i < 600; ++i) {  // up to 60 s for the first progress line
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
-    started = read_text(log).find("frame ") != std::string::npos;
+    if (read_text(log).find("frame ") != std::string::npos) return pid;
   }
-  ASSERT_TRUE(started) << read_text(log);
+  kill(pid, SIGKILL);
+  waitpid(pid, nullptr, 0);
+  return 0;
+}
+}  // namespace
+
+TEST(Animate, CtrlCStopsCleanly) {
+  TempDir dir;
+  const fs::path out = dir / "fish.mp4", log = dir.path.parent_path() / (dir.path.filename().string() + ".log");
+  // The whole 8 s fish at 640x480 takes seconds: interrupt it once frames are flowing.
+  const pid_t pid = start_animate(kExamples + "fish.scene.json", out, log);
+  ASSERT_NE(pid, 0) << read_text(log);
   kill(pid, SIGINT);
   int status = 0;
   waitpid(pid, &status, 0);
@@ -243,4 +253,30 @@ TEST(Animate, CtrlCStopsCleanly) {
   EXPECT_NE(text.find("interrupted"), std::string::npos) << text;
   EXPECT_FALSE(fs::exists(out));
   EXPECT_EQ(entries(dir.path), 0u) << "a partial movie was left behind";
+}
+
+TEST(Animate, AMovieMadeMeanwhileIsNeverReplaced) {
+  // The output did not exist when animate started; another program makes it while frames render:
+  // animate fails naming it, and the other program's movie (or frame folder) is kept.
+  for (const std::string name : {"fish.mp4", "frames"}) {
+    TempDir dir;
+    const fs::path out = dir / name, log = dir.path.parent_path() / (dir.path.filename().string() + ".log");
+    const pid_t pid = start_animate(kExamples + "fish.scene.json", out, log);
+    ASSERT_NE(pid, 0) << read_text(log);
+    const fs::path theirs = name == "frames" ? out / "frame_00000.png" : out;
+    if (name == "frames") fs::create_directory(out);
+    write_text(theirs, "theirs");
+    int status = 0;
+    waitpid(pid, &status, 0);
+    const std::string text = read_text(log);
+    fs::remove(log);
+    ASSERT_TRUE(WIFEXITED(status)) << text;
+    EXPECT_EQ(WEXITSTATUS(status), 1) << name << ": " << text;
+    EXPECT_NE(text.find(out.string()), std::string::npos) << text;
+    EXPECT_TRUE(text.find("it exists") != std::string::npos || text.find("another program") != std::string::npos)
+        << text;
+    EXPECT_EQ(read_text(theirs), "theirs") << name;
+    EXPECT_EQ(entries(dir.path), 1u) << name << ": a partial was left behind";
+    if (name == "frames") EXPECT_EQ(entries(out), 1u);
+  }
 }

@@ -659,9 +659,11 @@ TEST(Hostile, VtkFilesThatCrashOrLoseCellsAreErrors) {
 TEST(Hostile, AVtuThatStatesFewerCellsThanItHoldsIsAnError) {
   TempDir dir;
   const auto vtu = [](int cells, const std::string& types) {
+    const bool zlib = types.find("eJz") != std::string::npos;
     return "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" "
-           "header_type=\"UInt64\">\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"5\" NumberOfCells=\"" +
-           std::to_string(cells) +
+           "header_type=\"UInt64\"" +
+           std::string(zlib ? " compressor=\"vtkZLibDataCompressor\"" : "") +
+           ">\n<UnstructuredGrid>\n<Piece NumberOfPoints=\"5\" NumberOfCells=\"" + std::to_string(cells) +
            "\">\n<Points>\n<DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">0 0 0 1 0 0 0 1 0 0 "
            "0 1 0 0 -1</DataArray>\n</Points>\n<Cells>\n<DataArray type=\"Int64\" Name=\"connectivity\" "
            "format=\"ascii\">0 1 2 3 0 2 1 4</DataArray>\n<DataArray type=\"Int64\" Name=\"offsets\" "
@@ -670,13 +672,37 @@ TEST(Hostile, AVtuThatStatesFewerCellsThanItHoldsIsAnError) {
   };
   const std::string ascii = "<DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">10 10</DataArray>";
   const std::string binary = "<DataArray type=\"UInt8\" Name=\"types\" format=\"binary\">AgAAAAAAAAA=Cgo=</DataArray>";
-  for (const auto& types : {ascii, binary}) {
+  // zlib: one block of 2 bytes, the header [1, 2, 2, 10] then the compressed bytes, each in base64.
+  const std::string zlib =
+      "<DataArray type=\"UInt8\" Name=\"types\" format=\"binary\">"
+      "AQAAAAAAAAACAAAAAAAAAAIAAAAAAAAACgAAAAAAAAA=eJzj4gIAACAAFQ==</DataArray>";
+  for (const auto& types : {ascii, binary, zlib}) {
     csrbf::test::write_text(dir / "good.vtu", vtu(2, types));
     const auto good = open_volume(dir / "good.vtu");
     EXPECT_EQ(good->mesh().cells.type.size(), 2u);
     csrbf::test::write_text(dir / "lies.vtu", vtu(1, types));
     const std::string e = error_of([&] { open_volume(dir / "lies.vtu"); });
     EXPECT_NE(e.find("lies.vtu: NumberOfCells says 1 cells, but its cell types array holds 2"), std::string::npos) << e;
+  }
+}
+
+// Issue 30: a legacy .vtk whose data array is cut short was read with its missing values
+// uninitialised (VTK warns to its output window and goes on), and written out as if read.
+TEST(Hostile, ALegacyVtkDataArrayCutShortIsAnError) {
+  TempDir dir;
+  const std::string grid =
+      "# vtk DataFile Version 4.2\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 double\n0 0 0 1 0 0 0 1 0 0 0 1 0 0 "
+      "-1\nCELLS 2 10\n4 0 1 2 3\n4 0 2 1 4\nCELL_TYPES 2\n10\n10\n";
+  const std::string whole = "POINT_DATA 5\nSCALARS s float 1\nLOOKUP_TABLE default\n1 2 3 4 5\n";
+  csrbf::test::write_text(dir / "good.vtk", grid + whole);
+  EXPECT_EQ(open_volume(dir / "good.vtk")->mesh().points.size(), 5u);
+  for (const std::string& data : {std::string("POINT_DATA 5\nSCALARS s float 1\nLOOKUP_TABLE default\n1 2 3\n"),
+                                  std::string("CELL_DATA 2\nSCALARS c int 1\nLOOKUP_TABLE default\n7\n"),
+                                  std::string("POINT_DATA 5\nVECTORS v double\n1 2 3 4 5 6\n")}) {
+    csrbf::test::write_text(dir / "short.vtk", grid + data);
+    const std::string e = error_of([&] { open_volume(dir / "short.vtk"); });
+    EXPECT_NE(e.find("short.vtk"), std::string::npos) << data << e;
+    EXPECT_NE(e.find("Error reading ascii data"), std::string::npos) << data << e;
   }
 }
 
