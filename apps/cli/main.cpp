@@ -8,6 +8,7 @@
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/inputs.hpp"
+#include "csrbf/io/memory.hpp"
 #include "csrbf/io/mesh.hpp"
 #include "csrbf/errors.hpp"
 #include "csrbf/folds.hpp"
@@ -56,6 +57,14 @@ std::vector<std::filesystem::path> deform_inputs(const FitArgs& a, const std::st
 CLI::Validator positive_finite(const char* what) {
   // The radius is limited as SpaceMap::fit limits it, so that a bad value is a usage error (2).
   return finite_in(1e-150, 1e150, what);
+}
+
+/// --time-limit SECONDS: a command still running then ends with exit 1 and writes nothing.
+void add_time_limit(CLI::App* cmd, double& seconds) {
+  cmd->add_option("--time-limit", seconds,
+                  "End with exit 1, writing nothing, if the command has not finished after this many seconds of "
+                  "wall time (e.g. for a radius whose fit is too slow)")
+      ->check(finite_in(1e-3, 1e6, "--time-limit"));
 }
 
 void add_fit_options(CLI::App* cmd, FitArgs& a) {
@@ -142,7 +151,10 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
   }
   for (const auto& w : controls.warnings) std::cerr << "csrbf: warning: " << csrbf::printable(w) << '\n';
   o.ordering = *csrbf::parse_ordering(a.ordering);
-  o.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
+  // --memory-limit bounds the whole process: the fit gets what the program, the mesh and the
+  // controls leave of it.
+  o.memory_limit_bytes = distributed ? a.memory_limit_gib * double(1ull << 30)
+                                     : csrbf::io::memory_left(a.memory_limit_gib * double(1ull << 30));
   o.solver = distributed && a.solver == "mumps" ? csrbf::Solver::Auto : csrbf::cli::serial_solver(a.solver);
   if (o.ordering != csrbf::Ordering::Auto && (o.solver == csrbf::Solver::Eigen || o.solver == csrbf::Solver::Cholmod))
     throw csrbf::cli::UsageError("--ordering " + a.ordering + ": solver '" + a.solver +
@@ -172,7 +184,10 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
         where(e.row()) + ": the interpolation matrix is not numerically positive definite at this control (pivot " +
         csrbf::io::format_number(e.pivot()) + "); sources too close together for R = " +
         csrbf::io::format_number(o.radius) + ": merge or separate them, or use a smaller radius");
-  } catch (const csrbf::Error& e) {  // bad input, or the memory limit
+  } catch (const csrbf::ResourceLimit& e) {
+    throw csrbf::io::FileError(controls.name + ": " + e.what() +
+                               csrbf::io::memory_share(a.memory_limit_gib * double(1ull << 30), o.memory_limit_bytes));
+  } catch (const csrbf::Error& e) {  // bad input
     throw csrbf::io::FileError(controls.name + ": " + e.what());
   }
 }
@@ -388,6 +403,8 @@ int main(int argc, char** argv) {
 
   csrbf::cli::MorphArgs morph_args;
   auto* morph = csrbf::cli::add_morph_command(app, morph_args);
+  double time_limit = 0;
+  for (CLI::App* cmd : {deform, info, morph}) add_time_limit(cmd, time_limit);
 
 #ifdef CSRBF_WITH_MPI
   // Under mpirun with more than one rank: MPI starts first; every rank parses, rank 0 alone speaks,
@@ -415,6 +432,7 @@ int main(int argc, char** argv) {
     }
     return leave(code == 0 ? 0 : 2);
   }
+  csrbf::io::limit_time(time_limit, !quiet);
 #ifdef CSRBF_WITH_MPI
   if (rt) {
     if (!*deform && !*morph) {

@@ -130,6 +130,7 @@ struct FitPhases {
     auto t0 = Clock::now();
     if (n > kBruteForceGraph) {
       const FitMemoryEstimate m = estimate_fit_memory(sources, options.radius);
+      st.fit_bytes = m.bytes;  // the evaluation grid gets what is left of the limit
       if (m.bytes > options.memory_limit_bytes) {
         std::ostringstream os;
         os.precision(3);

@@ -23,8 +23,9 @@
 
 namespace csrbf {
 
-// The most memory the evaluation lists of one fit may take (evaluator.hpp); past it, evaluation goes
-// through NeighborIndex.
+// The most memory the evaluation lists of one fit may take (evaluator.hpp), and never more than
+// what the fit's own predicted memory leaves of FitOptions::memory_limit_bytes; past it, evaluation
+// goes through NeighborIndex.
 inline constexpr std::size_t kEvalListBytes = std::size_t(512) << 20;
 
 // Everything that depends on the sources only: shared by every map made with with_destinations().
@@ -44,9 +45,12 @@ struct SpaceMap::Structure {
   mutable std::once_flag grid_once;
   mutable detail::EvalGrid grid_;
   int max_subdivision = detail::EvalGrid::kMaxSubdivision;  // from_solution: 1 for a map evaluated over few points
+  double fit_bytes = 0;  // the fit's predicted memory (graph, matrix, factor), set before the grid is built
   const detail::EvalGrid& grid() const {
     std::call_once(grid_once, [this] {
-      grid_ = detail::EvalGrid::build(sources, options.radius, kEvalListBytes, max_subdivision);
+      const double left = options.memory_limit_bytes - fit_bytes;
+      const std::size_t budget = left >= double(kEvalListBytes) ? kEvalListBytes : left > 0 ? std::size_t(left) : 0;
+      grid_ = detail::EvalGrid::build(sources, options.radius, budget, max_subdivision);
     });
     return grid_;
   }

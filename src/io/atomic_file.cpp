@@ -20,6 +20,7 @@
 #include <random>
 #include <sys/file.h>
 #include <sys/stat.h>
+#include <sys/time.h>
 #include <sys/xattr.h>
 #include <system_error>
 #include <unistd.h>
@@ -144,6 +145,40 @@ void cancel_writes() noexcept {
   unlink_partials();
 }
 
+namespace {
+char g_time_message[160];
+std::size_t g_time_message_size = 0;
+extern "C" void time_is_up(int) {
+  unlink_partials();
+  if (g_time_message_size) {
+    const ssize_t written = ::write(2, g_time_message, g_time_message_size);
+    (void)written;  // nothing more can be done about a closed stderr
+  }
+  ::_exit(1);
+}
+}  // namespace
+
+void limit_time(double seconds, bool speak) noexcept {
+  if (!(seconds > 0) || seconds > 1e6) return;
+  const int n =
+      std::snprintf(g_time_message, sizeof g_time_message,
+                    "csrbf: error: the time limit of %g s (--time-limit) was reached; nothing was written\n", seconds);
+  g_time_message_size = speak && n > 0 ? std::min(std::size_t(n), sizeof g_time_message - 1) : 0;
+  struct sigaction sa {};
+  sa.sa_handler = time_is_up;
+  sigemptyset(&sa.sa_mask);
+  ::sigaction(SIGALRM, &sa, nullptr);
+  sigset_t alarm;
+  sigemptyset(&alarm);
+  sigaddset(&alarm, SIGALRM);
+  ::pthread_sigmask(SIG_UNBLOCK, &alarm, nullptr);
+  itimerval t{};
+  t.it_value.tv_sec = time_t(seconds);
+  t.it_value.tv_usec = suseconds_t((seconds - double(time_t(seconds))) * 1e6);
+  if (t.it_value.tv_sec == 0 && t.it_value.tv_usec == 0) t.it_value.tv_usec = 1;
+  ::setitimer(ITIMER_REAL, &t, nullptr);
+}
+
 void remove_partials_on_signals() noexcept {
   struct sigaction sa {};
   sa.sa_handler = remove_partials_and_die;
@@ -266,6 +301,8 @@ void Partial::release() noexcept {
 }
 
 void Partial::commit(const fs::path& target) {
+  // A target that was new when the command started is never replaced, whoever made it since.
+  if (registered_new(target)) return commit_new(target);
   check_not_cancelled(target);
   check_output_path(target);  // again: the target may have changed while we wrote
   keep_mode(target, path_);   // a replaced file keeps its permissions
@@ -329,13 +366,6 @@ fs::path normal(const fs::path& p) {
   return (ec ? p : a).lexically_normal();
 }
 
-/// Whether target was new when its command started (must_be_new), so that it is never replaced.
-bool registered_new(const fs::path& target) {
-  const fs::path t = normal(target);
-  std::lock_guard lock(g_new_mutex);
-  return std::find(g_new_outputs.begin(), g_new_outputs.end(), t) != g_new_outputs.end();
-}
-
 /// The names in folder that must_be_new registered.
 std::vector<fs::path> registered_new_in(const fs::path& folder) {
   const fs::path f = normal(folder / "x").parent_path();
@@ -346,6 +376,12 @@ std::vector<fs::path> registered_new_in(const fs::path& folder) {
   return names;
 }
 }  // namespace
+
+bool registered_new(const fs::path& target) {
+  const fs::path t = normal(target);
+  std::lock_guard lock(g_new_mutex);
+  return std::find(g_new_outputs.begin(), g_new_outputs.end(), t) != g_new_outputs.end();
+}
 
 void must_be_new(const fs::path& target) {
   if (exists_no_follow(target)) return;

@@ -1,6 +1,7 @@
 #include "csrbf/morph/job.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
+#include "csrbf/io/memory.hpp"
 
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/error.hpp"
@@ -236,6 +237,8 @@ MorphOutcome run_job(const MorphJob& job) {
     o.cells = o.before.poly->cells;  // every part's (combine)
   if (o.cells == 0) throw io::FileError(o.mesh + ": no cells (truncated, or not a volume mesh)");
   o.ms_quality = ms_since(t_q);
+  // --memory-limit bounds the whole process: the fit gets what the program and the mesh leave of it.
+  o.options.fit.memory_limit_bytes = io::memory_left(job.memory_limit_bytes);
   try {
     o.result = morph(mesh, motion, opt, &b);
   } catch (const DuplicateSource& e) {
@@ -243,6 +246,9 @@ MorphOutcome run_job(const MorphJob& job) {
                         std::to_string(e.first()) + " and " + std::to_string(e.second()) + "): " + e.what());
   } catch (const io::FileError&) {
     throw;
+  } catch (const ResourceLimit& e) {
+    throw io::FileError(o.mesh + ": " + e.what() +
+                        io::memory_share(job.memory_limit_bytes, o.options.fit.memory_limit_bytes));
   } catch (const Error& e) {
     throw io::FileError(o.mesh + ": " + e.what());
   }

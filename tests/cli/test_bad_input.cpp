@@ -108,7 +108,7 @@ TEST(BadInput, CommandLine) {
       {"unknown kernel", deform + "{dir}/ok.controls --kernel c3", "c3", 2},
       {"phase NaN", deform + "{dir}/ok.controls --phase nan", "--phase", 2},
       {"linear polynomial on a plane", deform + "{dir}/planar.controls --polynomial linear", "coplanar", 1},
-      {"dense beyond the memory limit", "info --controls {dir}/many.controls --radius 100 --memory-limit 0.05",
+      {"dense beyond the memory limit", "info --controls {dir}/many.controls --radius 100 --memory-limit 0.1",
        "GiB for its neighbour graph", 1},
       // Outputs.
       {"output folder missing",

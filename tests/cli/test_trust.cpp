@@ -10,6 +10,7 @@
 #include <sys/xattr.h>
 #include <unistd.h>
 
+#include <chrono>
 #include <cstdlib>
 #include <random>
 #include <thread>
@@ -265,4 +266,40 @@ TEST(Trust, EveryCommandEndsUnderAnAddressSpaceLimit) {
   EXPECT_TRUE(fs::exists(dir / "f.glb"));
   for (const auto& e : fs::directory_iterator(dir.path))
     EXPECT_EQ(e.path().filename().string().find(".csrbf-partial-"), std::string::npos) << e.path();
+}
+
+// Issue 30, point 12: --time-limit ends a fit that cannot be asked to stop (Eigen's factorisation of
+// a dense matrix: 8000 controls, R = half the cube, minutes here), with exit 1 and nothing written.
+TEST(Trust, ATimeLimitEndsASlowFitAndWritesNothing) {
+  TempDir dir;
+  const std::string d = dir.path.string();
+  std::mt19937 rng(30);
+  std::uniform_real_distribution<double> u(0, 1);
+  std::string controls;
+  for (int i = 0; i < 8000; ++i) {
+    const double x = u(rng), y = u(rng), z = u(rng);
+    controls += std::to_string(x) + " " + std::to_string(y) + " " + std::to_string(z) + " " + std::to_string(x) + " " +
+                std::to_string(y) + " " + std::to_string(z + 0.01 * u(rng)) + "\n";
+  }
+  write_text(dir / "big.controls", controls);
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto r = run_shell(kCli + " deform --mesh " + kFish + " --controls " + d +
+                           "/big.controls --radius 0.5 --solver eigen --time-limit 1 -o " + d + "/out.obj");
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_EQ(r.code, 1) << r.out;
+  EXPECT_NE(r.out.find("the time limit of 1 s (--time-limit) was reached; nothing was written"), std::string::npos)
+      << r.out;
+  EXPECT_LT(seconds, 20.0);  // the limit, start-up and the controls' parse; not the fit
+  EXPECT_FALSE(fs::exists(dir / "out.obj"));
+  std::size_t entries = 0;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path)) ++entries;
+  EXPECT_EQ(entries, 1u) << "a partial was left";
+  // Within the limit, the same command with a small radius finishes as before.
+  const auto ok = run_shell(kCli + " deform --mesh " + kFish + " --controls " + d +
+                            "/big.controls --radius 0.05 --time-limit 600 -o " + d + "/out.obj");
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_TRUE(fs::exists(dir / "out.obj"));
+  // A limit that is no number of seconds is a usage error.
+  for (const std::string bad : {"0", "-1", "nan", "1e7"})
+    EXPECT_EQ(run_shell(kCli + " morph x --motion y -o z --time-limit " + bad).code, 2) << bad;
 }

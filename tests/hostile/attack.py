@@ -2,7 +2,10 @@
 deformation and scene JSON, OBJ, PLY, OFF, legacy VTK, Gmsh, motion JSON) and of its options, each
 run through the program with a time limit. Every case must end (no hang) with exit 0, 1 or 2, never
 die of a signal, print no raw control character, leave no partial file and no output that is an
-input, and change no input.
+input, and change no input. Every deform and morph runs under a --memory-limit (0.25, 1 or the
+default 4 GiB, unless the case sets its own), and its peak resident memory, csrbf's or any reading
+child's, measured by wait4, stays within the limit plus 10 % (limits below 0.25 GiB, smaller than the
+program itself with its libraries, are not measured).
 
     CSRBF_CLI=build/bin/csrbf CSRBF_SOURCE_DIR=. /usr/bin/python3 tests/hostile/attack.py [CASES] [SEED]
 
@@ -10,12 +13,14 @@ CTest runs 250 cases; `attack.py 2000` runs the full set (about five minutes on 
 """
 import hashlib
 import json
+import math
 import os
 import random
 import shutil
 import subprocess
 import sys
 import tempfile
+import time
 
 CLI = os.environ.get("CSRBF_CLI", "csrbf")
 SOURCE = os.environ.get("CSRBF_SOURCE_DIR", os.path.join(os.path.dirname(__file__), "..", ".."))
@@ -95,9 +100,43 @@ def ply():
             "element face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
 
 
+def run_case(argv, env, d, timeout):
+    """Runs csrbf with argv; returns (exit code, output, peak RSS in KiB), or None when it hung."""
+    log = os.path.join(d, ".log")
+    with open(log, "wb") as out:
+        p = subprocess.Popen([CLI] + argv, env=env, stdout=out, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+    deadline = time.monotonic() + timeout
+    while True:
+        pid, status, usage = os.wait4(p.pid, os.WNOHANG)
+        if pid:
+            break
+        if time.monotonic() > deadline:
+            p.kill()
+            os.wait4(p.pid, 0)
+            os.remove(log)
+            return None
+        time.sleep(0.01)
+    p.returncode = os.waitstatus_to_exitcode(status)
+    with open(log, "rb") as f:
+        text = f.read()
+    os.remove(log)
+    return p.returncode, text, usage.ru_maxrss
+
+
+def memory_limit_gib(argv):
+    """The --memory-limit a case runs under (GiB), or None when it is not a number CLI11 takes."""
+    if "--memory-limit" not in argv:
+        return 4.0
+    try:
+        v = float(argv[argv.index("--memory-limit") + 1])
+    except (ValueError, IndexError):
+        return None
+    return v if math.isfinite(v) and v > 0 else None
+
+
 def make_case(rng, d, k):
     """Writes the inputs of case k into d; returns (argv after csrbf, the inputs)."""
-    kind = k % 9
+    kind = k % 10
     with open(os.path.join(EX, "fish.controls")) as f:
         controls = f.read()
     with open(os.path.join(EX, "fish.obj")) as f:
@@ -164,6 +203,17 @@ def make_case(rng, d, k):
         rng.shuffle(opts)
         return ["deform", "--mesh", os.path.join(EX, "fish.obj"), "--controls", os.path.join(EX, "fish.controls"),
                 "-o", out] + opts[: rng.randint(2, len(opts))], []
+    if kind == 9:  # a fit too large for its limits: refused, or ended by --time-limit, or done within them
+        n = rng.choice([2000, 8000, 20000])
+        p = os.path.join(d, "big.controls")
+        with open(p, "w") as f:
+            for _ in range(n):
+                x, y, z = rng.random(), rng.random(), rng.random()
+                f.write("%.6f %.6f %.6f %.6f %.6f %.6f\n" % (x, y, z, x, y, z + 0.01 * rng.random()))
+        return ["deform", "--mesh", os.path.join(EX, "fish.obj"), "--controls", p, "--radius",
+                rng.choice(["0.05", "0.2", "0.5", "3"]), "--solver", rng.choice(["auto", "cholmod", "eigen", "envelope",
+                                                                                  "cg"]),
+                "--memory-limit", rng.choice(["0.25", "0.5", "1"]), "--time-limit", "20", "-o", out], [p]
     # kind 8: an output that is an input, by name or link
     shutil.copy(os.path.join(EX, "fish.obj"), os.path.join(d, "in.obj"))
     shutil.copy(os.path.join(EX, "fish.controls"), os.path.join(d, "in.controls"))
@@ -186,23 +236,30 @@ def main():
     env.pop("DISPLAY", None)
     env["CSRBF_PIPE_TIMEOUT"] = "5"
     failures = []
+    peaks = []
     for k in range(cases):
         d = tempfile.mkdtemp(prefix="csrbf-attack-")
         try:
             argv, inputs = make_case(rng, d, k)
+            if argv[0] in ("deform", "morph") and "--memory-limit" not in argv:
+                argv += ["--memory-limit", rng.choice(["0.25", "1", "4"])]
             before = {p: digest(p) for p in inputs if os.path.isfile(p)}
-            try:
-                r = subprocess.run([CLI] + argv, env=env, capture_output=True, timeout=120)
-            except subprocess.TimeoutExpired:
+            ran = run_case(argv, env, d, 120)
+            if ran is None:
                 failures.append((k, argv, "hung (120 s)"))
                 continue
-            text = r.stdout + r.stderr
+            code, text, peak_kib = ran
             problems = []
-            if r.returncode not in (0, 1, 2):
-                problems.append("exit %d" % r.returncode)
+            if code not in (0, 1, 2):
+                problems.append("exit %d" % code)
+            limit = memory_limit_gib(argv)
+            if argv[0] in ("deform", "morph") and limit is not None and limit >= 0.25 and \
+                    peak_kib > 1.1 * limit * 1024 * 1024:
+                problems.append("peak memory %.0f MiB over the %g GiB limit" % (peak_kib / 1024, limit))
+            peaks.append(peak_kib)
             if any(b < 0x20 and b not in (0x0a, 0x09) or b == 0x7f for b in text):
                 problems.append("a raw control character in the output")
-            if r.returncode != 0 and b"csrbf: error: " not in text and b"csrbf: " not in text and r.returncode != 2:
+            if code != 0 and b"csrbf: error: " not in text and b"csrbf: " not in text and code != 2:
                 problems.append("a failure without a message")
             for p, h in before.items():
                 if not os.path.isfile(p) or digest(p) != h:
@@ -216,7 +273,8 @@ def main():
             shutil.rmtree(d, ignore_errors=True)
     for k, argv, why in failures:
         print("case %d: csrbf %s\n  %s" % (k, " ".join(repr(a) for a in argv), why))
-    print("attack: %d cases (seed %d), %d failed" % (cases, seed, len(failures)))
+    print("attack: %d cases (seed %d), %d failed; peak memory of a case: largest %.0f MiB" %
+          (cases, seed, len(failures), max(peaks, default=0) / 1024))
     return 1 if failures else 0
 
 

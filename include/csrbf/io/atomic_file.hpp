@@ -33,6 +33,10 @@ void write_atomically(const std::filesystem::path& target, const std::function<v
 /// nothing when target exists now. Thread-safe.
 void must_be_new(const std::filesystem::path& target);
 
+/// Whether must_be_new registered target (it did not exist when the command started). Partial::commit
+/// of such a target never replaces it.
+bool registered_new(const std::filesystem::path& target);
+
 /// For writers that need a path of their own (and may write side files, like glTF's .bin): calls
 /// write(path) with path = a fresh partial folder / target's file name, then moves every file the
 /// writer made there into target's folder (each must be new there or replace a regular file). On
@@ -82,6 +86,13 @@ void remove_partials_on_signals() noexcept;
 /// by a signal"): for a signal that announces the end (mpirun's SIGCONT) while the process goes on
 /// for a moment. Async-signal-safe.
 void cancel_writes() noexcept;
+
+/// --time-limit: after seconds of wall time (from this call), SIGALRM removes this process's
+/// partial files, prints "csrbf: error: the time limit of S s (--time-limit) was reached; nothing
+/// was written" (when speak) and exits 1, whatever the process is doing (a factorisation cannot be
+/// asked to stop). Child processes die with it (they are started with PR_SET_PDEATHSIG). For
+/// programs, not libraries; seconds in (0, 1e6].
+void limit_time(double seconds, bool speak) noexcept;
 
 /// How long csrbf waits on a pipe that makes no progress (a FIFO nobody writes to, a child that
 /// stops reading) before failing: the environment variable CSRBF_PIPE_TIMEOUT (seconds, 1 to
