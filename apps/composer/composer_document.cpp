@@ -450,6 +450,21 @@ std::size_t Document::deformation_count(std::size_t o) const {
 }
 
 std::size_t Document::attach_deformation(std::size_t o, const fs::path& file) {
+  {
+    // A scene is the usual wrong pick here (both are .json): say what it is and where it goes,
+    // before the scene's check names a key it does not expect.
+    std::ifstream in(file, std::ios::binary);
+    std::string head(1 << 16, '\0');
+    in.read(head.data(), std::streamsize(head.size()));
+    head.resize(std::size_t(in.gcount()));
+    const Json peek = Json::parse(head, nullptr, false);
+    const bool scene = peek.is_object() ? peek.contains("objects") || peek.contains("camera")
+                                        : head.find("\"objects\"") != std::string::npos;
+    if (scene)
+      throw EditError(file.filename().string() +
+                      " is a scene, not a deformation. Attach a deformation file (controls and a radius, as the "
+                      "Picker saves them); open a scene with File > Open (Ctrl+O).");
+  }
   Json& obj = object(o);
   if (!obj.contains("parts") || obj["parts"].empty()) obj["parts"] = Json::array({Json{{"name", "deformed"}}});
   Json& part = obj["parts"][0];

@@ -74,6 +74,9 @@ void ComposerWindow::build_ui() {
   auto* messages = gui::make_message_box(dock, 96);
   error_ = gui::add_message(messages, "error", "#b03030");
   info_ = gui::add_message(messages, "info", "#9fd89f");
+  gui::add_tip(messages,
+               "Select an object, click the timeline at a time, place the object and press K for a key. Space "
+               "plays, Home frames all, F1 lists every key.");
   layout->addStretch(1);
   dock_scroll->setWidget(panel);
   dock_scroll->setMinimumWidth(panel->minimumWidth() + 24);

@@ -42,6 +42,7 @@ ComposerWindow::ComposerWindow(QWidget* parent) : QMainWindow(parent) {
   connect(&undo_, &QUndoStack::cleanChanged, this, [this](bool clean) { setWindowModified(!clean); });
   build_ui();
   build_menus();
+  gui::pass_letters_to_shortcuts(this);  // W, D, S work while a number box has focus
   statusBar()->showMessage(
       "Open a scene (Ctrl+O), or add an object (Ctrl+Shift+A)");  // made now: a message later never resizes the view
   timer_ = new QTimer(this);
@@ -358,6 +359,7 @@ bool ComposerWindow::edit(const QString& what, const std::function<void(Document
     show_error(what + ": " + e.what() + "\nThe scene is unchanged.");
     return false;
   }
+  statusBar()->clearMessage();  // "Opened ...: N objects" and the like no longer describe the scene
   undo_.push(new JsonCommand(this, before, doc_.json(), doc_.base(), what));
   return true;
 }
@@ -388,6 +390,9 @@ void ComposerWindow::show_error(const QString& m) {
 }
 
 void ComposerWindow::clear_error() {
+  // The status bar repeats an error's first line: it goes with the error, not 10 s later.
+  if (!error_->isHidden() && statusBar()->currentMessage() == error_->text().section('\n', 0, 0))
+    statusBar()->clearMessage();
   error_->clear();
   error_->hide();
 }
@@ -408,8 +413,11 @@ void ComposerWindow::play(bool on) {
     rate_frames_ = 0;
     last_tick_ = Clock::now();
     timer_->start(int(std::lround(1000.0 / doc_.fps())));
-  } else if (!on) {
+  } else if (!on && timer_->isActive()) {
     timer_->stop();
+    // Playing runs in real time, between frames: a pause stops on the nearest frame, where keys go
+    // and the time box can show it (else a key added now lands off the frame grid).
+    set_time(time_);
   }
   if (play_->isChecked() != on) play_->setChecked(on);
   play_->setText(on ? "Pause" : "Play");

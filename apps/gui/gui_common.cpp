@@ -3,7 +3,9 @@
 #include "csrbf/errors.hpp"
 #include "csrbf/io/atomic_file.hpp"
 
+#include <QAbstractSpinBox>
 #include <QAction>
+#include <QKeyEvent>
 #include <QStandardPaths>
 #include <QTimer>
 #include <QDialog>
@@ -161,7 +163,18 @@ QLabel* add_message(QScrollArea* box, const char* name, const char* background) 
       QString("QLabel { color: %1; background: %2; padding: 6px; border-radius: 4px; }").arg(text, background));
   l->hide();
   auto* layout = static_cast<QVBoxLayout*>(box->widget()->layout());
-  layout->insertWidget(layout->count() - 1, l);  // above the stretch
+  auto* tip = box->widget()->findChild<QLabel*>("tip");
+  layout->insertWidget(tip ? layout->indexOf(tip) : layout->count() - 1, l);  // above the tip and the stretch
+  return l;
+}
+
+QLabel* add_tip(QScrollArea* box, const QString& text) {
+  auto* l = new QLabel(text, box->widget());
+  l->setObjectName("tip");
+  l->setWordWrap(true);
+  l->setStyleSheet("QLabel { color: #707070; padding: 6px; }");
+  auto* layout = static_cast<QVBoxLayout*>(box->widget()->layout());
+  layout->insertWidget(layout->count() - 1, l);  // below the messages, above the stretch
   return l;
 }
 
@@ -227,8 +240,32 @@ QString NumberBox::textFromValue(double value) const { return QString::number(va
 
 void NumberBox::fixup(QString& text) const {
   bool ok = false;
-  const double v = text.trimmed().toDouble(&ok);
-  if (ok && std::isfinite(v)) text = textFromValue(std::clamp(v, minimum(), maximum()));
+  const QString typed = text.trimmed();
+  const double v = typed.toDouble(&ok);
+  text = textFromValue(value());  // unchanged: a number out of range is refused, never clamped
+  if (ok && std::isfinite(v) && refused)
+    refused(QString("%1 refused: %2 is %3 %4")
+                .arg(typed, what, v < minimum() ? "at least" : "at most",
+                     textFromValue(v < minimum() ? minimum() : maximum())));
+}
+
+namespace {
+/// Lets ShortcutOverride of letters other than E pass a number box unaccepted (pass_letters_to_shortcuts).
+class LetterPass : public QObject {
+ public:
+  using QObject::QObject;
+  bool eventFilter(QObject*, QEvent* e) override {
+    if (e->type() != QEvent::ShortcutOverride) return false;
+    const auto* k = static_cast<QKeyEvent*>(e);
+    const bool letter = k->key() >= Qt::Key_A && k->key() <= Qt::Key_Z && k->key() != Qt::Key_E;
+    return letter && (k->modifiers() & ~Qt::ShiftModifier) == Qt::NoModifier;
+  }
+};
+}  // namespace
+
+void pass_letters_to_shortcuts(QWidget* root) {
+  auto* filter = new LetterPass(root);
+  for (auto* box : root->findChildren<QAbstractSpinBox*>()) box->installEventFilter(filter);
 }
 
 QMessageBox::StandardButton ask_unsaved(QWidget* parent, const QString& what) {

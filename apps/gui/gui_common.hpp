@@ -83,6 +83,9 @@ QScrollArea* make_message_box(QWidget* parent, int height);
 /// A word-wrapped label in such a box, hidden until shown: black text on `background` ("#f0c040"),
 /// or white on red for the error box (name "error").
 QLabel* add_message(QScrollArea* box, const char* name, const char* background);
+/// A line of advice in grey at the foot of such a box (name "tip"), always shown, below the
+/// messages: an empty box read as a grey band to a new user.
+QLabel* add_tip(QScrollArea* box, const QString& text);
 /// Undo (Ctrl+Z) and redo (Ctrl+Shift+Z, Ctrl+Y) of a stack, added to a menu.
 void add_undo_actions(QMenu* menu, QUndoStack& stack, QWidget* owner);
 /// Renders the VTK view and saves the whole window as a PNG.
@@ -106,8 +109,17 @@ class NumberBox : public QDoubleSpinBox {
   QValidator::State validate(QString& text, int& pos) const override;
   double valueFromText(const QString& text) const override;
   QString textFromValue(double value) const override;
+  /// Text that is a number outside the range is refused, not clamped: the box keeps its value and
+  /// refused(message) is called (a program shows it), e.g. "0 refused: Radius R is at least 1e-09".
   void fixup(QString& text) const override;
+  QString what = "the value";  // its name in that message
+  std::function<void(const QString&)> refused;
 };
+
+/// Letters that are never part of a number (all but E) typed while a number box of root has focus
+/// go to the window's single-letter shortcuts (View > Wireframe W and the like), as they do while the
+/// view has focus; a number box would otherwise swallow them.
+void pass_letters_to_shortcuts(QWidget* root);
 
 /// Asks "<what> Save, Discard or Cancel?": the button pressed.
 QMessageBox::StandardButton ask_unsaved(QWidget* parent, const QString& what);

@@ -118,18 +118,24 @@ void PickerWindow::build_ui() {
   radius_->setObjectName("radius");
   radius_->setRange(1e-9, 1e12);
   radius_->setKeyboardTracking(false);
-  radius_fraction_ = new QDoubleSpinBox(panel);
+  radius_->what = "Radius R";
+  radius_->refused = [this](const QString& m) { show_error(m); };
+  // In significant digits, as R itself: a radius of 1e-5 of the size is 0.001 %, not 0.01 (a box of
+  // 2 decimals showed its minimum).
+  radius_fraction_ = new gui::NumberBox(panel);
   radius_fraction_->setObjectName("radiusFraction");
-  radius_fraction_->setDecimals(2);
-  radius_fraction_->setRange(0.01, 1e12);
-  radius_fraction_->setSuffix(" % of size");
+  radius_fraction_->setRange(1e-12, 1e14);
   radius_fraction_->setKeyboardTracking(false);
+  radius_fraction_->setToolTip("Radius R in percent of the mesh's size (its bounding box's diagonal)");
+  radius_fraction_->what = "Radius R in % of the size";
+  radius_fraction_->refused = [this](const QString& m) { show_error(m); };
   radius_slider_ = new QSlider(Qt::Horizontal, panel);
   radius_slider_->setObjectName("radiusSlider");
   radius_slider_->setRange(0, 1000);
   auto* radius_row = new QHBoxLayout;
   radius_row->addWidget(radius_);
   radius_row->addWidget(radius_fraction_);
+  radius_row->addWidget(new QLabel("% of size", panel));
   form->addRow("Radius R", radius_row);
   form->addRow("", radius_slider_);
   connect(radius_, qOverload<double>(&QDoubleSpinBox::valueChanged), this,
@@ -185,6 +191,10 @@ void PickerWindow::build_ui() {
   error_ = gui::add_message(messages, "error", "#b03030");
   fold_warning_ = gui::add_message(messages, "foldWarning", "#f0c040");
   hint_ = gui::add_message(messages, "hint", "#a8d0f0");
+  gui::add_tip(
+      messages,
+      "Click the mesh to add a control, then drag its handle to where it goes; Shift + click pins a point, Ctrl + "
+      "drag selects the active area. F1 lists every key.");
   layout->addWidget(messages);
 
   dock->setWidget(panel);
@@ -215,6 +225,9 @@ void PickerWindow::show_error(const QString& message) {
 }
 
 void PickerWindow::clear_error() {
+  // The status bar repeats an error's first line: it goes with the error, not 10 s later.
+  if (!error_->isHidden() && statusBar()->currentMessage() == error_->text().section('\n', 0, 0))
+    statusBar()->clearMessage();
   error_->clear();
   error_->hide();
 }

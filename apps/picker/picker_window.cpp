@@ -43,6 +43,7 @@ PickerWindow::PickerWindow(QWidget* parent) : QMainWindow(parent) {
   build_scene();
   build_ui();
   build_menus();
+  gui::pass_letters_to_shortcuts(this);  // W, D, S work while a number box has focus
   refresh();
   auto* recovery_timer = new QTimer(this);
   recovery_timer->setInterval(gui::recovery_seconds() * 1000);
@@ -369,6 +370,7 @@ bool PickerWindow::edit(const State& next, const QString& what, int merge_id) {
   }
   clear_error();
   proposal_.clear();
+  statusBar()->clearMessage();  // a proposal or a file's figures, no longer what is shown
   undo_.push(new StateCommand(this, before, next, what, merge_id));
   refresh(&o);
   return true;

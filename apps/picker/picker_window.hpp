@@ -152,8 +152,8 @@ class PickerWindow : public QMainWindow {
   vtkSmartPointer<vtkLookupTable> legend_lut_;
 
   QTableWidget* table_ = nullptr;
-  QDoubleSpinBox* radius_ = nullptr;
-  QDoubleSpinBox* radius_fraction_ = nullptr;
+  gui::NumberBox* radius_ = nullptr;
+  gui::NumberBox* radius_fraction_ = nullptr;
   QSlider* radius_slider_ = nullptr;
   QComboBox* kernel_ = nullptr;
   QComboBox* polynomial_ = nullptr;

@@ -19,6 +19,7 @@
 #include <QTimer>
 #include <QScrollArea>
 #include <QPushButton>
+#include <QStatusBar>
 #include <QSurfaceFormat>
 #include <QTest>
 #include <QVTKOpenGLNativeWidget.h>
@@ -556,6 +557,45 @@ TEST_F(Fixture, HomeFramesTheWholeScene) {
   w.set_time(2.0);
   QTest::keyClick(&w, Qt::Key_Left, Qt::ShiftModifier);
   EXPECT_EQ(w.time(), 0.0) << "Shift+Left goes to the start";
+}
+
+// Issue 30, point 17, as a new user met them: a pause left the time between frames; the Composer's
+// W did nothing while a number box had focus; "Opened ...: 1 objects" stayed in the status bar
+// after the scene changed; attaching a scene as a deformation gave a message about a key.
+TEST_F(Fixture, PausesOnAFrameKeysReachTheViewAndMessagesStayTrue) {
+  ASSERT_TRUE(w.open_scene(QString::fromStdString(kExamples + "ball.scene.json")));
+  EXPECT_FALSE(w.statusBar()->currentMessage().isEmpty());
+  QTest::mouseClick(w.findChild<QPushButton*>("play"), Qt::LeftButton);
+  QTest::qWait(530);  // not a multiple of 1 / fps
+  QTest::mouseClick(w.findChild<QPushButton*>("play"), Qt::LeftButton);
+  ASSERT_FALSE(w.playing());
+  const double fps = w.document().fps(), frames = w.time() * fps;
+  EXPECT_GT(w.time(), 0.2);
+  EXPECT_NEAR(frames, std::round(frames), 1e-9) << "paused at " << w.time() << " s, between frames";
+
+  w.select_object(1);  // the ball, which has a trajectory
+  w.select_key(0);
+  auto* x = w.findChild<QDoubleSpinBox*>("keyX");
+  w.activateWindow();
+  x->setFocus();
+  QApplication::processEvents();
+  ASSERT_TRUE(x->hasFocus());
+  const bool wire = w.findChild<QAction*>("wireframe") ? w.findChild<QAction*>("wireframe")->isChecked() : false;
+  QTest::keyClick(x, Qt::Key_W);
+  ASSERT_NE(w.findChild<QAction*>("wireframe"), nullptr);
+  EXPECT_NE(w.findChild<QAction*>("wireframe")->isChecked(), wire) << "W with a number box focused";
+  QTest::keyClick(x, Qt::Key_W);
+
+  // An edit: "Opened ...: N objects" no longer describes the scene.
+  ASSERT_TRUE(w.edit("Place", [&](csrbf::composer::Document& d) { d.set_position(1, 0, Vec3(0, 0, 0.5)); }));
+  EXPECT_TRUE(w.statusBar()->currentMessage().isEmpty()) << w.statusBar()->currentMessage().toStdString();
+
+  // A scene picked where a deformation goes: said so, in words a new user can act on.
+  EXPECT_FALSE(w.attach_deformation(QString::fromStdString(kExamples + "fish.scene.json")));
+  const std::string e = w.error_text().toStdString();
+  EXPECT_NE(e.find("fish.scene.json is a scene, not a deformation"), std::string::npos) << e;
+  EXPECT_NE(e.find("File > Open"), std::string::npos) << e;
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "composer-scene-as-deformation.png").string())));
 }
 
 int main(int argc, char** argv) {

@@ -13,6 +13,7 @@
 #include <QApplication>
 #include <QLabel>
 #include <QLineEdit>
+#include <QStatusBar>
 #include <QMessageBox>
 #include <QTimer>
 #include <QCheckBox>
@@ -600,6 +601,49 @@ TEST_F(Fixture, HomeFramesTheWholeMesh) {
   EXPECT_GT(cam->GetDistance(), 5 * before) << "Home frames the whole mesh (it did nothing)";
   cam->GetDirectionOfProjection(dir1);
   for (int k = 0; k < 3; ++k) EXPECT_NEAR(dir1[k], dir0[k], 1e-9);
+}
+
+// Issue 30, point 17: a radius of 1e-5 of the size showed "0.01 %" (the box's minimum), a radius of 0
+// was clamped to 1e-9 without a word, and W, D, S did nothing while a number box had focus.
+TEST_F(Fixture, TheRadiusBoxesShowSmallRadiiRefuseZeroAndLetViewKeysThrough) {
+  const auto& doc = w.document();
+  auto* radius = w.findChild<QDoubleSpinBox*>("radius");
+  auto* fraction = w.findChild<QDoubleSpinBox*>("radiusFraction");
+  const double diagonal = doc.diagonal();
+  radius->setValue(1e-5 * diagonal);
+  EXPECT_NEAR(fraction->value(), 1e-3, 1e-9);
+  EXPECT_EQ(fraction->text().toStdString(), "0.001");
+  // 0 typed into R: refused with a message, R unchanged.
+  radius->setValue(0.3);
+  QLineEdit* edit = radius->findChild<QLineEdit*>();
+  edit->selectAll();
+  QTest::keyClicks(edit, "0");
+  QTest::keyClick(edit, Qt::Key_Return);
+  EXPECT_DOUBLE_EQ(doc.state().radius, 0.3);
+  EXPECT_NE(w.error_text().toStdString().find("0 refused: Radius R is at least 1e-09"), std::string::npos)
+      << w.error_text().toStdString();
+  EXPECT_EQ(radius->text().toStdString(), "0.3");
+  // The next good edit takes the error away, and its line in the status bar with it.
+  radius->setValue(0.31);
+  EXPECT_TRUE(w.error_text().isEmpty());
+  EXPECT_TRUE(w.statusBar()->currentMessage().isEmpty()) << w.statusBar()->currentMessage().toStdString();
+  // W toggles the wireframe with the radius box focused, as with the view focused; digits still type.
+  vtkActorCollection* actors = w.renderer()->GetActors();
+  actors->InitTraversal();
+  vtkActor* mesh = actors->GetNextActor();
+  w.activateWindow();
+  radius->setFocus();
+  QApplication::processEvents();
+  ASSERT_TRUE(radius->hasFocus());
+  QTest::keyClick(radius, Qt::Key_W);
+  EXPECT_EQ(mesh->GetProperty()->GetRepresentation(), VTK_WIREFRAME);
+  QTest::keyClick(radius, Qt::Key_W);
+  EXPECT_EQ(mesh->GetProperty()->GetRepresentation(), VTK_SURFACE);
+  edit->selectAll();
+  QTest::keyClicks(edit, "0.25");
+  QTest::keyClick(edit, Qt::Key_Return);
+  EXPECT_DOUBLE_EQ(doc.state().radius, 0.25);
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "picker-radius-box.png").string())));
 }
 
 int main(int argc, char** argv) {
