@@ -20,7 +20,9 @@ double memory_left(double limit_bytes, const std::string& option) {
   const double held = resident_bytes(), left = limit_bytes - held;
   if (left < limit_bytes / 20) {
     char text[200];
-    std::snprintf(text, sizeof text, "csrbf already holds %.3g GiB (the program, its libraries and what it read) of the %s of %.3g GiB; give a larger %s",
+    std::snprintf(text, sizeof text,
+                  "csrbf already holds %.3g GiB (the program, its libraries and what it read) of the %s of %.3g GiB; "
+                  "give a larger %s",
                   held / double(1ull << 30), option.c_str(), limit_bytes / double(1ull << 30), option.c_str());
     throw FileError(text);
   }
