@@ -38,8 +38,9 @@ bool cholmod_available() noexcept;
 /// The largest relative residual at the controls a fit accepts (FitStats::residual_relative).
 inline constexpr double kResidualLimit = 1e-6;
 /// Float (single-precision) evaluation is used only where it agrees with double evaluation to this
-/// fraction of the largest control displacement, measured once per map on (up to 4096 of) its
-/// sources; otherwise float inputs are evaluated in double and rounded once.
+/// fraction of the largest control displacement (beyond the rounding of the result to float):
+/// measured once per map on (up to 4096 of) its sources and as many points between them, where it
+/// must agree to a quarter of this; otherwise float inputs are evaluated in double and rounded once.
 inline constexpr double kFloatTolerance = 1e-4;
 /// Solver::Cg stops at this relative residual ||b - A x|| / ||b|| for each right-hand side, and
 /// gives up (a direct solver takes over) after kCgMaxIterations steps.

@@ -100,8 +100,9 @@ class SpaceMap {
   std::span<const std::uint32_t> order() const noexcept;
   const FitStats& stats() const noexcept;
   /// Whether float inputs are evaluated in single precision: true when that agrees with double
-  /// evaluation to kFloatTolerance of the largest displacement on the sources (measured once, on
-  /// first use); false sends float inputs through double evaluation. Thread-safe.
+  /// evaluation to a quarter of kFloatTolerance of the largest displacement on the sources and
+  /// points between them (measured once, on first use); false sends float inputs through double
+  /// evaluation. Thread-safe.
   bool float_trusted() const;
   /// An estimate of the 2-norm condition number of the N x N CSRBF matrix A, lambda_max / lambda_min
   /// (power iteration and inverse iteration through the factorisation, 30 steps each). Computed on
