@@ -131,8 +131,8 @@ int run_animate(const AnimateOptions& o) {
   sigaction(SIGHUP, &sa, nullptr);
 
   render::Display display(o.private_display);
-  std::cout << "csrbf animate: " << o.scene << " -> " << o.out << ": " << frames << " frames, " << width << "x"
-            << height << " at " << scene.fps << " fps, t = " << from << " .. " << to << " s"
+  std::cout << "csrbf animate: " << printable(o.scene) << " -> " << printable(o.out) << ": " << frames << " frames, "
+            << width << "x" << height << " at " << scene.fps << " fps, t = " << from << " .. " << to << " s"
             << (display.is_private() ? ", private X display " + display.name() : "")
             << (display.unreachable_display().empty()
                     ? ""
@@ -153,8 +153,8 @@ int run_animate(const AnimateOptions& o) {
     return true;
   });
   if (st.cancelled) {
-    std::cerr << "\ncsrbf animate: interrupted after " << st.frames << " of " << frames << " frames; " << o.out
-              << " was not written\n";
+    std::cerr << "\ncsrbf animate: interrupted after " << st.frames << " of " << frames << " frames; "
+              << printable(o.out) << " was not written\n";
     return 128 + int(g_interrupted);  // 130 for SIGINT, 143 for SIGTERM, 129 for SIGHUP
   }
   const double n = double(frames);

@@ -255,10 +255,10 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
                        {"per_rank", csrbf::cli::rank_stats_json(ranks)}};
       std::cout << j.dump(2) << '\n';
     } else {
-      std::cout << "csrbf deform: " << p.size() << " vertices (" << count << " moved) of " << da.mesh_in << " by "
-                << backend.stats().controls << " controls on " << ranks.size() << " ranks ("
-                << mpi::distributed_solver_name(backend.stats().solver) << "), R = " << in.options.radius << ", phase "
-                << phase << " -> " << da.mesh_out << " (" << ms << " ms)\n";
+      std::cout << "csrbf deform: " << p.size() << " vertices (" << count << " moved) of "
+                << csrbf::printable(da.mesh_in) << " by " << backend.stats().controls << " controls on " << ranks.size()
+                << " ranks (" << mpi::distributed_solver_name(backend.stats().solver) << "), R = " << in.options.radius
+                << ", phase " << phase << " -> " << csrbf::printable(da.mesh_out) << " (" << ms << " ms)\n";
     }
   } catch (const csrbf::cli::UsageError& e) {
     std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';

@@ -79,6 +79,8 @@ void solve_permuted(RowMatrix& b, std::span<const std::uint32_t> order, Solve&& 
   for (Eigen::Index k = 0; k < b.rows(); ++k) b.row(Eigen::Index(order[std::size_t(k)])) = bp.row(k);
 }
 
+class Simplicial;  // Eigen's SimplicialLLT with its AMD ordering (below)
+
 /// A general sparse Cholesky in two steps: the constructor analyses (ordering, symbolic factorisation,
 /// the memory check), factorise() computes; flops() in between is the analysis's count.
 template <class Decomposition>
@@ -87,18 +89,38 @@ class EigenFactor final : public SparseFactor {
   /// order: row k of a is the source order[k] (empty: the input order).
   /// memory_limit_bytes: the factor's size, as the symbolic analysis predicts it, is checked before
   /// the numeric factorisation (ResourceLimit beyond it).
-  EigenFactor(Sparse a, const char* name, double memory_limit_bytes, std::vector<std::uint32_t> order = {})
+  /// held_bytes: what the fit holds beside (A, its neighbour graph). The factor is not alone: A's
+  /// lower triangle here and the solver's permuted copy of it live as long, so they are counted,
+  /// before the analysis (which makes the copy) and with the factor after it.
+  EigenFactor(Sparse a, const char* name, double memory_limit_bytes, std::vector<std::uint32_t> order = {},
+              double held_bytes = 0)
       : order_(std::move(order)), a_(std::move(a)), name_(name) {
-    init(a_);
-    const double bytes = predicted_bytes();
-    if (bytes > memory_limit_bytes) {
+    const double copies = held_bytes + 2 * 12.0 * double(a_.nonZeros());
+    const auto refuse = [&](double bytes, const std::string& what) {
       std::ostringstream os;
       os.precision(3);
-      os << name << "'s analysis predicts " << predicted_entries() << " entries in the factor, about "
-         << bytes / double(1ull << 30) << " GiB, above the limit of " << memory_limit_bytes / double(1ull << 30)
+      os << name << " needs about " << bytes / double(1ull << 30) << " GiB for " << what << ", above the limit of "
+         << memory_limit_bytes / double(1ull << 30)
          << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius: the compact support "
             "is what keeps the system sparse";
       throw ResourceLimit(os.str());
+    };
+    if (copies > memory_limit_bytes)
+      refuse(copies, "A and its copies (" + std::to_string(a_.nonZeros()) + " entries each)");
+    // Eigen's own AMD ordering (Simplicial, given no order) holds A + A^T and its workspace while it
+    // runs: 813 MB for 5.3e6 entries of A's lower triangle, measured (heaptrack) at 20000 sources.
+    if constexpr (std::is_same_v<Decomposition, Simplicial>) {
+      const double analysis = copies + 160.0 * double(a_.nonZeros());
+      if (analysis > memory_limit_bytes)
+        refuse(analysis, "its AMD ordering of A's " + std::to_string(a_.nonZeros()) + " entries");
+    }
+    init(a_);
+    const double bytes = predicted_bytes() + copies;
+    if (bytes > memory_limit_bytes) {
+      std::ostringstream what;
+      what.precision(3);
+      what << "the " << predicted_entries() << " entries its analysis predicts in the factor, with A and its copies";
+      refuse(bytes, what.str());
     }
   }
   /// Flops of the numeric factorisation, from the analysis (the sum of L's column counts squared).
@@ -555,15 +577,16 @@ std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector
 
 std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
                                                double memory_limit_bytes) {
+  const double held = 12.0 * double(a.values().size() + a.size());  // A: its values and pattern
   if (which == Solver::Eigen)
-    return std::make_unique<EigenAnalysis<Simplicial>>(
-        std::make_unique<EigenFactor<Simplicial>>(lower_matrix(a), "Eigen SimplicialLLT", memory_limit_bytes));
+    return std::make_unique<EigenAnalysis<Simplicial>>(std::make_unique<EigenFactor<Simplicial>>(
+        lower_matrix(a), "Eigen SimplicialLLT", memory_limit_bytes, std::vector<std::uint32_t>{}, held));
 #ifdef CSRBF_HAVE_CHOLMOD
   if (which == Solver::Cholmod) {
     std::vector<std::uint32_t> order = nested_dissection_order(a.pattern(), sources, a.radius());
     Sparse lower = lower_matrix(a, order);
-    return std::make_unique<EigenAnalysis<Supernodal>>(
-        std::make_unique<EigenFactor<Supernodal>>(std::move(lower), "CHOLMOD", memory_limit_bytes, std::move(order)));
+    return std::make_unique<EigenAnalysis<Supernodal>>(std::make_unique<EigenFactor<Supernodal>>(
+        std::move(lower), "CHOLMOD", memory_limit_bytes, std::move(order), held));
   }
 #else
   (void)sources;

@@ -260,9 +260,9 @@ TEST(Robustness, MemoryLimitCountsWhatTheSolverWillHold) {
   for (auto& x : s) x = Vec3(u(rng), u(rng), u(rng));
   for (const auto& x : s) d.push_back(x + Vec3(0, 0, 0.01));
   const std::vector<std::pair<FitOptions, std::string>> cases{
-      {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Auto, Solver::Cholmod}, "CHOLMOD's analysis predicts"},
+      {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Auto, Solver::Cholmod}, "CHOLMOD needs about"},
       {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Auto, Solver::Eigen},
-       "Eigen SimplicialLLT's analysis predicts"},
+       "Eigen SimplicialLLT needs about"},
       {FitOptions{0.15, Kernel::C2, Polynomial::None, Ordering::Identity, Solver::Envelope},
        "the envelope of the identity ordering"},
   };
