@@ -86,8 +86,8 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
           ->transform(CLI::IsMember(csrbf::names<csrbf::Polynomial>(), CLI::ignore_case))
           ->capture_default_str();
   cmd->add_option("--memory-limit", a.memory_limit_gib,
-                  "Refuse fits whose neighbour graph and factor would need more than this many GiB (a radius near "
-                  "the model's size makes the matrix dense)")
+                  "The most memory csrbf may hold, in GiB: fits that would need more than what the program and its "
+                  "inputs leave of it are refused (a radius near the model's size makes the matrix dense)")
       ->check(finite_in(1e-6, 1e6, "--memory-limit"))
       ->capture_default_str();
   deformation->excludes(controls)->excludes(radius)->excludes(kernel)->excludes(polynomial);
@@ -284,14 +284,17 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
 /// exit then waits for them for ever. OPENBLAS_NUM_THREADS is read only at load: under such a limit
 /// csrbf runs itself again with it set to 1 (CHOLMOD's factorisations then use one thread).
 void single_blas_thread_under_limits(char** argv) {
-  if (std::getenv("OPENBLAS_NUM_THREADS")) return;
   rlimit as{}, procs{};
   const bool limited =
       (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) ||
       (::getrlimit(RLIMIT_NPROC, &procs) == 0 && procs.rlim_cur != RLIM_INFINITY && procs.rlim_cur < 4096);
   if (!limited) return;
-  ::setenv("OPENBLAS_NUM_THREADS", "1", 1);
-  ::execv("/proc/self/exe", argv);  // on failure, go on as we are
+  // libgomp (OpenMP, under CHOLMOD's supernodal factorisation) likewise ended the process with only
+  // "Thread creation failed" under ulimit -v 300000.
+  bool changed = false;
+  for (const char* v : {"OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"})
+    if (!std::getenv(v)) changed = ::setenv(v, "1", 1) == 0 || changed;
+  if (changed) ::execv("/proc/self/exe", argv);  // on failure, go on as we are
 }
 
 }  // namespace

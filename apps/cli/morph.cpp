@@ -52,7 +52,10 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
   cmd->add_option("--solver", a.solver, "Solver of the fit: auto, envelope, eigen, cholmod, cg")
       ->transform(CLI::IsMember(solver_choices(), CLI::ignore_case))
       ->capture_default_str();
-  cmd->add_option("--memory-limit", a.memory_limit_gib, "Refuse fits that would need more than this many GiB")
+  cmd->add_option(
+         "--memory-limit", a.memory_limit_gib,
+         "The most memory csrbf may hold, in GiB: fits that would need more than what the program and the mesh "
+         "leave of it are refused")
       ->check(finite_in(1e-6, 1e6, "--memory-limit"))
       ->capture_default_str();
   cmd->add_flag("--json", a.json, "Print the report as one JSON object");

@@ -148,13 +148,23 @@ void cancel_writes() noexcept {
 namespace {
 char g_time_message[160];
 std::size_t g_time_message_size = 0;
+std::atomic<bool> g_time_off{false};
 extern "C" void time_is_up(int) {
+  if (g_time_off.load()) return;  // an output is being moved into place: the command is done
   unlink_partials();
   if (g_time_message_size) {
     const ssize_t written = ::write(2, g_time_message, g_time_message_size);
     (void)written;  // nothing more can be done about a closed stderr
   }
   ::_exit(1);
+}
+
+/// From the first output's rename on, --time-limit no longer ends the command: an alarm then would
+/// report "nothing was written" over a written (or replaced) file.
+void time_limit_off() noexcept {
+  g_time_off.store(true);
+  itimerval off{};
+  ::setitimer(ITIMER_REAL, &off, nullptr);
 }
 }  // namespace
 
@@ -307,6 +317,7 @@ void Partial::commit(const fs::path& target) {
   check_output_path(target);  // again: the target may have changed while we wrote
   keep_mode(target, path_);   // a replaced file keeps its permissions
   disown();
+  time_limit_off();
   std::error_code ec;
   fs::rename(path_, target, ec);
   if (ec) throw FileError("cannot write '" + target.string() + "': " + ec.message());
@@ -321,6 +332,7 @@ void Partial::commit_new(const fs::path& target) {
   // never replaced.
   check_not_cancelled(target);
   disown();
+  time_limit_off();
   if (::renameat2(AT_FDCWD, path_.c_str(), AT_FDCWD, target.c_str(), RENAME_NOREPLACE) != 0)
     throw FileError(
         "cannot write '" + target.string() + "': " +
@@ -465,6 +477,7 @@ void write_atomically_via_folder(const fs::path& target_in, const std::function<
   // The main file last: once it is there, its side files are too.
   std::stable_partition(made.begin(), made.end(), [&](const fs::path& p) { return p.filename() != target.filename(); });
   check_not_cancelled(target);
+  time_limit_off();
   std::vector<fs::path> placed;  // files this call created that were new names
   for (const auto& p : made) {
     const fs::path dest = folder_of(target) / p.filename();

@@ -2,6 +2,7 @@
 
 #include "csrbf/io/error.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <csignal>
 #include <cstdio>
@@ -57,7 +58,11 @@ std::string read_in_child(const std::filesystem::path& file, const std::string& 
   if (::pipe2(fds, O_CLOEXEC) != 0)
     throw FileError(name + ": cannot start " + library + "'s reader: " + std::strerror(errno));
   std::fflush(nullptr);
-  const double as_limit = address_space_now() + memory_limit_bytes;
+  // At least 1 GiB of address space beyond the parent's: a library the child loads (Gmsh's, with
+  // OpenCASCADE) maps hundreds of MB of code, and under a small --memory-limit the loader's "failed
+  // to map segment" hid the limit. The back-stop is for runaway allocations; the readers' own checks
+  // of stated counts against the file's size bound what a file may ask for.
+  const double as_limit = address_space_now() + std::max(memory_limit_bytes, double(1ull << 30));
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid < 0) {

@@ -13,8 +13,8 @@ double resident_bytes() noexcept;
 /// twentieth of the limit is left (the program, its libraries and what it has read already hold it).
 double memory_left(double limit_bytes, const std::string& option = "--memory-limit");
 
-/// For a limit error of work given `left` of limit_bytes: " (of --memory-limit L GiB, the program
-/// and what it read hold H GiB)", so that the figures of the message add up.
+/// For a limit error of work given `left` of limit_bytes: " (--memory-limit L GiB: csrbf and what it
+/// read hold H GiB of it, leaving F GiB for the fit)", so that the figures of the message add up.
 std::string memory_share(double limit_bytes, double left, const std::string& option = "--memory-limit");
 
 }  // namespace csrbf::io
