@@ -85,13 +85,9 @@ int run_animate(const AnimateOptions& o) {
   const auto [width, height] = parse_size(o.size);
   // Check the target before the (slow) scene load, so a typo fails at once.
   render::check_movie_output(o.out);
-  {
-    // A movie (or frame folder) that does not exist now is written new: one that appears meanwhile
-    // is never replaced.
-    std::filesystem::path out = o.out;
-    if (out.filename().empty()) out = out.parent_path();
-    io::must_be_new(render::movie_format_for(o.out) == render::MovieFormat::PngFolder ? out : io::resolve_output(out));
-  }
+  // A movie (or frame folder) that does not exist now is written new: one that appears meanwhile is
+  // never replaced.
+  io::must_be_new(render::movie_target(o.out));
   if (render::movie_format_for(o.out) == render::MovieFormat::Mp4 && (width % 2 || height % 2))
     throw UsageError("--size: H.264 (.mp4) needs an even width and height, got '" + o.size + "'");
   {

@@ -8,14 +8,21 @@
 
 namespace csrbf::io {
 
-double resident_bytes() noexcept {
+namespace {
+/// Field 0 (the address space) or 1 (resident) of /proc/self/statm, in bytes; 0 where unknown.
+double statm_bytes(int field) noexcept {
   std::FILE* f = std::fopen("/proc/self/statm", "r");
   if (!f) return 0;
   unsigned long long size = 0, resident = 0;
   const int got = std::fscanf(f, "%llu %llu", &size, &resident);
   std::fclose(f);
-  return got == 2 ? double(resident) * double(::sysconf(_SC_PAGESIZE)) : 0.0;
+  return got == 2 ? double(field == 0 ? size : resident) * double(::sysconf(_SC_PAGESIZE)) : 0.0;
 }
+}  // namespace
+
+double resident_bytes() noexcept { return statm_bytes(1); }
+
+double address_space_bytes() noexcept { return statm_bytes(0); }
 
 double memory_left(double limit_bytes, const std::string& option) {
   const double held = resident_bytes(), left = limit_bytes - held;

@@ -1,6 +1,7 @@
 #include "child_reader.hpp"
 
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/memory.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -31,14 +32,6 @@ constexpr bool kSanitized = false;
 constexpr bool kSanitized = false;
 #endif
 
-/// This process's address-space size in bytes (VmSize), or 0.
-double address_space_now() {
-  std::ifstream in("/proc/self/statm");
-  double pages = 0;
-  in >> pages;
-  return pages * double(::sysconf(_SC_PAGESIZE));
-}
-
 void write_all(int fd, const std::string& s) {
   for (std::size_t done = 0; done < s.size();) {
     const ssize_t n = ::write(fd, s.data() + done, s.size() - done);
@@ -62,7 +55,7 @@ std::string read_in_child(const std::filesystem::path& file, const std::string& 
   // OpenCASCADE) maps hundreds of MB of code, and under a small --memory-limit the loader's "failed
   // to map segment" hid the limit. The back-stop is for runaway allocations; the readers' own checks
   // of stated counts against the file's size bound what a file may ask for.
-  const double as_limit = address_space_now() + std::max(memory_limit_bytes, double(1ull << 30));
+  const double as_limit = io::address_space_bytes() + std::max(memory_limit_bytes, double(1ull << 30));
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid < 0) {

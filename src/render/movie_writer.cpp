@@ -91,11 +91,15 @@ void check_movie_output(const fs::path& out_in) {
   }
 }
 
-MovieWriter::MovieWriter(const fs::path& out_in, int width, int height, double fps)
-    : format_(movie_format_for(out_in)), width_(width), height_(height) {
+fs::path movie_target(const fs::path& out_in) {
   fs::path out = out_in;
   if (out.filename().empty()) out = out.parent_path();  // "frames/" -> "frames"
-  out_ = format_ == MovieFormat::PngFolder ? out : io::resolve_output(out);
+  return movie_format_for(out_in) == MovieFormat::PngFolder ? out : io::resolve_output(out);
+}
+
+MovieWriter::MovieWriter(const fs::path& out_in, int width, int height, double fps)
+    : format_(movie_format_for(out_in)), width_(width), height_(height) {
+  out_ = movie_target(out_in);
   if (width < 16 || height < 16 || width > 16384 || height > 16384)
     throw RenderError("frame size " + std::to_string(width) + "x" + std::to_string(height) +
                       " is out of range (16 to 16384 pixels a side)");

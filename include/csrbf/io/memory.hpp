@@ -7,6 +7,8 @@ namespace csrbf::io {
 
 /// This process's resident memory now, in bytes (Linux: /proc/self/statm); 0 where unknown.
 double resident_bytes() noexcept;
+/// This process's address-space size now (VmSize), in bytes; 0 where unknown.
+double address_space_bytes() noexcept;
 
 /// The part of a whole-process limit (bytes) that is still free for the work that follows: limit
 /// minus resident_bytes(). Throws FileError naming the option and both figures when less than a

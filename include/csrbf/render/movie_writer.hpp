@@ -25,6 +25,10 @@ MovieFormat movie_format_for(const std::filesystem::path& out);
 /// device, FIFO, socket or any other file is never replaced.
 void check_movie_output(const std::filesystem::path& out);
 
+/// The path a movie writer writes for -o out: a frame folder without its trailing '/', a movie file
+/// with its links resolved (io::resolve_output).
+std::filesystem::path movie_target(const std::filesystem::path& out);
+
 class MovieWriter {
  public:
   /// width x height pixels (even for MP4), fps > 0. Throws RenderError when the target's folder is
