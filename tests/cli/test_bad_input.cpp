@@ -51,11 +51,13 @@ TEST(BadInput, CommandLine) {
   write_text(dir / "novertices.obj", "# only a comment\n");
   write_text(dir / "noheader.off", "3 1 0\n0 0 0\n");
   fs::create_directory(dir / "folder");
-  // A dense system: 3000 sources in a unit cube and R = 100.
+  // A dense system: 12000 sources in a unit cube and R = 100 (3.2 GiB for its neighbour graph and factor, so
+  // that a limit of 1 GiB refuses it however much the program itself holds: 0.05 GiB here, 0.11 GiB under the
+  // sanitizers, where a limit of 0.1 was refused before the fit was predicted).
   {
     std::string text;
     std::uniform_real_distribution<double> u(0, 1);
-    for (int i = 0; i < 3000; ++i) {
+    for (int i = 0; i < 12000; ++i) {
       const double x = u(rng), y = u(rng), z = u(rng);
       text += std::to_string(x) + " " + std::to_string(y) + " " + std::to_string(z) + " " + std::to_string(x) + " " +
               std::to_string(y) + " " + std::to_string(z + 0.01) + "\n";
@@ -108,7 +110,7 @@ TEST(BadInput, CommandLine) {
       {"unknown kernel", deform + "{dir}/ok.controls --kernel c3", "c3", 2},
       {"phase NaN", deform + "{dir}/ok.controls --phase nan", "--phase", 2},
       {"linear polynomial on a plane", deform + "{dir}/planar.controls --polynomial linear", "coplanar", 1},
-      {"dense beyond the memory limit", "info --controls {dir}/many.controls --radius 100 --memory-limit 0.1",
+      {"dense beyond the memory limit", "info --controls {dir}/many.controls --radius 100 --memory-limit 1",
        "GiB for its neighbour graph", 1},
       // Outputs.
       {"output folder missing",
