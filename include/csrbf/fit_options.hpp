@@ -58,8 +58,11 @@ inline constexpr std::size_t kCgMaxIterations = 3000;
 ///   its factor in csrbf's nested dissection order (cholesky_factor_count) give its flops, at
 ///   kDirectFlopCost each, and CG gives way to it where it is cheaper by a margin of
 ///   1 + kCgProbeSteps / steps taken (CG's early predictions are the least sure). A direct factor
-///   that would pass the memory limit is never chosen.
-/// - A direct solver takes over wherever CG stagnates.
+///   that would pass the memory limit (counted beside A and CG's copy of it, which live on) is never
+///   chosen; the envelope solver is then weighed whatever its work, where it fits.
+/// - A direct solver takes over wherever CG stagnates: CHOLMOD (else Eigen), then the envelope
+///   solver where the limit refuses it; never CG again, which would stagnate again. Where the limit
+///   refuses both, the error names CG's residual and what each would need.
 /// CG took 41 to 230 steps on the sphere and 180 to 1600 in the cube (N = 1e3 ... 1e6). The ratios
 /// were measured on the solvers sweep: an envelope multiply-add costs 0.3-0.6 of a CG one, a
 /// CHOLMOD flop (its ordering and analysis included) 0.18-0.26.

@@ -233,7 +233,9 @@ struct FitPhases {
     const std::size_t n = st.sources.size();
     FitStats& stats = st.stats;
     if (solver == Solver::Envelope) {
-      detail::check_envelope_size(st.first_columns, options.memory_limit_bytes, ordering_name(stats.ordering));
+      // A lives beside its envelope (the residual check reads it).
+      detail::check_envelope_size(st.first_columns, options.memory_limit_bytes, ordering_name(stats.ordering),
+                                  detail::kernel_matrix_bytes(st.a));
       auto t0 = Clock::now();
       EnvelopeMatrix env = envelope_matrix(st.a, st.order, std::move(st.first_columns));
       stats.envelope_bytes = env.paper_bytes();
@@ -270,17 +272,27 @@ struct FitPhases {
             const double direct = st.direct_cost();
             // CG's prediction is least sure after its first steps: the direct solver must win by a
             // margin that shrinks as CG goes on (2x after 10 steps, 1.25x after 40).
-            if (direct * (1 + kCgProbeSteps / done) < left) return false;
+            const double margin = 1 + kCgProbeSteps / done;
+            if (direct * margin < left) return false;
+            // Where the memory limit refuses the direct factor, the envelope whatever its work, where it
+            // fits beside A and CG (face.obj, 6158 controls at 5263 neighbours each: CG ran 1000 steps
+            // and 78 s before it gave way; the envelope takes 22 s).
+            const double envelope_bytes = 8.0 * double(st.stats.envelope_entries + n) + 16.0 * double(n) +
+                                          detail::kernel_matrix_bytes(st.a) + detail::cg_bytes(st.a.values().size(), n);
+            if (!std::isfinite(direct) && envelope * margin < left && envelope_bytes <= st.options.memory_limit_bytes)
+              return false;
           }
           return true;
         };
       }
-      // CG holds A's rows in its order (12 bytes an entry) and 4 vectors of 7 columns.
-      const double bytes = 12.0 * double(st.a.values().size()) + 8.0 * double(n) + 4.0 * 7 * 8 * double(n);
+      // CG holds A's rows in its order beside A itself, and its vectors.
+      const double bytes = detail::kernel_matrix_bytes(st.a) + detail::cg_bytes(st.a.values().size(), n);
       if (bytes > options.memory_limit_bytes) {
         std::ostringstream os;
-        os << "conjugate gradients would hold " << std::llround(bytes) << " bytes for A's " << st.a.values().size() + n
-           << " entries and their vectors, above the limit of " << gib(options.memory_limit_bytes)
+        os.precision(3);
+        os << "conjugate gradients would hold " << gib(bytes) << " for A's " << st.a.values().size() + n
+           << " entries, their copy in CG's order and their vectors, above the limit of "
+           << gib(options.memory_limit_bytes)
            << " (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius";
         throw ResourceLimit(os.str());
       }
@@ -403,10 +415,12 @@ struct FitPhases {
         }
         stats.fell_back = st.fallback_solver != Solver::Cg;
         stats.solver = st.fallback_solver;
-        stats.factor_nonzeros = st.fallback->nonzeros();
-        if (st.fallback->iterative()) {  // CG again, the direct factor refused by the memory limit
-          stats.iterations = st.fallback->iterations();
-          stats.solver_residual = st.fallback->residual();
+        if (st.fallback) {  // else CG went on, the direct factors refused by the memory limit
+          stats.factor_nonzeros = st.fallback->nonzeros();
+          if (st.fallback->iterative()) {
+            stats.iterations = st.fallback->iterations();
+            stats.solver_residual = st.fallback->residual();
+          }
         }
       }
     }

@@ -15,6 +15,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <mutex>
@@ -79,21 +80,27 @@ struct SpaceMap::Structure {
     if (!fell_back.load()) {
       double predicted = 0;
       std::size_t taken = 0;
+      bool gave_way = false;
+      std::string why;
       try {
         sparse->solve_in_place(b, initial);  // CG writes b only when it converged
         return;
       } catch (const detail::CgStagnated& e) {
         predicted = e.predicted_steps();
         taken = e.steps_taken();
+        gave_way = e.gave_way();
+        why = e.what();
       }
       // CG stagnated, or Auto's probe found it slower than a direct solve: another solver takes
       // over, once, for this fit and every later solve with these sources.
-      std::call_once(fallback_once, [this, predicted, taken] { take_over(predicted, taken); });
+      std::call_once(fallback_once, [&] { take_over(predicted, taken, gave_way, why); });
     }
-    fallback->solve_in_place(b, initial);
+    after().solve_in_place(b, initial);
   }
+  /// The solver after CG gave way: the one that took over, or CG itself without its probe.
+  const detail::SparseFactor& after() const { return fallback ? *fallback : *sparse; }
   /// Whether solves start from an initial guess (CG, or CG again after a direct solver was refused).
-  bool warm_starts() const { return fell_back.load() ? fallback->iterative() : sparse && sparse->iterative(); }
+  bool warm_starts() const { return fell_back.load() ? after().iterative() : sparse && sparse->iterative(); }
   /// Multiply-adds of one CG step over all the solves of a fit: 3 right-hand sides, and the
   /// polynomial block's.
   double cg_step_work() const {
@@ -111,58 +118,103 @@ struct SpaceMap::Structure {
   mutable double direct_cost_ = -1;  // < 0: not counted yet
   double direct_cost_locked() const {
     if (direct_cost_ < 0) {
-      // Values and row indices of L (12 bytes an entry), as the solvers' own analyses check them: the
-      // count stops where the factor passes the memory limit (infinite cost).
-      const FactorCount f =
-          cholesky_factor_count(a.pattern(), nested_dissection_order(a.pattern(), sources, options.radius),
-                                options.memory_limit_bytes / 12.0);
-      direct_cost_ = kDirectFlopCost * f.flops;
+      // Values and row indices of L (12 bytes an entry), as the solvers' own analyses check them, beside
+      // A, CG's copy of it (which lives on while the direct solver takes over) and the direct solver's
+      // two copies of A's lower triangle: the count stops where the factor passes the memory limit
+      // (infinite cost).
+      const std::size_t lower = a.values().size() / 2 + sources.size();
+      const double beside = detail::kernel_matrix_bytes(a) + detail::cg_bytes(a.values().size(), sources.size()) +
+                            2 * 12.0 * double(lower);
+      if (beside >= options.memory_limit_bytes)
+        direct_cost_ = std::numeric_limits<double>::infinity();
+      else
+        direct_cost_ = kDirectFlopCost *
+                       cholesky_factor_count(a.pattern(), nested_dissection_order(a.pattern(), sources, options.radius),
+                                             (options.memory_limit_bytes - beside) / 12.0)
+                           .flops;
     }
     return direct_cost_;
   }
 
-  /// After CG took `taken` steps: under Auto, the envelope solver where its work (at
-  /// kEnvelopeCostRatio) is below what CG was predicted to need, within kEnvelopeWorkLimit and below
-  /// the direct solver's as weighed; else the direct solver (CHOLMOD, or Eigen); and where Auto's
-  /// direct factor would exceed the memory limit, CG again, without the probe.
-  void take_over(double predicted_steps, std::size_t taken) const {
+  /// After CG took `taken` steps. Where Auto's probe made it give way: the envelope solver where its
+  /// work (at kEnvelopeCostRatio) is below what CG was predicted to need, within kEnvelopeWorkLimit
+  /// and below the direct solver's as weighed; else the direct solver (CHOLMOD, or Eigen); and where
+  /// the memory limit refuses them, CG goes on without the probe. Where CG stagnated (or a CG asked
+  /// for by name), the direct solver, then the envelope solver whatever its work: CG again would
+  /// stagnate again. Each counts what CG holds, which lives on beside it.
+  void take_over(double predicted_steps, std::size_t taken, bool gave_way, const std::string& why) const {
     std::lock_guard lock(direct_mutex);
-    tbb::this_task_arena::isolate([&] { take_over_locked(predicted_steps, taken); });
+    tbb::this_task_arena::isolate([&] { take_over_locked(predicted_steps, taken, gave_way, why); });
   }
-  void take_over_locked(double predicted_steps, std::size_t taken) const {
+  void take_over_locked(double predicted_steps, std::size_t taken, bool gave_way, const std::string& why) const {
     const auto t0 = std::chrono::steady_clock::now();
     const bool automatic = options.solver == Solver::Auto;
     const double left = (predicted_steps - double(taken)) * cg_step_work();
-    if (automatic && stats.envelope_work <= kEnvelopeWorkLimit && kEnvelopeCostRatio * stats.envelope_work < left &&
-        !(direct_cost_ >= 0 && direct_cost_ < kEnvelopeCostRatio * stats.envelope_work)) {
-      fallback = detail::envelope_factor(a, cg_rows, options.memory_limit_bytes, ordering_name(stats.ordering));
+    const double beside = sparse->held_bytes();
+    const Solver general = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+    const auto envelope = [&] {
+      fallback = detail::envelope_factor(a, cg_rows, options.memory_limit_bytes, ordering_name(stats.ordering), beside);
       fallback_solver = Solver::Envelope;
-    } else {
-      const Solver general = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
-      try {
-        if (automatic && !std::isfinite(direct_cost_locked())) {  // the memory limit refuses the factor
-          fallback = detail::conjugate_gradients(a, cg_rows, kCgTolerance, kCgMaxIterations);
-          fallback_solver = Solver::Cg;
+    };
+    const auto direct = [&] {
+      fallback = detail::factor_sparse(a, sources, general, options.memory_limit_bytes, beside);
+      fallback_solver = general;
+    };
+    const auto go_on = [&] {  // CG without the probe: fallback stays empty, after() is CG
+      sparse->stop_probing();
+      fallback_solver = Solver::Cg;
+    };
+    try {
+      if (gave_way) {
+        // The solvers cheaper than CG's remaining steps, the cheaper first, each tried while the memory
+        // limit refuses the one before; else CG goes on. The envelope is held to kEnvelopeWorkLimit
+        // only where the direct solver can take over instead. The direct solver's cost is counted
+        // only where the envelope's does not settle it.
+        const double envelope_cost = kEnvelopeCostRatio * stats.envelope_work;
+        const bool envelope_cheap = envelope_cost < left;
+        std::vector<std::function<void()>> tries;
+        if (envelope_cheap && stats.envelope_work <= kEnvelopeWorkLimit &&
+            !(direct_cost_ >= 0 && direct_cost_ < envelope_cost)) {
+          tries.emplace_back(envelope);
+          if (std::isfinite(direct_cost_locked())) tries.emplace_back(direct);
         } else {
-          fallback = detail::factor_sparse(a, sources, general, options.memory_limit_bytes);
-          fallback_solver = general;
+          if (std::isfinite(direct_cost_locked())) tries.emplace_back(direct);
+          if (envelope_cheap) tries.emplace_back(envelope);
         }
-      } catch (const ResourceLimit&) {
-        if (!automatic) throw;
-        fallback = detail::conjugate_gradients(a, cg_rows, kCgTolerance, kCgMaxIterations);
-        fallback_solver = Solver::Cg;
-      } catch (const NotPositiveDefinite& e) {
-        throw NotPositiveDefinite(std::string("conjugate gradients ") +
-                                  (std::isfinite(predicted_steps) ? "gave way" : "did not converge") + " after " +
-                                  std::to_string(taken) + " steps, and then " + e.what());
+        bool done = false;
+        for (std::size_t k = 0; k < tries.size() && !done; ++k) {
+          try {
+            tries[k]();
+            done = true;
+          } catch (const ResourceLimit&) {
+          }
+        }
+        if (!done) go_on();
+      } else {
+        try {
+          direct();
+        } catch (const ResourceLimit& first) {
+          if (!automatic)
+            throw ResourceLimit(why +
+                                "; and the direct solver that can solve it passes the memory limit: " + first.what());
+          try {
+            envelope();
+          } catch (const ResourceLimit& second) {
+            throw ResourceLimit(why + "; and the direct solvers that can solve it pass the memory limit: " +
+                                first.what() + "; " + second.what());
+          }
+        }
       }
+    } catch (const NotPositiveDefinite& e) {
+      throw NotPositiveDefinite(std::string("conjugate gradients ") + (gave_way ? "gave way" : "did not converge") +
+                                " after " + std::to_string(taken) + " steps, and then " + e.what());
     }
     fallback_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     fell_back = true;
   }
   mutable double fallback_seconds = 0;  // the taking over solver's factorisation
   mutable std::once_flag fallback_once;
-  mutable std::unique_ptr<detail::SparseFactor> fallback;  // when CG stagnated
+  mutable std::unique_ptr<detail::SparseFactor> fallback;  // when CG gave way (empty: CG went on)
   mutable Solver fallback_solver = Solver::Auto;
   mutable std::atomic<bool> fell_back{false};
 

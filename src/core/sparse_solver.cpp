@@ -17,6 +17,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -27,6 +28,17 @@
 #include <vector>
 
 namespace csrbf::detail {
+
+double kernel_matrix_bytes(const KernelMatrix& a) {
+  return 12.0 * double(a.values().size()) + 8.0 * double(a.size() + 1);
+}
+
+double cg_bytes(std::size_t entries, std::size_t n) {
+  // Rows (8-byte offsets), columns (4 bytes) and values (8), its order (4 bytes a row); x, r, p and q
+  // of up to 8 right-hand sides, and the residual histories of the stagnation check and the probe.
+  return 12.0 * double(entries) + 12.0 * double(n + 1) + 4.0 * 8 * 8 * double(n) +
+         (8.0 + 128.0) * double(std::min<std::size_t>(kCgMaxIterations, 1u << 20));
+}
 
 namespace {
 
@@ -81,6 +93,16 @@ void solve_permuted(RowMatrix& b, std::span<const std::uint32_t> order, Solve&& 
 
 class Simplicial;  // Eigen's SimplicialLLT with its AMD ordering (below)
 
+[[noreturn]] void refuse_memory(const char* name, double bytes, const std::string& what, double memory_limit_bytes) {
+  std::ostringstream os;
+  os.precision(3);
+  os << name << " needs about " << bytes / double(1ull << 30) << " GiB for " << what << ", above the limit of "
+     << memory_limit_bytes / double(1ull << 30)
+     << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius: the compact support "
+        "is what keeps the system sparse";
+  throw ResourceLimit(os.str());
+}
+
 /// A general sparse Cholesky in two steps: the constructor analyses (ordering, symbolic factorisation,
 /// the memory check), factorise() computes; flops() in between is the analysis's count.
 template <class Decomposition>
@@ -97,13 +119,7 @@ class EigenFactor final : public SparseFactor {
       : order_(std::move(order)), a_(std::move(a)), name_(name) {
     const double copies = held_bytes + 2 * 12.0 * double(a_.nonZeros());
     const auto refuse = [&](double bytes, const std::string& what) {
-      std::ostringstream os;
-      os.precision(3);
-      os << name << " needs about " << bytes / double(1ull << 30) << " GiB for " << what << ", above the limit of "
-         << memory_limit_bytes / double(1ull << 30)
-         << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius: the compact support "
-            "is what keeps the system sparse";
-      throw ResourceLimit(os.str());
+      refuse_memory(name, bytes, what, memory_limit_bytes);
     };
     if (copies > memory_limit_bytes)
       refuse(copies, "A and its copies (" + std::to_string(a_.nonZeros()) + " entries each)");
@@ -145,6 +161,7 @@ class EigenFactor final : public SparseFactor {
     });
   }
   std::size_t nonzeros() const override { return count(); }
+  double held_bytes() const override { return 12.0 * double(count()) + 12.0 * double(a_.nonZeros()); }
 
  private:
   void init(const Sparse& a) { llt_.analyzePattern(a); }
@@ -292,6 +309,9 @@ class BatchedCg final : public SparseFactor {
   }
   bool iterative() const override { return true; }
   std::size_t nonzeros() const override { return order_.size() + val_.size(); }
+  /// Its copy of A's rows, and the vectors of a solve of up to 8 right-hand sides.
+  double held_bytes() const override { return cg_bytes(val_.size(), order_.size()); }
+  void stop_probing() const override { probing_ = false; }
   std::size_t iterations() const override { return iterations_; }
   double residual() const override { return residual_; }
 
@@ -377,8 +397,9 @@ class BatchedCg final : public SparseFactor {
     // thirds of the steps taken predicts the steps still needed. CG slows down as it goes (its first steps
     // remove the easy components), so the recent rate is the better guide. CG's residual is not
     // monotonic: the probe judges by the smallest seen so far.
+    const bool probe = probe_.steps > 0 && probing_.load();
     std::vector<Sums> best;  // best[k]: the smallest residuals up to step k
-    if (probe_.steps > 0) best.reserve(max_iterations_ + 1);
+    if (probe) best.reserve(max_iterations_ + 1);
     Sums rr_best = rr_start;  // the smallest residuals so far, per column
     // Stagnation: the smallest residual so far (the worst column's) has not fallen 10x in the last
     // kCgStagnationWindow steps. CG that still converges falls much faster than that.
@@ -403,8 +424,8 @@ class BatchedCg final : public SparseFactor {
           throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
         }
       }
-      if (probe_.steps > 0) best.push_back(rr_best);
-      if (probe_.steps > 0 && it > 0 && it % probe_.steps == 0) {
+      if (probe) best.push_back(rr_best);
+      if (probe && it > 0 && it % probe_.steps == 0) {
         // The steps this solve needs in all, were the residual to keep falling at its recent rate.
         const std::size_t mark = it / 3;
         double predicted = double(it);
@@ -418,7 +439,7 @@ class BatchedCg final : public SparseFactor {
           iterations_ = it;
           std::ostringstream os;
           os << "conjugate gradients would need about " << predicted << " steps (after " << it << ")";
-          throw CgStagnated(os.str(), predicted, it);
+          throw CgStagnated(os.str(), predicted, it, true);
         }
       }
       const Sums pq = times_a(p, q, m, reduce);
@@ -465,6 +486,7 @@ class BatchedCg final : public SparseFactor {
   double diagonal_ = 1.0, tolerance_;
   std::size_t max_iterations_;
   CgProbe probe_;
+  mutable std::atomic<bool> probing_{true};
   mutable std::size_t iterations_ = 0;
   mutable double residual_ = 0;
   mutable std::mutex mutex_;
@@ -529,10 +551,10 @@ namespace {
 class EnvelopeFactor final : public SparseFactor {
  public:
   EnvelopeFactor(const KernelMatrix& a, std::vector<std::uint32_t> order, double memory_limit_bytes,
-                 std::string_view ordering)
+                 std::string_view ordering, double held_bytes)
       : order_(std::move(order)) {
     std::vector<std::size_t> first = envelope_first_columns(a.pattern(), order_);
-    check_envelope_size(first, memory_limit_bytes, ordering);
+    check_envelope_size(first, memory_limit_bytes, ordering, held_bytes);
     factor_ = envelope_matrix(a, order_, std::move(first));
     envelope_cholesky(factor_, order_);
   }
@@ -540,6 +562,7 @@ class EnvelopeFactor final : public SparseFactor {
     solve_permuted<RowMatrix>(b, order_, [&](RowMatrix& bp) { factor_.solve_in_place(bp); });
   }
   std::size_t nonzeros() const override { return factor_.envelope_entries() + order_.size(); }
+  double held_bytes() const override { return double(factor_.storage_bytes()) + 4.0 * double(order_.size()); }
 
  private:
   std::vector<std::uint32_t> order_;
@@ -548,14 +571,19 @@ class EnvelopeFactor final : public SparseFactor {
 }  // namespace
 
 void check_envelope_size(std::span<const std::size_t> first_columns, double memory_limit_bytes,
-                         std::string_view ordering) {
+                         std::string_view ordering, double held_bytes) {
   double entries = double(first_columns.size());
   for (std::size_t k = 0; k < first_columns.size(); ++k) entries += double(k - first_columns[k]);
-  if (8 * entries > memory_limit_bytes) {
+  // 8-byte values, and two 8-byte indices a row.
+  const double bytes = 8 * entries + 16.0 * double(first_columns.size());
+  if (bytes + held_bytes > memory_limit_bytes) {
     std::ostringstream os;
     os.precision(3);
     os << "the envelope of the " << ordering << " ordering holds " << std::llround(entries) << " entries, about "
-       << 8 * entries / double(1ull << 30) << " GiB, above the limit of " << memory_limit_bytes / double(1ull << 30)
+       << bytes / double(1ull << 30) << " GiB";
+    if (held_bytes > 0)
+      os << " (with A and what the fit holds beside it, " << (bytes + held_bytes) / double(1ull << 30) << " GiB)";
+    os << ", above the limit of " << memory_limit_bytes / double(1ull << 30)
        << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use another ordering or solver, or a smaller "
           "radius";
     throw ResourceLimit(os.str());
@@ -571,13 +599,20 @@ void envelope_cholesky(EnvelopeMatrix& env, std::span<const std::uint32_t> order
 }
 
 std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
-                                              double memory_limit_bytes, std::string_view ordering) {
-  return std::make_unique<EnvelopeFactor>(a, std::move(order), memory_limit_bytes, ordering);
+                                              double memory_limit_bytes, std::string_view ordering, double held_bytes) {
+  return std::make_unique<EnvelopeFactor>(a, std::move(order), memory_limit_bytes, ordering,
+                                          kernel_matrix_bytes(a) + held_bytes);
 }
 
 std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
-                                               double memory_limit_bytes) {
-  const double held = 12.0 * double(a.values().size() + a.size());  // A: its values and pattern
+                                               double memory_limit_bytes, double held_bytes) {
+  const double held = kernel_matrix_bytes(a) + held_bytes;
+  // A's lower triangle and the solver's copy of it, refused before the first is made.
+  const std::size_t lower = a.values().size() / 2 + a.size();
+  const char* name = which == Solver::Cholmod ? "CHOLMOD" : "Eigen SimplicialLLT";
+  if (held + 2 * 12.0 * double(lower) > memory_limit_bytes)
+    refuse_memory(name, held + 2 * 12.0 * double(lower),
+                  "A and its copies (" + std::to_string(lower) + " entries each)", memory_limit_bytes);
   if (which == Solver::Eigen)
     return std::make_unique<EigenAnalysis<Simplicial>>(std::make_unique<EigenFactor<Simplicial>>(
         lower_matrix(a), "Eigen SimplicialLLT", memory_limit_bytes, std::vector<std::uint32_t>{}, held));
@@ -596,8 +631,8 @@ std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<
 }
 
 std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
-                                            double memory_limit_bytes) {
-  return analyse_sparse(a, sources, which, memory_limit_bytes)->factorise();
+                                            double memory_limit_bytes, double held_bytes) {
+  return analyse_sparse(a, sources, which, memory_limit_bytes, held_bytes)->factorise();
 }
 
 }  // namespace csrbf::detail

@@ -31,7 +31,19 @@ class SparseFactor {
   /// Iterative solvers: steps and final relative residual of the last solve (0 for direct ones).
   virtual std::size_t iterations() const { return 0; }
   virtual double residual() const { return 0.0; }
+  /// Bytes the solver holds beside A (its copy of A's rows, its factor), counted against the memory
+  /// limit when another solver is built while this one lives (Auto's take-over after CG).
+  virtual double held_bytes() const = 0;
+  /// CG: Auto's probe stops, so that later solves run until they converge or stagnate (Auto keeps CG
+  /// where the direct solvers are refused by the memory limit). Nothing for the direct solvers.
+  virtual void stop_probing() const {}
 };
+
+/// Bytes of A as KernelMatrix holds it: a 4-byte column and an 8-byte value an off-diagonal entry,
+/// and an 8-byte offset a row.
+double kernel_matrix_bytes(const KernelMatrix& a);
+/// Bytes conjugate gradients hold beside A for `entries` off-diagonal entries of N rows.
+double cg_bytes(std::size_t entries, std::size_t n);
 
 /// CG did not reach its tolerance within its step limit (the caller falls back to a direct solver).
 /// CG gives up when its residual has not fallen 10x over this many steps (docs/RELIABILITY.md).
@@ -39,8 +51,11 @@ inline constexpr std::size_t kCgStagnationWindow = 1000;
 
 class CgStagnated : public std::runtime_error {
  public:
-  CgStagnated(const std::string& what, double predicted_steps, std::size_t steps_taken)
-      : std::runtime_error(what), predicted_(predicted_steps), taken_(steps_taken) {}
+  CgStagnated(const std::string& what, double predicted_steps, std::size_t steps_taken, bool gave_way = false)
+      : std::runtime_error(what), predicted_(predicted_steps), taken_(steps_taken), gave_way_(gave_way) {}
+  /// Auto's probe found another solver cheaper (CG was still converging, or had just begun); else CG
+  /// stagnated or reached its step limit, and would do so again on the same matrix.
+  bool gave_way() const noexcept { return gave_way_; }
   /// The steps the solve was predicted to need in all, from its convergence so far (infinity where
   /// it made no progress).
   double predicted_steps() const noexcept { return predicted_; }
@@ -50,6 +65,7 @@ class CgStagnated : public std::runtime_error {
  private:
   double predicted_;
   std::size_t taken_;
+  bool gave_way_;
 };
 
 /// Auto's check on CG: every `steps` steps of a solve, CG predicts the steps it needs in all from the
@@ -78,8 +94,9 @@ std::pair<double, double> lanczos_extremes(const KernelMatrix& a, unsigned seed)
 /// The envelope solver's two steps, shared by the fit and by the solver Auto turns to after CG:
 /// ResourceLimit (naming `ordering`) when the envelope of these first columns, known exactly before
 /// it is allocated, passes memory_limit_bytes;
+/// held_bytes: what the fit holds beside the envelope (A, a solver that gave way), counted with it.
 void check_envelope_size(std::span<const std::size_t> first_columns, double memory_limit_bytes,
-                         std::string_view ordering);
+                         std::string_view ordering, double held_bytes);
 /// and the Cholesky factorisation in place of A in `order`, NotPositiveDefinite naming the source
 /// (order[row]) rather than the row.
 void envelope_cholesky(EnvelopeMatrix& env, std::span<const std::uint32_t> order);
@@ -87,8 +104,10 @@ void envelope_cholesky(EnvelopeMatrix& env, std::span<const std::uint32_t> order
 /// The paper's envelope Cholesky of A in `order` (rows: the sources order[k]) as a SparseFactor that
 /// takes and gives the input order: the direct solver Auto turns to after CG on a small system.
 /// ResourceLimit when the envelope exceeds memory_limit_bytes; NotPositiveDefinite names the source.
+/// held_bytes: what the fit holds beside A (a solver that gave way).
 std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
-                                              double memory_limit_bytes, std::string_view ordering);
+                                              double memory_limit_bytes, std::string_view ordering,
+                                              double held_bytes = 0);
 
 /// A general sparse Cholesky factorisation analysed (ordering, symbolic factorisation, memory check)
 /// but not yet computed: its flops are known before it factorises (the tests check csrbf's own
@@ -102,14 +121,15 @@ class SparseAnalysis {
   virtual std::unique_ptr<SparseFactor> factorise() = 0;
 };
 /// factor_sparse's first step: ResourceLimit already here when the factor would pass the limit.
+/// held_bytes: what the fit holds beside A (a solver that gave way), counted with the factor.
 std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
-                                               double memory_limit_bytes);
+                                               double memory_limit_bytes, double held_bytes = 0);
 
 /// Assembles A in compressed columns and factorises it with Solver::Eigen (AMD ordering) or
 /// Solver::Cholmod (in nested_dissection_order of the sources). Throws NotPositiveDefinite on
 /// failure, InvalidInput when CHOLMOD is asked for but not built in, ResourceLimit when the
 /// symbolic analysis predicts a factor beyond memory_limit_bytes (before the numeric factorisation).
 std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
-                                            double memory_limit_bytes);
+                                            double memory_limit_bytes, double held_bytes = 0);
 
 }  // namespace csrbf::detail
