@@ -12,6 +12,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <ctime>
+#include <dirent.h>
 #include <fcntl.h>
 #include <fstream>
 #include <poll.h>
@@ -89,20 +90,21 @@ void remove_partial_folder(const fs::path& dir) noexcept {
   fs::remove_all(dir, ec);
 }
 
-/// Partial files of this process, for a signal handler to remove (fixed storage: a handler may
-/// not allocate).
+/// Partial files and folders of this process, for a signal handler to remove (fixed storage: a
+/// handler may not allocate). A slot is 0 (free), 2 (being filled), kFileSlot or kFolderSlot.
 constexpr int kSlots = 32;
+constexpr int kFileSlot = 1, kFolderSlot = 3;
 char g_partials[kSlots][4096];
 std::atomic<int> g_used[kSlots];
 
-int register_partial(const fs::path& p) noexcept {
+int register_partial(const fs::path& p, bool folder) noexcept {
   const std::string& s = p.native();
   if (s.size() >= sizeof g_partials[0]) return -1;
   for (int i = 0; i < kSlots; ++i) {
     int expected = 0;
     if (g_used[i].compare_exchange_strong(expected, 2)) {
       std::memcpy(g_partials[i], s.c_str(), s.size() + 1);
-      g_used[i].store(1);
+      g_used[i].store(folder ? kFolderSlot : kFileSlot);
       return i;
     }
   }
@@ -114,9 +116,38 @@ void unregister_partial(int slot) noexcept {
 
 std::atomic<bool> g_cancelled{false};
 
+/// Removes `name` in the folder parent_fd and, for a folder, everything in it, with system calls
+/// that a signal handler may make (no allocation, no std::filesystem): links are removed, never
+/// followed; 16 levels at most (csrbf's partial folders hold a copied case, 4 levels deep). Another
+/// thread may still be writing into the folder: it is read again until it can be removed, 4 times
+/// at most.
+void remove_tree_at(int parent_fd, const char* name, int depth) noexcept {
+  if (::unlinkat(parent_fd, name, 0) == 0 || (errno != EISDIR && errno != EPERM) || depth >= 16) return;
+  const int fd = ::openat(parent_fd, name, O_RDONLY | O_DIRECTORY | O_NOFOLLOW | O_CLOEXEC);
+  if (fd < 0) return;
+  alignas(8) char buf[2048];
+  for (int pass = 0; pass < 4; ++pass) {
+    for (ssize_t n; (n = ::getdents64(fd, buf, sizeof buf)) > 0;)
+      for (ssize_t off = 0; off < n;) {
+        const auto* d = reinterpret_cast<const struct dirent64*>(buf + off);
+        off += d->d_reclen;
+        if (std::strcmp(d->d_name, ".") != 0 && std::strcmp(d->d_name, "..") != 0)
+          remove_tree_at(fd, d->d_name, depth + 1);
+      }
+    if (::unlinkat(parent_fd, name, AT_REMOVEDIR) == 0 || errno != ENOTEMPTY) break;
+    ::lseek(fd, 0, SEEK_SET);
+  }
+  ::close(fd);
+}
+
 void unlink_partials() noexcept {
-  for (int i = 0; i < kSlots; ++i)
-    if (g_used[i].load() == 1) ::unlink(g_partials[i]);
+  for (int i = 0; i < kSlots; ++i) {
+    const int kind = g_used[i].load();
+    if (kind == kFileSlot)
+      ::unlink(g_partials[i]);
+    else if (kind == kFolderSlot)
+      remove_tree_at(AT_FDCWD, g_partials[i], 0);
+  }
 }
 
 extern "C" void remove_partials_and_die(int sig) {
@@ -263,7 +294,7 @@ Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : ki
     // Without the attribute (a file system without user xattrs) a partial left by a killed run is
     // not removed by later runs: better left than a user's file removed by its name.
     ::fsetxattr(lock_fd_, kOwnerAttr, token.data(), token.size(), 0);
-    if (kind == Kind::File) slot_ = register_partial(path_);
+    slot_ = register_partial(path_, kind == Kind::Folder);
   }
   pthread_sigmask(SIG_SETMASK, &old, nullptr);
   errno = open_errno;
@@ -306,6 +337,8 @@ void Partial::disown() noexcept {
 }
 
 void Partial::release() noexcept {
+  unregister_partial(slot_);
+  slot_ = -1;
   disown();
   committed_ = true;
 }

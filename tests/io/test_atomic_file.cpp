@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <sys/stat.h>
 #include <atomic>
@@ -123,6 +124,55 @@ TEST(AtomicFile, PartialsOfDeadWritersAreRemovedAndNothingElse) {
   EXPECT_EQ(test::read_text(dir / "notes.txt"), "the user's");
   EXPECT_EQ(test::read_text(dir / "c.obj"), "c");
   EXPECT_EQ(test::files_in(dir.path), 6u);
+}
+
+TEST(AtomicFile, ASignalOrTheTimeLimitRemovesPartialFoldersWithWhatIsInThem) {
+  // Issue 30, point 8: the handlers removed partial files only, so a partial folder (a VTK, CGNS,
+  // glTF or OpenFOAM output being written) outlived SIGTERM and --time-limit until the next run
+  // into that folder. Now it goes with the process, with the files, folders and links in it; what a
+  // link names, outside, stays.
+  test::TempDir dir;
+  test::write_text(dir / "outside.txt", "the user's");
+  const auto run = [&](int how) {  // 0: SIGTERM, 1: SIGINT, 2: --time-limit
+    const pid_t child = ::fork();
+    if (child == 0) {
+      io::remove_partials_on_signals();
+      auto* f = new io::Partial(dir / "a.vtu", io::Partial::Kind::File);
+      auto* d = new io::Partial(dir / "case", io::Partial::Kind::Folder);
+      (void)f;
+      std::filesystem::create_directories(d->path() / "constant" / "polyMesh");
+      test::write_text(d->path() / "constant" / "polyMesh" / "points", "points");
+      test::write_text(d->path() / "a.vtu", "vtu");
+      std::filesystem::create_symlink(dir / "outside.txt", d->path() / "link");
+      std::filesystem::create_directory_symlink(dir.path, d->path() / "up");
+      for (int k = 0; k < 300; ++k) {
+        std::string name("f");  // by appends: GCC 12 warns falsely on '"f" + string' (-Wrestrict)
+        name += std::to_string(k);
+        test::write_text(d->path() / name, "x");
+      }
+      if (how == 2) {
+        io::limit_time(0.05, false);
+        for (;;) ::pause();
+      }
+      ::raise(how == 0 ? SIGTERM : SIGINT);
+      ::_exit(0);  // not reached
+    }
+    int status = 0;
+    EXPECT_EQ(::waitpid(child, &status, 0), child);
+    return status;
+  };
+  for (int how : {0, 1, 2}) {
+    const int status = run(how);
+    if (how == 2) {
+      EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 1) << status;
+    } else {
+      EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == (how == 0 ? SIGTERM : SIGINT)) << status;
+    }
+    std::vector<std::string> left;
+    for (const auto& e : std::filesystem::directory_iterator(dir.path)) left.push_back(e.path().filename().string());
+    EXPECT_EQ(left, std::vector<std::string>{"outside.txt"}) << "after " << how;
+    EXPECT_EQ(test::read_text(dir / "outside.txt"), "the user's");
+  }
 }
 
 TEST(AtomicFile, ANewTargetIsCreatedOnceByConcurrentWriters) {

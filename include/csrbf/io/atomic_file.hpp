@@ -76,19 +76,19 @@ class Partial {
 };
 
 /// Installs handlers for SIGINT, SIGTERM, SIGHUP, SIGPIPE, SIGQUIT, SIGUSR1/2, SIGALRM, SIGVTALRM,
-/// SIGPROF and SIGXCPU that remove this process's
-/// partial files, then die of the signal as before, and unblocks them in the calling thread (a
-/// launcher such as mpirun may start processes with them blocked). (Partial folders, and partials of a process
-/// killed by SIGKILL, are removed by the next run.) For programs, not libraries.
+/// SIGPROF and SIGXCPU that remove this process's partial files and folders (with what is in them),
+/// then die of the signal as before, and unblocks them in the calling thread (a launcher such as
+/// mpirun may start processes with them blocked). (Partials of a process killed by SIGKILL are
+/// removed by the next run into their folder.) For programs, not libraries.
 void remove_partials_on_signals() noexcept;
 
-/// Removes this process's partial files and makes every later commit of a partial fail ("cancelled
+/// Removes this process's partial files and folders and makes every later commit of a partial fail ("cancelled
 /// by a signal"): for a signal that announces the end (mpirun's SIGCONT) while the process goes on
 /// for a moment. Async-signal-safe.
 void cancel_writes() noexcept;
 
 /// --time-limit: after seconds of wall time (from this call), SIGALRM removes this process's
-/// partial files, prints "csrbf: error: the time limit of S s (--time-limit) was reached; nothing
+/// partial files and folders, prints "csrbf: error: the time limit of S s (--time-limit) was reached; nothing
 /// was written" (when speak) and exits 1, whatever the process is doing (a factorisation cannot be
 /// asked to stop). Child processes die with it (they are started with PR_SET_PDEATHSIG). For
 /// programs, not libraries; seconds in (0, 1e6].
