@@ -7,6 +7,7 @@
 #include "text.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
+#include "csrbf/io/memory.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -111,10 +112,10 @@ void MeshDocument::Impl::save_same(const fs::path& out) const {
     std::vector<unsigned char> body = ply_body;
     for (std::size_t i = 0; i < positions.size(); ++i) {
       for (int k = 0; k < 3; ++k)
-        ply_write(&body[ply_offsets[i][std::size_t(k)]], ply_types[std::size_t(k)], ply_swap, positions[i][k]);
+        ply_write(&body[ply_offset(i, k)], ply_types[std::size_t(k)], ply_swap, positions[i][k]);
       if (has_normals)
         for (int k = 0; k < 3; ++k)
-          ply_write(&body[ply_offsets[i][std::size_t(k + 3)]], ply_types[std::size_t(k + 3)], ply_swap, vn[i][k]);
+          ply_write(&body[ply_offset(i, k + 3)], ply_types[std::size_t(k + 3)], ply_swap, vn[i][k]);
     }
     write_atomically(out, [&](std::ostream& os) {
       os << ply_header;
@@ -158,6 +159,9 @@ MeshDocument MeshDocument::load(const fs::path& path, double memory_limit_bytes)
         impl->load_xyz(read_input(path, "a mesh", max_file));
         break;
       case MeshFormat::Ply:
+        // A binary PLY's vertices take up to 8 times their file bytes once read (positions, normals
+        // and where each sits): its counts are checked against what the program leaves of the limit.
+        impl->read_budget = memory_limit_bytes - resident_bytes();
         impl->load_ply(read_input(path, "a mesh", max_file));
         break;
       case MeshFormat::Assimp:

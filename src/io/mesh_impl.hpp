@@ -13,6 +13,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -82,11 +83,23 @@ struct MeshDocument::Impl {
   std::string ply_header;
   bool ply_binary = false, ply_swap = false;
   std::vector<unsigned char> ply_body;
-  std::vector<std::array<std::size_t, 6>> ply_offsets;  // binary: byte offset of x y z nx ny nz
+  // Binary: where x y z nx ny nz of vertex i sit. A vertex element without list properties has one
+  // layout: its start a vertex, plus the same 6 offsets in it; else the 6 offsets a vertex.
+  bool ply_fixed_layout = true;
+  std::vector<std::size_t> ply_vertex_start;
+  std::array<std::size_t, 6> ply_relative{};
+  std::vector<std::array<std::size_t, 6>> ply_offsets;
+  std::size_t ply_offset(std::size_t i, int k) const {
+    return ply_fixed_layout ? ply_vertex_start[i] + ply_relative[std::size_t(k)] : ply_offsets[i][std::size_t(k)];
+  }
   std::array<PlyType, 6> ply_types{};
 
   // assimp
   std::unique_ptr<Assimp::Importer> importer;
+
+  // What reading may take (bytes, beside the file's text): checked against what the header's counts
+  // predict before anything is allocated, where a format states them (binary PLY).
+  double read_budget = std::numeric_limits<double>::infinity();
 
   std::string where(std::size_t line) const { return path.string() + ":" + std::to_string(line + 1) + ": "; }
   void check_faces() const {

@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <sstream>
 #include <string>
 
 namespace fs = std::filesystem;
@@ -235,7 +236,39 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
     ply_types[std::size_t(k)] = t;
   }
 
+  const PlyElement* face_element = nullptr;
+  for (const auto& e : elements)
+    if (e.name == "face") face_element = &e;
+  const std::size_t face_count = face_element ? face_element->count : 0;
   if (ply_binary) {
+    // Bounded by the body's size, the counts say what reading will hold: the body's copy; a
+    // position, a normal where the file has them, and where they sit (8 bytes, or 48 with list
+    // properties in the vertex) a vertex; a face's offset and at least 3 corners (20 bytes).
+    const bool lists =
+        std::any_of(vertex->props.begin(), vertex->props.end(), [](const PlyProperty& p) { return p.list; });
+    const double per_vertex = 24.0 + (has_normals ? 24.0 : 0.0) + (lists ? 48.0 : 8.0);
+    const double predicted =
+        double(body_bytes) + per_vertex * double(vertex->count) + 20.0 * double(face_count) + double(text.size());
+    if (predicted > read_budget) {
+      std::ostringstream os;
+      os.precision(3);
+      os << name << ": its " << vertex->count << " vertices and " << face_count << " faces would take about "
+         << predicted / double(1ull << 30) << " GiB once read, more than the " << read_budget / double(1ull << 30)
+         << " GiB that --memory-limit leaves (give a larger --memory-limit)";
+      throw FileError(os.str());
+    }
+  }
+  if (ply_binary) {
+    // Reserved as predicted (the counts are checked above), so that no vector doubles past them.
+    positions.reserve(vertex->count);
+    if (has_normals) normals.reserve(vertex->count);
+    faces.reserve(face_count, 3 * face_count);
+    ply_fixed_layout =
+        std::none_of(vertex->props.begin(), vertex->props.end(), [](const PlyProperty& p) { return p.list; });
+    if (ply_fixed_layout)
+      ply_vertex_start.reserve(vertex->count);
+    else
+      ply_offsets.reserve(vertex->count);
     ply_body.assign(text.begin() + std::ptrdiff_t(body_start + 1), text.end());
     std::size_t off = 0;
     const std::size_t size = ply_body.size();
@@ -245,6 +278,7 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
     for (const auto& e : elements) {
       for (std::size_t i = 0; i < e.count; ++i) {
         std::array<std::size_t, 6> offs{};
+        const std::size_t start = off;
         std::vector<std::uint32_t> face;
         for (std::size_t p = 0; p < e.props.size(); ++p) {
           const auto& pr = e.props[p];
@@ -288,8 +322,14 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
               n[k] = ply_read(&ply_body[offs[std::size_t(k + 3)]], ply_types[std::size_t(k + 3)], ply_swap);
           if (!p.allFinite()) throw FileError(name + ": vertex " + std::to_string(i) + " is not finite");
           positions.push_back(p);
-          normals.push_back(n);
-          ply_offsets.push_back(offs);
+          if (has_normals) normals.push_back(n);
+          if (!ply_fixed_layout) {
+            ply_offsets.push_back(offs);
+          } else {
+            if (i == 0)
+              for (std::size_t k = 0; k < 6; ++k) ply_relative[k] = offs[k] - start;
+            ply_vertex_start.push_back(start);
+          }
         } else if (e.name == "face") {
           faces.push_back(std::move(face));
         }

@@ -1,4 +1,5 @@
 #include "csrbf/io/mesh.hpp"
+#include "csrbf/io/memory.hpp"
 
 #include "io/test_helpers.hpp"
 
@@ -7,6 +8,7 @@
 
 #include <bit>
 #include <cstring>
+#include <vector>
 
 using namespace csrbf;
 using io::FileError;
@@ -255,6 +257,40 @@ TEST(Mesh, PlyCountsAreBoundedByTheFile) {
     EXPECT_NE(std::string(e.what()).find("--memory-limit"), std::string::npos) << e.what();
   }
   EXPECT_EQ(MeshDocument::load(dir / "ok.ply").positions().size(), 3u);
+}
+
+TEST(Mesh, ABinaryPlyIsReadWithinWhatTheMemoryLimitLeaves) {
+  // Issue 30, point 11: a binary PLY was read in full before any limit but the file's size: its
+  // vectors doubled as they grew and every vertex kept 6 offsets (a 24.5 MB file of 1.5e6 vertices
+  // peaked at 0.335 GiB under --memory-limit 0.3). Its counts now predict what reading takes, checked
+  // against what the program leaves of the limit, and the vectors are reserved to them.
+  test::TempDir dir;
+  const std::size_t n = 100000;
+  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(n) +
+                    "\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float "
+                    "ny\nproperty float nz\nend_header\n";
+  for (std::size_t i = 0; i < n; ++i) {
+    const float v[6] = {float(i), 1, 2, 0, 0, 1};
+    ply.append(reinterpret_cast<const char*>(v), sizeof v);
+  }
+  test::write_text(dir / "v.ply", ply);  // 2.4 MB: 5.6 MB of positions, normals and offsets once read
+  // The program holds 64 MB more, so that the file passes the size check (a twelfth of the limit)
+  // while what reading needs does not fit in what is left.
+  std::vector<char> held(64u << 20, 1);
+  const double resident = io::resident_bytes();
+  try {
+    MeshDocument::load(dir / "v.ply", resident + 4e6);
+    ADD_FAILURE() << "read beyond the limit";
+  } catch (const FileError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("v.ply: its 100000 vertices and 0 faces would take about"), std::string::npos) << what;
+    EXPECT_NE(what.find("--memory-limit"), std::string::npos) << what;
+  }
+  const MeshDocument m = MeshDocument::load(dir / "v.ply", resident + 40e6);
+  ASSERT_EQ(m.positions().size(), n);
+  EXPECT_EQ(m.positions()[n - 1], Vec3(double(n - 1), 1, 2));
+  EXPECT_TRUE(m.has_normals());
+  EXPECT_EQ(held[held.size() - 1], 1);
 }
 
 TEST(Mesh, OffAndObjEdgeCases) {
