@@ -12,6 +12,7 @@
 #include <QDoubleSpinBox>
 #include <QFileDialog>
 #include <QFormLayout>
+#include <QFrame>
 #include <QGroupBox>
 #include <QHBoxLayout>
 #include <QLabel>
@@ -19,6 +20,9 @@
 #include <QListWidget>
 #include <QPushButton>
 #include <QScrollArea>
+#include <QTabWidget>
+
+#include <utility>
 #include <QScrollBar>
 #include <QSlider>
 #include <QVBoxLayout>
@@ -57,34 +61,55 @@ void ComposerWindow::build_ui() {
   auto* dock = new QDockWidget("Scene", this);
   dock->setObjectName("scene");
   dock->setFeatures(QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
-  auto* dock_scroll = new QScrollArea(dock);
-  dock_scroll->setWidgetResizable(true);
-  dock_scroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
-  auto* panel = new QWidget(dock_scroll);
-  panel->setMinimumWidth(330);
-  auto* layout = new QVBoxLayout(panel);
-  build_object_list(panel, layout);
-  layout->addWidget(build_key_box(panel));
-  layout->addWidget(build_orientation_box(panel));
-  layout->addWidget(build_scene_box(panel));
-  layout->addWidget(build_deformation_box(panel));
-  layout->addWidget(build_look_box(panel));
+  // Three tabs, as Blender's properties editor has them: the whole panel (1110 pixels high) did not
+  // fit the default window and scrolled, its last row cut at the fold. Each tab fits in 820 pixels;
+  // a smaller window scrolls the tab alone.
+  tabs_ = new QTabWidget(dock);
+  tabs_->setObjectName("panelTabs");
+  const auto page = [this](const QString& title) {
+    auto* scroll = new QScrollArea(tabs_);
+    scroll->setWidgetResizable(true);
+    scroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+    scroll->setFrameShape(QFrame::NoFrame);
+    auto* panel = new QWidget(scroll);
+    panel->setMinimumWidth(330);
+    auto* layout = new QVBoxLayout(panel);
+    scroll->setWidget(panel);
+    scroll->setMinimumWidth(panel->minimumWidth() + 24);
+    tabs_->addTab(scroll, title);
+    return std::make_pair(panel, layout);
+  };
+  {
+    auto [panel, layout] = page("Object");
+    build_object_list(panel, layout);
+    layout->addWidget(build_key_box(panel));
+    layout->addWidget(build_orientation_box(panel));
+    layout->addStretch(1);
+  }
+  {
+    auto [panel, layout] = page("Deformations");
+    layout->addWidget(build_deformation_box(panel));
+    layout->addStretch(1);
+  }
+  {
+    auto [panel, layout] = page("Scene");
+    layout->addWidget(build_scene_box(panel));
+    layout->addWidget(build_look_box(panel));
+    layout->addStretch(1);
+  }
 
-  // Messages above the scrolling panel, always in sight.
+  // Messages above the tabs, always in sight.
   auto* messages = gui::make_message_box(dock, 96);
   error_ = gui::add_message(messages, "error", "#b03030");
   info_ = gui::add_message(messages, "info", "#9fd89f");
   gui::add_tip(messages,
                "Select an object, click the timeline at a time, place the object and press K for a key. Space "
                "plays, Home frames all, F1 lists every key.");
-  layout->addStretch(1);
-  dock_scroll->setWidget(panel);
-  dock_scroll->setMinimumWidth(panel->minimumWidth() + 24);
   auto* dock_body = new QWidget(dock);
   auto* dock_layout = new QVBoxLayout(dock_body);
   dock_layout->setContentsMargins(0, 0, 0, 0);
   dock_layout->addWidget(messages);
-  dock_layout->addWidget(dock_scroll, 1);
+  dock_layout->addWidget(tabs_, 1);
   dock->setWidget(dock_body);
   addDockWidget(Qt::RightDockWidgetArea, dock);
 }
@@ -555,7 +580,8 @@ void ComposerWindow::select_phase_key(int deformation, int key) {
   const int n = has_object() ? int(doc_.deformation_count(std::size_t(object_))) : 0;
   deformation_ = deformation >= 0 && deformation < n ? deformation : -1;
   phase_key_ = deformation_ >= 0 ? key : -1;
-  if (phase_key_ >= 0) key_ = -1;  // one selected key at a time: Delete removes it
+  if (phase_key_ >= 0) key_ = -1;                                   // one selected key at a time: Delete removes it
+  if (deformation_ >= 0) tabs_->setCurrentIndex(kDeformationsTab);  // what was picked is in sight
   refresh_panel();
   refresh_overlays();
   view_->renderWindow()->Render();
@@ -575,7 +601,10 @@ void ComposerWindow::select_object(int i) {
 
 void ComposerWindow::select_key(int key) {
   key_ = key;
-  if (key_ >= 0) phase_key_ = -1;
+  if (key_ >= 0) {
+    phase_key_ = -1;
+    tabs_->setCurrentIndex(kObjectTab);
+  }
   refresh_panel();
   refresh_overlays();
   view_->renderWindow()->Render();

@@ -326,8 +326,10 @@ bool ComposerWindow::attach_deformation(const QString& file) {
     show_error("Select an object first");
     return false;
   }
-  return edit("Attach deformation",
-              [&](Document& d) { d.attach_deformation(std::size_t(object_), file.toStdString()); });
+  if (!edit("Attach deformation", [&](Document& d) { d.attach_deformation(std::size_t(object_), file.toStdString()); }))
+    return false;
+  tabs_->setCurrentIndex(kDeformationsTab);  // where the attached deformation is edited
+  return true;
 }
 
 bool ComposerWindow::edit(const QString& what, const std::function<void(Document&)>& change) {

@@ -29,6 +29,7 @@ class QLabel;
 class QListWidget;
 class QPushButton;
 class QSlider;
+class QTabWidget;
 class QTimer;
 class QVBoxLayout;
 class QVTKOpenGLNativeWidget;
@@ -192,6 +193,8 @@ class ComposerWindow : public QMainWindow {
   QLabel* info_ = nullptr;
   Timeline* timeline_ = nullptr;
   QScrollArea* timeline_scroll_ = nullptr;
+  QTabWidget* tabs_ = nullptr;  // the side panel's tabs: Object, Deformations, Scene
+  static constexpr int kObjectTab = 0, kDeformationsTab = 1, kSceneTab = 2;
   QListWidget* deformations_ = nullptr;
   QLineEdit* def_name_ = nullptr;
   QComboBox* combine_ = nullptr;

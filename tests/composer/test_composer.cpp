@@ -18,6 +18,9 @@
 #include <QMessageBox>
 #include <QTimer>
 #include <QScrollArea>
+#include <QScrollBar>
+#include <QTabBar>
+#include <QTabWidget>
 #include <QPushButton>
 #include <QStatusBar>
 #include <QSurfaceFormat>
@@ -376,6 +379,9 @@ TEST_F(Fixture, SceneCameraLightsColoursAndViewsAreEditedInTheComposer) {
   // Background, object colour and a light, through the document's edits the panel's buttons make.
   ASSERT_TRUE(w.edit("Background", [](csrbf::composer::Document& d) { d.set_background(Vec3(0.2, 0.3, 0.4)); }));
   ASSERT_TRUE(w.edit("Colour", [](csrbf::composer::Document& d) { d.set_object_color(0, Vec3(0.1, 0.8, 0.2)); }));
+  auto* tabs = w.findChild<QTabWidget*>("panelTabs");
+  QTest::mouseClick(tabs->tabBar(), Qt::LeftButton, Qt::NoModifier, tabs->tabBar()->tabRect(2).center());
+  ASSERT_EQ(tabs->currentIndex(), 2) << "the Scene tab holds the look";
   QTest::mouseClick(w.findChild<QPushButton*>("addLight"), Qt::LeftButton);
   EXPECT_EQ(w.document().light_count(), 3u);
   w.findChild<QListWidget*>("lights")->setCurrentRow(2);
@@ -610,4 +616,38 @@ int main(int argc, char** argv) {
   std::error_code ec;
   fs::remove_all(data, ec);
   return status;
+}
+
+// Issue 30, point 17: the side panel (objects, trajectory key, orientation, scene, deformations, look:
+// 1110 pixels) scrolled in the default 1280x820 window, its last row cut at the fold. It is now in
+// three tabs, each of which fits; picking a key on the timeline or in the view shows its tab.
+TEST_F(Fixture, EachTabOfTheSidePanelFitsTheDefaultWindow) {
+  ASSERT_TRUE(w.open_scene(QString::fromStdString(kExamples + "fish.scene.json")));
+  auto* tabs = w.findChild<QTabWidget*>("panelTabs");
+  ASSERT_NE(tabs, nullptr);
+  ASSERT_EQ(tabs->count(), 3);
+  const char* names[3] = {"Object", "Deformations", "Scene"};
+  for (int t = 0; t < 3; ++t) {
+    EXPECT_EQ(tabs->tabText(t).toStdString(), names[t]);
+    QTest::mouseClick(tabs->tabBar(), Qt::LeftButton, Qt::NoModifier, tabs->tabBar()->tabRect(t).center());
+    ASSERT_EQ(tabs->currentIndex(), t);
+    QApplication::processEvents();
+    auto* scroll = qobject_cast<QScrollArea*>(tabs->currentWidget());
+    ASSERT_NE(scroll, nullptr);
+    EXPECT_EQ(scroll->verticalScrollBar()->maximum(), 0)
+        << names[t] << ": " << scroll->widget()->sizeHint().height() << " pixels in " << scroll->viewport()->height();
+    ASSERT_TRUE(w.save_screenshot(
+        QString::fromStdString((kShots / (std::string("composer-tab-") + names[t] + ".png")).string())));
+  }
+  // A phase key picked on the timeline shows the Deformations tab; a trajectory key, the Object tab.
+  const auto fin = w.document().key_times(0, Track::Phase, 3);
+  QTest::mouseClick(w.timeline(), Qt::LeftButton, Qt::NoModifier,
+                    QPoint(int(std::lround(w.timeline()->x_of(fin[1]))), w.timeline()->y_of(2 + 3)));
+  EXPECT_EQ(w.selected_deformation(), 3);
+  EXPECT_EQ(tabs->currentIndex(), 1);
+  const auto pos = w.document().key_times(0, Track::Position);
+  QTest::mouseClick(w.timeline(), Qt::LeftButton, Qt::NoModifier,
+                    QPoint(int(std::lround(w.timeline()->x_of(pos[1]))), w.timeline()->y_of(0)));
+  EXPECT_EQ(w.selected_key(), 1);
+  EXPECT_EQ(tabs->currentIndex(), 0);
 }
