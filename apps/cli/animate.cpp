@@ -2,6 +2,7 @@
 #include "commands.hpp"
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/inputs.hpp"
+#include "csrbf/io/memory.hpp"
 
 #include "csrbf/io/scene.hpp"
 #include "csrbf/render/movie.hpp"
@@ -101,7 +102,7 @@ int run_animate(const AnimateOptions& o) {
           throw UsageError("-o '" + o.out + "': its frame file '" + in.string() +
                            "' is an input of the scene; csrbf never writes an input: choose another folder");
   }
-  anim::Scene scene = io::read_scene(o.scene);
+  anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * double(1ull << 30));
   if (o.fps) scene.fps = *o.fps;
   const double from = o.from.value_or(0.0), to = o.to.value_or(scene.duration);
   if (!(to >= from)) {
@@ -118,6 +119,18 @@ int run_animate(const AnimateOptions& o) {
     throw UsageError(m.str());
   }
   const std::size_t frames = scene.frame_count(from, to);
+  // The renderer holds about 64 bytes a pixel (Mesa's colour and depth buffers, VTK's and the
+  // movie's copies of the frame): 1.0 GB more at 4096x4096 than at 640x480, measured.
+  const double frame_bytes = 64.0 * double(width) * double(height);
+  const double left = io::memory_left(o.memory_limit_gib * double(1ull << 30));
+  if (frame_bytes > left) {
+    std::ostringstream m;
+    m.precision(3);
+    m << "--size " << o.size << ": rendering takes about " << frame_bytes / double(1ull << 30)
+      << " GiB (64 bytes a pixel), more than the " << left / double(1ull << 30)
+      << " GiB that --memory-limit leaves after the scene; give a smaller --size or a larger --memory-limit";
+    throw io::FileError(m.str());
+  }
 
   struct sigaction sa {};
   sa.sa_handler = on_signal;

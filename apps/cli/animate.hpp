@@ -14,6 +14,7 @@ class UsageError : public std::invalid_argument {
 
 struct AnimateOptions {
   std::string scene, out;
+  double memory_limit_gib = 4.0;  ///< --memory-limit: the scene's meshes and fits, the frames
   std::optional<double> fps, from, to;
   std::string size = "640x480";
   bool private_display = false;  ///< start a private Xvfb even when DISPLAY is set

@@ -81,6 +81,7 @@ std::string kib(std::size_t bytes) {
 
 int run_export(const ExportOptions& o) {
   render::GltfOptions go;
+  go.memory_limit_bytes = o.memory_limit_gib * double(1ull << 30);
   if (o.bake == "auto")
     go.bake = render::Bake::Auto;
   else if (o.bake == "always")
@@ -118,7 +119,7 @@ int run_export(const ExportOptions& o) {
   }
   if (!page.empty() && fs::absolute(page).lexically_normal() == fs::absolute(out).lexically_normal())
     throw UsageError("--html '" + o.html + "' and -o name the same path");
-  anim::Scene scene = io::read_scene(o.scene);
+  anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * double(1ull << 30));
   if (o.fps) go.fps = *o.fps;
   for (const auto& obj : scene.objects)
     for (const anim::Material* m : [&] {

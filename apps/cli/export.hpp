@@ -7,6 +7,7 @@ namespace csrbf::cli {
 
 struct ExportOptions {
   std::string scene, out, bake = "auto", html;
+  double memory_limit_gib = 4.0;  ///< --memory-limit: the scene's meshes and fits, baked frames
   std::optional<double> fps;
   bool json = false;
   bool html_given = false;  ///< --html was on the command line (an empty name is an error)

@@ -67,6 +67,15 @@ void add_time_limit(CLI::App* cmd, double& seconds) {
       ->check(finite_in(1e-3, 1e6, "--time-limit"));
 }
 
+/// --memory-limit of the commands that read a scene: its meshes, deformation files and fits.
+void add_scene_memory_limit(CLI::App* cmd, double& gib) {
+  cmd->add_option("--memory-limit", gib,
+                  "The most memory csrbf may hold, in GiB: the scene's meshes and the fits of its deformations "
+                  "that would need more than the program leaves of it are refused")
+      ->check(finite_in(1e-6, 1e6, "--memory-limit"))
+      ->capture_default_str();
+}
+
 void add_fit_options(CLI::App* cmd, FitArgs& a) {
   auto* controls =
       cmd->add_option("--controls", a.controls, "Controls file: one control vector a line, 'sx sy sz dx dy dz'");
@@ -368,6 +377,7 @@ int main(int argc, char** argv) {
   exporter->add_option("--html", export_opts.html,
                        "Also write a new folder DIR with index.html, the .glb and three.js: a page that plays it");
   exporter->add_flag("--json", export_opts.json, "Print the report as one JSON object");
+  add_scene_memory_limit(exporter, export_opts.memory_limit_gib);
 
   FitArgs info_args;
   bool json = false;
@@ -388,6 +398,7 @@ int main(int argc, char** argv) {
       ->check(finite_in(-1e6, 1e6, "--to"));
   animate->add_flag("--private-display", anim_opts.private_display,
                     "Render on a private Xvfb even when DISPLAY is set (one is started anyway when it is not)");
+  add_scene_memory_limit(animate, anim_opts.memory_limit_gib);
 
   auto* info = app.add_subcommand("info", "Fit the controls and print the solver's statistics");
   add_fit_options(info, info_args);
@@ -407,7 +418,7 @@ int main(int argc, char** argv) {
   csrbf::cli::MorphArgs morph_args;
   auto* morph = csrbf::cli::add_morph_command(app, morph_args);
   double time_limit = 0;
-  for (CLI::App* cmd : {deform, info, morph}) add_time_limit(cmd, time_limit);
+  for (CLI::App* cmd : {deform, info, morph, exporter, animate}) add_time_limit(cmd, time_limit);
 
 #ifdef CSRBF_WITH_MPI
   // Under mpirun with more than one rank: MPI starts first; every rank parses, rank 0 alone speaks,

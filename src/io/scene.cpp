@@ -1,4 +1,5 @@
 #include "csrbf/io/scene.hpp"
+#include "csrbf/io/memory.hpp"
 
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/mesh.hpp"
@@ -345,7 +346,7 @@ struct PendingContact {
 
 anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base, std::vector<PendingContact>& contacts,
                                          std::size_t object, std::size_t part, std::size_t index,
-                                         const std::vector<Vec3>& rest) {
+                                         const std::vector<Vec3>& rest, double memory_limit_bytes) {
   n.only({"name", "deformation", "controls", "sources", "destinations", "radius", "kernel", "polynomial", "phase",
           "contact", "active_area"});
   anim::Deformation def;
@@ -365,6 +366,7 @@ anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base
     if (c.has("spread")) contact.spread = c["spread"].number(0.0, 10.0);
     def.contact = contact;
     def.options.radius = n["radius"].positive();
+    def.options.memory_limit_bytes = memory_limit_bytes;  // each frame's fit
     if (n.has("kernel")) {
       const auto k = parse_kernel(n["kernel"].string());
       if (!k) n["kernel"].expected("one of " + names_text<Kernel>("\""));
@@ -381,7 +383,7 @@ anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base
       if (n.has(k)) n[k].fail("set in the deformation file; remove it here");
     const JsonNode f = n["deformation"];
     try {
-      spec = read_deformation(base / f.string());
+      spec = read_deformation(base / f.string(), memory_limit_bytes / 16.0);
     } catch (const FileError& e) {
       f.fail(e.what());
     }
@@ -398,6 +400,8 @@ anim::Deformation read_deformation_entry(const JsonNode& n, const fs::path& base
     def.area = std::move(spec.area->vertices);
   }
   try {
+    // The fit gets what the program, the meshes and the fits before it leave of the limit.
+    spec.options.memory_limit_bytes = memory_left(memory_limit_bytes);
     def.map = spec.fit();
   } catch (const InvalidInput& e) {
     n.fail(std::string("cannot fit this deformation: ") + e.what());
@@ -454,7 +458,8 @@ void read_part_selection(const JsonNode& n, const MeshDocument& mesh, anim::Part
 
 namespace {
 
-anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, const fs::path& base) {
+anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, const fs::path& base,
+                            double memory_limit_bytes) {
   const JsonNode root(j, file);
   root.only({"format", "version", "duration", "fps", "background", "camera", "lights", "objects"});
   if (root.has("format") && root["format"].string() != "csrbf-scene") root["format"].expected("\"csrbf-scene\"");
@@ -512,7 +517,7 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
     const fs::path mesh_path = base / mn.string();
     std::optional<MeshDocument> mesh;
     try {
-      mesh.emplace(MeshDocument::load(mesh_path));
+      mesh.emplace(MeshDocument::load(mesh_path, memory_limit_bytes));
     } catch (const FileError& e) {
       mn.fail(e.what());
     }
@@ -550,7 +555,8 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
             ds.fail("at most " + std::to_string(kMaxDeformations) + " deformations a part, got " +
                     std::to_string(ds.size()));
           for (std::size_t d = 0; d < ds.size(); ++d)
-            part.deformations.push_back(read_deformation_entry(ds[d], base, contacts, o, p, d, mesh->positions()));
+            part.deformations.push_back(
+                read_deformation_entry(ds[d], base, contacts, o, p, d, mesh->positions(), memory_limit_bytes));
         }
         obj.parts.push_back(std::move(part));
       }
@@ -579,13 +585,14 @@ std::string texture_problem(const fs::path& file) {
   return "it is not a PNG or JPEG image";
 }
 
-anim::Scene read_scene(const fs::path& path) {
+anim::Scene read_scene(const fs::path& path, double memory_limit_bytes) {
   const nlohmann::json j = detail::read_json_file(path);
-  return read_scene_json(j, path.string(), path.parent_path());
+  return read_scene_json(j, path.string(), path.parent_path(), memory_limit_bytes);
 }
 
-anim::Scene read_scene_text(const std::string& text, const std::string& name, const fs::path& base) {
-  return read_scene_json(detail::parse_json(text, name), name, base);
+anim::Scene read_scene_text(const std::string& text, const std::string& name, const fs::path& base,
+                            double memory_limit_bytes) {
+  return read_scene_json(detail::parse_json(text, name), name, base, memory_limit_bytes);
 }
 
 }  // namespace csrbf::io

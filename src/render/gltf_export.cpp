@@ -1,5 +1,6 @@
 // glTF 2.0 export of a scene: see gltf_export.hpp for what is exact and what is sampled.
 #include "csrbf/render/gltf_export.hpp"
+#include "csrbf/io/memory.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
@@ -361,14 +362,19 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   }
   // Baking keeps every frame's displacement of the baked vertices until the file is written: bounded
   // before the pass.
-  constexpr double kMaxBakedBytes = 4.0 * (1ull << 30);
+  // At most 4 GiB, and what the program leaves of --memory-limit.
   double baked_bytes = 0;
   for (std::size_t o = 0; o < scene.objects.size(); ++o)
     if (plans[o].any_baked()) baked_bytes += double(frames) * double(scene.objects[o].rest.size()) * (24.0 + 24.0);
-  if (baked_bytes > kMaxBakedBytes)
-    throw InvalidInput("export: baking " + std::to_string(frames) + " frames would take " +
-                       std::to_string(std::llround(baked_bytes / double(1 << 20))) +
-                       " MiB (at most 4096): lower --fps, or bake less (--bake auto or never)");
+  if (baked_bytes > 0) {
+    const double most = std::min(4.0 * (1ull << 30), io::memory_left(options.memory_limit_bytes));
+    if (baked_bytes > most)
+      throw InvalidInput("export: baking " + std::to_string(frames) + " frames would take " +
+                         std::to_string(std::llround(baked_bytes / double(1 << 20))) + " MiB (at most " +
+                         std::to_string(std::llround(most / double(1 << 20))) +
+                         ", of 4096 and of what --memory-limit leaves): lower --fps, or bake less (--bake auto or "
+                         "never)");
+  }
 
   // One pass of the player over the frames: the baked parts' displacements, and the scene's size.
   anim::Player player(scene);

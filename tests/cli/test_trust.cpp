@@ -399,3 +399,44 @@ TEST(Trust, ABinaryPlyIsDeformedWithinTheMemoryLimit) {
   EXPECT_LE(peak, 1.1 * limit * double(1ull << 30)) << read_text(dir / "log");
   EXPECT_EQ(fs::file_size(dir / "out.ply"), fs::file_size(dir / "big.ply"));
 }
+
+// Issue 30, point 11: export and animate took no --memory-limit and no --time-limit. Both now read
+// the scene's meshes and fit its deformations within the limit, animate refuses a frame size the
+// limit cannot render (64 bytes a pixel, measured), export refuses baking beyond it; --time-limit
+// ends them with nothing written, a partial frame folder included.
+TEST(Trust, ExportAndAnimateKeepTheMemoryAndTimeLimits) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer's own memory counts against the limits (the release pass runs this)";
+#endif
+  TempDir dir;
+  const std::string d = dir.path.string(), scene = kExamples + "fish.scene.json";
+  const auto big = run_shell("env -u DISPLAY " + kCli + " animate " + scene +
+                             " --to 0.08 --size 4096x4096 --memory-limit 0.5 -o " + d + "/big.mp4");
+  EXPECT_EQ(big.code, 1) << big.out;
+  EXPECT_NE(big.out.find("--size 4096x4096: rendering takes about 1 GiB (64 bytes a pixel), more than the"),
+            std::string::npos)
+      << big.out;
+  const auto tiny =
+      run_shell("env -u DISPLAY " + kCli + " animate " + scene + " --to 0.08 --memory-limit 0.02 -o " + d + "/t.mp4");
+  EXPECT_EQ(tiny.code, 1) << tiny.out;
+  EXPECT_NE(tiny.out.find("cannot fit this deformation: --memory-limit 0.02 GiB is too small"), std::string::npos)
+      << tiny.out;
+  const auto bake = run_shell(kCli + " export " + scene + " --bake always --memory-limit 0.06 -o " + d + "/b.glb");
+  EXPECT_EQ(bake.code, 1) << bake.out;
+  EXPECT_NE(bake.out.find("frames would take 9 MiB (at most"), std::string::npos) << bake.out;
+  // Within the limits, as before, and the peak is within the limit plus 10 %.
+  const auto [code, peak] =
+      run_measured("env -u DISPLAY " + kCli + " animate " + scene + " --to 0.2 --memory-limit 0.25 -o " + d + "/ok.mp4",
+                   dir / "log");
+  EXPECT_EQ(code, 0) << read_text(dir / "log");
+  EXPECT_LE(peak, 1.1 * 0.25 * double(1ull << 30));
+  EXPECT_EQ(run_shell(kCli + " export " + scene + " --memory-limit 0.25 -o " + d + "/ok.glb").code, 0);
+  // --time-limit ends a movie into a frame folder: no folder, no partial.
+  const auto slow = run_shell("env -u DISPLAY " + kCli + " animate " + scene + " --time-limit 1 -o " + d + "/frames");
+  EXPECT_EQ(slow.code, 1) << slow.out;
+  EXPECT_NE(slow.out.find("the time limit of 1 s (--time-limit) was reached; nothing was written"), std::string::npos)
+      << slow.out;
+  EXPECT_FALSE(fs::exists(dir / "frames"));
+  for (const auto& e : fs::directory_iterator(dir.path))
+    EXPECT_EQ(e.path().filename().string().find(".csrbf-partial-"), std::string::npos) << e.path();
+}

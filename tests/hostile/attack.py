@@ -2,7 +2,7 @@
 deformation and scene JSON, OBJ, PLY, OFF, legacy VTK, Gmsh, motion JSON) and of its options, each
 run through the program with a time limit. Every case must end (no hang) with exit 0, 1 or 2, never
 die of a signal, print no raw control character, leave no partial file and no output that is an
-input, and change no input. Every deform and morph runs under a --memory-limit (0.25, 1 or the
+input, and change no input. Every deform, morph and export runs under a --memory-limit (0.25, 1 or the
 default 4 GiB, unless the case sets its own), and its peak resident memory, csrbf's or any reading
 child's, measured by wait4, stays within the limit plus 10 % (limits below 0.25 GiB, smaller than the
 program itself with its libraries, are not measured).
@@ -443,7 +443,7 @@ def main():
                                          text[-300:].decode("utf-8", "replace")))
                     continue
             argv, inputs = make_case(rng, d, k % 14)
-            if argv[0] in ("deform", "morph") and "--memory-limit" not in argv:
+            if argv[0] in ("deform", "morph", "export") and "--memory-limit" not in argv:
                 argv += ["--memory-limit", rng.choice(["0.25", "1", "4"])]
             before = {p: digest(p) for p in inputs if os.path.isfile(p)}
             ran = run_case(argv, env, d, 120)
@@ -455,7 +455,7 @@ def main():
             if code not in (0, 1, 2):
                 problems.append("exit %d" % code)
             limit = memory_limit_gib(argv)
-            if argv[0] in ("deform", "morph") and limit is not None and limit >= 0.25 and \
+            if argv[0] in ("deform", "morph", "export") and limit is not None and limit >= 0.25 and \
                     peak_kib > 1.1 * limit * 1024 * 1024:
                 problems.append("peak memory %.0f MiB over the %g GiB limit" % (peak_kib / 1024, limit))
             peaks.append(peak_kib)

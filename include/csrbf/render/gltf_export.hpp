@@ -37,6 +37,9 @@ struct GltfOptions {
   double fps = 0;  ///< the sampling rate; 0: the scene's
   Bake bake = Bake::Auto;
   std::size_t max_active = 8;  ///< morph targets active at once in an object (three.js: 8)
+  /// The whole process's limit (--memory-limit): baked frames are refused beyond what the program
+  /// leaves of it.
+  double memory_limit_bytes = 4.0 * (1ull << 30);
 };
 
 struct GltfPartReport {
