@@ -48,25 +48,34 @@ int main(int argc, char** argv) {
               << parser.value(size).toStdString() << "'\n";
     return 2;
   }
+  // --radius belongs to --controls, as in `csrbf deform` (a deformation file holds its own): alone it
+  // was ignored without a word.
+  std::optional<double> r;  // without --radius, the Picker proposes one and says so
+  if (parser.isSet(radius)) {
+    bool number = false;
+    r = parser.value(radius).toDouble(&number);
+    if (!number || !(*r > 0) || !std::isfinite(*r)) {
+      std::cerr << "csrbf-picker: error: --radius must be a positive number, got '"
+                << parser.value(radius).toStdString() << "'\n";
+      return 2;
+    }
+    if (!parser.isSet(controls)) {
+      std::cerr << "csrbf-picker: error: --radius is the radius of the controls of --controls FILE; give that too"
+                << (parser.isSet(deformation) ? " (a --deformation file holds its own radius)" : "") << '\n';
+      return 2;
+    }
+  }
+  if (parser.isSet(controls) && parser.isSet(deformation)) {
+    std::cerr << "csrbf-picker: error: give --deformation FILE or --controls FILE, not both\n";
+    return 2;
+  }
   w.resize(width, height);
   w.show();
   bool ok = true;
   const QStringList args = parser.positionalArguments();
   if (!args.isEmpty()) ok = w.open_mesh(args.front());
   if (ok && parser.isSet(deformation)) ok = w.load_deformation(parser.value(deformation));
-  if (ok && parser.isSet(controls)) {
-    std::optional<double> r;  // without --radius, the Picker proposes one and says so
-    if (parser.isSet(radius)) {
-      bool number = false;
-      r = parser.value(radius).toDouble(&number);
-      if (!number || !(*r > 0) || !std::isfinite(*r)) {
-        std::cerr << "csrbf-picker: error: --radius must be a positive number, got '"
-                  << parser.value(radius).toStdString() << "'\n";
-        return 2;
-      }
-    }
-    ok = w.load_controls(parser.value(controls), r);
-  }
+  if (ok && parser.isSet(controls)) ok = w.load_controls(parser.value(controls), r);
   if (parser.isSet(screenshot)) {
     if (!ok) {
       std::cerr << "csrbf-picker: error: " << w.error_text().toStdString() << '\n';

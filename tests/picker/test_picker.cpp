@@ -659,3 +659,24 @@ int main(int argc, char** argv) {
   fs::remove_all(data, ec);
   return status;
 }
+
+// Issue 30, point 17: --radius without --controls was ignored without a word; it belongs to
+// --controls, as in csrbf deform (a deformation file holds its own), and is a usage error alone.
+TEST(PickerCommandLine, ARadiusWithoutControlsIsAUsageError) {
+  const std::string picker = std::string(CSRBF_PICKER) + " ";
+  const auto alone = csrbf::test::run_shell(picker + "--radius 0.3 " + kExamples + "fish.obj");
+  EXPECT_EQ(alone.code, 2) << alone.out;
+  EXPECT_NE(alone.out.find("--radius is the radius of the controls of --controls FILE"), std::string::npos)
+      << alone.out;
+  const auto with_file = csrbf::test::run_shell(picker + "--radius 0.3 --deformation " + kExamples +
+                                                "fish.deformation.json " + kExamples + "fish.obj");
+  EXPECT_EQ(with_file.code, 2) << with_file.out;
+  EXPECT_NE(with_file.out.find("a --deformation file holds its own radius"), std::string::npos) << with_file.out;
+  const auto both = csrbf::test::run_shell(picker + "--controls " + kExamples + "fish.controls --deformation x.json " +
+                                           kExamples + "fish.obj");
+  EXPECT_EQ(both.code, 2) << both.out;
+  const auto bad = csrbf::test::run_shell(picker + "--radius -1 --controls " + kExamples + "fish.controls " +
+                                          kExamples + "fish.obj");
+  EXPECT_EQ(bad.code, 2) << bad.out;
+  EXPECT_NE(bad.out.find("--radius must be a positive number, got '-1'"), std::string::npos) << bad.out;
+}
