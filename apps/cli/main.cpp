@@ -442,7 +442,16 @@ int main(int argc, char** argv) {
     const int code = app.exit(e, out, err);
     if (!quiet) {
       std::cout << csrbf::printable(out.str(), true);
-      std::cerr << csrbf::printable(err.str(), true);
+      if (code == 0) {
+        std::cerr << csrbf::printable(err.str(), true);
+      } else {
+        // As every other error: "csrbf: error: ...", the option named once (CLI11 puts "--x: " before a
+        // validator's own "--x must be ...").
+        std::string what = e.what();
+        const auto colon = what.find(": ");
+        if (colon != std::string::npos && what.compare(colon + 2, colon, what, 0, colon) == 0) what.erase(0, colon + 2);
+        std::cerr << "csrbf: error: " << csrbf::printable(what, true) << "\nRun with --help for more information.\n";
+      }
     }
     return leave(code == 0 ? 0 : 2);
   }

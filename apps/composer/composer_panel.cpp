@@ -58,7 +58,7 @@ void ComposerWindow::build_ui() {
   build_view();
   build_centre();
 
-  auto* dock = new QDockWidget("Scene", this);
+  auto* dock = new QDockWidget("Properties", this);  // "Scene" is the third tab's name
   dock->setObjectName("scene");
   dock->setFeatures(QDockWidget::DockWidgetMovable | QDockWidget::DockWidgetFloatable);
   // Three tabs, as Blender's properties editor has them: the whole panel (1110 pixels high) did not
@@ -158,6 +158,7 @@ void ComposerWindow::build_centre() {
 
 void ComposerWindow::build_object_list(QWidget* panel, QVBoxLayout* layout) {
   objects_ = new QListWidget(panel);
+  objects_->setMaximumHeight(6 * objects_->fontMetrics().height() + 8);  // the panel's other rows in sight
   objects_->setObjectName("objects");
   connect(objects_, &QListWidget::currentRowChanged, this, [this](int r) {
     if (!updating_) select_object(r);
@@ -278,7 +279,7 @@ QGroupBox* ComposerWindow::build_orientation_box(QWidget* panel) {
 }
 
 QGroupBox* ComposerWindow::build_scene_box(QWidget* panel) {
-  auto* scenebox = new QGroupBox("Scene", panel);
+  auto* scenebox = new QGroupBox("Timing", panel);
   auto* sf = new QFormLayout(scenebox);
   duration_ = spin_box(scenebox, "duration", 0.1, 3600, 0.5, 2);
   fps_ = spin_box(scenebox, "fps", 1, 240, 1, 1);
@@ -545,6 +546,10 @@ void ComposerWindow::refresh_deformation_panel() {
   combine_->setEnabled(n > 0);
   phase_time_->setEnabled(has_key);
   phase_value_->setEnabled(has_key);
+  // The buttons too look as what they do allows (the new-user trial took them for live).
+  for (const char* b : {"addPhaseKey", "removeDeformation"})
+    if (auto* button = findChild<QPushButton*>(b)) button->setEnabled(has_def);
+  if (auto* button = findChild<QPushButton*>("deletePhaseKey")) button->setEnabled(has_key);
   def_name_->setText(
       has_def ? QString::fromStdString(doc_.deformation_name(std::size_t(object_), std::size_t(deformation_)))
               : QString());

@@ -8,6 +8,7 @@
 #include <QSurfaceFormat>
 #include <QVTKOpenGLNativeWidget.h>
 
+#include <cmath>
 #include <iostream>
 #include <memory>
 
@@ -27,7 +28,14 @@ int main(int argc, char** argv) {
   const QCommandLineOption time("time", "Time shown, in seconds (default 0)", "t", "0");
   const QCommandLineOption size("size", "Window size WIDTHxHEIGHT (default 1280x820)", "WxH", "1280x820");
   parser.addOptions({screenshot, time, size});
-  parser.process(app);
+  if (const int code = csrbf::gui::parse_command_line(parser, app, "csrbf-composer", 1); code >= 0) return code;
+  bool time_ok = false;
+  const double t = parser.value(time).toDouble(&time_ok);
+  if (!time_ok || !(std::abs(t) <= 1e6)) {
+    std::cerr << "csrbf-composer: error: --time: expected seconds, a number in [-1e6, 1e6], got '"
+              << parser.value(time).toStdString() << "'\n";
+    return 2;
+  }
   const QStringList wh = parser.value(size).split('x');
   const int width = wh.size() == 2 ? wh[0].toInt() : 0, height = wh.size() == 2 ? wh[1].toInt() : 0;
   if (width < 200 || height < 200 || width > 8192 || height > 8192) {
@@ -40,7 +48,7 @@ int main(int argc, char** argv) {
   w.show();
   const QStringList args = parser.positionalArguments();
   const bool ok = args.isEmpty() || w.open_scene(args.front());
-  w.set_time(parser.value(time).toDouble());
+  w.set_time(t);
   if (parser.isSet(screenshot)) {
     if (!ok) {
       std::cerr << "csrbf-composer: error: " << w.error_text().toStdString() << '\n';

@@ -5,6 +5,7 @@
 
 #include <QAbstractSpinBox>
 #include <QAction>
+#include <QCommandLineParser>
 #include <QKeyEvent>
 #include <QStandardPaths>
 #include <QTimer>
@@ -125,6 +126,26 @@ int recovery_seconds() {
     if (v >= 1 && v <= 3600) return v;
   }
   return 60;
+}
+
+int parse_command_line(QCommandLineParser& parser, const QCoreApplication& app, const char* program,
+                       int max_positional) {
+  if (!parser.parse(app.arguments())) {
+    std::cerr << program << ": error: " << csrbf::printable(parser.errorText().toStdString()) << " (see --help)\n";
+    return 2;
+  }
+  if (parser.isSet("help")) {
+    std::cout << parser.helpText().toStdString();
+    return 0;
+  }
+  const QStringList args = parser.positionalArguments();
+  if (args.size() > max_positional) {
+    std::cerr << program << ": error: unexpected argument '" << csrbf::printable(args[max_positional].toStdString())
+              << "': " << (max_positional == 1 ? "one file is opened at a time" : "no file is taken")
+              << " (see --help)\n";
+    return 2;
+  }
+  return -1;
 }
 
 std::unique_ptr<render::Display> ensure_display(const char* program, bool& ok) {

@@ -21,6 +21,8 @@
 class QLabel;
 class QMenu;
 class QScrollArea;
+class QCommandLineParser;
+class QCoreApplication;
 class QUndoStack;
 class QWidget;
 class QVTKOpenGLNativeWidget;
@@ -76,6 +78,13 @@ int recovery_seconds();
 /// Returns null when DISPLAY is set; prints "program: error: ..." and returns null with ok = false
 /// when no display can be had.
 std::unique_ptr<render::Display> ensure_display(const char* program, bool& ok);
+
+/// Parses the command line as csrbf's commands do: an unknown option, a missing value or more than
+/// max_positional arguments print "program: error: ..." and give exit status 2 (QCommandLineParser's
+/// process() exits 1, and ignored extra arguments without a word); --help prints and gives 0.
+/// Returns -1 when the program goes on.
+int parse_command_line(QCommandLineParser& parser, const QCoreApplication& app, const char* program,
+                       int max_positional);
 
 /// A box of fixed height for message labels, one above another, scrolling when they are long: a
 /// message coming or going never moves the panel or resizes the view under the mouse.

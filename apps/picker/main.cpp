@@ -34,7 +34,7 @@ int main(int argc, char** argv) {
   const QCommandLineOption screenshot("screenshot", "Render the window once to this PNG and exit", "file");
   const QCommandLineOption size("size", "Window size WIDTHxHEIGHT (default 1280x800)", "WxH", "1280x800");
   parser.addOptions({deformation, controls, radius, screenshot, size});
-  parser.process(app);
+  if (const int code = csrbf::gui::parse_command_line(parser, app, "csrbf-picker", 1); code >= 0) return code;
 
   csrbf::picker::PickerWindow w;
   const QStringList wh = parser.value(size).split('x');
@@ -54,8 +54,8 @@ int main(int argc, char** argv) {
   if (parser.isSet(radius)) {
     bool number = false;
     r = parser.value(radius).toDouble(&number);
-    if (!number || !(*r > 0) || !std::isfinite(*r)) {
-      std::cerr << "csrbf-picker: error: --radius must be a positive number, got '"
+    if (!number || !(*r >= 1e-150 && *r <= 1e150)) {  // as csrbf deform takes it
+      std::cerr << "csrbf-picker: error: --radius must be a number in [1e-150, 1e150], got '"
                 << parser.value(radius).toStdString() << "'\n";
       return 2;
     }
@@ -64,6 +64,12 @@ int main(int argc, char** argv) {
                 << (parser.isSet(deformation) ? " (a --deformation file holds its own radius)" : "") << '\n';
       return 2;
     }
+  }
+  if ((parser.isSet(controls) || parser.isSet(deformation)) && parser.positionalArguments().isEmpty()) {
+    std::cerr << "csrbf-picker: error: --" << (parser.isSet(controls) ? "controls" : "deformation")
+              << " moves a mesh: give the mesh file too (csrbf-picker MESH --"
+              << (parser.isSet(controls) ? "controls" : "deformation") << " FILE)\n";
+    return 2;
   }
   if (parser.isSet(controls) && parser.isSet(deformation)) {
     std::cerr << "csrbf-picker: error: give --deformation FILE or --controls FILE, not both\n";

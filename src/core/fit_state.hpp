@@ -195,8 +195,8 @@ struct SpaceMap::Structure {
           direct();
         } catch (const ResourceLimit& first) {
           if (!automatic)
-            throw ResourceLimit(why +
-                                "; and the direct solver that can solve it passes the memory limit: " + first.what());
+            throw ResourceLimit(why + "; and the direct solver that can solve it passes the memory limit: " +
+                                first.what() + " (--solver envelope, or auto, may fit within it)");
           try {
             envelope();
           } catch (const ResourceLimit& second) {

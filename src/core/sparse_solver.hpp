@@ -42,6 +42,11 @@ class SparseFactor {
 /// Bytes of A as KernelMatrix holds it: a 4-byte column and an 8-byte value an off-diagonal entry,
 /// and an 8-byte offset a row.
 double kernel_matrix_bytes(const KernelMatrix& a);
+/// What the address-space limit (RLIMIT_AS, ulimit -v) leaves beyond what the process maps now, in
+/// bytes; infinity without a limit.
+double address_space_room() noexcept;
+/// The address space OpenBLAS maps for its buffers on its first call (under CHOLMOD), with margin.
+inline constexpr double kBlasAddressSpace = 128.0 * (1 << 20);
 /// Bytes conjugate gradients hold beside A for `entries` off-diagonal entries of N rows.
 double cg_bytes(std::size_t entries, std::size_t n);
 

@@ -91,24 +91,31 @@ void remove_partial_folder(const fs::path& dir) noexcept {
 }
 
 /// Partial files and folders of this process, for a signal handler to remove (fixed storage: a
-/// handler may not allocate). A slot is 0 (free), 2 (being filled), kFileSlot or kFolderSlot.
+/// handler may not allocate). A slot is 0 (free), kPending (its partial is being created: the
+/// handler waits for the outcome), kFileSlot or kFolderSlot (created by this process).
 constexpr int kSlots = 32;
-constexpr int kFileSlot = 1, kFolderSlot = 3;
+constexpr int kFileSlot = 1, kPending = 2, kFolderSlot = 3;
 char g_partials[kSlots][4096];
 std::atomic<int> g_used[kSlots];
 
-int register_partial(const fs::path& p, bool folder) noexcept {
+/// A slot for a partial about to be created at p (kPending): the creating thread blocks signals, but
+/// a signal sent to the process runs its handler on another thread, which must not find the new file
+/// unregistered (Hostile.SignalsLeaveNothing left one, 1 run in a few, under load).
+int reserve_partial(const fs::path& p) noexcept {
   const std::string& s = p.native();
   if (s.size() >= sizeof g_partials[0]) return -1;
   for (int i = 0; i < kSlots; ++i) {
     int expected = 0;
-    if (g_used[i].compare_exchange_strong(expected, 2)) {
+    if (g_used[i].compare_exchange_strong(expected, kPending)) {
       std::memcpy(g_partials[i], s.c_str(), s.size() + 1);
-      g_used[i].store(folder ? kFolderSlot : kFileSlot);
       return i;
     }
   }
   return -1;
+}
+/// The partial of a reserved slot exists and is this process's.
+void confirm_partial(int slot, bool folder) noexcept {
+  if (slot >= 0) g_used[slot].store(folder ? kFolderSlot : kFileSlot);
 }
 void unregister_partial(int slot) noexcept {
   if (slot >= 0) g_used[slot].store(0);
@@ -142,7 +149,10 @@ void remove_tree_at(int parent_fd, const char* name, int depth) noexcept {
 
 void unlink_partials() noexcept {
   for (int i = 0; i < kSlots; ++i) {
-    const int kind = g_used[i].load();
+    // A partial being created on another thread (which blocks signals there) is settled within
+    // microseconds; the wait is bounded all the same.
+    int kind = g_used[i].load();
+    for (long spin = 0; kind == kPending && spin < 200000000; ++spin) kind = g_used[i].load();
     if (kind == kFileSlot)
       ::unlink(g_partials[i]);
     else if (kind == kFolderSlot)
@@ -279,6 +289,7 @@ Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : ki
   std::string token;
   for (int attempt = 0; attempt < 8; ++attempt) {
     path_ = dir / partial_name(target, ext, token);
+    slot_ = reserve_partial(path_);
     if (kind == Kind::File) {
       lock_fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
     } else if (::mkdir(path_.c_str(), 0777) == 0) {
@@ -286,15 +297,19 @@ Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : ki
       if (lock_fd_ < 0) ::rmdir(path_.c_str());
     }
     if (lock_fd_ >= 0) break;
+    const int e = errno;
+    unregister_partial(slot_);  // not ours (EEXIST: someone's file by that name), or not made
+    slot_ = -1;
+    errno = e;
     if (errno != EEXIST) break;
   }
   const int open_errno = errno;
   if (lock_fd_ >= 0) {
+    confirm_partial(slot_, kind == Kind::Folder);
     ::flock(lock_fd_, LOCK_EX | LOCK_NB);
     // Without the attribute (a file system without user xattrs) a partial left by a killed run is
     // not removed by later runs: better left than a user's file removed by its name.
     ::fsetxattr(lock_fd_, kOwnerAttr, token.data(), token.size(), 0);
-    slot_ = register_partial(path_, kind == Kind::Folder);
   }
   pthread_sigmask(SIG_SETMASK, &old, nullptr);
   errno = open_errno;
@@ -304,13 +319,14 @@ Partial::Partial(const fs::path& target, Kind kind, const std::string& ext) : ki
 }
 
 Partial::~Partial() {
-  unregister_partial(slot_);
+  // Removed, then unregistered: a signal in between finds the name gone, harmlessly.
   if (!committed_) {
     if (kind_ == Kind::File)
       ::unlink(path_.c_str());
     else
       remove_partial_folder(path_);
   }
+  unregister_partial(slot_);
   if (lock_fd_ >= 0) ::close(lock_fd_);
 }
 

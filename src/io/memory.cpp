@@ -30,8 +30,7 @@ double memory_left(double limit_bytes, const std::string& option) {
     char text[300];
     std::snprintf(text, sizeof text,
                   "%s %.3g GiB is too small: csrbf already holds %.3g GiB (the program, its libraries and what it "
-                  "read), which leaves less than the twentieth of it that the work needs at least; give %s %.2g or "
-                  "more",
+                  "read), which leaves less than the 5 %% of it that the work needs at least; give %s %.2g or more",
                   option.c_str(), limit_bytes / double(1ull << 30), held / double(1ull << 30), option.c_str(),
                   std::ceil(100 * 1.25 * held / double(1ull << 30)) / 100);
     throw FileError(text);

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -147,6 +148,20 @@ MeshDocument MeshDocument::load(const fs::path& path, double memory_limit_bytes)
   // A mesh takes up to about 12 times its file's size once read (a text file's lines and where each
   // number is; a binary file's faces as vectors, and assimp's copies).
   const double max_file = memory_limit_bytes / 12;
+  {
+    // Said with the limit it needs, before read_input's plainer refusal.
+    std::error_code ec;
+    const auto size = fs::is_regular_file(path, ec) ? fs::file_size(path, ec) : 0;
+    if (!ec && double(size) > max_file) {
+      char text[200];
+      std::snprintf(text, sizeof text,
+                    ": %.0f bytes; a mesh may take 12 times its file's size once read, more than --memory-limit "
+                    "%.3g GiB allows: give --memory-limit %.2f or more",
+                    double(size), memory_limit_bytes / double(1ull << 30),
+                    std::ceil(100 * (12.0 * double(size) + resident_bytes()) / double(1ull << 30)) / 100);
+      throw FileError(path.string() + text);
+    }
+  }
   try {
     switch (impl->format) {
       case MeshFormat::Obj:

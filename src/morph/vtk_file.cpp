@@ -15,6 +15,7 @@
 #include <vtkDoubleArray.h>
 #include <vtkExecutive.h>
 #include <vtkNew.h>
+#include <vtkLogger.h>
 #include <vtkOutputWindow.h>
 #include <vtkPointData.h>
 #include <vtkPoints.h>
@@ -44,6 +45,19 @@ namespace {
 using io::FileError;
 
 /// Collects the errors VTK reports on an algorithm (instead of printing them and going on).
+/// What VTK said, for a user: its text is "ERROR: In FILE, line N\nvtkXReader (0x55c7...): WHAT\n\n"
+/// (or "Generic Warning: ..."): WHAT's first line, at most 300 characters.
+std::string vtk_said(std::string s) {
+  const auto nl = s.find('\n');
+  if (nl != std::string::npos && s.substr(0, nl).find(", line ") != std::string::npos) s.erase(0, nl + 1);
+  const auto addr = s.find(" (0x");
+  const auto close = addr == std::string::npos ? std::string::npos : s.find("): ", addr);
+  if (close != std::string::npos && s.compare(0, 3, "vtk") == 0 && s.find(' ') == addr) s.erase(0, close + 3);
+  s = s.substr(0, s.find('\n'));
+  while (!s.empty() && s.back() == ' ') s.pop_back();
+  return s.substr(0, 300);
+}
+
 class ErrorCatcher : public vtkCommand {
  public:
   static ErrorCatcher* New() { return new ErrorCatcher; }
@@ -66,20 +80,20 @@ class TextCatcher : public vtkOutputWindow {
   std::string message;
 
  private:
-  /// VTK's text is "Generic Warning: In FILE, line N\nWHAT\n\n": keep WHAT.
   void keep(const char* t) {
-    if (!message.empty() || !t) return;
-    std::string s = t;
-    const auto nl = s.find('\n');
-    if (nl != std::string::npos && s.substr(0, nl).find(", line ") != std::string::npos) s.erase(0, nl + 1);
-    while (!s.empty() && (s.back() == '\n' || s.back() == ' ')) s.pop_back();
-    message = s.empty() ? std::string(t) : s;
+    if (message.empty() && t) message = t;
   }
 };
 
-/// Installs a TextCatcher as VTK's output window for its lifetime.
+/// Installs a TextCatcher as VTK's output window for its lifetime. VTK also logs every error to
+/// stderr itself (vtkLogger, with terminal colour codes and a dump of the failing request: found by
+/// the attack on a hostile legacy file); that is switched off for good: what VTK says is caught here
+/// and reported as csrbf's own error.
 struct CatchVtkText {
-  CatchVtkText() : old(vtkOutputWindow::GetInstance()) { vtkOutputWindow::SetInstance(window); }
+  CatchVtkText() : old(vtkOutputWindow::GetInstance()) {
+    vtkLogger::SetStderrVerbosity(vtkLogger::VERBOSITY_OFF);
+    vtkOutputWindow::SetInstance(window);
+  }
   ~CatchVtkText() { vtkOutputWindow::SetInstance(old); }
   CatchVtkText(const CatchVtkText&) = delete;
   CatchVtkText& operator=(const CatchVtkText&) = delete;
@@ -380,8 +394,8 @@ class VtkFile final : public VolumeFile {
       reader->Update();
       grid = reader->GetOutput();
     }
-    if (!errors->message.empty()) throw std::runtime_error(first_line(errors->message));
-    if (!text.window->message.empty()) throw std::runtime_error(first_line(text.window->message));
+    if (!errors->message.empty()) throw std::runtime_error(vtk_said(errors->message));
+    if (!text.window->message.empty()) throw std::runtime_error(vtk_said(text.window->message));
     return grid;
   }
 
@@ -491,11 +505,6 @@ class VtkFile final : public VolumeFile {
     r->SetInputString(xml);
     r->Update();
     return r->GetOutput();
-  }
-  static std::string first_line(const std::string& s) {
-    std::string t = s.substr(0, s.find('\n', s.find('\n') + 1));
-    std::replace(t.begin(), t.end(), '\n', ' ');
-    return t.substr(0, 300);
   }
 
   void fill_mesh(const OpenOptions& o) {
@@ -642,7 +651,7 @@ class VtkFile final : public VolumeFile {
       std::error_code ec;
       if (!ok || !errors->message.empty() || fs::file_size(path, ec) == 0 || ec)
         throw FileError("cannot write '" + target.string() + "': VTK's writer failed" +
-                        (errors->message.empty() ? std::string() : ": " + first_line(errors->message)));
+                        (errors->message.empty() ? std::string() : ": " + vtk_said(errors->message)));
       // Read back: the file written must hold every point and cell (a writer that drops cells
       // would otherwise go unnoticed).
       const bool xml = xml_;

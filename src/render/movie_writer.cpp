@@ -107,7 +107,7 @@ MovieWriter::MovieWriter(const fs::path& out_in, int width, int height, double f
     throw RenderError("H.264 (.mp4) needs an even width and height, got " + std::to_string(width) + "x" +
                       std::to_string(height));
   if (!(fps > 0) || !std::isfinite(fps)) throw RenderError("fps must be a finite number > 0");
-  check_movie_output(out_);
+  check_movie_output(out_in);  // its trailing slash says "a folder" ("take2.5/")
   std::ostringstream rate;
   rate << fps;
   std::vector<std::string> argv{

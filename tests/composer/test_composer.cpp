@@ -175,8 +175,11 @@ TEST_F(Fixture, PlaysAndExportsTheSameMovieAsTheCommandLine) {
   QTest::mouseClick(w.findChild<QPushButton*>("play"), Qt::LeftButton);
   EXPECT_TRUE(w.playing());
   QTest::qWait(1000);
+  // Real time, drawn by software OpenGL: on a loaded machine (the suite runs 2 tests on 2 cores)
+  // 4 frames came in the first second; the frames are what is checked, not the rate.
+  EXPECT_GT(w.time(), 0.4);  // the clock is the wall's, whatever was drawn
+  for (int i = 0; i < 100 && w.frames_shown() - shown <= 5; ++i) QTest::qWait(100);
   EXPECT_GT(w.frames_shown() - shown, 5u);
-  EXPECT_GT(w.time(), 0.4);
   const std::string rates = w.findChild<QLabel*>("rates")->text().toStdString();
   EXPECT_NE(rates.find("computed"), std::string::npos) << rates;
   EXPECT_NE(rates.find("rendered"), std::string::npos) << rates;

@@ -662,7 +662,7 @@ int main(int argc, char** argv) {
 
 // Issue 30, point 17: --radius without --controls was ignored without a word; it belongs to
 // --controls, as in csrbf deform (a deformation file holds its own), and is a usage error alone.
-TEST(PickerCommandLine, ARadiusWithoutControlsIsAUsageError) {
+TEST(GuiCommandLines, ARadiusWithoutControlsAndOtherMisuseAreUsageErrors) {
   const std::string picker = std::string(CSRBF_PICKER) + " ";
   const auto alone = csrbf::test::run_shell(picker + "--radius 0.3 " + kExamples + "fish.obj");
   EXPECT_EQ(alone.code, 2) << alone.out;
@@ -678,5 +678,25 @@ TEST(PickerCommandLine, ARadiusWithoutControlsIsAUsageError) {
   const auto bad = csrbf::test::run_shell(picker + "--radius -1 --controls " + kExamples + "fish.controls " +
                                           kExamples + "fish.obj");
   EXPECT_EQ(bad.code, 2) << bad.out;
-  EXPECT_NE(bad.out.find("--radius must be a positive number, got '-1'"), std::string::npos) << bad.out;
+  EXPECT_NE(bad.out.find("--radius must be a number in [1e-150, 1e150], got '-1'"), std::string::npos) << bad.out;
+  const auto huge = csrbf::test::run_shell(picker + "--radius 1e200 --controls " + kExamples + "fish.controls " +
+                                           kExamples + "fish.obj");
+  EXPECT_EQ(huge.code, 2) << huge.out;
+  // Found by the new-user trial: controls without a mesh, an unknown option and an extra file were
+  // exit 1 or ignored without a word; each is a usage error, as in csrbf's commands. So in the Composer.
+  const auto no_mesh = csrbf::test::run_shell(picker + "--controls " + kExamples + "fish.controls --radius 0.3");
+  EXPECT_EQ(no_mesh.code, 2) << no_mesh.out;
+  EXPECT_NE(no_mesh.out.find("--controls moves a mesh: give the mesh file too"), std::string::npos) << no_mesh.out;
+  const std::string composer = std::string(CSRBF_COMPOSER) + " ";
+  for (const std::string& gui : {picker, composer}) {
+    const auto unknown = csrbf::test::run_shell(gui + "--bogus");
+    EXPECT_EQ(unknown.code, 2) << gui << unknown.out;
+    EXPECT_NE(unknown.out.find("error: Unknown option 'bogus'"), std::string::npos) << unknown.out;
+    const auto extra = csrbf::test::run_shell(gui + kExamples + "fish.obj " + kExamples + "face.obj");
+    EXPECT_EQ(extra.code, 2) << gui << extra.out;
+    EXPECT_NE(extra.out.find("error: unexpected argument '" + kExamples + "face.obj'"), std::string::npos) << extra.out;
+  }
+  const auto time = csrbf::test::run_shell(composer + "--time abc " + kExamples + "fish.scene.json");
+  EXPECT_EQ(time.code, 2) << time.out;
+  EXPECT_NE(time.out.find("--time: expected seconds"), std::string::npos) << time.out;
 }
