@@ -2,6 +2,7 @@
 //   csrbf-composer [SCENE.json] [--screenshot FILE.png] [--size WxH]
 #include "composer_window.hpp"
 #include "gui_common.hpp"
+#include "csrbf/io/inputs.hpp"
 
 #include <QApplication>
 #include <QCommandLineParser>
@@ -9,8 +10,10 @@
 #include <QVTKOpenGLNativeWidget.h>
 
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <memory>
+#include <vector>
 
 int main(int argc, char** argv) {
   // Qt needs X: without a display, a private Xvfb (as `csrbf animate` does), for --screenshot on servers.
@@ -35,6 +38,14 @@ int main(int argc, char** argv) {
     std::cerr << "csrbf-composer: error: --time: expected seconds, a number in [-1e6, 1e6], got '"
               << parser.value(time).toStdString() << "'\n";
     return 2;
+  }
+  if (parser.isSet(screenshot)) {
+    // Never the scene or a file it names (the trial wrote a PNG over the scene, exit 0).
+    std::vector<std::filesystem::path> inputs;
+    if (!parser.positionalArguments().isEmpty())
+      inputs = csrbf::io::referenced_files(parser.positionalArguments().front().toStdString());
+    if (const int code = csrbf::gui::check_screenshot(parser.value(screenshot), inputs, "csrbf-composer"); code >= 0)
+      return code;
   }
   const QStringList wh = parser.value(size).split('x');
   const int width = wh.size() == 2 ? wh[0].toInt() : 0, height = wh.size() == 2 ? wh[1].toInt() : 0;

@@ -2,6 +2,7 @@
 
 #include "csrbf/errors.hpp"
 #include "csrbf/io/atomic_file.hpp"
+#include "csrbf/io/inputs.hpp"
 
 #include <QAbstractSpinBox>
 #include <QAction>
@@ -11,6 +12,7 @@
 #include <QTimer>
 #include <QDialog>
 #include <QDir>
+#include <QBuffer>
 #include <QByteArray>
 #include <QFile>
 #include <QJsonDocument>
@@ -211,7 +213,34 @@ void add_undo_actions(QMenu* menu, QUndoStack& stack, QWidget* owner) {
 bool save_window_png(QWidget* window, QVTKOpenGLNativeWidget* view, const QString& path) {
   view->renderWindow()->Render();
   QApplication::processEvents();
-  return window->grab().save(path, "PNG");
+  // As every output of csrbf: a temporary file, checked and renamed (a FIFO, a folder or a device
+  // is refused; QImage::save wrote straight into the name, and hung on a FIFO).
+  QByteArray png;
+  QBuffer buffer(&png);
+  buffer.open(QIODevice::WriteOnly);
+  if (!window->grab().save(&buffer, "PNG")) return false;
+  try {
+    io::write_atomically(path.toStdString(),
+                         [&](std::ostream& o) { o.write(png.constData(), std::streamsize(png.size())); });
+  } catch (const std::exception&) {
+    return false;
+  }
+  return true;
+}
+
+int check_screenshot(const QString& shot, const std::vector<std::filesystem::path>& inputs, const char* program) {
+  const std::string s = shot.toStdString();
+  if (!shot.endsWith(".png", Qt::CaseInsensitive)) {
+    std::cerr << program << ": error: --screenshot: a .png file name, got '" << printable(s) << "'\n";
+    return 2;
+  }
+  const std::filesystem::path same = io::same_file_as(s, inputs);
+  if (!same.empty()) {
+    std::cerr << program << ": error: --screenshot '" << printable(s) << "' is the input '" << printable(same.string())
+              << "'; csrbf never writes an input: choose another name\n";
+    return 2;
+  }
+  return -1;
 }
 
 void set_view(vtkRenderer* r, const double b[6], View v) {

@@ -13,10 +13,12 @@
 #include <QString>
 #include <QStringList>
 
+#include <filesystem>
 #include <functional>
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 class QLabel;
 class QMenu;
@@ -85,6 +87,10 @@ std::unique_ptr<render::Display> ensure_display(const char* program, bool& ok);
 /// Returns -1 when the program goes on.
 int parse_command_line(QCommandLineParser& parser, const QCoreApplication& app, const char* program,
                        int max_positional);
+
+/// --screenshot FILE: a .png name that is none of the inputs (by device and inode, links followed);
+/// else prints "program: error: ..." and gives 2. -1 when it is fine.
+int check_screenshot(const QString& shot, const std::vector<std::filesystem::path>& inputs, const char* program);
 
 /// A box of fixed height for message labels, one above another, scrolling when they are long: a
 /// message coming or going never moves the panel or resizes the view under the mouse.

@@ -2,6 +2,7 @@
 //   csrbf-picker [MESH] [--deformation FILE.json | --controls FILE --radius R] [--screenshot FILE.png]
 #include "gui_common.hpp"
 #include "picker_window.hpp"
+#include "csrbf/io/inputs.hpp"
 
 #include <QApplication>
 #include <QCommandLineParser>
@@ -10,8 +11,10 @@
 #include <QVTKOpenGLNativeWidget.h>
 
 #include <cmath>
+#include <filesystem>
 #include <iostream>
 #include <optional>
+#include <vector>
 #include <memory>
 
 int main(int argc, char** argv) {
@@ -70,6 +73,23 @@ int main(int argc, char** argv) {
               << " moves a mesh: give the mesh file too (csrbf-picker MESH --"
               << (parser.isSet(controls) ? "controls" : "deformation") << " FILE)\n";
     return 2;
+  }
+  if (parser.isSet(screenshot)) {
+    // Never one of the files it reads (the trial wrote a PNG over the controls, exit 0).
+    std::vector<std::filesystem::path> inputs;
+    if (!parser.positionalArguments().isEmpty()) {
+      const std::filesystem::path mesh = parser.positionalArguments().front().toStdString();
+      inputs = csrbf::io::mesh_side_files(mesh);
+      inputs.push_back(mesh);
+    }
+    if (parser.isSet(controls)) inputs.push_back(parser.value(controls).toStdString());
+    if (parser.isSet(deformation)) {
+      const auto named = csrbf::io::referenced_files(parser.value(deformation).toStdString());
+      inputs.insert(inputs.end(), named.begin(), named.end());
+      inputs.push_back(parser.value(deformation).toStdString());
+    }
+    if (const int code = csrbf::gui::check_screenshot(parser.value(screenshot), inputs, "csrbf-picker"); code >= 0)
+      return code;
   }
   if (parser.isSet(controls) && parser.isSet(deformation)) {
     std::cerr << "csrbf-picker: error: give --deformation FILE or --controls FILE, not both\n";

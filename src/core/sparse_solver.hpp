@@ -53,6 +53,9 @@ double cg_bytes(std::size_t entries, std::size_t n);
 /// CG did not reach its tolerance within its step limit (the caller falls back to a direct solver).
 /// CG gives up when its residual has not fallen 10x over this many steps (docs/RELIABILITY.md).
 inline constexpr std::size_t kCgStagnationWindow = 1000;
+/// At its step limit, CG keeps a solution whose relative residual is at most this (the fit then
+/// checks the residual at the controls against 1e-6 itself).
+inline constexpr double kCgGoodEnough = 1e-8;
 
 class CgStagnated : public std::runtime_error {
  public:

@@ -160,7 +160,13 @@ void unlink_partials() noexcept {
   }
 }
 
+/// Set as the first output is moved into place: from then on a signal no longer ends the command,
+/// which finishes and reports what it wrote (ended by the signal just after a rename, it died with
+/// 128 + the signal over a complete output: found by the attacker's trial, 4 runs in 60).
+std::atomic<bool> g_finishing{false};
+
 extern "C" void remove_partials_and_die(int sig) {
+  if (g_finishing.load()) return;
   unlink_partials();
   ::signal(sig, SIG_DFL);
   ::raise(sig);
@@ -203,6 +209,7 @@ extern "C" void time_is_up(int) {
 /// From the first output's rename on, --time-limit no longer ends the command: an alarm then would
 /// report "nothing was written" over a written (or replaced) file.
 void time_limit_off() noexcept {
+  g_finishing.store(true);
   g_time_off.store(true);
   itimerval off{};
   ::setitimer(ITIMER_REAL, &off, nullptr);

@@ -461,6 +461,11 @@ class GmshFile final : public VolumeFile {
       if (at + bytes > t.size()) throw FileError(name + ": $Nodes ends early (the file changed since it was read?)");
     };
     char buf[64];
+    // ASCII lines change length: the output is built by appending (out, with t copied up to `copied`),
+    // never by replacing inside t, which moved the rest of the file for every node (a 42 MB mesh was
+    // still being written after 8 minutes).
+    std::string out;
+    std::size_t copied = 0;
     // ASCII: the line's first three numbers after skip tokens are replaced where their value changed.
     const auto ascii_line = [&](std::size_t skip, const Vec3& p) {
       const std::size_t end = t.find('\n', at);
@@ -490,8 +495,11 @@ class GmshFile final : public VolumeFile {
         i = e;
       }
       if (token < skip + 3) throw FileError(name + ": $Nodes: a line with fewer than 3 coordinates");
-      t.replace(at, end - at, line);
-      at += line.size() + 1;
+      if (out.empty()) out.reserve(t.size() + t.size() / 8);
+      out.append(t, copied, at - copied);
+      out += line;
+      copied = end;
+      at = end + 1;
     };
     const auto read_line_numbers = [&](std::size_t count) {
       const std::size_t end = t.find('\n', at);
@@ -569,7 +577,9 @@ class GmshFile final : public VolumeFile {
     if (written != points.size())
       throw FileError(name + ": $Nodes holds " + std::to_string(written) + " nodes, " + std::to_string(points.size()) +
                       " were read");
-    return t;
+    if (copied == 0) return t;  // binary: rewritten in place
+    out.append(t, copied, std::string::npos);
+    return out;
   }
 
   void write(std::span<const Vec3> points, const fs::path& target) const {

@@ -709,7 +709,27 @@ TEST(FastPaths, ConjugateGradientsStopWhenTheirResidualStopsFalling) {
     EXPECT_TRUE(std::isinf(e.predicted_steps()));
     const std::string what = e.what();
     EXPECT_NE(what.find("has not fallen 10x in the last 1000 of"), std::string::npos) << what;
-    EXPECT_NE(what.find("--solver cholmod"), std::string::npos) << what;
+    EXPECT_NE(what.find("--solver envelope or cholmod"), std::string::npos) << what;
     EXPECT_GT(cg->residual(), 1e-10) << what;
   }
+}
+
+// Found by the attacker's trial: at its step limit CG threw away a solution whose residual (3.9e-11,
+// 20000 controls in a cube) the fit accepts by far. Short of an unreachable tolerance, it now keeps
+// one within kCgGoodEnough.
+TEST(FastPaths, ConjugateGradientsKeepAGoodSolutionAtTheirStepLimit) {
+  std::mt19937 rng(111);
+  const auto cloud = random_points(800, rng);
+  const KernelMatrix a(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.2), cloud), Kernel::C2, 0.2);
+  std::vector<std::uint32_t> order(cloud.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = std::uint32_t(i);
+  const auto cg = detail::conjugate_gradients(a, order, 1e-30, 300);  // the tolerance cannot be met
+  const RowMatrix b = RowMatrix::Random(Eigen::Index(cloud.size()), 3);
+  RowMatrix x = b;
+  ASSERT_NO_THROW(cg->solve_in_place(x));
+  EXPECT_EQ(cg->iterations(), 300u);
+  EXPECT_LE(cg->residual(), detail::kCgGoodEnough);
+  // The residual it reports is the true one, against a product with A.
+  const RowMatrix r = a * x - b;
+  EXPECT_LE(r.norm() / b.norm(), 1e-8);
 }

@@ -696,6 +696,33 @@ TEST(GuiCommandLines, ARadiusWithoutControlsAndOtherMisuseAreUsageErrors) {
     EXPECT_EQ(extra.code, 2) << gui << extra.out;
     EXPECT_NE(extra.out.find("error: unexpected argument '" + kExamples + "face.obj'"), std::string::npos) << extra.out;
   }
+  // --screenshot never writes an input (the attacker's trial turned the controls, the mesh and the
+  // scene into PNGs, exit 0), by name or through a link; it is a .png name.
+  csrbf::test::TempDir dir;
+  const std::string d = dir.path.string();
+  std::filesystem::copy_file(kExamples + "fish.obj", dir / "fish.obj");
+  std::filesystem::copy_file(kExamples + "fish.controls", dir / "fish.controls");
+  std::filesystem::create_symlink(dir / "fish.obj", dir / "link.png");
+  for (const std::string& shot : {d + "/fish.controls", d + "/link.png"}) {
+    const auto r = csrbf::test::run_shell(picker + d + "/fish.obj --controls " + d +
+                                          "/fish.controls --radius 0.3 --screenshot " + shot);
+    EXPECT_EQ(r.code, 2) << shot << r.out;
+  }
+  const auto named = csrbf::test::run_shell(picker + d + "/fish.obj --screenshot " + d + "/fish.obj.png");
+  EXPECT_EQ(named.code, 0) << named.out;
+  const auto same = csrbf::test::run_shell(picker + d + "/fish.obj --screenshot " + d + "/link.png");
+  EXPECT_EQ(same.code, 2) << same.out;
+  EXPECT_NE(same.out.find("is the input '" + d + "/fish.obj'; csrbf never writes an input"), std::string::npos)
+      << same.out;
+  EXPECT_EQ(csrbf::test::read_text(dir / "fish.obj"), csrbf::test::read_text(kExamples + "fish.obj"));
+  EXPECT_EQ(csrbf::test::read_text(dir / "fish.controls"), csrbf::test::read_text(kExamples + "fish.controls"));
+  const auto text = csrbf::test::run_shell(picker + d + "/fish.obj --screenshot " + d + "/shot.txt");
+  EXPECT_EQ(text.code, 2) << text.out;
+  EXPECT_FALSE(std::filesystem::exists(dir / "shot.txt"));
+  const auto scene =
+      csrbf::test::run_shell(composer + kExamples + "fish.scene.json --screenshot " + kExamples + "fish.obj");
+  EXPECT_EQ(scene.code, 2) << scene.out;
+  EXPECT_EQ(csrbf::test::read_text(kExamples + "fish.obj").compare(0, 1, "#"), 0) << "the mesh is still a mesh";
   const auto time = csrbf::test::run_shell(composer + "--time abc " + kExamples + "fish.scene.json");
   EXPECT_EQ(time.code, 2) << time.out;
   EXPECT_NE(time.out.find("--time: expected seconds"), std::string::npos) << time.out;

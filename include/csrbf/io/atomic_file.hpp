@@ -79,7 +79,9 @@ class Partial {
 /// SIGPROF and SIGXCPU that remove this process's partial files and folders (with what is in them),
 /// then die of the signal as before, and unblocks them in the calling thread (a launcher such as
 /// mpirun may start processes with them blocked). (Partials of a process killed by SIGKILL are
-/// removed by the next run into their folder.) For programs, not libraries.
+/// removed by the next run into their folder.) From the moment the first output is moved into
+/// place, the signals are ignored: the command finishes and reports what it wrote. For programs,
+/// not libraries.
 void remove_partials_on_signals() noexcept;
 
 /// Removes this process's partial files and folders and makes every later commit of a partial fail ("cancelled
