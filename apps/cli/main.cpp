@@ -28,6 +28,7 @@
 #include <unistd.h>
 #include <csignal>
 #include <chrono>
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 #include <optional>
@@ -42,6 +43,7 @@ struct FitArgs {
   double radius = 0;
   std::string kernel = "c2", polynomial = "none", ordering = "auto", solver = "auto";
   double memory_limit_gib = 4.0;
+  double reserve_bytes = 0;  ///< of the limit, kept from the fit for what follows it (assimp's writer)
 };
 
 /// The files deform reads: the mesh, the controls or the deformation and the files it names.
@@ -162,8 +164,9 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
   o.ordering = *csrbf::parse_ordering(a.ordering);
   // --memory-limit bounds the whole process: the fit gets what the program, the mesh and the
   // controls leave of it.
-  o.memory_limit_bytes = distributed ? a.memory_limit_gib * double(1ull << 30)
-                                     : csrbf::io::memory_left(a.memory_limit_gib * double(1ull << 30));
+  o.memory_limit_bytes =
+      distributed ? a.memory_limit_gib * double(1ull << 30)
+                  : std::max(1.0, csrbf::io::memory_left(a.memory_limit_gib * double(1ull << 30)) - a.reserve_bytes);
   o.solver = distributed && a.solver == "mumps" ? csrbf::Solver::Auto : csrbf::cli::serial_solver(a.solver);
   if (o.ordering != csrbf::Ordering::Auto && (o.solver == csrbf::Solver::Eigen || o.solver == csrbf::Solver::Cholmod))
     throw csrbf::cli::UsageError("--ordering " + a.ordering + ": solver '" + a.solver +
@@ -481,6 +484,30 @@ int main(int argc, char** argv) {
                                      "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
       const auto t0 = std::chrono::steady_clock::now();
       auto mesh = csrbf::io::MeshDocument::load(mesh_in, deform_args.memory_limit_gib * double(1ull << 30));
+      {
+        // assimp's writers build the scene again and copy it (measured, 500k vertices and 1M
+        // faces, and 1M and 200k: glTF 290 bytes a vertex and 270 a face, STL 25 and 210), with a
+        // tenth more: kept from the fit, and refused where the limit cannot hold them.
+        const auto out_format = csrbf::io::format_for(mesh_out);
+        const double v = double(mesh.positions().size()), fc = double(mesh.faces().size());
+        const double write = out_format == csrbf::io::MeshFormat::Stl ? 1.1 * (25 * v + 210 * fc)
+                             : out_format == csrbf::io::MeshFormat::Gltf || out_format == csrbf::io::MeshFormat::Glb
+                                 ? 1.1 * (290 * v + 270 * fc)
+                                 : 0.0;
+        const double limit = deform_args.memory_limit_gib * double(1ull << 30);
+        if (write > 0 && write > csrbf::io::memory_left(limit)) {
+          std::ostringstream m;
+          m.precision(3);
+          m << csrbf::printable(mesh_out) << ": writing " << mesh.positions().size() << " vertices and "
+            << mesh.faces().size() << " faces as " << csrbf::io::format_name(out_format) << " takes about "
+            << write / double(1ull << 30) << " GiB (assimp's copies of the mesh), more than --memory-limit "
+            << deform_args.memory_limit_gib << " GiB leaves after the mesh; give --memory-limit "
+            << std::ceil(100 * (write + csrbf::io::resident_bytes()) / double(1ull << 30)) / 100
+            << " or more, or write .ply or .obj";
+          throw csrbf::io::FileError(m.str());
+        }
+        deform_args.reserve_bytes = write;
+      }
       Fitted f = fit(deform_args, &mesh, mesh_in);
       if (deform->count("--phase") == 0 && f.phase) phase = *f.phase;  // as it was seen in the Picker
       auto& p = mesh.positions();
