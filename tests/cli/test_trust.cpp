@@ -53,6 +53,26 @@ std::string every_fish_vertex() {
   return controls;
 }
 
+/// A binary PLY of n random vertices in the unit cube and `faces` random triangles (seeded).
+std::string random_binary_ply(std::size_t n, std::size_t faces, unsigned seed) {
+  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(n) +
+                    "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(faces) +
+                    "\nproperty list uchar int vertex_indices\nend_header\n";
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(0, 1);
+  std::uniform_int_distribution<std::int32_t> pick(0, std::int32_t(n - 1));
+  for (std::size_t i = 0; i < n; ++i) {
+    const float v[3] = {u(rng), u(rng), u(rng)};
+    ply.append(reinterpret_cast<const char*>(v), sizeof v);
+  }
+  for (std::size_t f = 0; f < faces; ++f) {
+    ply += char(3);
+    const std::int32_t c[3] = {pick(rng), pick(rng), pick(rng)};
+    ply.append(reinterpret_cast<const char*>(c), sizeof c);
+  }
+  return ply;
+}
+
 /// Runs a shell command (its output to `log`) and gives its exit status and its peak resident memory
 /// in bytes, as wait4 reports it for the child and what it waited for.
 std::pair<int, double> run_measured(const std::string& command, const fs::path& log) {
@@ -388,24 +408,7 @@ TEST(Trust, ABinaryPlyIsDeformedWithinTheMemoryLimit) {
   GTEST_SKIP() << "AddressSanitizer's own memory counts against the limit (the release pass runs this)";
 #endif
   TempDir dir;
-  const std::size_t n = 1500000, faces = 500000;
-  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(n) +
-                    "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(faces) +
-                    "\nproperty list uchar int vertex_indices\nend_header\n";
-  std::mt19937 rng(15);
-  std::uniform_real_distribution<float> u(0, 1);
-  std::uniform_int_distribution<std::int32_t> pick(0, std::int32_t(n - 1));
-  for (std::size_t i = 0; i < n; ++i) {
-    const float v[3] = {u(rng), u(rng), u(rng)};
-    ply.append(reinterpret_cast<const char*>(v), sizeof v);
-  }
-  for (std::size_t f = 0; f < faces; ++f) {
-    ply += char(3);
-    const std::int32_t c[3] = {pick(rng), pick(rng), pick(rng)};
-    ply.append(reinterpret_cast<const char*>(c), sizeof c);
-  }
-  write_text(dir / "big.ply", ply);
-  ply.clear();
+  write_text(dir / "big.ply", random_binary_ply(1500000, 500000, 15));
   const double limit = 0.3;
   const auto [code, peak] =
       run_measured(kCli + " deform --mesh " + (dir / "big.ply").string() + " --controls " + kFishControls +
@@ -471,24 +474,7 @@ TEST(Trust, ADeformWrittenByAssimpKeepsTheMemoryLimit) {
   GTEST_SKIP() << "AddressSanitizer's own memory counts against the limit (the release pass runs this)";
 #endif
   TempDir dir;
-  const std::size_t n = 500000, faces = 1000000;
-  std::string ply = "ply\nformat binary_little_endian 1.0\nelement vertex " + std::to_string(n) +
-                    "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(faces) +
-                    "\nproperty list uchar int vertex_indices\nend_header\n";
-  std::mt19937 rng(16);
-  std::uniform_real_distribution<float> u(0, 1);
-  std::uniform_int_distribution<std::int32_t> pick(0, std::int32_t(n - 1));
-  for (std::size_t i = 0; i < n; ++i) {
-    const float v[3] = {u(rng), u(rng), u(rng)};
-    ply.append(reinterpret_cast<const char*>(v), sizeof v);
-  }
-  for (std::size_t f = 0; f < faces; ++f) {
-    ply += char(3);
-    const std::int32_t c[3] = {pick(rng), pick(rng), pick(rng)};
-    ply.append(reinterpret_cast<const char*>(c), sizeof c);
-  }
-  write_text(dir / "m.ply", ply);
-  ply.clear();
+  write_text(dir / "m.ply", random_binary_ply(500000, 1000000, 16));
   const std::string deform = kCli + " deform --mesh " + (dir / "m.ply").string() + " --controls " + kFishControls +
                              " --radius 0.3 --memory-limit ";
   const auto refused = run_shell(deform + "0.3 -o " + (dir / "x.glb").string());
