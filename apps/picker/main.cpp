@@ -53,6 +53,12 @@ int main(int argc, char** argv) {
   }
   // --radius belongs to --controls, as in `csrbf deform` (a deformation file holds its own): alone it
   // was ignored without a word.
+  for (const QCommandLineOption* once : {&radius, &controls, &deformation, &screenshot, &size})
+    if (parser.values(*once).size() > 1) {
+      std::cerr << "csrbf-picker: error: --" << once->names().front().toStdString() << " given "
+                << parser.values(*once).size() << " times; give it once\n";
+      return 2;
+    }
   std::optional<double> r;  // without --radius, the Picker proposes one and says so
   if (parser.isSet(radius)) {
     bool number = false;

@@ -152,6 +152,10 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
         ply_swap = std::endian::native != std::endian::big;
       } else
         throw FileError(where(li) + "unknown PLY format '" + std::string(tok[1]) + "'");
+      // PLY has one version (found by the attacker's trial: "binary_little_endian 9.9" was read as 1.0).
+      if (tok.size() != 3 || tok[2] != "1.0")
+        throw FileError(where(li) + "PLY format version '" + (tok.size() > 2 ? std::string(tok[2]) : std::string()) +
+                        "' (only 1.0 exists)");
       format_seen = true;
     } else if (tok[0] == "element") {
       PlyElement e;

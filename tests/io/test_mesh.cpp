@@ -247,6 +247,14 @@ TEST(Mesh, PlyCountsAreBoundedByTheFile) {
   EXPECT_NE(error_of(dir / "b.ply").find("ends early, in face 0"), std::string::npos) << error_of(dir / "b.ply");
   test::write_text(dir / "b.ply", bin + std::string(1, '\0'));
   EXPECT_NE(error_of(dir / "b.ply").find("face 0 has 0 vertices"), std::string::npos) << error_of(dir / "b.ply");
+  // One PLY version exists (9.9 was read as 1.0).
+  {
+    std::string nine = bin;
+    nine.replace(nine.find("1.0"), 3, "9.9");
+    test::write_text(dir / "b.ply", nine + std::string(1, char(3)) + std::string(12, '\0'));
+    EXPECT_NE(error_of(dir / "b.ply").find("PLY format version '9.9' (only 1.0 exists)"), std::string::npos)
+        << error_of(dir / "b.ply");
+  }
   // A memory limit refuses a file before it is read.
   test::write_text(dir / "ok.ply", ascii + "end_header\n" + body);
   try {

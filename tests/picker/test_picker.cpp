@@ -679,6 +679,10 @@ TEST(GuiCommandLines, ARadiusWithoutControlsAndOtherMisuseAreUsageErrors) {
                                           kExamples + "fish.obj");
   EXPECT_EQ(bad.code, 2) << bad.out;
   EXPECT_NE(bad.out.find("--radius must be a number in [1e-150, 1e150], got '-1'"), std::string::npos) << bad.out;
+  const auto twice = csrbf::test::run_shell(picker + "--radius 0.3 --radius 0.5 --controls " + kExamples +
+                                            "fish.controls " + kExamples + "fish.obj");
+  EXPECT_EQ(twice.code, 2) << twice.out;
+  EXPECT_NE(twice.out.find("--radius given 2 times; give it once"), std::string::npos) << twice.out;
   const auto huge = csrbf::test::run_shell(picker + "--radius 1e200 --controls " + kExamples + "fish.controls " +
                                            kExamples + "fish.obj");
   EXPECT_EQ(huge.code, 2) << huge.out;
