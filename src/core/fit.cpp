@@ -277,7 +277,7 @@ struct FitPhases {
             // Where the memory limit refuses the direct factor, the envelope whatever its work, where it
             // fits beside A and CG (face.obj, 6158 controls at 5263 neighbours each: CG ran 1000 steps
             // and 78 s before it gave way; the envelope takes 22 s).
-            const double envelope_bytes = 8.0 * double(st.stats.envelope_entries + n) + 16.0 * double(n) +
+            const double envelope_bytes = detail::envelope_factor_bytes(double(st.stats.envelope_entries), n) +
                                           detail::kernel_matrix_bytes(st.a) + detail::cg_bytes(st.a.values().size(), n);
             if (!std::isfinite(direct) && envelope * margin < left && envelope_bytes <= st.options.memory_limit_bytes)
               return false;

@@ -49,6 +49,10 @@ double address_space_room() noexcept {
   return double(limit.rlim_cur) - double(pages) * double(::sysconf(_SC_PAGESIZE));
 }
 
+double envelope_factor_bytes(double off_diagonal, std::size_t n) {
+  return 8.0 * (off_diagonal + double(n)) + 16.0 * double(n);  // 8-byte values, two 8-byte indices a row
+}
+
 double cg_bytes(std::size_t entries, std::size_t n) {
   // Rows (8-byte offsets), columns (4 bytes) and values (8), its order (4 bytes a row); x, r, p and q
   // of up to 8 right-hand sides, and the residual histories of the stagnation check and the probe.
@@ -138,8 +142,7 @@ class EigenFactor final : public SparseFactor {
     const auto refuse = [&](double bytes, const std::string& what) {
       refuse_memory(name, bytes, what, memory_limit_bytes);
     };
-    if (copies > memory_limit_bytes)
-      refuse(copies, "A and its copies (" + std::to_string(a_.nonZeros()) + " entries each)");
+    // (copies alone, beyond the limit, are refused by analyse_sparse before a_ is made.)
     // Eigen's own AMD ordering (Simplicial, given no order) holds A + A^T and its workspace while it
     // runs: 813 MB for 5.3e6 entries of A's lower triangle, measured (heaptrack) at 20000 sources.
     if constexpr (std::is_same_v<Decomposition, Simplicial>) {
@@ -598,8 +601,7 @@ void check_envelope_size(std::span<const std::size_t> first_columns, double memo
                          std::string_view ordering, double held_bytes) {
   double entries = double(first_columns.size());
   for (std::size_t k = 0; k < first_columns.size(); ++k) entries += double(k - first_columns[k]);
-  // 8-byte values, and two 8-byte indices a row.
-  const double bytes = 8 * entries + 16.0 * double(first_columns.size());
+  const double bytes = envelope_factor_bytes(entries - double(first_columns.size()), first_columns.size());
   if (bytes + held_bytes > memory_limit_bytes) {
     std::ostringstream os;
     os.precision(3);

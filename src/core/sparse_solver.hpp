@@ -47,6 +47,9 @@ double kernel_matrix_bytes(const KernelMatrix& a);
 double address_space_room() noexcept;
 /// The address space OpenBLAS maps for its buffers on its first call (under CHOLMOD), with margin.
 inline constexpr double kBlasAddressSpace = 128.0 * (1 << 20);
+/// Bytes of the envelope solver's factor with `off_diagonal` entries in its envelope below the
+/// diagonal, for N rows.
+double envelope_factor_bytes(double off_diagonal, std::size_t n);
 /// Bytes conjugate gradients hold beside A for `entries` off-diagonal entries of N rows.
 double cg_bytes(std::size_t entries, std::size_t n);
 

@@ -38,6 +38,9 @@
 
 #include <filesystem>
 #include <unistd.h>
+
+#include <utility>
+#include <vector>
 #include <fstream>
 
 namespace fs = std::filesystem;
@@ -664,33 +667,26 @@ int main(int argc, char** argv) {
 // --controls, as in csrbf deform (a deformation file holds its own), and is a usage error alone.
 TEST(GuiCommandLines, ARadiusWithoutControlsAndOtherMisuseAreUsageErrors) {
   const std::string picker = std::string(CSRBF_PICKER) + " ";
-  const auto alone = csrbf::test::run_shell(picker + "--radius 0.3 " + kExamples + "fish.obj");
-  EXPECT_EQ(alone.code, 2) << alone.out;
-  EXPECT_NE(alone.out.find("--radius is the radius of the controls of --controls FILE"), std::string::npos)
-      << alone.out;
-  const auto with_file = csrbf::test::run_shell(picker + "--radius 0.3 --deformation " + kExamples +
-                                                "fish.deformation.json " + kExamples + "fish.obj");
-  EXPECT_EQ(with_file.code, 2) << with_file.out;
-  EXPECT_NE(with_file.out.find("a --deformation file holds its own radius"), std::string::npos) << with_file.out;
-  const auto both = csrbf::test::run_shell(picker + "--controls " + kExamples + "fish.controls --deformation x.json " +
-                                           kExamples + "fish.obj");
-  EXPECT_EQ(both.code, 2) << both.out;
-  const auto bad = csrbf::test::run_shell(picker + "--radius -1 --controls " + kExamples + "fish.controls " +
-                                          kExamples + "fish.obj");
-  EXPECT_EQ(bad.code, 2) << bad.out;
-  EXPECT_NE(bad.out.find("--radius must be a number in [1e-150, 1e150], got '-1'"), std::string::npos) << bad.out;
-  const auto twice = csrbf::test::run_shell(picker + "--radius 0.3 --radius 0.5 --controls " + kExamples +
-                                            "fish.controls " + kExamples + "fish.obj");
-  EXPECT_EQ(twice.code, 2) << twice.out;
-  EXPECT_NE(twice.out.find("--radius given 2 times; give it once"), std::string::npos) << twice.out;
-  const auto huge = csrbf::test::run_shell(picker + "--radius 1e200 --controls " + kExamples + "fish.controls " +
-                                           kExamples + "fish.obj");
-  EXPECT_EQ(huge.code, 2) << huge.out;
-  // Found by the new-user trial: controls without a mesh, an unknown option and an extra file were
-  // exit 1 or ignored without a word; each is a usage error, as in csrbf's commands. So in the Composer.
-  const auto no_mesh = csrbf::test::run_shell(picker + "--controls " + kExamples + "fish.controls --radius 0.3");
-  EXPECT_EQ(no_mesh.code, 2) << no_mesh.out;
-  EXPECT_NE(no_mesh.out.find("--controls moves a mesh: give the mesh file too"), std::string::npos) << no_mesh.out;
+  const std::string fish = kExamples + "fish.obj", controls = kExamples + "fish.controls";
+  // Each a usage error (exit 2), with the words of its message (none: the code alone).
+  const std::vector<std::pair<std::string, std::string>> misuse{
+      {"--radius 0.3 " + fish, "--radius is the radius of the controls of --controls FILE"},
+      {"--radius 0.3 --deformation " + kExamples + "fish.deformation.json " + fish,
+       "a --deformation file holds its own radius"},
+      {"--controls " + controls + " --deformation x.json " + fish, ""},
+      {"--radius -1 --controls " + controls + " " + fish, "--radius must be a number in [1e-150, 1e150], got '-1'"},
+      {"--radius 0.3 --radius 0.5 --controls " + controls + " " + fish, "--radius given 2 times; give it once"},
+      {"--radius 1e200 --controls " + controls + " " + fish, ""},
+      // Found by the new-user trial: controls without a mesh, an unknown option and an extra file
+      // were exit 1 or ignored without a word; each is a usage error, as in csrbf's commands. So in
+      // the Composer (below).
+      {"--controls " + controls + " --radius 0.3", "--controls moves a mesh: give the mesh file too"},
+  };
+  for (const auto& [args, words] : misuse) {
+    const auto r = csrbf::test::run_shell(picker + args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.out;
+    EXPECT_NE(r.out.find(words), std::string::npos) << args << ": the message should say '" << words << "'\n" << r.out;
+  }
   const std::string composer = std::string(CSRBF_COMPOSER) + " ";
   for (const std::string& gui : {picker, composer}) {
     const auto unknown = csrbf::test::run_shell(gui + "--bogus");
