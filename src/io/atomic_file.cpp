@@ -195,9 +195,8 @@ void cancel_writes() noexcept {
 namespace {
 char g_time_message[160];
 std::size_t g_time_message_size = 0;
-std::atomic<bool> g_time_off{false};
 extern "C" void time_is_up(int) {
-  if (g_time_off.load()) return;  // an output is being moved into place: the command is done
+  if (g_finishing.load()) return;  // an output is being moved into place: the command is done
   unlink_partials();
   if (g_time_message_size) {
     const ssize_t written = ::write(2, g_time_message, g_time_message_size);
@@ -206,11 +205,10 @@ extern "C" void time_is_up(int) {
   ::_exit(1);
 }
 
-/// From the first output's rename on, --time-limit no longer ends the command: an alarm then would
-/// report "nothing was written" over a written (or replaced) file.
+/// From the first output's rename on, neither --time-limit nor a signal ends the command: an alarm
+/// then would report "nothing was written" over a written (or replaced) file.
 void time_limit_off() noexcept {
   g_finishing.store(true);
-  g_time_off.store(true);
   itimerval off{};
   ::setitimer(ITIMER_REAL, &off, nullptr);
 }

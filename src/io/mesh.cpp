@@ -191,10 +191,7 @@ MeshDocument MeshDocument::load(const fs::path& path, double memory_limit_bytes)
         if (!fs::is_regular_file(path, ec))
           throw FileError(path.string() + ": " + format_name(impl->format) +
                           " meshes are read from regular files only, not pipes");
-        const auto size = fs::file_size(path, ec);
-        if (!ec && double(size) > max_file)
-          throw FileError(path.string() + ": " + std::to_string(size) +
-                          " bytes is more than the memory limit allows (--memory-limit)");
+        // Its size was checked above; assimp's reads are bounded by max_file too (LimitedIOSystem).
         impl->load_assimp(max_file);
       }
     }
