@@ -93,7 +93,15 @@ struct SpaceMap::Structure {
       }
       // CG stagnated, or Auto's probe found it slower than a direct solve: another solver takes
       // over, once, for this fit and every later solve with these sources.
-      std::call_once(fallback_once, [&] { take_over(predicted, taken, gave_way, why); });
+      std::call_once(fallback_once, [&] {
+        // CG that stagnated never runs again: its copy of A makes room for the solver that takes
+        // over (face.obj, 6158 controls, R = 1.5: the envelope was refused beside it under 1 GiB).
+        // Where it gave way, it is kept until another solver has taken over (else it goes on).
+        // Outside take_over's lock: a solve still in CG may wait for that lock in its probe.
+        if (!gave_way) sparse->release();
+        take_over(predicted, taken, gave_way, why);
+        if (fallback) sparse->release();
+      });
     }
     after().solve_in_place(b, initial);
   }
@@ -141,7 +149,8 @@ struct SpaceMap::Structure {
   /// and below the direct solver's as weighed; else the direct solver (CHOLMOD, or Eigen); and where
   /// the memory limit refuses them, CG goes on without the probe. Where CG stagnated (or a CG asked
   /// for by name), the direct solver, then the envelope solver whatever its work: CG again would
-  /// stagnate again. Each counts what CG holds, which lives on beside it.
+  /// stagnate again. Each counts what CG still holds beside it: nothing where CG stagnated (its copy
+  /// of A was freed first), its copy where it gave way (it goes on if every other is refused).
   void take_over(double predicted_steps, std::size_t taken, bool gave_way, const std::string& why) const {
     std::lock_guard lock(direct_mutex);
     tbb::this_task_arena::isolate([&] { take_over_locked(predicted_steps, taken, gave_way, why); });

@@ -323,6 +323,8 @@ class BatchedCg final : public SparseFactor {
 
   void solve_in_place(RowMatrix& b, const RowMatrix* initial = nullptr) const override {
     std::lock_guard lock(mutex_);  // iterations_ and residual_ describe one solve
+    if (released_)
+      throw CgStagnated("conjugate gradients gave way to another solver", std::numeric_limits<double>::infinity(), 0);
     // 3 right-hand sides (the displacements), 4 (the polynomial block) or 1 (the condition estimate).
     if (b.cols() > 8) throw InvalidInput("conjugate gradients: at most 8 right-hand sides at once");
     if (initial && (initial->rows() != b.rows() || initial->cols() != b.cols()))
@@ -334,8 +336,15 @@ class BatchedCg final : public SparseFactor {
   bool iterative() const override { return true; }
   std::size_t nonzeros() const override { return order_.size() + val_.size(); }
   /// Its copy of A's rows, and the vectors of a solve of up to 8 right-hand sides.
-  double held_bytes() const override { return cg_bytes(val_.size(), order_.size()); }
+  double held_bytes() const override { return released_ ? 0.0 : cg_bytes(val_.size(), order_.size()); }
   void stop_probing() const override { probing_ = false; }
+  void release() override {
+    std::lock_guard lock(mutex_);
+    released_ = true;
+    decltype(row_)().swap(row_);
+    decltype(col_)().swap(col_);
+    decltype(val_)().swap(val_);
+  }
   std::size_t iterations() const override { return iterations_; }
   double residual() const override { return residual_; }
 
@@ -514,6 +523,7 @@ class BatchedCg final : public SparseFactor {
   std::size_t max_iterations_;
   CgProbe probe_;
   mutable std::atomic<bool> probing_{true};
+  std::atomic<bool> released_{false};
   mutable std::size_t iterations_ = 0;
   mutable double residual_ = 0;
   mutable std::mutex mutex_;

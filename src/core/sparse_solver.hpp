@@ -37,6 +37,10 @@ class SparseFactor {
   /// CG: Auto's probe stops, so that later solves run until they converge or stagnate (Auto keeps CG
   /// where the direct solvers are refused by the memory limit). Nothing for the direct solvers.
   virtual void stop_probing() const {}
+  /// CG, once another solver has taken over for good: frees its copy of A's rows (after a solve in
+  /// progress ends); a later solve throws CgStagnated, so that its caller turns to the one that
+  /// took over. Nothing for the direct solvers.
+  virtual void release() {}
 };
 
 /// Bytes of A as KernelMatrix holds it: a 4-byte column and an 8-byte value an off-diagonal entry,
