@@ -8,6 +8,7 @@
 #include "csrbf/render/movie.hpp"
 #include "csrbf/render/movie_writer.hpp"
 #include "csrbf/render/process.hpp"
+#include "csrbf/render/scene_renderer.hpp"
 
 #include <charconv>
 #include <chrono>
@@ -119,17 +120,20 @@ int run_animate(const AnimateOptions& o) {
     throw UsageError(m.str());
   }
   const std::size_t frames = scene.frame_count(from, to);
-  // The renderer holds about 96 MiB whatever the size (Mesa's and VTK's OpenGL state: a 640x480
-  // movie of the fish peaks 108 MB above the scene) and 64 bytes a pixel (Mesa's colour and depth
-  // buffers, VTK's and the movie's copies of the frame: 1.0 GB more at 4096x4096), measured.
-  const double frame_bytes = 96.0 * (1 << 20) + 64.0 * double(width) * double(height);
-  const double left = io::memory_left(o.memory_limit_gib * double(1ull << 30));
-  if (frame_bytes > left) {
+  // What the movie holds beyond the scene: the player and the renderer (its fixed part, the frame's
+  // pixels and each mesh's copies), predicted before either is made.
+  const double player_bytes = anim::Player::bytes(scene),
+               renderer_bytes = render::SceneRenderer::bytes(scene, width, height);
+  const double limit = o.memory_limit_gib * double(1ull << 30), left = io::memory_left(limit);
+  if (player_bytes + renderer_bytes > left) {
     std::ostringstream m;
     m.precision(3);
-    m << "--size " << o.size << ": rendering takes about " << frame_bytes / double(1ull << 30)
-      << " GiB (the renderer's 96 MiB and 64 bytes a pixel), more than the " << left / double(1ull << 30)
-      << " GiB that --memory-limit leaves after the scene; give a smaller --size or a larger --memory-limit";
+    m << "--size " << o.size << ": the movie takes about " << (player_bytes + renderer_bytes) / double(1ull << 30)
+      << " GiB (the player " << player_bytes / double(1ull << 30) << ", the renderer "
+      << renderer_bytes / double(1ull << 30) << ": 96 MiB, 64 bytes a pixel and the meshes' copies), more than the "
+      << left / double(1ull << 30) << " GiB that --memory-limit leaves after the scene; give --memory-limit "
+      << std::ceil(100 * (limit - left + player_bytes + renderer_bytes) / double(1ull << 30)) / 100 << " or more"
+      << (64.0 * double(width) * double(height) > 0.25 * renderer_bytes ? ", or a smaller --size" : "");
     throw io::FileError(m.str());
   }
 

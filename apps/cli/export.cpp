@@ -14,6 +14,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <sstream>
 
@@ -28,13 +29,19 @@ fs::path three_dir() {
   return CSRBF_THREE_DIR;
 }
 
-void write_file(const fs::path& p, const std::string& bytes) {
+/// Writes p (new, in the page's partial folder) with write(stream); the size written is checked.
+void write_file(const fs::path& p, const std::function<void(std::ostream&)>& write) {
   std::ofstream out(p, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), std::streamsize(bytes.size()));
+  write(out);
+  const auto written = std::uint64_t(out.tellp());
   out.close();
   std::error_code ec;
-  if (!out || fs::file_size(p, ec) != bytes.size())
+  if (!out || fs::file_size(p, ec) != written)
     throw io::FileError(p.string() + ": could not be written completely (disk full?)");
+}
+
+void write_file(const fs::path& p, const std::string& bytes) {
+  write_file(p, [&](std::ostream& s) { s.write(bytes.data(), std::streamsize(bytes.size())); });
 }
 
 std::string read_all(const fs::path& p) {
@@ -143,9 +150,14 @@ int run_export(const ExportOptions& o) {
     html = replace_all(html, "@TITLE@", html_escape(fs::path(o.scene).filename().string()));
     html = replace_all(html, "@GLB@", html_escape(glb_name));
     write_file(partial.path() / "index.html", html);
-    write_file(partial.path() / glb_name, std::string(glb.begin(), glb.end()));
-    write_file(partial.path() / "scene.glb.js",
-               "window.CSRBF_GLB = \"" + render::base64(glb.data(), glb.size()) + "\";\n");
+    write_file(partial.path() / glb_name, [&](std::ostream& s) {
+      s.write(reinterpret_cast<const char*>(glb.data()), std::streamsize(glb.size()));
+    });
+    write_file(partial.path() / "scene.glb.js", [&](std::ostream& s) {
+      s << "window.CSRBF_GLB = \"";
+      render::write_base64(s, glb.data(), glb.size());
+      s << "\";\n";
+    });
     write_file(partial.path() / "three.min.js", read_all(three_dir() / "build/three.min.js"));
     write_file(partial.path() / "GLTFLoader.js", read_all(three_dir() / "examples/js/loaders/GLTFLoader.js"));
     write_file(partial.path() / "LICENSE-three.js.txt",

@@ -143,6 +143,23 @@ Player::Player(const Scene& scene) : scene_(&scene), impl_(std::make_unique<Impl
   }
 }
 
+double Player::bytes(const Scene& scene) {
+  double total = 0;
+  for (const Object& obj : scene.objects) {
+    total += 2.0 * 24.0 * double(obj.rest.size());  // model, world
+    for (const Part& part : obj.parts) {
+      const double n = double(part.vertices.size());
+      total += 3.0 * 24.0 * n;  // rest, a, b
+      for (std::size_t k = 0; k < part.deformations.size(); ++k) {
+        const Deformation& def = part.deformations[k];
+        if (!def.area.empty()) total += n;                                                 // inside
+        if (def.map && (part.combine == Combine::Sum || k == 0)) total += 2.0 * 24.0 * n;  // a field's rest, d
+      }
+    }
+  }
+  return total;
+}
+
 Player::~Player() = default;
 Player::Player(Player&&) noexcept = default;
 

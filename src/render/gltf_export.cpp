@@ -16,6 +16,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <set>
 #include <numbers>
 #include <sstream>
 #include <string_view>
@@ -228,6 +229,54 @@ struct ObjectPlan {
   bool any_baked() const { return std::find(baked.begin(), baked.end(), 1) != baked.end(); }
 };
 
+/// What gltf_binary holds beyond the scene, in bytes (see its use).
+struct ExportMemory {
+  double player = 0, plans = 0, targets = 0, baked = 0, buffer = 0, weights = 0, work = 0;
+  double total() const { return player + plans + targets + baked + buffer + weights + work; }
+};
+
+/// exact[o]: object o's exact morph targets; baked[o]: whether any of its parts is baked.
+ExportMemory export_memory(const anim::Scene& scene, const std::vector<std::size_t>& exact,
+                           const std::vector<char>& baked, std::size_t frames, double weight_bytes) {
+  ExportMemory m;
+  m.player = anim::Player::bytes(scene);
+  m.weights = 2.0 * weight_bytes;  // the samples as doubles, then as floats in the buffer
+  std::set<std::string> textures;
+  for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+    const anim::Object& obj = scene.objects[o];
+    const double nv = double(obj.rest.size());
+    double tris = 0, textured = obj.material.texture.empty() ? 0 : 1, keys = 0;
+    for (const auto& f : obj.faces) tris += f.size() >= 3 ? double(f.size() - 2) : 0.0;
+    if (!obj.material.texture.empty()) textures.insert(obj.material.texture);
+    for (const auto& p : obj.parts) {
+      if (!p.material.texture.empty()) {
+        ++textured;
+        textures.insert(p.material.texture);
+      }
+      for (const auto& d : p.deformations) keys += double(d.schedule.keys().size());
+    }
+    if (obj.trajectory) keys += double(obj.trajectory->keys().size());
+    keys += double(obj.orientation.keys().size());
+    const double targets = double(exact[o]) + (baked[o] ? double(frames) : 0.0);
+    m.plans += 4.0 * nv;                                  // each vertex's part
+    m.targets += double(exact[o]) * 24.0 * nv;            // each exact target's displacements, Vec3 a vertex
+    if (baked[o]) m.baked += double(frames) * nv * 48.0;  // each frame's displacements, and its target's
+    // Positions and normals (float xyz), each target's displacements and normals (index and xyz at
+    // most a vertex each), texture coordinates, indices, the animation's samples.
+    m.buffer +=
+        24.0 * nv + targets * 32.0 * nv + textured * 8.0 * nv + 12.0 * tris + (double(frames) + keys + 2.0) * 64.0;
+    // While written: the float copies and rest normals (48 a vertex), a moved mesh, its normals and
+    // their difference (72), the target's non-zeros (16), the triangles and their faces (16 a triangle).
+    m.work = std::max(m.work, 136.0 * nv + 16.0 * tris);
+  }
+  std::error_code ec;
+  for (const auto& t : textures) {
+    const auto size = fs::file_size(t, ec);
+    if (!ec) m.buffer += double(size);
+  }
+  return m;
+}
+
 }  // namespace
 
 std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptions& options, GltfReport& report) {
@@ -256,6 +305,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   // Which parts are exact and which are baked.
   std::vector<ObjectPlan> plans(scene.objects.size());
   double target_bytes = 0;  // the exact targets' displacements (a Vec3 a vertex each) while written
+  const double plan_left = io::memory_left(options.memory_limit_bytes);
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
     const anim::Object& obj = scene.objects[o];
     ObjectPlan& plan = plans[o];
@@ -281,6 +331,30 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         plan.baked[p] = 1;
       }
     }
+  }
+  // The exact targets' displacements, bounded before they are computed (16384 deformations on a
+  // mesh of 6158 vertices would be 2.4 GB): at most 2 GiB, and what the program leaves of the limit.
+  for (std::size_t o = 0; o < scene.objects.size(); ++o)
+    for (std::size_t p = 0; p < scene.objects[o].parts.size(); ++p)
+      if (!plans[o].baked[p])
+        target_bytes +=
+            double(scene.objects[o].parts[p].deformations.size()) * double(scene.objects[o].rest.size()) * 24.0;
+  if (target_bytes > 2.0 * (1ull << 30))
+    throw InvalidInput("export: the morph targets would take " +
+                       std::to_string(std::llround(target_bytes / double(1 << 20))) +
+                       " MiB (at most 2048): fewer deformations or smaller meshes");
+  if (target_bytes > plan_left) {
+    std::ostringstream m;
+    m.precision(3);
+    m << "export: the morph targets would take " << target_bytes / double(1ull << 30) << " GiB, more than the "
+      << plan_left / double(1ull << 30) << " GiB that --memory-limit leaves after the scene; give --memory-limit "
+      << std::ceil(100 * (options.memory_limit_bytes - plan_left + target_bytes) / double(1ull << 30)) / 100
+      << " or more (the glTF takes more beyond them)";
+    throw InvalidInput(m.str());
+  }
+  for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+    const anim::Object& obj = scene.objects[o];
+    ObjectPlan& plan = plans[o];
     // The exact targets, and the most active at once; over the limit, the object is baked.
     const auto exact_targets = [&] {
       plan.exact.clear();
@@ -312,13 +386,6 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         }
       }
     };
-    // Bounded before they are computed: 16384 deformations on a mesh of 6158 vertices would be 2.4 GB.
-    for (std::size_t p = 0; p < obj.parts.size(); ++p)
-      if (!plan.baked[p]) target_bytes += double(obj.parts[p].deformations.size()) * double(obj.rest.size()) * 24.0;
-    if (target_bytes > 2.0 * (1ull << 30))
-      throw InvalidInput("export: the morph targets of objects[0.." + std::to_string(o) + "] would take " +
-                         std::to_string(std::llround(target_bytes / double(1 << 20))) +
-                         " MiB (at most 2048): fewer deformations or smaller meshes");
     exact_targets();
     const auto most_active = [&] {
       std::size_t most = 0;
@@ -346,8 +413,8 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
 
   // Memory, bounded before anything large is built: the weights (a value a target and sample
   // time), and baking's frames (the exact targets were bounded above).
+  double weight_bytes = 0;
   {
-    double weight_bytes = 0;
     for (std::size_t o = 0; o < scene.objects.size(); ++o) {
       const double targets = double(plans[o].exact.size()) + (plans[o].any_baked() ? double(frames) : 0.0);
       double times = double(frames) + 1;
@@ -360,20 +427,37 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
                          std::to_string(std::llround(weight_bytes / double(1 << 20))) +
                          " MiB (at most 512): fewer deformations, a lower --fps, or less baking");
   }
-  // Baking keeps every frame's displacement of the baked vertices until the file is written: bounded
-  // before the pass.
-  // At most 4 GiB, and what the program leaves of --memory-limit.
-  double baked_bytes = 0;
-  for (std::size_t o = 0; o < scene.objects.size(); ++o)
-    if (plans[o].any_baked()) baked_bytes += double(frames) * double(scene.objects[o].rest.size()) * (24.0 + 24.0);
-  if (baked_bytes > 0) {
-    const double most = std::min(4.0 * (1ull << 30), io::memory_left(options.memory_limit_bytes));
-    if (baked_bytes > most)
-      throw InvalidInput("export: baking " + std::to_string(frames) + " frames would take " +
-                         std::to_string(std::llround(baked_bytes / double(1 << 20))) + " MiB (at most " +
-                         std::to_string(std::llround(most / double(1 << 20))) +
-                         ", of 4096 and of what --memory-limit leaves): lower --fps, or bake less (--bake auto or "
-                         "never)");
+  // What the export holds beyond the scene, predicted before anything large is built and bounded
+  // by what the program leaves of --memory-limit (and baking by 4 GiB): the player, each object's
+  // plan, exact targets and baked frames, the binary buffer (an upper bound: every target dense,
+  // which is also reserved, so that it grows without copies), the weights, and the largest object's
+  // work while it is written (float copies, normals of a moved mesh, a target's non-zeros).
+  std::vector<std::size_t> exact(scene.objects.size());
+  std::vector<char> baked_objects(scene.objects.size());
+  for (std::size_t o = 0; o < scene.objects.size(); ++o) {
+    exact[o] = plans[o].exact.size();
+    baked_objects[o] = plans[o].any_baked();
+  }
+  const ExportMemory need = export_memory(scene, exact, baked_objects, frames, weight_bytes);
+  if (need.baked > 0 && need.baked > 4.0 * (1ull << 30))
+    throw InvalidInput("export: baking " + std::to_string(frames) + " frames would take " +
+                       std::to_string(std::llround(need.baked / double(1 << 20))) +
+                       " MiB (at most 4096): lower --fps, or bake less (--bake auto or never)");
+  {
+    // The plans and the exact targets are made and held already: what the program holds counts them.
+    const double left = io::memory_left(options.memory_limit_bytes) + need.plans + need.targets;
+    if (need.total() > left) {
+      std::ostringstream m;
+      m.precision(3);
+      m << "export: writing the glTF takes about " << need.total() / double(1ull << 30) << " GiB (the player "
+        << need.player / double(1ull << 30) << ", the buffer " << need.buffer / double(1ull << 30)
+        << ", morph targets and baked frames " << (need.targets + need.baked) / double(1ull << 30)
+        << "), more than the " << left / double(1ull << 30)
+        << " GiB that --memory-limit leaves after the scene; give --memory-limit "
+        << std::ceil(100 * (options.memory_limit_bytes - left + need.total()) / double(1ull << 30)) / 100 << " or more"
+        << (need.baked > 0 ? ", a lower --fps, or bake less (--bake auto or never)" : "");
+      throw InvalidInput(m.str());
+    }
   }
 
   // One pass of the player over the frames: the baked parts' displacements, and the scene's size.
@@ -401,6 +485,9 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   report.scene_size = (hi - lo).norm();
 
   Builder b;
+  // Reserved whole (pages not written are not resident), so that the buffer never grows by copying
+  // and the glb's header goes in front of it in place; 1 MiB for that header and the JSON.
+  b.bin.reserve(std::size_t(need.buffer) + (1u << 20));
   b.doc["asset"] = {{"version", "2.0"}, {"generator", "csrbf export"}};
   b.doc["scene"] = 0;
   b.doc["scenes"] = json::array({json{{"name", "scene"}, {"nodes", json::array()}}});
@@ -805,9 +892,9 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   // The glb: header, the JSON chunk (padded with spaces), the binary chunk.
   std::string text = b.doc.dump();
   while (text.size() % 4) text.push_back(' ');
-  std::vector<unsigned char> glb;
+  std::vector<unsigned char> head;
   const auto u32 = [&](std::uint32_t x) {
-    for (int i = 0; i < 4; ++i) glb.push_back((unsigned char)(x >> (8 * i)));
+    for (int i = 0; i < 4; ++i) head.push_back((unsigned char)(x >> (8 * i)));
   };
   const std::size_t total = 12 + 8 + text.size() + 8 + b.bin.size();
   if (total > 0xffffffffu)
@@ -817,47 +904,79 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   u32(std::uint32_t(total));
   u32(std::uint32_t(text.size()));
   u32(0x4E4F534A);  // "JSON"
-  glb.insert(glb.end(), text.begin(), text.end());
+  head.insert(head.end(), text.begin(), text.end());
   u32(std::uint32_t(b.bin.size()));
   u32(0x004E4942);  // "BIN\0"
-  glb.insert(glb.end(), b.bin.begin(), b.bin.end());
+  // In front of the binary chunk, in place where the reserve has room (no second copy of the buffer).
+  std::vector<unsigned char> glb = std::move(b.bin);
+  glb.insert(glb.begin(), head.begin(), head.end());
   report.bytes = glb.size();
   return glb;
 }
 
-std::string base64(const unsigned char* p, std::size_t n) {
+void write_base64(std::ostream& out, const unsigned char* p, std::size_t n) {
   static const char* a = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((n + 2) / 3 * 4);
+  char chunk[4096];  // 3072 bytes a chunk, so that no copy of the whole is made
+  std::size_t used = 0;
   for (std::size_t i = 0; i < n; i += 3) {
     const std::uint32_t v = std::uint32_t(p[i]) << 16 | (i + 1 < n ? std::uint32_t(p[i + 1]) << 8 : 0) |
                             (i + 2 < n ? std::uint32_t(p[i + 2]) : 0);
-    out.push_back(a[v >> 18 & 63]);
-    out.push_back(a[v >> 12 & 63]);
-    out.push_back(i + 1 < n ? a[v >> 6 & 63] : '=');
-    out.push_back(i + 2 < n ? a[v & 63] : '=');
+    chunk[used++] = a[v >> 18 & 63];
+    chunk[used++] = a[v >> 12 & 63];
+    chunk[used++] = i + 1 < n ? a[v >> 6 & 63] : '=';
+    chunk[used++] = i + 2 < n ? a[v & 63] : '=';
+    if (used == sizeof chunk) {
+      out.write(chunk, std::streamsize(used));
+      used = 0;
+    }
   }
-  return out;
+  out.write(chunk, std::streamsize(used));
 }
 
-std::string glb_to_gltf(const std::vector<unsigned char>& glb) {
+std::string base64(const unsigned char* p, std::size_t n) {
+  std::ostringstream out;
+  write_base64(out, p, n);
+  return std::move(out).str();
+}
+
+namespace {
+/// glb as .gltf text, streamed: its JSON with the binary chunk as a base64 data URI, written where
+/// a placeholder stands in the JSON's text (so that neither the base64 nor the text is held whole).
+std::size_t write_gltf_text(std::ostream& out, const std::vector<unsigned char>& glb) {
   std::uint32_t json_len = 0;
   std::memcpy(&json_len, glb.data() + 12, 4);
   json doc = json::parse(glb.begin() + 20, glb.begin() + 20 + json_len);
   const std::size_t bin_at = 20 + json_len + 8;
-  doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + base64(glb.data() + bin_at, glb.size() - bin_at);
-  std::string out = doc.dump(1);
-  out.push_back('\n');
-  return out;
+  const std::string mark = "@CSRBF-BASE64@";
+  doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + mark;
+  std::string text = doc.dump(1);
+  text.push_back('\n');
+  const std::size_t at = text.find(mark);
+  out.write(text.data(), std::streamsize(at));
+  write_base64(out, glb.data() + bin_at, glb.size() - bin_at);
+  out.write(text.data() + at + mark.size(), std::streamsize(text.size() - at - mark.size()));
+  return text.size() - mark.size() + (glb.size() - bin_at + 2) / 3 * 4;
+}
+}  // namespace
+
+std::string glb_to_gltf(const std::vector<unsigned char>& glb) {
+  std::ostringstream out;
+  write_gltf_text(out, glb);
+  return std::move(out).str();
 }
 
 std::size_t write_gltf(const std::vector<unsigned char>& glb, const fs::path& path) {
   const std::string ext = path.extension().string();
   if (ext != ".glb" && ext != ".gltf")
     throw InvalidInput("export: the output must end in .glb or .gltf, got '" + path.string() + "'");
-  const std::string out = ext == ".glb" ? std::string(glb.begin(), glb.end()) : glb_to_gltf(glb);
-  io::write_atomically(path, [&](std::ostream& s) { s.write(out.data(), std::streamsize(out.size())); });
-  return out.size();
+  std::size_t bytes = glb.size();
+  io::write_atomically(path, [&](std::ostream& s) {
+    if (ext == ".glb")
+      s.write(reinterpret_cast<const char*>(glb.data()), std::streamsize(glb.size()));
+    else
+      bytes = write_gltf_text(s, glb);
+  });
+  return bytes;
 }
 
 GltfReport export_gltf(const anim::Scene& scene, const fs::path& path, const GltfOptions& options) {

@@ -119,6 +119,9 @@ class Player {
  public:
   explicit Player(const Scene& scene);
   ~Player();
+  /// What a Player of `scene` holds, in bytes, before it is made (for memory limits): each object's
+  /// model and world vertices, each part's rest and work buffers, and each kept DisplacementField.
+  static double bytes(const Scene& scene);
   Player(Player&&) noexcept;
   Player(const Player&) = delete;
   Player& operator=(const Player&) = delete;

@@ -22,6 +22,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -77,6 +78,8 @@ GltfReport export_gltf(const anim::Scene& scene, const std::filesystem::path& pa
 std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptions& options, GltfReport& report);
 /// Base64 (RFC 4648, padded): glTF's data URIs and the web page's embedded glb.
 std::string base64(const unsigned char* data, std::size_t size);
+/// The same, written to out in chunks (no copy of the whole).
+void write_base64(std::ostream& out, const unsigned char* data, std::size_t size);
 /// Writes glb bytes to path atomically, as they are (.glb) or as one .gltf text (glb_to_gltf);
 /// returns the bytes written. Throws InvalidInput for another extension, io::FileError for files.
 std::size_t write_gltf(const std::vector<unsigned char>& glb, const std::filesystem::path& path);

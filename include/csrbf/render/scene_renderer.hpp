@@ -19,6 +19,9 @@ class SceneRenderer {
   /// Builds the actors; the scene must outlive the renderer. Needs no window yet.
   explicit SceneRenderer(const anim::Scene& scene);
   ~SceneRenderer();
+  /// What a renderer of `scene` with a width x height window holds at most, in bytes, before it is
+  /// made (for memory limits); measured with Mesa's llvmpipe: see the definition.
+  static double bytes(const anim::Scene& scene, int width, int height);
   SceneRenderer(const SceneRenderer&) = delete;
   SceneRenderer& operator=(const SceneRenderer&) = delete;
 
