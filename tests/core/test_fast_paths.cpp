@@ -733,3 +733,28 @@ TEST(FastPaths, ConjugateGradientsKeepAGoodSolutionAtTheirStepLimit) {
   const RowMatrix r = a * x - b;
   EXPECT_LE(r.norm() / b.norm(), 1e-8);
 }
+
+// Issue 30, point 11: once another solver has taken over for good, CG's copy of A is freed (Auto
+// after a stagnation frees it before the other is built: face.obj, a control at every vertex,
+// R = 1.5, --memory-limit 1, had the envelope refused beside it). A later solve through it throws
+// CgStagnated, so that its caller turns to the solver that took over, and never reads freed rows.
+TEST(FastPaths, ConjugateGradientsReleasedHoldNothingAndSolveNothing) {
+  std::mt19937 rng(112);
+  const auto cloud = random_points(800, rng);
+  const KernelMatrix a(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.2), cloud), Kernel::C2, 0.2);
+  std::vector<std::uint32_t> order(cloud.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = std::uint32_t(i);
+  const auto cg = detail::conjugate_gradients(a, order, 1e-12, 3000);
+  EXPECT_EQ(cg->held_bytes(), detail::cg_bytes(a.values().size(), cloud.size()));
+  const RowMatrix b = RowMatrix::Random(Eigen::Index(cloud.size()), 3);
+  RowMatrix x = b;
+  ASSERT_NO_THROW(cg->solve_in_place(x));
+  EXPECT_LE((a * x - b).norm() / b.norm(), 1e-10);
+  cg->release();
+  EXPECT_EQ(cg->held_bytes(), 0.0);
+  RowMatrix y = b;
+  EXPECT_THROW(cg->solve_in_place(y), detail::CgStagnated);
+  EXPECT_EQ(y, b);  // untouched
+  // The solution of the solve before stays described.
+  EXPECT_GT(cg->iterations(), 0u);
+}
