@@ -315,6 +315,10 @@ std::string outcome_json(const MorphOutcome& o) {
                      {"write", o.ms_write},
                      {"total", o.ms_total}}}};
   if (o.inverts) j["safe_phase"] = o.safe_phase;
+  // Points this far or farther from every moving control keep their coordinates bit for bit (null:
+  // a polynomial moves the whole space); staying controls farther than R from every moving one.
+  j["reach"] = std::isfinite(rep.reach) ? nlohmann::json(rep.reach) : nlohmann::json(nullptr);
+  j["far_fixed"] = rep.far_fixed;
   return j.dump(2);
 }
 
@@ -330,8 +334,15 @@ std::string outcome_text(const MorphOutcome& o) {
   s << "; largest displacement " << rep.max_displacement << ", largest boundary error " << rep.max_boundary_error
     << " before exact placement\n"
     << "  R = " << o.options.fit.radius << ", kernel " << kernel_name(o.options.fit.kernel) << ", polynomial "
-    << polynomial_name(o.options.fit.polynomial) << ", phase " << o.options.phase << "\n"
-    << quality_table(o.before, o.after) << "  time: read " << o.ms_read << " ms, fit " << rep.seconds_fit * 1e3
+    << polynomial_name(o.options.fit.polynomial) << ", phase " << o.options.phase << "\n";
+  if (std::isfinite(rep.reach))
+    s << "  reach " << rep.reach << ": a point this far or farther from every moving point keeps its coordinates "
+      << "bit for bit (" << rep.far_fixed << " staying points farther than R from every moving one were left "
+      << "out of the fit, and stay)\n";
+  else
+    s << "  reach: the whole mesh (polynomial " << polynomial_name(o.options.fit.polynomial)
+      << " moves every point; polynomial none keeps points 2R from every moving one bit for bit)\n";
+  s << quality_table(o.before, o.after) << "  time: read " << o.ms_read << " ms, fit " << rep.seconds_fit * 1e3
     << " ms, evaluate " << rep.seconds_evaluate * 1e3 << " ms, quality " << o.ms_quality << " ms, write " << o.ms_write
     << " ms, total " << o.ms_total << " ms\n";
   if (o.written)

@@ -4,6 +4,7 @@
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/morph/volume_file.hpp"
+#include "csrbf/neighbor_index.hpp"
 #include "csrbf/space_map.hpp"
 
 #include <algorithm>
@@ -347,6 +348,38 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
       }
     }
   }));
+  // Exact locality (polynomial none): a control that stays is fitted only where a moving one lies
+  // within R of it. Every source of the fit is then within R of a moving control, and its kernel
+  // reaches R further: a point 2R or farther from every moving control sums no term and keeps its
+  // coordinates bit for bit (the report's reach). Staying controls farther away carried
+  // coefficients of 1e-16 and moved the whole connected mesh by up to 4e-7 (a flow solver's
+  // residuals jumped 63x on such a mesh); they are placed exactly afterwards, as every prescribed
+  // point is. With a polynomial, the mapping moves the whole space: every control is kept.
+  if (options.fit.polynomial == Polynomial::None) {
+    rep.reach = 2.0 * options.fit.radius;
+    std::vector<Vec3> moving;
+    for (std::size_t i = 0; i < sources.size(); ++i)
+      if (targets[i] != sources[i]) moving.push_back(sources[i]);
+    const std::vector<Vec3> all_moving = b.gather(moving);
+    std::size_t kept = sources.size();
+    if (!all_moving.empty()) {
+      kept = 0;
+      const NeighborIndex near(all_moving, options.fit.radius);
+      for (std::size_t i = 0; i < sources.size(); ++i) {
+        bool keep = targets[i] != sources[i];
+        if (!keep) near.for_each_within(sources[i], [&](std::size_t, double) { keep = true; });
+        if (!keep) continue;
+        sources[kept] = sources[i];
+        targets[kept] = targets[i];
+        ids[kept] = ids[i];
+        ++kept;
+      }
+    }
+    rep.far_fixed = std::size_t(b.sum(double(sources.size() - kept)));
+    sources.resize(kept);
+    targets.resize(kept);
+    ids.resize(kept);
+  }
   const std::size_t nc = sources.size();
   const auto t_fit = Clock::now();
   std::vector<Vec3> at(nc);

@@ -456,6 +456,27 @@ double DecomposedBackend::sum(double local) {
   return out;
 }
 
+static_assert(sizeof(Vec3) == 3 * sizeof(double));
+
+std::vector<Vec3> DecomposedBackend::gather(std::span<const Vec3> local) {
+  int size = 1;
+  MPI_Comm_size(comm_, &size);
+  const double mine = double(local.size()) * 3;
+  std::vector<double> counts(std::size_t(size), 0.0);
+  MPI_Allgather(&mine, 1, MPI_DOUBLE, counts.data(), 1, MPI_DOUBLE, comm_);
+  std::vector<int> n(static_cast<std::size_t>(size)), at(static_cast<std::size_t>(size));
+  double total = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    if (total + counts[r] > double(INT_MAX)) throw ResourceLimit("more points than one MPI gather takes");
+    n[r] = int(counts[r]);
+    at[r] = int(total);
+    total += counts[r];
+  }
+  std::vector<Vec3> all(std::size_t(total) / 3);
+  MPI_Allgatherv(local.data(), int(mine), MPI_DOUBLE, all.data(), n.data(), at.data(), MPI_DOUBLE, comm_);
+  return all;
+}
+
 void DecomposedBackend::agree(std::exception_ptr local) { mpi::agree(comm_, local, exit_code_of); }
 
 fs::path DecomposedBackend::mesh_path(const fs::path&) {

@@ -382,15 +382,28 @@ TEST_F(BoxMorph, InteriorPointsFollowTheDenseInterpolantAndBoundariesLandExactly
   o.fit.radius = 0.6;
   const MorphResult r = morph(c.mesh, m, o);
   const Prescribed p = prescribe(c.mesh, m);
-  // The dense solve of the whole system: A alpha = d over the prescribed points (C2, no polynomial).
-  const std::size_t n = p.points.size();
+  // The controls: every moving point, and every staying one within R of a moving one (exact
+  // locality), by brute force.
+  std::vector<std::uint32_t> fitted;
+  for (std::size_t i = 0; i < p.points.size(); ++i) {
+    bool keep = p.displacements[i] != Vec3::Zero();
+    for (std::size_t j = 0; j < p.points.size() && !keep; ++j)
+      keep = p.displacements[j] != Vec3::Zero() &&
+             (c.mesh.points[p.points[i]] - c.mesh.points[p.points[j]]).norm() < o.fit.radius;
+    if (keep) fitted.push_back(std::uint32_t(i));
+  }
+  EXPECT_LT(fitted.size(), p.points.size());  // zmax, 1 from zmin, is left out
+  EXPECT_EQ(r.report.far_fixed, p.points.size() - fitted.size());
+  EXPECT_EQ(r.report.reach, 1.2);
+  // The dense solve of the whole system: A alpha = d over the controls (C2, no polynomial).
+  const std::size_t n = fitted.size();
   Eigen::MatrixXd A(n, n);
   Eigen::MatrixXd d(n, 3);
   for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t j = 0; j < n; ++j)
-      A(Eigen::Index(i), Eigen::Index(j)) =
-          csrbf::wendland(csrbf::Kernel::C2, (c.mesh.points[p.points[i]] - c.mesh.points[p.points[j]]).norm() / 0.6);
-    d.row(Eigen::Index(i)) = p.displacements[i].transpose();
+      A(Eigen::Index(i), Eigen::Index(j)) = csrbf::wendland(
+          csrbf::Kernel::C2, (c.mesh.points[p.points[fitted[i]]] - c.mesh.points[p.points[fitted[j]]]).norm() / 0.6);
+    d.row(Eigen::Index(i)) = p.displacements[fitted[i]].transpose();
   }
   const Eigen::MatrixXd alpha = A.llt().solve(d);
   std::vector<char> prescribed(c.mesh.points.size(), 0);
@@ -403,7 +416,7 @@ TEST_F(BoxMorph, InteriorPointsFollowTheDenseInterpolantAndBoundariesLandExactly
     Vec3 want = c.mesh.points[q];
     for (std::size_t j = 0; j < n; ++j)
       want += alpha.row(Eigen::Index(j)).transpose() *
-              csrbf::wendland(csrbf::Kernel::C2, (c.mesh.points[q] - c.mesh.points[p.points[j]]).norm() / 0.6);
+              csrbf::wendland(csrbf::Kernel::C2, (c.mesh.points[q] - c.mesh.points[p.points[fitted[j]]]).norm() / 0.6);
     EXPECT_NEAR((r.points[q] - want).norm(), 0.0, 1e-10 * scale) << q;
     moved += r.points[q] != c.mesh.points[q];
   }
@@ -423,6 +436,55 @@ TEST_F(BoxMorph, InteriorPointsFollowTheDenseInterpolantAndBoundariesLandExactly
   const MorphResult half = morph(c.mesh, m, o);
   for (std::size_t q = 0; q < c.mesh.points.size(); ++q)
     EXPECT_NEAR((half.points[q] - c.mesh.points[q] - 0.5 * (r.points[q] - c.mesh.points[q])).norm(), 0.0, 1e-14);
+}
+
+// Issue 31, point 1: exact locality as a contract. With polynomial none, a point 2R or farther from
+// every moving control keeps its coordinates bit for bit, for every kernel, with or without greedy:
+// staying controls carried coefficients of 1e-16 and moved the whole connected mesh (a flow
+// solver's residuals jumped 63x on such a mesh). Measured on a 12^3 box, zmin moving, R = 0.3.
+TEST(ExactLocality, PointsTwoRadiiFromEveryMovingOneKeepTheirBits) {
+  TempDir dir;
+  BoxSpec spec;
+  spec.nx = spec.ny = spec.nz = 12;
+  spec.h = 1.0 / 12;
+  csrbf::test::write_box_case(dir.path / "case", spec);
+  const FoamCase c = read_openfoam(dir.path / "case");
+  const Motion m =
+      motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 4, "origin": [0.5, 0.5, 0]}},
+                             "zmax": "fixed", "xmin": "fixed", "xmax": "fixed", "ymin": "fixed", "ymax": "fixed"}})");
+  const Prescribed p = prescribe(c.mesh, m);
+  std::vector<Vec3> moving;
+  for (std::size_t i = 0; i < p.points.size(); ++i)
+    if (p.displacements[i] != Vec3::Zero()) moving.push_back(c.mesh.points[p.points[i]]);
+  const double radius = 0.3;
+  for (const auto kernel : {csrbf::Kernel::C0, csrbf::Kernel::C2, csrbf::Kernel::C4, csrbf::Kernel::C6})
+    for (const double greedy : {0.0, 1e-3}) {
+      SCOPED_TRACE(std::string(csrbf::kernel_name(kernel)) + (greedy > 0 ? " greedy" : ""));
+      MorphOptions o;
+      o.fit.radius = radius;
+      o.fit.kernel = kernel;
+      o.greedy = greedy;
+      const MorphResult r = morph(c.mesh, m, o);
+      EXPECT_EQ(r.report.reach, 2 * radius);
+      std::size_t far = 0, near_moved = 0;
+      for (std::size_t q = 0; q < c.mesh.points.size(); ++q) {
+        double nearest = std::numeric_limits<double>::infinity();
+        for (const Vec3& s : moving) nearest = std::min(nearest, (c.mesh.points[q] - s).norm());
+        if (nearest >= 2 * radius) {
+          ++far;
+          for (int k = 0; k < 3; ++k) EXPECT_EQ(bits(r.points[q][k]), bits(c.mesh.points[q][k])) << q;
+        } else if (nearest < radius) {
+          near_moved += r.points[q] != c.mesh.points[q];
+        }
+      }
+      EXPECT_GT(far, 700u);         // z >= 0.6: 6 of 13 layers of 169 points
+      EXPECT_GT(near_moved, 300u);  // the field itself is there
+    }
+  // A polynomial moves the whole space: no reach.
+  MorphOptions linear;
+  linear.fit.radius = radius;
+  linear.fit.polynomial = csrbf::Polynomial::Linear;
+  EXPECT_TRUE(std::isinf(morph(c.mesh, m, linear).report.reach));
 }
 
 TEST_F(BoxMorph, GreedyUsesFewerControlsWithinItsTolerance) {

@@ -145,6 +145,20 @@ class Decomposed(unittest.TestCase):
                     largest = np.abs(want - base).max()
                     self.assertGreater(largest, 0.01)
                     self.assertLess(np.abs(got - want).max(), 1e-10 * largest)
+                    if poly == "none":
+                        # Exact locality, serial and distributed: a point 2R or farther from every
+                        # point of the airfoil (here of a box around it, a superset) keeps its bits.
+                        self.assertEqual(report["reach"], 2 * radius)
+                        near = base[(base[:, 0] >= -0.05) & (base[:, 0] <= 1.05) & (np.abs(base[:, 1]) <= 0.2)]
+                        gap = np.array([np.sqrt(((near - p) ** 2).sum(axis=1)).min() for p in base])
+                        far = gap >= 2 * radius
+                        self.assertGreater(far.sum(), 100)
+                        self.assertTrue(np.array_equal(want[far], base[far]))
+                        # Against the processors' own points (decomposePar's 17 digits are 1 ulp off
+                        # the case's in a few points).
+                        self.assertTrue(np.array_equal(got[far], gathered(case, count)[far]))
+                    else:
+                        self.assertIsNone(report["reach"])
                     # OpenFOAM puts the processors back together and accepts the whole mesh.
                     r = run(["reconstructParMesh", "-constant"], cwd=out)
                     self.assertEqual(r.returncode, 0, r.stdout[-2000:])

@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <memory>
 #include <span>
+#include <vector>
 
 namespace csrbf::morph {
 
@@ -46,6 +47,8 @@ class MorphBackend {
   /// where alone).
   virtual double max(double local) { return local; }
   virtual double sum(double local) { return local; }
+  /// Every process's points, in rank order (the points themselves where alone).
+  virtual std::vector<Vec3> gather(std::span<const Vec3> local) { return {local.begin(), local.end()}; }
   /// Each value replaced by its largest over the processes (unchanged where alone).
   virtual void max(std::span<double> values) { (void)values; }
   /// Rethrows local, or another process's failure, on every process.

@@ -11,6 +11,7 @@
 #include "csrbf/morph/volume_mesh.hpp"
 
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 namespace csrbf::morph {
@@ -50,6 +51,13 @@ struct MorphReport {
   /// Largest distance between a prescribed point's interpolated and prescribed position, before
   /// the prescribed points are placed exactly (greedy's measure; ~1e-12 without greedy).
   double max_boundary_error = 0;
+  /// Polynomial none: a point this far or farther from every moving control keeps its coordinates
+  /// bit for bit (2R: only the staying controls within R of a moving one are fitted); infinity
+  /// with a polynomial (the mapping moves the whole space).
+  double reach = std::numeric_limits<double>::infinity();
+  /// Staying controls left out of the fit: farther than R from every moving control (placed
+  /// exactly all the same).
+  std::size_t far_fixed = 0;
   FitStats fit;
   double seconds_fit = 0, seconds_evaluate = 0;
 };

@@ -78,6 +78,7 @@ class DecomposedBackend final : public morph::MorphBackend {
   bool part() const override { return true; }
   double max(double local) override;
   double sum(double local) override;
+  std::vector<Vec3> gather(std::span<const Vec3> local) override;
   void max(std::span<double> values) override;
   void agree(std::exception_ptr local) override;
   std::filesystem::path mesh_path(const std::filesystem::path& mesh) override;
