@@ -32,6 +32,7 @@
 #include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 
+#include <cctype>
 #include <optional>
 #include <string>
 
@@ -39,20 +40,24 @@ namespace csrbf::composer {
 
 using nlohmann::json;
 
-namespace {
-
-/// A spin box of the panel: its value is an edit when typing is done, not at each key.
-QDoubleSpinBox* spin_box(QWidget* parent, const char* name, double lo, double hi, double step, int decimals) {
-  auto* s = new QDoubleSpinBox(parent);
+/// A number box of the panel (full precision, scientific notation): its value is an edit when
+/// typing is done, not at each key; a number out of range is refused with a message, never clamped.
+QDoubleSpinBox* ComposerWindow::number_box(QWidget* parent, const char* name, double lo, double hi, double step) {
+  auto* s = new gui::NumberBox(parent);
   s->setObjectName(name);
   s->setRange(lo, hi);
   s->setSingleStep(step);
-  s->setDecimals(decimals);
   s->setKeyboardTracking(false);
+  // Its name in messages: "keyTime" is "key time".
+  QString what;
+  for (const char* c = name; *c; ++c) {
+    if (std::isupper(static_cast<unsigned char>(*c))) what += ' ';
+    what += QChar(std::tolower(static_cast<unsigned char>(*c)));
+  }
+  s->what = what;
+  s->refused = [this](const QString& m) { show_error(m); };
   return s;
 }
-
-}  // namespace
 
 void ComposerWindow::build_ui() {
   build_view();
@@ -196,7 +201,7 @@ void ComposerWindow::build_object_list(QWidget* panel, QVBoxLayout* layout) {
 QGroupBox* ComposerWindow::build_key_box(QWidget* panel) {
   auto* keybox = new QGroupBox("Trajectory key", panel);
   auto* kf = new QFormLayout(keybox);
-  key_time_ = spin_box(keybox, "keyTime", 0, 1e6, 0.1, 2);
+  key_time_ = number_box(keybox, "keyTime", 0, 1e6, 0.1);
   kf->addRow("time (s)", key_time_);
   connect(key_time_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double t) {
     if (updating_ || object_ < 0 || key_ < 0) return;
@@ -206,7 +211,7 @@ QGroupBox* ComposerWindow::build_key_box(QWidget* panel) {
   });
   auto* pos_row = new QHBoxLayout;
   for (int c = 0; c < 3; ++c) {
-    key_pos_[c] = spin_box(keybox, c == 0 ? "keyX" : c == 1 ? "keyY" : "keyZ", -1e6, 1e6, 0.05, 3);
+    key_pos_[c] = number_box(keybox, c == 0 ? "keyX" : c == 1 ? "keyY" : "keyZ", -1e6, 1e6, 0.05);
     pos_row->addWidget(key_pos_[c]);
     connect(key_pos_[c], qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this, c] {
       if (updating_ || !has_object() || key_ < 0) return;
@@ -222,7 +227,7 @@ QGroupBox* ComposerWindow::build_key_box(QWidget* panel) {
   kf->addRow("position", pos_row);
   const char* tcb_names[3] = {"tension", "continuity", "bias"};
   for (int c = 0; c < 3; ++c) {
-    tcb_[c] = spin_box(keybox, tcb_names[c], -1, 1, 0.1, 2);
+    tcb_[c] = number_box(keybox, tcb_names[c], -1, 1, 0.1);
     kf->addRow(tcb_names[c], tcb_[c]);
     connect(tcb_[c], qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this] {
       if (updating_ || object_ < 0 || key_ < 0) return;
@@ -262,7 +267,7 @@ QGroupBox* ComposerWindow::build_orientation_box(QWidget* panel) {
   auto* rf = new QFormLayout(rotbox);
   const char* angle_names[3] = {"yaw", "pitch", "roll"};
   for (int c = 0; c < 3; ++c) {
-    angles_[c] = spin_box(rotbox, angle_names[c], -360, 360, 5, 1);
+    angles_[c] = number_box(rotbox, angle_names[c], -360, 360, 5);
     rf->addRow(QString(angle_names[c]) + " (deg)", angles_[c]);
   }
   auto* set_rot = new QPushButton("Set orientation key", rotbox);
@@ -281,8 +286,8 @@ QGroupBox* ComposerWindow::build_orientation_box(QWidget* panel) {
 QGroupBox* ComposerWindow::build_scene_box(QWidget* panel) {
   auto* scenebox = new QGroupBox("Timing", panel);
   auto* sf = new QFormLayout(scenebox);
-  duration_ = spin_box(scenebox, "duration", 0.1, 3600, 0.5, 2);
-  fps_ = spin_box(scenebox, "fps", 1, 240, 1, 1);
+  duration_ = number_box(scenebox, "duration", 0.1, 3600, 0.5);
+  fps_ = number_box(scenebox, "fps", 1, 240, 1);
   sf->addRow("duration (s)", duration_);
   sf->addRow("frame rate", fps_);
   connect(duration_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double v) {
@@ -333,8 +338,8 @@ QGroupBox* ComposerWindow::build_deformation_box(QWidget* panel) {
          [&](Document& d) { d.set_easing(std::size_t(object_), std::size_t(deformation_), e.toStdString()); });
   });
   df->addRow("easing", easing_);
-  phase_time_ = spin_box(defbox, "phaseTime", 0, 1e6, 0.04, 3);
-  phase_value_ = spin_box(defbox, "phaseValue", -1e6, 1e6, 0.1, 3);
+  phase_time_ = number_box(defbox, "phaseTime", 0, 1e6, 0.04);
+  phase_value_ = number_box(defbox, "phaseValue", -1e6, 1e6, 0.1);
   auto* phase_row = new QHBoxLayout;
   phase_row->addWidget(phase_time_);
   phase_row->addWidget(new QLabel("s  phase", defbox));
@@ -407,7 +412,7 @@ QGroupBox* ComposerWindow::build_look_box(QWidget* panel) {
   cam_row->addWidget(cam_from_view);
   cam_row->addWidget(look_through);
   lf->addRow("camera", cam_row);
-  view_angle_ = spin_box(lookbox, "viewAngle", 1, 179, 5, 1);
+  view_angle_ = number_box(lookbox, "viewAngle", 1, 179, 5);
   connect(view_angle_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double a) {
     if (updating_ || !scene_) return;
     const auto& c = scene_->camera;
@@ -443,7 +448,7 @@ QGroupBox* ComposerWindow::build_look_box(QWidget* panel) {
     if (!updating_) refresh_look_panel();  // not while the panel itself refills the list
   });
   lf->addRow("lights", lights_);
-  light_intensity_ = spin_box(lookbox, "lightIntensity", 0, 10, 0.1, 2);
+  light_intensity_ = number_box(lookbox, "lightIntensity", 0, 10, 0.1);
   connect(light_intensity_, qOverload<double>(&QDoubleSpinBox::valueChanged), this, [this](double v) {
     const int l = lights_->currentRow();
     if (updating_ || l < 0) return;

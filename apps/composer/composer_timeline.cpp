@@ -3,6 +3,7 @@
 
 #include "composer_window.hpp"
 
+#include <QApplication>
 #include <QMouseEvent>
 #include <QPainter>
 
@@ -114,6 +115,8 @@ void Timeline::mousePressEvent(QMouseEvent* e) {
           drag_row_ = r;
           drag_key_ = k;
           drag_time_ = times[std::size_t(k)];
+          drag_from_ = e->pos();
+          dragged_ = false;
           if (r == 0) w_->select_key(k);
           if (r >= 2) w_->select_phase_key(r - 2, k);
           break;
@@ -126,15 +129,22 @@ void Timeline::mousePressEvent(QMouseEvent* e) {
 }
 
 void Timeline::mouseMoveEvent(QMouseEvent* e) {
-  if (drag_key_ >= 0)
-    drag_time_ = drag_limit(drag_row_, drag_key_, e->pos().x());
-  else if (e->pos().x() >= kLeft)
+  if (drag_key_ >= 0) {
+    // A key moves once the pointer has gone the platform's drag distance: a click only selects it
+    // (a click 6 px beside a mark moved it to the snapped time under the pointer).
+    if ((e->pos() - drag_from_).manhattanLength() >= QApplication::startDragDistance()) dragged_ = true;
+    if (dragged_) drag_time_ = drag_limit(drag_row_, drag_key_, e->pos().x());
+  } else if (e->pos().x() >= kLeft) {
     w_->set_time(t_of(e->pos().x()));
+  }
   update();
 }
 
 void Timeline::mouseReleaseEvent(QMouseEvent* e) {
-  if (drag_key_ >= 0) {
+  if (drag_key_ >= 0 && (e->pos() - drag_from_).manhattanLength() >= QApplication::startDragDistance()) dragged_ = true;
+  if (drag_key_ >= 0 && !dragged_) {
+    drag_row_ = drag_key_ = -1;
+  } else if (drag_key_ >= 0) {
     const int r = drag_row_, k = drag_key_;
     const double t = drag_limit(r, k, e->pos().x());
     drag_row_ = drag_key_ = -1;

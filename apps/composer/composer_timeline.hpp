@@ -35,6 +35,8 @@ class Timeline : public QWidget {
   ComposerWindow* w_;
   int drag_row_ = -1, drag_key_ = -1;
   double drag_time_ = 0;
+  QPoint drag_from_;      // where the press on a key was
+  bool dragged_ = false;  // the pointer has gone the drag distance since
 };
 
 }  // namespace csrbf::composer

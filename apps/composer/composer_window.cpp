@@ -296,6 +296,7 @@ bool ComposerWindow::open_scene(const QString& path) {
 }
 
 bool ComposerWindow::save_scene(const QString& path) {
+  gui::commit_pending_edit();
   try {
     doc_.save(path.toStdString());
   } catch (const std::exception& e) {
@@ -458,6 +459,7 @@ bool ComposerWindow::has_object() const {
 }
 
 bool ComposerWindow::maybe_save() {
+  gui::commit_pending_edit();
   if (undo_.isClean() || property("noPrompt").toBool()) return true;
   const auto answer = gui::ask_unsaved(this, "The scene has unsaved changes.");
   if (answer == QMessageBox::Cancel) return false;

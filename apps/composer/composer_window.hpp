@@ -142,6 +142,7 @@ class ComposerWindow : public QMainWindow {
   void refresh_panel();
   void refresh_overlays();
   void show_error(const QString& m);
+  QDoubleSpinBox* number_box(QWidget* parent, const char* name, double lo, double hi, double step);
   void clear_error();
   void restore(const nlohmann::json& j, const std::filesystem::path& base);
   bool has_object() const;  ///< object_ names an object of the built scene

@@ -4,6 +4,7 @@
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/inputs.hpp"
 
+#include <QAbstractItemView>
 #include <QAbstractSpinBox>
 #include <QAction>
 #include <QCommandLineParser>
@@ -268,6 +269,23 @@ void add_view_actions(QMenu* menu, QWidget* owner, const std::function<void(View
     a->setShortcuts({QKeySequence(v.key), QKeySequence(int(Qt::KeypadModifier) | int(v.key))});
     const View view = v.view;
     QObject::connect(a, &QAction::triggered, owner, [show, view] { show(view); });
+  }
+}
+
+void commit_pending_edit() {
+  QWidget* w = QApplication::focusWidget();
+  for (QWidget* p = w; p; p = p->parentWidget()) {
+    if (auto* spin = qobject_cast<QAbstractSpinBox*>(p)) {
+      spin->interpretText();  // valueChanged, as Enter would
+      return;
+    }
+    if (auto* view = qobject_cast<QAbstractItemView*>(p)) {
+      if (p != w) {  // an editor inside the view: leaving it commits it (the delegate's commitData)
+        w->clearFocus();
+        view->setFocus();
+      }
+      return;
+    }
   }
 }
 

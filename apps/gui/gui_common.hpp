@@ -136,6 +136,11 @@ class NumberBox : public QDoubleSpinBox {
 /// view has focus; a number box would otherwise swallow them.
 void pass_letters_to_shortcuts(QWidget* root);
 
+/// Applies what is being typed (a number box's text, a table cell's open editor) as if the user had
+/// pressed Enter: Save and Quit by shortcut leave the focus where it is, and dropped it ("Saved"
+/// with the old value in the file). Call before saving, and before asking about unsaved changes.
+void commit_pending_edit();
+
 /// Asks "<what> Save, Discard or Cancel?": the button pressed.
 QMessageBox::StandardButton ask_unsaved(QWidget* parent, const QString& what);
 /// The folder a file dialog starts in: that of `current` (the open document) when it has one, else

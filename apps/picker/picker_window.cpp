@@ -273,14 +273,20 @@ bool PickerWindow::load_controls(const QString& path, std::optional<double> radi
     show_error("Open a mesh before loading controls");
     return false;
   }
-  QString proposal;
+  QString proposal, area_note;
   try {
     const auto c = io::read_controls(path.toStdString());
     io::DeformationSpec spec = doc_.deformation();
     spec.sources = c.sources;
     spec.destinations = c.destinations;
     // An area picked here stays (controls loaded to act inside it); one that came with the last
-    // deformation file belongs to that file, and goes with it.
+    // deformation file, or was saved into one, belongs to that file, and goes with it. The status
+    // bar says which.
+    area_note = !spec.area ? QString()
+                : area_from_file_
+                    ? QString("; the last file's active area was cleared")
+                    : QString("; the active area picked here (%1 vertices) stays: \"Whole mesh\" drops it")
+                          .arg(spec.area->vertices.size());
     if (area_from_file_) spec.area.reset();
     State next = doc_.state_from(spec);
     if (radius) {
@@ -308,14 +314,16 @@ bool PickerWindow::load_controls(const QString& path, std::optional<double> radi
   }
   proposal_ = proposal;
   refresh_hints();
-  statusBar()->showMessage(proposal.isEmpty()
-                               ? "Loaded " + path
-                               : QString("Radius R = %1 proposed (see the blue box)").arg(doc_.state().radius),
-                           10000);
+  statusBar()->showMessage(
+      (proposal.isEmpty() ? "Loaded " + path
+                          : QString("Radius R = %1 proposed (see the blue box)").arg(doc_.state().radius)) +
+          area_note,
+      10000);
   return true;
 }
 
 bool PickerWindow::save_deformation(const QString& path) {
+  gui::commit_pending_edit();
   try {
     io::write_deformation(path.toStdString(), doc_.deformation());
   } catch (const std::exception& e) {
@@ -324,12 +332,14 @@ bool PickerWindow::save_deformation(const QString& path) {
   }
   undo_.setClean();
   deformation_path_ = path;
+  area_from_file_ = doc_.deformation().area.has_value();  // saved: the area is now that file's
   clear_error();
   statusBar()->showMessage("Saved " + path, 5000);
   return true;
 }
 
 bool PickerWindow::save_controls(const QString& path) {
+  gui::commit_pending_edit();
   try {
     const auto d = doc_.deformation();
     io::write_controls(path.toStdString(), d.sources, d.destinations);
@@ -343,6 +353,7 @@ bool PickerWindow::save_controls(const QString& path) {
 }
 
 bool PickerWindow::export_mesh(const QString& path) {
+  gui::commit_pending_edit();
   if (!doc_.has_mesh()) {
     show_error("No mesh to export");
     return false;
@@ -418,6 +429,7 @@ void PickerWindow::dropEvent(QDropEvent* e) {
 }
 
 bool PickerWindow::maybe_save() {
+  gui::commit_pending_edit();
   if (undo_.isClean() || property("noPrompt").toBool()) return true;
   const auto answer = gui::ask_unsaved(this, "The deformation has unsaved changes.");
   if (answer == QMessageBox::Cancel) return false;

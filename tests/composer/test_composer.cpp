@@ -654,3 +654,51 @@ TEST_F(Fixture, EachTabOfTheSidePanelFitsTheDefaultWindow) {
   EXPECT_EQ(w.selected_key(), 1);
   EXPECT_EQ(tabs->currentIndex(), 0);
 }
+
+// The new user's trial: a value typed but not confirmed (no Enter, no Tab) was dropped by Ctrl+S
+// (the status bar said "Saved" over the old value) and by quitting; typed values were rounded to
+// the box's 3 decimals; a click on a timeline mark moved it to the snapped time under the pointer;
+// a duration of 0 was replaced by the old one without a word.
+TEST_F(Fixture, WhatIsTypedIsSavedExactlyAndAClickOnAMarkOnlySelectsIt) {
+  csrbf::test::TempDir dir;
+  for (const auto& e : fs::directory_iterator(kExamples))
+    if (e.path().filename().string().starts_with("fish")) fs::copy_file(e.path(), dir / e.path().filename().string());
+  const QString scene = QString::fromStdString((dir / "fish.scene.json").string());
+  ASSERT_TRUE(w.open_scene(scene));
+  // A click on the mark of the position key at 2 s, and one 6 px beside the fin's phase mark at 1 s:
+  // each selects, nothing moves.
+  const auto before = w.document().json();
+  const int y0 = w.timeline()->y_of(0);
+  QTest::mouseClick(w.timeline(), Qt::LeftButton, Qt::NoModifier,
+                    QPoint(int(std::lround(w.timeline()->x_of(2.0))), y0));
+  EXPECT_EQ(w.selected_key(), 1);
+  const auto fin = w.document().key_times(0, Track::Phase, 3);
+  QTest::mouseClick(w.timeline(), Qt::LeftButton, Qt::NoModifier,
+                    QPoint(int(std::lround(w.timeline()->x_of(fin[1]))) + 6, w.timeline()->y_of(2 + 3)));
+  EXPECT_EQ(w.selected_phase_key(), 1);
+  EXPECT_EQ(w.document().json(), before);
+  EXPECT_FALSE(w.isWindowModified());
+  // z of the key at 2 s, typed in full and saved by Ctrl+S while the box still has the focus.
+  w.select_key(1);
+  QApplication::processEvents();
+  auto* z = w.findChild<QDoubleSpinBox*>("keyZ");
+  ASSERT_NE(z, nullptr);
+  z->setFocus();
+  z->findChild<QLineEdit*>()->selectAll();
+  QTest::keyClicks(z->findChild<QLineEdit*>(), "0.123456789012");
+  QTest::keyClick(z->findChild<QLineEdit*>(), Qt::Key_S, Qt::ControlModifier);
+  EXPECT_FALSE(w.isWindowModified());
+  std::ifstream in(dir / "fish.scene.json");
+  const auto saved = nlohmann::json::parse(in);
+  EXPECT_EQ(saved["objects"][0]["trajectory"]["keys"][1]["position"][2].get<double>(), 0.123456789012);
+  // A duration of 0 is refused with a message naming the box and its least value.
+  auto* duration = w.findChild<QDoubleSpinBox*>("duration");
+  const double d0 = duration->value();
+  duration->setFocus();
+  duration->findChild<QLineEdit*>()->selectAll();
+  QTest::keyClicks(duration->findChild<QLineEdit*>(), "0");
+  QTest::keyClick(duration->findChild<QLineEdit*>(), Qt::Key_Return);
+  EXPECT_EQ(duration->value(), d0);
+  EXPECT_TRUE(w.error_text().contains("0 refused: duration is at least 0.1")) << w.error_text().toStdString();
+  ASSERT_TRUE(w.save_screenshot(QString::fromStdString((kShots / "composer-typed-saved.png").string())));
+}

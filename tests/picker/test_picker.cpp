@@ -407,6 +407,27 @@ TEST_F(Fixture, UnsavedWorkIsMarkedAndAskedForAndCtrlSSavesInPlace) {
   QTest::keyClick(&w, Qt::Key_S, Qt::ControlModifier);
   EXPECT_FALSE(w.isWindowModified());
   EXPECT_EQ(csrbf::io::read_deformation(dir / "d.json").sources.size(), 2u);
+  // A radius typed but not confirmed (no Enter, no Tab) is saved by Ctrl+S: it was dropped, and the
+  // status bar said "Saved" over the old value in the file (the new user's trial).
+  auto* radius = w.findChild<csrbf::gui::NumberBox*>("radius");
+  ASSERT_NE(radius, nullptr);
+  radius->setFocus();
+  radius->findChild<QLineEdit*>()->selectAll();
+  QTest::keyClicks(radius->findChild<QLineEdit*>(), "0.2512345678901");
+  QTest::keyClick(radius->findChild<QLineEdit*>(), Qt::Key_S, Qt::ControlModifier);
+  EXPECT_EQ(csrbf::io::read_deformation(dir / "d.json").options.radius, 0.2512345678901);
+  EXPECT_FALSE(w.isWindowModified());
+  // Saved with an active area, the area is that file's: controls loaded next clear it, and say so.
+  std::vector<std::uint32_t> some;
+  for (std::uint32_t v = 0; v < 300; ++v) some.push_back(v);
+  csrbf::picker::State next = doc.state();
+  next.region = some;
+  ASSERT_TRUE(w.edit(next, "Select active area"));
+  ASSERT_TRUE(w.save_deformation(QString::fromStdString((dir / "area.json").string())));
+  ASSERT_TRUE(w.load_controls(QString::fromStdString(kExamples + "fish.controls"), 0.3));
+  EXPECT_TRUE(doc.state().region.empty());
+  EXPECT_TRUE(w.statusBar()->currentMessage().contains("the last file's active area was cleared"))
+      << w.statusBar()->currentMessage().toStdString();
 }
 
 TEST_F(Fixture, VtkKeysAreOffNewMeshesAreFramedAndViewsReset) {
