@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <iostream>
 #include <sstream>
+#include <sys/stat.h>
 #include <unistd.h>
 
 namespace csrbf::cli {
@@ -93,15 +94,28 @@ int run_animate(const AnimateOptions& o) {
   if (render::movie_format_for(o.out) == render::MovieFormat::Mp4 && (width % 2 || height % 2))
     throw UsageError("--size: H.264 (.mp4) needs an even width and height, got '" + o.size + "'");
   {
-    const std::vector<std::filesystem::path> inputs = io::referenced_files(o.scene);
+    const std::vector<std::filesystem::path> inputs =
+        io::referenced_files(o.scene, o.memory_limit_gib * double(1ull << 30));
     check_not_an_input("-o", o.out, inputs);
-    // A folder of PNG frames replaces the frame files in it: none of them may be an input.
+    // A folder of PNG frames replaces the frame files in it: none of them may be an input, by
+    // device and inode (an input reached through a symbolic or hard link to a frame file was deleted).
     std::error_code ec;
-    if (std::filesystem::is_directory(o.out, ec))
-      for (const auto& in : inputs)
-        if (io::is_frame_name(in.filename().string()) && std::filesystem::equivalent(in.parent_path(), o.out, ec))
-          throw UsageError("-o '" + o.out + "': its frame file '" + in.string() +
-                           "' is an input of the scene; csrbf never writes an input: choose another folder");
+    if (std::filesystem::is_directory(o.out, ec)) {
+      std::vector<std::pair<dev_t, ino_t>> ids;
+      for (const auto& in : inputs) {
+        struct stat st {};
+        if (::stat(in.c_str(), &st) == 0) ids.emplace_back(st.st_dev, st.st_ino);
+      }
+      for (std::filesystem::directory_iterator it(o.out, ec), end; !ec && it != end; it.increment(ec)) {
+        struct stat st {};
+        if (!io::is_frame_name(it->path().filename().string()) || ::stat(it->path().c_str(), &st) != 0) continue;
+        for (std::size_t k = 0; k < ids.size(); ++k)
+          if (ids[k] == std::make_pair(st.st_dev, st.st_ino))
+            throw UsageError("-o '" + printable(o.out) + "': its frame file '" + printable(it->path().string()) +
+                             "' is the scene's input '" + printable(inputs[k].string()) +
+                             "'; csrbf never writes an input: choose another folder");
+      }
+    }
   }
   anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * double(1ull << 30));
   if (o.fps) scene.fps = *o.fps;
@@ -130,8 +144,9 @@ int run_animate(const AnimateOptions& o) {
     m.precision(3);
     m << "--size " << o.size << ": the movie takes about " << (player_bytes + renderer_bytes) / double(1ull << 30)
       << " GiB (the player " << player_bytes / double(1ull << 30) << ", the renderer "
-      << renderer_bytes / double(1ull << 30) << ": 96 MiB, 64 bytes a pixel and the meshes' copies), more than the "
-      << left / double(1ull << 30) << " GiB that --memory-limit leaves after the scene; give --memory-limit "
+      << renderer_bytes / double(1ull << 30)
+      << ": 96 MiB, 64 bytes a pixel, the meshes' copies and the textures), more than the " << left / double(1ull << 30)
+      << " GiB that --memory-limit leaves after the scene; give --memory-limit "
       << std::ceil(100 * (limit - left + player_bytes + renderer_bytes) / double(1ull << 30)) / 100 << " or more"
       << (64.0 * double(width) * double(height) > 0.25 * renderer_bytes ? ", or a smaller --size" : "");
     throw io::FileError(m.str());
@@ -175,7 +190,8 @@ int run_animate(const AnimateOptions& o) {
   std::printf(
       "frames: %zu\ncomputation: %.3f ms/frame (mean)\nrendering: %.3f ms/frame (mean)\nencoding: %.3f ms/frame "
       "(mean)\nwrote %s\n",
-      frames, 1e3 * st.compute_seconds / n, 1e3 * st.render_seconds / n, 1e3 * st.encode_seconds / n, o.out.c_str());
+      frames, 1e3 * st.compute_seconds / n, 1e3 * st.render_seconds / n, 1e3 * st.encode_seconds / n,
+      printable(o.out).c_str());
   return 0;
 }
 

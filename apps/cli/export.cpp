@@ -121,7 +121,7 @@ int run_export(const ExportOptions& o) {
   }
   std::error_code ec;
   {
-    check_not_an_input("-o", out, io::referenced_files(o.scene));
+    check_not_an_input("-o", out, io::referenced_files(o.scene, o.memory_limit_gib * double(1ull << 30)));
     io::must_be_new(io::resolve_output(out));
   }
   if (!page.empty() && fs::absolute(page).lexically_normal() == fs::absolute(out).lexically_normal())
@@ -201,16 +201,16 @@ int run_export(const ExportOptions& o) {
   std::cout << "csrbf export: " << printable(o.scene) << " -> " << printable(o.out) << " (" << kib(r.bytes) << "), "
             << r.frames << " frames at " << r.fps << " fps\n";
   for (const auto& ob : r.objects) {
-    std::printf("  object '%s': %zu vertices, %zu morph target%s, at most %zu active at once", ob.name.c_str(),
-                ob.vertices, ob.targets, ob.targets == 1 ? "" : "s", ob.max_active);
+    std::printf("  object '%s': %zu vertices, %zu morph target%s, at most %zu active at once",
+                printable(ob.name).c_str(), ob.vertices, ob.targets, ob.targets == 1 ? "" : "s", ob.max_active);
     if (ob.rotation_deviation_deg > 0) std::printf(", squad sampled (%.3g deg at most)", ob.rotation_deviation_deg);
     std::printf(", largest vertex deviation %.3g (%.2g of the scene)\n", ob.max_deviation,
                 r.scene_size > 0 ? ob.max_deviation / r.scene_size : 0.0);
   }
   for (const auto& p : r.parts)
-    std::cout << "  part '" << p.object << "/" << p.part << "': "
+    std::cout << "  part '" << printable(p.object) << "/" << printable(p.part) << "': "
               << (p.baked ? "baked into " + std::to_string(p.targets) + " frame target" + (p.targets == 1 ? "" : "s") +
-                                " (" + p.why + ")"
+                                " (" + printable(p.why) + ")"
                           : std::to_string(p.targets) + " exact morph target" + (p.targets == 1 ? "" : "s"))
               << "\n";
   if (r.max_active > go.max_active)
@@ -218,7 +218,7 @@ int run_export(const ExportOptions& o) {
               << go.max_active << " (three.js 8) — --bake auto keeps within that\n";
   std::cout << "  sizes: glTF " << kib(r.bytes) << "; every frame's vertices " << kib(r.frame_bytes)
             << "; csrbf's deformations " << kib(r.csrbf_bytes) << "\n";
-  if (!page.empty()) std::cout << "  page: " << (page / "index.html").string() << "\n";
+  if (!page.empty()) std::cout << "  page: " << printable((page / "index.html").string()) << "\n";
   return 0;
 }
 

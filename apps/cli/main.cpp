@@ -49,10 +49,11 @@ struct FitArgs {
 /// The files deform reads: the mesh, the controls or the deformation and the files it names.
 std::vector<std::filesystem::path> deform_inputs(const FitArgs& a, const std::string& mesh) {
   std::vector<std::filesystem::path> in{mesh};
-  for (auto& f : csrbf::io::mesh_side_files(mesh)) in.push_back(std::move(f));
+  for (auto& f : csrbf::io::mesh_side_files(mesh, a.memory_limit_gib * double(1ull << 30))) in.push_back(std::move(f));
   if (!a.controls.empty()) in.emplace_back(a.controls);
   if (!a.deformation.empty())
-    for (auto& f : csrbf::io::referenced_files(a.deformation)) in.push_back(std::move(f));
+    for (auto& f : csrbf::io::referenced_files(a.deformation, a.memory_limit_gib * double(1ull << 30)))
+      in.push_back(std::move(f));
   return in;
 }
 

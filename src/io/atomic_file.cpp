@@ -150,9 +150,17 @@ void remove_tree_at(int parent_fd, const char* name, int depth) noexcept {
 void unlink_partials() noexcept {
   for (int i = 0; i < kSlots; ++i) {
     // A partial being created on another thread (which blocks signals there) is settled within
-    // microseconds; the wait is bounded all the same.
+    // microseconds, or as long as its mkdir takes (a slow file system; the attacker delayed it by
+    // 3 s and the folder stayed, unmarked): waited for up to 10 s (clock_gettime is
+    // async-signal-safe).
     int kind = g_used[i].load();
-    for (long spin = 0; kind == kPending && spin < 200000000; ++spin) kind = g_used[i].load();
+    timespec start{}, now{};
+    ::clock_gettime(CLOCK_MONOTONIC, &start);
+    while (kind == kPending) {
+      ::clock_gettime(CLOCK_MONOTONIC, &now);
+      if (now.tv_sec - start.tv_sec > 10) break;
+      kind = g_used[i].load();
+    }
     if (kind == kFileSlot)
       ::unlink(g_partials[i]);
     else if (kind == kFolderSlot)

@@ -1,9 +1,11 @@
 #include "csrbf/io/inputs.hpp"
+#include "csrbf/io/memory.hpp"
 
 #include "json_reader.hpp"
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cctype>
 
 namespace fs = std::filesystem;
@@ -33,10 +35,10 @@ void collect(const nlohmann::json& j, const fs::path& base, int depth, std::vect
   }
 }
 
-void walk(const fs::path& json, int level, std::vector<fs::path>& out) {
+void walk(const fs::path& json, int level, std::vector<fs::path>& out, double limit) {
   nlohmann::json j;
   try {
-    j = detail::read_json_file(json);
+    j = detail::read_json_file(json, json_bytes_within(limit));
   } catch (const std::exception&) {
     return;  // its reader reports it
   }
@@ -47,20 +49,20 @@ void walk(const fs::path& json, int level, std::vector<fs::path>& out) {
   for (std::size_t i = first; i < last; ++i) {
     std::error_code ec;
     const fs::path p = out[i];
-    if (p.extension() == ".json" && fs::is_regular_file(p, ec)) walk(p, level + 1, out);
+    if (p.extension() == ".json" && fs::is_regular_file(p, ec)) walk(p, level + 1, out, limit);
   }
 }
 
 }  // namespace
 
-std::vector<fs::path> mesh_side_files(const fs::path& mesh) {
+std::vector<fs::path> mesh_side_files(const fs::path& mesh, double memory_limit_bytes) {
   std::vector<fs::path> out;
   std::string ext = mesh.extension().string();
   for (auto& c : ext) c = char(std::tolower(static_cast<unsigned char>(c)));
   if (ext != ".gltf") return out;
   nlohmann::json j;
   try {
-    j = detail::read_json_file(mesh);
+    j = detail::read_json_file(mesh, json_bytes_within(memory_limit_bytes));
   } catch (const std::exception&) {
     return out;  // its reader reports it
   }
@@ -77,12 +79,16 @@ std::vector<fs::path> mesh_side_files(const fs::path& mesh) {
   return out;
 }
 
-std::vector<fs::path> referenced_files(const fs::path& json) {
+double json_bytes_within(double memory_limit_bytes) noexcept {
+  return std::max(0.0, memory_limit_bytes - resident_bytes()) / 8.0;
+}
+
+std::vector<fs::path> referenced_files(const fs::path& json, double memory_limit_bytes) {
   std::vector<fs::path> out{json};
-  walk(json, 1, out);
+  walk(json, 1, out, memory_limit_bytes);
   const std::size_t named = out.size();
   for (std::size_t i = 0; i < named; ++i)
-    for (auto& f : mesh_side_files(out[i])) out.push_back(std::move(f));
+    for (auto& f : mesh_side_files(out[i], memory_limit_bytes)) out.push_back(std::move(f));
   return out;
 }
 

@@ -231,8 +231,8 @@ struct ObjectPlan {
 
 /// What gltf_binary holds beyond the scene, in bytes (see its use).
 struct ExportMemory {
-  double player = 0, plans = 0, targets = 0, baked = 0, buffer = 0, weights = 0, work = 0;
-  double total() const { return player + plans + targets + baked + buffer + weights + work; }
+  double player = 0, plans = 0, targets = 0, baked = 0, buffer = 0, weights = 0, work = 0, textures = 0;
+  double total() const { return player + plans + targets + baked + buffer + weights + work + textures; }
 };
 
 /// exact[o]: object o's exact morph targets; baked[o]: whether any of its parts is baked.
@@ -240,7 +240,8 @@ ExportMemory export_memory(const anim::Scene& scene, const std::vector<std::size
                            const std::vector<char>& baked, std::size_t frames, double weight_bytes) {
   ExportMemory m;
   m.player = anim::Player::bytes(scene);
-  m.weights = 2.0 * weight_bytes;  // the samples as doubles, then as floats in the buffer
+  m.textures = io::decoded_texture_bytes(scene, true);  // each is decoded to be checked, one at a time
+  m.weights = 2.0 * weight_bytes;                       // the samples as doubles, then as floats in the buffer
   std::set<std::string> textures;
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
     const anim::Object& obj = scene.objects[o];
@@ -452,7 +453,9 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       m << "export: writing the glTF takes about " << need.total() / double(1ull << 30) << " GiB (the player "
         << need.player / double(1ull << 30) << ", the buffer " << need.buffer / double(1ull << 30)
         << ", morph targets and baked frames " << (need.targets + need.baked) / double(1ull << 30)
-        << "), more than the " << left / double(1ull << 30)
+        << (need.textures > 0 ? ", a texture decoded " : "");
+      if (need.textures > 0) m << need.textures / double(1ull << 30);
+      m << "), more than the " << left / double(1ull << 30)
         << " GiB that --memory-limit leaves after the scene; give --memory-limit "
         << std::ceil(100 * (options.memory_limit_bytes - left + need.total()) / double(1ull << 30)) / 100 << " or more"
         << (need.baked > 0 ? ", a lower --fps, or bake less (--bake auto or never)" : "");

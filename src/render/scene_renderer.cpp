@@ -1,5 +1,7 @@
 #include "csrbf/render/scene_renderer.hpp"
 
+#include "csrbf/io/scene.hpp"
+
 #include "texture_coordinates.hpp"
 
 #include "csrbf/errors.hpp"
@@ -178,8 +180,8 @@ double SceneRenderer::bytes(const anim::Scene& scene, int width, int height) {
   // movie's copies of the frame: 1.0 GB more at 4096x4096). Each mesh: VTK's points, normals and
   // cells, the OpenGL buffers and llvmpipe's binning: 64 bytes a vertex and 320 a triangle bound
   // what a mesh of 490k vertices with 977k (or 179k) triangles took, small or screen-sized triangles
-  // (measured 217 and 335 MB, 60 MB with 179k).
-  double total = 96.0 * (1 << 20) + 64.0 * double(width) * double(height);
+  // (measured 217 and 335 MB, 60 MB with 179k). And the textures, decoded (io::decoded_texture_bytes).
+  double total = 96.0 * (1 << 20) + 64.0 * double(width) * double(height) + io::decoded_texture_bytes(scene);
   for (const anim::Object& obj : scene.objects) {
     total += 64.0 * double(obj.rest.size());
     for (const auto& f : obj.faces) total += f.size() >= 3 ? 320.0 * double(f.size() - 2) : 0.0;

@@ -433,7 +433,7 @@ TEST(Trust, ExportAndAnimateKeepTheMemoryAndTimeLimits) {
                              " --to 0.08 --size 4096x4096 --memory-limit 0.5 -o " + d + "/big.mp4");
   EXPECT_EQ(big.code, 1) << big.out;
   EXPECT_NE(big.out.find("--size 4096x4096: the movie takes about 1.09 GiB (the player 0.000284, the renderer 1.09: "
-                         "96 MiB, 64 bytes a pixel and the meshes' copies), more than the"),
+                         "96 MiB, 64 bytes a pixel, the meshes' copies and the textures), more than the"),
             std::string::npos)
       << big.out;
   EXPECT_NE(big.out.find("or a smaller --size"), std::string::npos) << big.out;
@@ -530,4 +530,67 @@ TEST(Trust, ADeformWrittenByAssimpKeepsTheMemoryLimit) {
     EXPECT_EQ(code, 0) << read_text(dir / "log");
     EXPECT_LE(peak, 1.1 * 0.6 * double(1ull << 30)) << out;
   }
+}
+
+// Found by the attacker's trial (round two): animate into a folder of PNG frames deleted an input
+// reached through a symbolic link to one of its frame files (compared by name, not by file); JSON
+// was parsed before its size was weighed against the limit (a 50 MB deformation peaked at 357 MB
+// under --memory-limit 0.1, a 124 MB scene at 804 MB); a decoded texture was not counted (an
+// 8192 x 8192 PNG: 577 MB under 0.1); names were printed raw in the reports of success.
+TEST(Trust, LinksIntoAFrameFolderBigJsonTexturesAndNamesInReports) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer's own memory counts against the limits (the release pass runs this)";
+#endif
+  TempDir dir;
+  const std::string d = dir.path.string();
+  // A controls file that is a frame file of the output folder, named through a link.
+  fs::create_directory(dir / "fr");
+  fs::copy_file(kExamples + "fish-mouth.controls", dir / "fr" / "frame_00002.png");
+  fs::create_symlink(dir / "fr" / "frame_00002.png", dir / "my.controls");
+  const std::string escaped_name = "o\\u001b]0;pwn\\u0007";
+  write_text(dir / "s.json",
+             "{\"duration\": 0.2, \"objects\": [{\"name\": \"" + escaped_name + "\", \"mesh\": \"" + kExamples +
+                 "fish.obj\", \"parts\": [{\"name\": \"body\", \"deformations\": " +
+                 "[{\"name\": \"m\", \"controls\": \"my.controls\", \"radius\": 0.3, \"phase\": 1}]}]}]}");
+  const std::string before = read_text(dir / "my.controls");
+  const auto movie = run_shell("env -u DISPLAY " + kCli + " animate " + d + "/s.json --size 64x48 -o " + d + "/fr");
+  EXPECT_EQ(movie.code, 2) << movie.out;
+  EXPECT_NE(movie.out.find("frame_00002.png' is the scene's input"), std::string::npos) << movie.out;
+  EXPECT_EQ(read_text(dir / "my.controls"), before);
+  // The report of a success escapes the names (an ESC would retitle the terminal).
+  const auto ok = run_shell(kCli + " export " + d + "/s.json -o " + d + "/s.glb");
+  EXPECT_EQ(ok.code, 0) << ok.out;
+  EXPECT_EQ(ok.out.find('\x1b'), std::string::npos) << ok.out;
+  EXPECT_NE(ok.out.find("object 'o\\u001b]0;pwn\\u0007'"), std::string::npos) << ok.out;
+  // A 12 MB deformation and a 12 MB scene under --memory-limit 0.07: refused before parsing.
+  std::string big = "{\"format\": \"csrbf-deformation\", \"version\": 1, \"radius\": 0.3, \"sources\": [";
+  for (int k = 0; k < 400000; ++k) big += std::string(k ? "," : "") + "[0.1,0.2,0.3]";
+  write_text(dir / "big.json", big + "], \"destinations\": []}");
+  write_text(dir / "big.scene.json", "{\"objects\": [], \"padding\": \"" + std::string(12000000, 'x') + "\"}");
+  for (const std::string& cmd :
+       {kCli + " deform --mesh " + kFish + " --deformation " + d + "/big.json --memory-limit 0.07 -o " + d + "/x.obj",
+        kCli + " export " + d + "/big.scene.json --memory-limit 0.07 -o " + d + "/x.glb"}) {
+    const auto [code, peak] = run_measured(cmd, dir / "log");
+    EXPECT_EQ(code, 1) << read_text(dir / "log");
+    EXPECT_NE(read_text(dir / "log").find("bytes allowed for a JSON file (--memory-limit)"), std::string::npos)
+        << read_text(dir / "log");
+    EXPECT_LE(peak, 1.1 * 0.07 * double(1ull << 30)) << cmd;
+  }
+  // A 4096 x 4096 texture: counted decoded (151 MB), refused under 0.1, within 0.3 when allowed.
+  ASSERT_EQ(run_shell("/usr/bin/python3 -c \"import zlib,struct\nw=h=4096\ndef c(t,d): return "
+                      "struct.pack('>I',len(d))+t+d+struct.pack('>I',zlib.crc32(t+d))\nopen('" +
+                      d +
+                      "/t.png','wb').write(b'\\x89PNG\\r\\n\\x1a\\n'+c(b'IHDR',struct.pack('>IIBBBBB',w,h,8,6,0,0,0))"
+                      "+c(b'IDAT',zlib.compress((b'\\x00'+b'\\x80\\x40\\x20\\xff'*w)*h,9))+c(b'IEND',b''))\"")
+                .code,
+            0);
+  write_text(dir / "t.json", "{\"duration\": 0.2, \"objects\": [{\"name\": \"fish\", \"mesh\": \"" + kFish +
+                                 "\", \"texture\": \"t.png\", \"texture_mapping\": \"sphere\"}]}");
+  const auto refused = run_shell(kCli + " export " + d + "/t.json --memory-limit 0.1 -o " + d + "/t.glb");
+  EXPECT_EQ(refused.code, 1) << refused.out;
+  EXPECT_NE(refused.out.find("a texture decoded 0.141"), std::string::npos) << refused.out;
+  const auto [code, peak] =
+      run_measured(kCli + " export " + d + "/t.json --memory-limit 0.3 -o " + d + "/t.glb", dir / "log");
+  EXPECT_EQ(code, 0) << read_text(dir / "log");
+  EXPECT_LE(peak, 1.1 * 0.3 * double(1ull << 30));
 }

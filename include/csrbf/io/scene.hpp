@@ -6,6 +6,8 @@
 #include "csrbf/anim/scene.hpp"
 #include "csrbf/io/error.hpp"
 
+#include <cstdint>
+#include <utility>
 #include <filesystem>
 #include <string>
 
@@ -30,5 +32,13 @@ anim::Scene read_scene_text(const std::string& text, const std::string& name, co
 /// under VTK crash on a PNG cut short: read_scene checks every texture with this, and so does
 /// anything that hands a texture to them from a scene built otherwise.
 std::string texture_problem(const std::filesystem::path& file);
+/// A PNG's or JPEG's width and height from its header (IHDR, or the first frame marker); (0, 0)
+/// where it is neither, with the reason in *why.
+std::pair<std::uint64_t, std::uint64_t> texture_size(const std::filesystem::path& file, std::string* why = nullptr);
+/// What the scene's textures take once decoded, in bytes, each file once: 4 bytes a pixel, 2.25
+/// times (the decoder's image and VTK's copy; rendered, OpenGL's texture). Measured with an 8192 x
+/// 8192 PNG: export 517 MB, animate 510 MB above the same scene without it.
+/// largest: the largest texture's alone (textures decoded one at a time, to be checked).
+double decoded_texture_bytes(const anim::Scene& scene, bool largest = false);
 
 }  // namespace csrbf::io
