@@ -576,6 +576,20 @@ TEST(Trust, LinksIntoAFrameFolderBigJsonTexturesAndNamesInReports) {
         << read_text(dir / "log");
     EXPECT_LE(peak, 1.1 * 0.07 * double(1ull << 30)) << cmd;
   }
+  // 250000 controls (17 MB): read within the limit, then refused before they are parsed (a tree of
+  // every source and the text's copy took 3.6 times the limit with 3e6 controls).
+  std::string lines;
+  for (int k = 0; k < 250000; ++k) {
+    char line[96];
+    std::snprintf(line, sizeof line, "%.9f %.9f 0.5 %.9f %.9f 0.5\n", k * 1e-6, 0.25, k * 1e-6, 0.26);
+    lines += line;
+  }
+  write_text(dir / "many.controls", lines);
+  const auto [ccode, cpeak] =
+      run_measured(kCli + " info --controls " + d + "/many.controls --radius 0.01 --memory-limit 0.07", dir / "log");
+  EXPECT_EQ(ccode, 1) << read_text(dir / "log");
+  EXPECT_NE(read_text(dir / "log").find("250001 lines would take about"), std::string::npos) << read_text(dir / "log");
+  EXPECT_LE(cpeak, 1.1 * 0.07 * double(1ull << 30));
   // A 4096 x 4096 texture: counted decoded (151 MB), refused under 0.1, within 0.3 when allowed.
   ASSERT_EQ(run_shell("/usr/bin/python3 -c \"import zlib,struct\nw=h=4096\ndef c(t,d): return "
                       "struct.pack('>I',len(d))+t+d+struct.pack('>I',zlib.crc32(t+d))\nopen('" +

@@ -23,9 +23,10 @@ struct Controls {
 /// destination) are merged with a warning; the same source with another destination, a malformed
 /// line, a non-finite number or no controls at all throw FileError.
 Controls parse_controls(std::istream& in, const std::string& name);
-/// max_bytes bounds the file's text (also from a pipe): at most 1 GiB (about 1.5e7 controls), and
-/// at most the memory limit the caller passes.
-Controls read_controls(const std::filesystem::path& path, double max_bytes = double(1ull << 30));
+/// memory_limit_bytes bounds the whole process (--memory-limit): the file's text (also from a pipe)
+/// is read within what the process leaves of it (and 1 GiB, about 1.5e7 controls), and the controls
+/// within what is left beside the text (57 bytes a line, counted before they are parsed).
+Controls read_controls(const std::filesystem::path& path, double memory_limit_bytes = 4.0 * (1ull << 30));
 /// Writes controls atomically (temporary file, then rename).
 void write_controls(const std::filesystem::path& path, const std::vector<Vec3>& sources,
                     const std::vector<Vec3>& destinations);
