@@ -345,12 +345,26 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
                        std::to_string(std::llround(target_bytes / double(1 << 20))) +
                        " MiB (at most 2048): fewer deformations or smaller meshes");
   if (target_bytes > plan_left) {
+    // The limit to give: the whole export's, as planned so far (every deforming part's deformations
+    // exact targets; the weights not yet counted), so that the advice is not followed by another.
+    std::vector<std::size_t> exact(scene.objects.size(), 0);
+    std::vector<char> baked(scene.objects.size(), 0);
+    for (std::size_t o = 0; o < scene.objects.size(); ++o)
+      for (std::size_t p = 0; p < scene.objects[o].parts.size(); ++p) {
+        if (plans[o].baked[p])
+          baked[o] = 1;
+        else
+          exact[o] += scene.objects[o].parts[p].deformations.size();
+      }
+    const double whole = export_memory(scene, exact, baked, frames, 0.0).total();
     std::ostringstream m;
     m.precision(3);
     m << "export: the morph targets would take " << target_bytes / double(1ull << 30) << " GiB, more than the "
       << plan_left / double(1ull << 30) << " GiB that --memory-limit leaves after the scene; give --memory-limit "
-      << std::ceil(100 * (options.memory_limit_bytes - plan_left + target_bytes) / double(1ull << 30)) / 100
-      << " or more (the glTF takes more beyond them)";
+      << std::ceil(100 * (options.memory_limit_bytes - plan_left + std::max(whole, target_bytes)) /
+                   double(1ull << 30)) /
+             100
+      << " or more (the whole glTF's, as planned)";
     throw InvalidInput(m.str());
   }
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
