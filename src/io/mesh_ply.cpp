@@ -36,6 +36,23 @@ std::optional<PlyType> ply_type(std::string_view s) {
   if (s == "double" || s == "float64") return PlyType::F64;
   return std::nullopt;
 }
+/// The least and largest value of an integer type.
+std::pair<double, double> integer_range(PlyType t) {
+  switch (t) {
+    case PlyType::I8:
+      return {-128.0, 127.0};
+    case PlyType::U8:
+      return {0.0, 255.0};
+    case PlyType::I16:
+      return {-32768.0, 32767.0};
+    case PlyType::U16:
+      return {0.0, 65535.0};
+    case PlyType::I32:
+      return {-2147483648.0, 2147483647.0};
+    default:
+      return {0.0, 4294967295.0};
+  }
+}
 std::size_t ply_size(PlyType t) {
   switch (t) {
     case PlyType::I8:
@@ -194,6 +211,11 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
     const auto& e = elements[a];
     for (std::size_t b = 0; b < a; ++b)
       if (elements[b].name == e.name) throw FileError(name + ": PLY header declares element '" + e.name + "' twice");
+    for (std::size_t p = 0; p < e.props.size(); ++p)
+      for (std::size_t q = 0; q < p; ++q)
+        if (e.props[q].name == e.props[p].name)
+          throw FileError(name + ": PLY header declares property '" + e.props[p].name + "' of element '" + e.name +
+                          "' twice");
     if (e.props.empty() && e.count > 0)
       throw FileError(name + ": PLY element '" + e.name + "' has " + std::to_string(e.count) +
                       " entries but no properties");
@@ -370,6 +392,15 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
             auto [t, s] = advance();
             double v;
             if (!parse_double(t, v)) throw FileError(body_where(s) + "'" + detail::cut(t) + "' is not a number");
+            // An integer property holds an integer of its type's range (a uchar of 300, -5 or 1.5 was
+            // taken, and written out wrapped).
+            if (pr.type != PlyType::F32 && pr.type != PlyType::F64) {
+              const auto [lo, hi] = integer_range(pr.type);
+              if (!(v >= lo && v <= hi) || v != std::floor(v))
+                throw FileError(body_where(s) + "'" + detail::cut(t) + "' is not an integer from " + format_number(lo) +
+                                " to " + format_number(hi) + " (property '" + pr.name + "' of element '" + e.name +
+                                "')");
+            }
             if (&e == vertex)
               for (int k = 0; k < 6; ++k)
                 if (idx[k] == int(pi)) {

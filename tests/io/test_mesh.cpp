@@ -213,6 +213,27 @@ TEST(Mesh, PlyHeaderErrors) {
   EXPECT_NE(error_of(dir / "a.ply").find("no property 'y'"), std::string::npos);
   test::write_text(dir / "b.ply", "plx\n");
   EXPECT_NE(error_of(dir / "b.ply").find("not a PLY"), std::string::npos);
+  // The attacker's trial: a property declared twice, and integer properties out of their type's
+  // range or not integers, were taken and written out (wrapped).
+  const std::string head =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+      "property float z\nproperty uchar red\nelement face 1\n"
+      "property list uchar int vertex_indices\nend_header\n";
+  test::write_text(dir / "c.ply",
+                   "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float x\n"
+                   "property float y\nproperty float z\nend_header\n0 0 0 0\n");
+  EXPECT_NE(error_of(dir / "c.ply").find("declares property 'x' of element 'vertex' twice"), std::string::npos)
+      << error_of(dir / "c.ply");
+  for (const char* bad : {"300", "-5", "1.5"}) {
+    test::write_text(dir / "d.ply", head + "0 0 0 " + bad + "\n1 0 0 20\n0 1 0 30\n3 0 1 2\n");
+    EXPECT_NE(error_of(dir / "d.ply")
+                  .find("d.ply:11: '" + std::string(bad) +
+                        "' is not an integer from 0 to 255 (property 'red' of element 'vertex')"),
+              std::string::npos)
+        << error_of(dir / "d.ply");
+  }
+  test::write_text(dir / "e.ply", head + "0 0 0 255\n1 0 0 0\n0 1 0 30\n3 0 1 2\n");
+  EXPECT_NO_THROW(MeshDocument::load(dir / "e.ply"));
 }
 
 TEST(Mesh, PlyCountsAreBoundedByTheFile) {
