@@ -616,7 +616,8 @@ std::string texture_problem(const fs::path& file) {
 
 anim::Scene read_scene(const fs::path& path, double memory_limit_bytes) {
   // Its tree takes about 7 times its text: a 124 MB scene peaked at 804 MB under a limit of 0.1 GiB.
-  const nlohmann::json j = detail::read_json_file(path, json_bytes_within(memory_limit_bytes));
+  // A limit below what the program holds is told as such (memory_left), not as a JSON too large.
+  const nlohmann::json j = detail::read_json_file(path, memory_left(memory_limit_bytes) / 8.0);
   return read_scene_json(j, path.string(), path.parent_path(), memory_limit_bytes);
 }
 
