@@ -17,7 +17,6 @@
 #include <cstdio>
 #include <iostream>
 #include <sstream>
-#include <sys/stat.h>
 #include <unistd.h>
 
 namespace csrbf::cli {
@@ -100,22 +99,15 @@ int run_animate(const AnimateOptions& o) {
     // A folder of PNG frames replaces the frame files in it: none of them may be an input, by
     // device and inode (an input reached through a symbolic or hard link to a frame file was deleted).
     std::error_code ec;
-    if (std::filesystem::is_directory(o.out, ec)) {
-      std::vector<std::pair<dev_t, ino_t>> ids;
-      for (const auto& in : inputs) {
-        struct stat st {};
-        if (::stat(in.c_str(), &st) == 0) ids.emplace_back(st.st_dev, st.st_ino);
-      }
+    if (std::filesystem::is_directory(o.out, ec))
       for (std::filesystem::directory_iterator it(o.out, ec), end; !ec && it != end; it.increment(ec)) {
-        struct stat st {};
-        if (!io::is_frame_name(it->path().filename().string()) || ::stat(it->path().c_str(), &st) != 0) continue;
-        for (std::size_t k = 0; k < ids.size(); ++k)
-          if (ids[k] == std::make_pair(st.st_dev, st.st_ino))
-            throw UsageError("-o '" + printable(o.out) + "': its frame file '" + printable(it->path().string()) +
-                             "' is the scene's input '" + printable(inputs[k].string()) +
-                             "'; csrbf never writes an input: choose another folder");
+        if (!io::is_frame_name(it->path().filename().string())) continue;
+        const std::filesystem::path same = io::same_file_as(it->path(), inputs);
+        if (!same.empty())
+          throw UsageError("-o '" + printable(o.out) + "': its frame file '" + printable(it->path().string()) +
+                           "' is the scene's input '" + printable(same.string()) +
+                           "'; csrbf never writes an input: choose another folder");
       }
-    }
   }
   anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * double(1ull << 30));
   if (o.fps) scene.fps = *o.fps;

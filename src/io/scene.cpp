@@ -549,15 +549,19 @@ anim::Scene read_scene_json(const nlohmann::json& j, const std::string& file, co
 
 }  // namespace
 
-double decoded_texture_bytes(const anim::Scene& scene, bool largest) {
+std::vector<std::string> texture_files(const anim::Scene& scene) {
   std::set<std::string> files;
   for (const auto& o : scene.objects) {
     if (!o.material.texture.empty()) files.insert(o.material.texture);
     for (const auto& p : o.parts)
       if (!p.material.texture.empty()) files.insert(p.material.texture);
   }
+  return {files.begin(), files.end()};
+}
+
+double decoded_texture_bytes(const anim::Scene& scene, bool largest) {
   double total = 0;
-  for (const auto& f : files) {
+  for (const auto& f : texture_files(scene)) {
     const auto [w, h] = texture_size(f);
     const double bytes = 2.25 * 4.0 * double(w) * double(h);
     total = largest ? std::max(total, bytes) : total + bytes;

@@ -16,7 +16,6 @@
 #include <fstream>
 #include <iterator>
 #include <map>
-#include <set>
 #include <numbers>
 #include <sstream>
 #include <string_view>
@@ -242,18 +241,13 @@ ExportMemory export_memory(const anim::Scene& scene, const std::vector<std::size
   m.player = anim::Player::bytes(scene);
   m.textures = io::decoded_texture_bytes(scene, true);  // each is decoded to be checked, one at a time
   m.weights = 2.0 * weight_bytes;                       // the samples as doubles, then as floats in the buffer
-  std::set<std::string> textures;
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
     const anim::Object& obj = scene.objects[o];
     const double nv = double(obj.rest.size());
     double tris = 0, textured = obj.material.texture.empty() ? 0 : 1, keys = 0;
     for (const auto& f : obj.faces) tris += f.size() >= 3 ? double(f.size() - 2) : 0.0;
-    if (!obj.material.texture.empty()) textures.insert(obj.material.texture);
     for (const auto& p : obj.parts) {
-      if (!p.material.texture.empty()) {
-        ++textured;
-        textures.insert(p.material.texture);
-      }
+      textured += p.material.texture.empty() ? 0 : 1;
       for (const auto& d : p.deformations) keys += double(d.schedule.keys().size());
     }
     if (obj.trajectory) keys += double(obj.trajectory->keys().size());
@@ -271,7 +265,7 @@ ExportMemory export_memory(const anim::Scene& scene, const std::vector<std::size
     m.work = std::max(m.work, 136.0 * nv + 16.0 * tris);
   }
   std::error_code ec;
-  for (const auto& t : textures) {
+  for (const auto& t : io::texture_files(scene)) {
     const auto size = fs::file_size(t, ec);
     if (!ec) m.buffer += double(size);
   }
@@ -305,7 +299,6 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
 
   // Which parts are exact and which are baked.
   std::vector<ObjectPlan> plans(scene.objects.size());
-  double target_bytes = 0;  // the exact targets' displacements (a Vec3 a vertex each) while written
   const double plan_left = io::memory_left(options.memory_limit_bytes);
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
     const anim::Object& obj = scene.objects[o];
@@ -335,35 +328,29 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   }
   // The exact targets' displacements, bounded before they are computed (16384 deformations on a
   // mesh of 6158 vertices would be 2.4 GB): at most 2 GiB, and what the program leaves of the limit.
+  // As planned so far, each deformation of a part not baked is an exact target.
+  std::vector<std::size_t> candidates(scene.objects.size(), 0);
+  std::vector<char> baked(scene.objects.size(), 0);
   for (std::size_t o = 0; o < scene.objects.size(); ++o)
-    for (std::size_t p = 0; p < scene.objects[o].parts.size(); ++p)
-      if (!plans[o].baked[p])
-        target_bytes +=
-            double(scene.objects[o].parts[p].deformations.size()) * double(scene.objects[o].rest.size()) * 24.0;
-  if (target_bytes > 2.0 * (1ull << 30))
+    for (std::size_t p = 0; p < scene.objects[o].parts.size(); ++p) {
+      if (plans[o].baked[p])
+        baked[o] = 1;
+      else
+        candidates[o] += scene.objects[o].parts[p].deformations.size();
+    }
+  const ExportMemory planned = export_memory(scene, candidates, baked, frames, 0.0);
+  if (planned.targets > 2.0 * (1ull << 30))
     throw InvalidInput("export: the morph targets would take " +
-                       std::to_string(std::llround(target_bytes / double(1 << 20))) +
+                       std::to_string(std::llround(planned.targets / double(1 << 20))) +
                        " MiB (at most 2048): fewer deformations or smaller meshes");
-  if (target_bytes > plan_left) {
-    // The limit to give: the whole export's, as planned so far (every deforming part's deformations
-    // exact targets; the weights not yet counted), so that the advice is not followed by another.
-    std::vector<std::size_t> exact(scene.objects.size(), 0);
-    std::vector<char> baked(scene.objects.size(), 0);
-    for (std::size_t o = 0; o < scene.objects.size(); ++o)
-      for (std::size_t p = 0; p < scene.objects[o].parts.size(); ++p) {
-        if (plans[o].baked[p])
-          baked[o] = 1;
-        else
-          exact[o] += scene.objects[o].parts[p].deformations.size();
-      }
-    const double whole = export_memory(scene, exact, baked, frames, 0.0).total();
+  if (planned.targets > plan_left) {
+    // The limit to give is the whole export's as planned (the weights not yet counted), so that the
+    // advice is not followed by another.
     std::ostringstream m;
     m.precision(3);
-    m << "export: the morph targets would take " << target_bytes / double(1ull << 30) << " GiB, more than the "
+    m << "export: the morph targets would take " << planned.targets / double(1ull << 30) << " GiB, more than the "
       << plan_left / double(1ull << 30) << " GiB that --memory-limit leaves after the scene; give --memory-limit "
-      << std::ceil(100 * (options.memory_limit_bytes - plan_left + std::max(whole, target_bytes)) /
-                   double(1ull << 30)) /
-             100
+      << std::ceil(100 * (options.memory_limit_bytes - plan_left + planned.total()) / double(1ull << 30)) / 100
       << " or more (the whole glTF's, as planned)";
     throw InvalidInput(m.str());
   }
@@ -448,13 +435,12 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   // which is also reserved, so that it grows without copies), the weights, and the largest object's
   // work while it is written (float copies, normals of a moved mesh, a target's non-zeros).
   std::vector<std::size_t> exact(scene.objects.size());
-  std::vector<char> baked_objects(scene.objects.size());
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
     exact[o] = plans[o].exact.size();
-    baked_objects[o] = plans[o].any_baked();
+    baked[o] = plans[o].any_baked();  // auto-baking may have baked more
   }
-  const ExportMemory need = export_memory(scene, exact, baked_objects, frames, weight_bytes);
-  if (need.baked > 0 && need.baked > 4.0 * (1ull << 30))
+  const ExportMemory need = export_memory(scene, exact, baked, frames, weight_bytes);
+  if (need.baked > 4.0 * (1ull << 30))
     throw InvalidInput("export: baking " + std::to_string(frames) + " frames would take " +
                        std::to_string(std::llround(need.baked / double(1 << 20))) +
                        " MiB (at most 4096): lower --fps, or bake less (--bake auto or never)");

@@ -2,6 +2,7 @@
 // (SpaceMap::apply) against SpaceMap::displacement (NeighborIndex, scalar), float against double, the
 // fallback when the cell lists would be too large, the neighbour graph from the cell lists against
 // the one from NeighborIndex, and the sparse solvers against the envelope solver.
+#include "csrbf/ordering.hpp"
 #include "csrbf/space_map.hpp"
 
 #include "../../src/core/evaluator.hpp"
@@ -696,9 +697,7 @@ TEST(FastPaths, ConjugateGradientsStopWhenTheirResidualStopsFalling) {
   const std::size_t n = cloud.size();
   for (std::size_t i = 0; i < n; ++i) cloud.push_back(cloud[i] + Vec3(1e-7 * 0.2, 0, 0));
   const KernelMatrix a(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.2), cloud), Kernel::C6, 0.2);
-  std::vector<std::uint32_t> order(cloud.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = std::uint32_t(i);
-  const auto cg = detail::conjugate_gradients(a, order, 1e-10, 1000000);
+  const auto cg = detail::conjugate_gradients(a, identity_order(cloud.size()), 1e-10, 1000000);
   RowMatrix b = RowMatrix::Random(Eigen::Index(cloud.size()), 3);
   try {
     cg->solve_in_place(b);
@@ -714,16 +713,22 @@ TEST(FastPaths, ConjugateGradientsStopWhenTheirResidualStopsFalling) {
   }
 }
 
+namespace {
+/// 800 random points in the unit cube (seeded) and their C2 matrix at R = 0.2, for CG's own tests.
+std::pair<std::vector<Vec3>, KernelMatrix> c2_matrix_of_a_cloud(unsigned seed) {
+  std::mt19937 rng(seed);
+  auto cloud = random_points(800, rng);
+  KernelMatrix a(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.2), cloud), Kernel::C2, 0.2);
+  return {std::move(cloud), std::move(a)};
+}
+}  // namespace
+
 // Found by the attacker's trial: at its step limit CG threw away a solution whose residual (3.9e-11,
 // 20000 controls in a cube) the fit accepts by far. Short of an unreachable tolerance, it now keeps
 // one within kCgGoodEnough.
 TEST(FastPaths, ConjugateGradientsKeepAGoodSolutionAtTheirStepLimit) {
-  std::mt19937 rng(111);
-  const auto cloud = random_points(800, rng);
-  const KernelMatrix a(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.2), cloud), Kernel::C2, 0.2);
-  std::vector<std::uint32_t> order(cloud.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = std::uint32_t(i);
-  const auto cg = detail::conjugate_gradients(a, order, 1e-30, 300);  // the tolerance cannot be met
+  const auto [cloud, a] = c2_matrix_of_a_cloud(111);
+  const auto cg = detail::conjugate_gradients(a, identity_order(cloud.size()), 1e-30, 300);  // tolerance unreachable
   const RowMatrix b = RowMatrix::Random(Eigen::Index(cloud.size()), 3);
   RowMatrix x = b;
   ASSERT_NO_THROW(cg->solve_in_place(x));
@@ -739,12 +744,8 @@ TEST(FastPaths, ConjugateGradientsKeepAGoodSolutionAtTheirStepLimit) {
 // R = 1.5, --memory-limit 1, had the envelope refused beside it). A later solve through it throws
 // CgStagnated, so that its caller turns to the solver that took over, and never reads freed rows.
 TEST(FastPaths, ConjugateGradientsReleasedHoldNothingAndSolveNothing) {
-  std::mt19937 rng(112);
-  const auto cloud = random_points(800, rng);
-  const KernelMatrix a(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.2), cloud), Kernel::C2, 0.2);
-  std::vector<std::uint32_t> order(cloud.size());
-  for (std::size_t i = 0; i < order.size(); ++i) order[i] = std::uint32_t(i);
-  const auto cg = detail::conjugate_gradients(a, order, 1e-12, 3000);
+  const auto [cloud, a] = c2_matrix_of_a_cloud(112);
+  const auto cg = detail::conjugate_gradients(a, identity_order(cloud.size()), 1e-12, 3000);
   EXPECT_EQ(cg->held_bytes(), detail::cg_bytes(a.values().size(), cloud.size()));
   const RowMatrix b = RowMatrix::Random(Eigen::Index(cloud.size()), 3);
   RowMatrix x = b;
