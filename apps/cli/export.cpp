@@ -142,8 +142,10 @@ int run_export(const ExportOptions& o) {
   if (page.empty()) {
     r.bytes = render::write_gltf(glb, out);
   } else {
-    // The page in a partial folder, renamed to DIR once complete; then the file. A file that then
-    // fails to be written takes the page (which this run made) with it: all or nothing.
+    // The page in a partial folder; then the file in its partial, checked; then the page renamed to
+    // DIR and, at once, the file to its name. A file that then fails to be renamed takes the page
+    // (which this run made) with it: all or nothing (only SIGKILL between the two renames, a few
+    // microseconds, can leave the page alone and the file's complete partial).
     io::Partial partial(page, io::Partial::Kind::Folder);
     const std::string glb_name = out.stem().string() + ".glb";
     std::string html = kPageHtml;
@@ -163,11 +165,14 @@ int run_export(const ExportOptions& o) {
     write_file(partial.path() / "LICENSE-three.js.txt",
                "three.js (https://threejs.org), copied from " + three_dir().string() +
                    ": MIT License, Copyright (c) 2010-2019 three.js authors\n");
-    partial.commit_new(page);
+    bool page_committed = false;
     try {
-      r.bytes = render::write_gltf(glb, out);
+      r.bytes = render::write_gltf(glb, out, [&] {
+        partial.commit_new(page);
+        page_committed = true;
+      });
     } catch (...) {
-      fs::remove_all(page, ec);
+      if (page_committed) fs::remove_all(page, ec);
       throw;
     }
   }

@@ -43,19 +43,14 @@ using nlohmann::json;
 /// A number box of the panel (full precision, scientific notation): its value is an edit when
 /// typing is done, not at each key; a number out of range is refused with a message, never clamped.
 QDoubleSpinBox* ComposerWindow::number_box(QWidget* parent, const char* name, double lo, double hi, double step) {
-  auto* s = new gui::NumberBox(parent);
-  s->setObjectName(name);
-  s->setRange(lo, hi);
-  s->setSingleStep(step);
-  s->setKeyboardTracking(false);
   // Its name in messages: "keyTime" is "key time".
   QString what;
   for (const char* c = name; *c; ++c) {
     if (std::isupper(static_cast<unsigned char>(*c))) what += ' ';
     what += QChar(std::tolower(static_cast<unsigned char>(*c)));
   }
-  s->what = what;
-  s->refused = [this](const QString& m) { show_error(m); };
+  auto* s = gui::number_box(parent, name, lo, hi, what, [this](const QString& m) { show_error(m); });
+  s->setSingleStep(step);
   return s;
 }
 

@@ -370,7 +370,18 @@ bool ComposerWindow::edit(const QString& what, const std::function<void(Document
 void ComposerWindow::restore(const json& j, const std::filesystem::path& base) {
   doc_.set_json(j, base);
   if (object_ >= int(doc_.object_count())) object_ = int(doc_.object_count()) - 1;
-  key_ = deformation_ = phase_key_ = -1;
+  // What was selected stays selected where it still exists (undoing a key's edit with the focus in
+  // its box keeps that key in the panel, as Blender does); what is gone is deselected.
+  if (object_ < 0) {
+    key_ = deformation_ = phase_key_ = -1;
+  } else {
+    const auto o = std::size_t(object_);
+    if (key_ >= int(doc_.key_times(o, Document::Track::Position).size())) key_ = -1;
+    if (deformation_ >= int(doc_.deformation_count(o))) deformation_ = -1;
+    if (deformation_ < 0 ||
+        phase_key_ >= int(doc_.key_times(o, Document::Track::Phase, std::size_t(deformation_)).size()))
+      phase_key_ = -1;
+  }
   clear_error();
   scene_.reset();
   rebuild();

@@ -6,6 +6,8 @@
 
 #include <QAbstractItemView>
 #include <QAbstractSpinBox>
+#include <QDoubleSpinBox>
+#include <QSpinBox>
 #include <QAction>
 #include <QCommandLineParser>
 #include <QKeyEvent>
@@ -23,6 +25,7 @@
 #include <QVBoxLayout>
 #include <QApplication>
 #include <QLabel>
+#include <QLineEdit>
 #include <QMenu>
 #include <QPixmap>
 #include <QScrollArea>
@@ -317,14 +320,34 @@ void NumberBox::fixup(QString& text) const {
                      textFromValue(v < minimum() ? minimum() : maximum())));
 }
 
+NumberBox* number_box(QWidget* parent, const char* name, double lo, double hi, const QString& what,
+                      std::function<void(const QString&)> refused) {
+  auto* box = new NumberBox(parent);
+  box->setObjectName(name);
+  box->setRange(lo, hi);
+  box->setKeyboardTracking(false);
+  box->what = what;
+  box->refused = std::move(refused);
+  return box;
+}
+
 namespace {
-/// Lets ShortcutOverride of letters other than E pass a number box unaccepted (pass_letters_to_shortcuts).
+/// Whether text typed into a spin box is pending (typed, not yet entered): the "typing" property that
+/// pass_letters_to_shortcuts keeps (the box's value alone cannot say: it follows the keys as typed).
+bool typing(QObject* box) { return box && box->property("typing").toBool(); }
+
+/// Lets ShortcutOverride of letters other than E pass a number box unaccepted (pass_letters_to_shortcuts),
+/// and of Undo and Redo while nothing typed is pending there (typing): the box's own undo of its text had
+/// made Ctrl+Z inert (the new user's trial), where the program's undo was meant.
 class LetterPass : public QObject {
  public:
   using QObject::QObject;
-  bool eventFilter(QObject*, QEvent* e) override {
+  bool eventFilter(QObject* o, QEvent* e) override {
     if (e->type() != QEvent::ShortcutOverride) return false;
     const auto* k = static_cast<QKeyEvent*>(e);
+    const bool ctrl_y = k->key() == Qt::Key_Y && k->modifiers() == Qt::ControlModifier;
+    QObject* box = qobject_cast<QAbstractSpinBox*>(o) ? o : o->parent();  // the box or its line edit
+    if ((k->matches(QKeySequence::Undo) || k->matches(QKeySequence::Redo) || ctrl_y) && !typing(box)) return true;
     const bool letter = k->key() >= Qt::Key_A && k->key() <= Qt::Key_Z && k->key() != Qt::Key_E;
     return letter && (k->modifiers() & ~Qt::ShiftModifier) == Qt::NoModifier;
   }
@@ -333,7 +356,15 @@ class LetterPass : public QObject {
 
 void pass_letters_to_shortcuts(QWidget* root) {
   auto* filter = new LetterPass(root);
-  for (auto* box : root->findChildren<QAbstractSpinBox*>()) box->installEventFilter(filter);
+  for (auto* box : root->findChildren<QAbstractSpinBox*>()) {
+    box->installEventFilter(filter);
+    // Keys reach the line edit inside when it is the focus widget (a click into the text).
+    if (auto* edit = box->findChild<QLineEdit*>()) {
+      edit->installEventFilter(filter);
+      QObject::connect(edit, &QLineEdit::textEdited, box, [box] { box->setProperty("typing", true); });
+    }
+    QObject::connect(box, &QAbstractSpinBox::editingFinished, box, [box] { box->setProperty("typing", false); });
+  }
 }
 
 QMessageBox::StandardButton ask_unsaved(QWidget* parent, const QString& what) {

@@ -131,6 +131,11 @@ class NumberBox : public QDoubleSpinBox {
   std::function<void(const QString&)> refused;
 };
 
+/// A number box as both programs make them: named (tests find it), in [lo, hi], its value an edit when
+/// typing is done (Enter or focus), not at each key; `what` names it in the message refused() gets.
+NumberBox* number_box(QWidget* parent, const char* name, double lo, double hi, const QString& what,
+                      std::function<void(const QString&)> refused);
+
 /// Letters that are never part of a number (all but E) typed while a number box of root has focus
 /// go to the window's single-letter shortcuts (View > Wireframe W and the like), as they do while the
 /// view has focus; a number box would otherwise swallow them.

@@ -114,21 +114,12 @@ void PickerWindow::build_ui() {
   layout->addWidget(region_label_);
 
   auto* form = new QFormLayout;
-  radius_ = new gui::NumberBox(panel);
-  radius_->setObjectName("radius");
-  radius_->setRange(1e-9, 1e12);
-  radius_->setKeyboardTracking(false);
-  radius_->what = "Radius R";
-  radius_->refused = [this](const QString& m) { show_error(m); };
+  const auto refused = [this](const QString& m) { show_error(m); };
+  radius_ = gui::number_box(panel, "radius", 1e-9, 1e12, "Radius R", refused);
   // In significant digits, as R itself: a radius of 1e-5 of the size is 0.001 %, not 0.01 (a box of
   // 2 decimals showed its minimum).
-  radius_fraction_ = new gui::NumberBox(panel);
-  radius_fraction_->setObjectName("radiusFraction");
-  radius_fraction_->setRange(1e-12, 1e14);
-  radius_fraction_->setKeyboardTracking(false);
+  radius_fraction_ = gui::number_box(panel, "radiusFraction", 1e-12, 1e14, "Radius R in % of the size", refused);
   radius_fraction_->setToolTip("Radius R in percent of the mesh's size (its bounding box's diagonal)");
-  radius_fraction_->what = "Radius R in % of the size";
-  radius_fraction_->refused = [this](const QString& m) { show_error(m); };
   radius_slider_ = new QSlider(Qt::Horizontal, panel);
   radius_slider_->setObjectName("radiusSlider");
   radius_slider_->setRange(0, 1000);

@@ -157,9 +157,14 @@ void PickerWindow::build_scene() {
   legend_->SetNumberOfLabels(5);
   legend_->SetLabelFormat("%.3g");
   legend_->SetMaximumWidthInPixels(90);
-  legend_->SetPosition(0.02, 0.1);
+  legend_->SetPosition(0.06, 0.1);
   legend_->SetWidth(0.1);
   legend_->SetHeight(0.6);
+  // Fonts at their sizes, the title apart from the top value: scaled to the bar's width, the title
+  // shrank to 7 pixels and overlapped that value (the new user's trial).
+  legend_->UnconstrainedFontSizeOn();
+  legend_->SetVerticalTitleSeparation(10);
+  legend_->SetMaximumWidthInPixels(130);
   legend_->GetTitleTextProperty()->SetFontSize(14);
   legend_->GetLabelTextProperty()->SetFontSize(12);
   legend_->VisibilityOff();

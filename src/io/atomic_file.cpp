@@ -463,7 +463,8 @@ void must_be_new(const fs::path& target) {
   g_new_outputs.push_back(normal(target));
 }
 
-void write_atomically(const fs::path& target_in, const std::function<void(std::ostream&)>& write) {
+void write_atomically(const fs::path& target_in, const std::function<void(std::ostream&)>& write,
+                      const std::function<void()>& before_commit) {
   const fs::path target = resolve_output(target_in);
   check_output_path(target);
   const bool existed = exists_no_follow(target) && !registered_new(target);
@@ -486,6 +487,7 @@ void write_atomically(const fs::path& target_in, const std::function<void(std::o
   if (ec || std::streamoff(size) != written)
     throw FileError("cannot write '" + target.string() + "': only " + std::to_string(ec ? 0 : size) + " of " +
                     std::to_string(written) + " bytes reached the disk");
+  if (before_commit) before_commit();
   // A target that was new is created without replacing (of concurrent writers, one wins and the
   // others fail with "exists"); one that existed is replaced.
   if (existed)

@@ -362,20 +362,34 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
       if (targets[i] != sources[i]) moving.push_back(sources[i]);
     const std::vector<Vec3> all_moving = b.gather(moving);
     std::size_t kept = sources.size();
+    std::vector<Vec3> dropped;
     if (!all_moving.empty()) {
       kept = 0;
       const NeighborIndex near(all_moving, options.fit.radius);
       for (std::size_t i = 0; i < sources.size(); ++i) {
         bool keep = targets[i] != sources[i];
         if (!keep) near.for_each_within(sources[i], [&](std::size_t, double) { keep = true; });
-        if (!keep) continue;
+        if (!keep) {
+          if (b.part()) dropped.push_back(sources[i]);
+          continue;
+        }
         sources[kept] = sources[i];
         targets[kept] = targets[i];
         ids[kept] = ids[i];
         ++kept;
       }
     }
-    rep.far_fixed = std::size_t(b.sum(double(sources.size() - kept)));
+    if (b.part()) {
+      // A point on a processor boundary is a control of each part that holds it: counted once.
+      std::vector<Vec3> all = b.gather(dropped);
+      const auto less = [](const Vec3& a, const Vec3& c) {
+        return std::lexicographical_compare(a.data(), a.data() + 3, c.data(), c.data() + 3);
+      };
+      std::sort(all.begin(), all.end(), less);
+      rep.far_fixed = std::size_t(std::unique(all.begin(), all.end()) - all.begin());
+    } else {
+      rep.far_fixed = sources.size() - kept;
+    }
     sources.resize(kept);
     targets.resize(kept);
     ids.resize(kept);

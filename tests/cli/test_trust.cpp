@@ -401,6 +401,29 @@ TEST(Trust, TheSolverThatTakesOverFromConjugateGradientsKeepsTheMemoryLimit) {
   EXPECT_EQ(free.out.find("solver             envelope"), std::string::npos) << free.out;
 }
 
+// Found by the attacker's trial (round three): Eigen's simplicial solver took A's lower triangle by
+// value and copied it again into its member (Eigen 3.4's SparseMatrix has no move constructor), so
+// three triangles lived through its AMD analysis: 1.11 times --memory-limit 0.07, refused only after.
+TEST(Trust, EigensAnalysisHoldsOneCopyOfTheMatrix) {
+#if defined(__SANITIZE_ADDRESS__)
+  GTEST_SKIP() << "AddressSanitizer's own memory is beyond a limit of 0.07 GiB (the release pass runs this)";
+#endif
+  TempDir dir;
+  write_text(dir / "all.controls", every_fish_vertex());
+  for (const double limit : {0.07, 0.1, 0.14}) {
+    const auto [code, peak] =
+        run_measured(kCli + " deform --mesh " + kFish + " --controls " + (dir / "all.controls").string() +
+                         " --radius 0.5 --solver eigen --memory-limit " + std::to_string(limit) + " -o " +
+                         (dir / "out.obj").string(),
+                     dir / "log");
+    const std::string out = read_text(dir / "log");
+    EXPECT_EQ(code, limit < 0.12 ? 1 : 0) << limit << ": " << out;
+    EXPECT_EQ(fs::exists(dir / "out.obj"), code == 0) << out;
+    EXPECT_LE(peak, 1.1 * limit * double(1ull << 30)) << limit << ": " << out;
+    fs::remove(dir / "out.obj");
+  }
+}
+
 // Issue 30, point 11: a binary PLY of 1.5e6 vertices (24.5 MB) under --memory-limit 0.3 peaked at
 // 0.335 GiB (its vectors doubled as they grew, and each vertex kept 6 offsets); now 0.25 GiB.
 TEST(Trust, ABinaryPlyIsDeformedWithinTheMemoryLimit) {

@@ -691,6 +691,27 @@ TEST_F(Fixture, WhatIsTypedIsSavedExactlyAndAClickOnAMarkOnlySelectsIt) {
   std::ifstream in(dir / "fish.scene.json");
   const auto saved = nlohmann::json::parse(in);
   EXPECT_EQ(saved["objects"][0]["trajectory"]["keys"][1]["position"][2].get<double>(), 0.123456789012);
+  // Ctrl+Z with the focus still in the box undoes the program's last edit (it was inert there); with
+  // text typed and not yet entered, it undoes the typing only, as in any text field.
+  const auto z_of_key = [&] { return w.document().json()["objects"][0]["trajectory"]["keys"][1]["position"][2]; };
+  z->findChild<QLineEdit*>()->selectAll();
+  QTest::keyClicks(z->findChild<QLineEdit*>(), "0.5");
+  QTest::keyClick(z->findChild<QLineEdit*>(), Qt::Key_Return);
+  EXPECT_EQ(z_of_key().get<double>(), 0.5);
+  EXPECT_TRUE(w.isWindowModified());
+  ASSERT_TRUE(z->hasFocus());
+  QTest::keyClick(z->findChild<QLineEdit*>(), Qt::Key_Z, Qt::ControlModifier);
+  EXPECT_EQ(z_of_key().get<double>(), 0.123456789012);
+  EXPECT_FALSE(w.isWindowModified());
+  QTest::keyClick(z->findChild<QLineEdit*>(), Qt::Key_Y, Qt::ControlModifier);
+  EXPECT_EQ(z_of_key().get<double>(), 0.5);
+  QTest::keyClick(z->findChild<QLineEdit*>(), Qt::Key_Z, Qt::ControlModifier);
+  z->findChild<QLineEdit*>()->selectAll();
+  QTest::keyClicks(z->findChild<QLineEdit*>(), "0.7");
+  QTest::keyClick(z->findChild<QLineEdit*>(), Qt::Key_Z, Qt::ControlModifier);
+  EXPECT_EQ(z_of_key().get<double>(), 0.123456789012);
+  EXPECT_NE(z->cleanText(), "0.7");
+  QTest::keyClick(z->findChild<QLineEdit*>(), Qt::Key_Escape);
   // A duration of 0 is refused with a message naming the box and its least value.
   auto* duration = w.findChild<QDoubleSpinBox*>("duration");
   const double d0 = duration->value();

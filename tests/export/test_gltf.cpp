@@ -12,6 +12,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 #include <random>
 #include <string>
 #include <vector>
@@ -352,4 +353,40 @@ TEST(GltfExport, GltfTextHoldsTheSameBuffer) {
   const Glb g(glb);
   EXPECT_EQ(uri.size() - 37, (g.bin.size() + 2) / 3 * 4);
   EXPECT_EQ(render::base64(reinterpret_cast<const unsigned char*>("csrbf"), 5), "Y3NyYmY=");
+}
+
+TEST(GltfExport, KeysThatMergeInFloatCountInTheDeviation) {
+  // glTF stores times as float32: keys 1e-9 s apart are one sample there, which shows only one of
+  // their values. A turn of 30 degrees, a step of 0.5 and a phase jump between such keys are what
+  // the glTF loses, and the report says so (it said 0).
+  const fs::path dir = fs::temp_directory_path() / ("csrbf-gltf-merge-" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  fs::copy_file(example("sphere.obj"), dir / "sphere.obj", fs::copy_options::overwrite_existing);
+  const double a = 0.5, b = 0.5 + 1e-9;
+  const json axis = {0, 0, 1};
+  json ball = {{"name", "ball"}, {"mesh", "sphere.obj"}};
+  ball["orientation"]["interpolation"] = "slerp";
+  ball["orientation"]["keys"] = {{{"time", a}, {"axis", axis}, {"angle", 0}},
+                                 {{"time", b}, {"axis", axis}, {"angle", 30}}};
+  ball["trajectory"]["keys"] = {{{"time", a}, {"position", {0, 0, 0}}}, {{"time", b}, {"position", {0.5, 0, 0}}}};
+  json s = {{"duration", 1.0}, {"fps", 10}, {"objects", json::array({ball})}};
+  std::ofstream(dir / "s.scene.json") << s.dump();
+  const anim::Scene scene = io::read_scene(dir / "s.scene.json");
+  render::GltfReport r;
+  render::GltfOptions o;
+  const Glb glb(render::gltf_binary(scene, o, r));
+  ASSERT_EQ(r.objects.size(), 1u);
+  EXPECT_NEAR(r.objects[0].rotation_deviation_deg, 30.0, 1e-6);
+  anim::Player player(scene);
+  player.evaluate(0);
+  double reach = 0;
+  for (const Vec3& p : player.positions(0)) reach = std::max(reach, (p - scene.objects[0].centre).norm());
+  EXPECT_GE(r.objects[0].max_deviation, 0.5 + 30.0 * std::numbers::pi / 180 * reach * (1 - 1e-9));
+  // Where no keys merge, slerp keys and a trajectory add nothing.
+  s["objects"][0]["orientation"]["keys"][1]["time"] = 0.6;
+  s["objects"][0]["trajectory"]["keys"][1]["time"] = 0.6;
+  std::ofstream(dir / "s.scene.json") << s.dump();
+  render::gltf_binary(io::read_scene(dir / "s.scene.json"), o, r);
+  EXPECT_LT(r.objects[0].rotation_deviation_deg, 1e-6);
+  fs::remove_all(dir);
 }

@@ -111,8 +111,9 @@ class Decomposed(unittest.TestCase):
         self.assertIn("Mesh OK.", r.stdout, r.stdout[-3000:])
 
     def serial(self, case, out, *extra):
-        r = run([CLI, "morph", case, "-o", out, "--motion", self.path("motion.json"), *extra])
+        r = run([CLI, "morph", case, "-o", out, "--motion", self.path("motion.json"), "--json", *extra])
         self.assertEqual(r.returncode, 0, r.stderr)
+        self.serial_report = json.loads(r.stdout)
         return points(os.path.join(out, "constant", "polyMesh"))
 
     def test_decomposed_cases_equal_the_serial_morph_and_pass_checkmesh(self):
@@ -149,6 +150,9 @@ class Decomposed(unittest.TestCase):
                         # Exact locality, serial and distributed: a point 2R or farther from every
                         # point of the airfoil (here of a box around it, a superset) keeps its bits.
                         self.assertEqual(report["reach"], 2 * radius)
+                        # A staying point on a processor boundary is counted once, as in the serial run.
+                        self.assertGreater(report["far_fixed"], 0)
+                        self.assertEqual(report["far_fixed"], self.serial_report["far_fixed"])
                         near = base[(base[:, 0] >= -0.05) & (base[:, 0] <= 1.05) & (np.abs(base[:, 1]) <= 0.2)]
                         gap = np.array([np.sqrt(((near - p) ** 2).sum(axis=1)).min() for p in base])
                         far = gap >= 2 * radius

@@ -23,8 +23,11 @@ void check_output_path(const std::filesystem::path& target);
 /// Calls write(stream) on a partial file beside target, checks the stream and that the file on
 /// disk holds every byte written, then renames it to target (which keeps its permissions; a
 /// symbolic link is followed, so the link stays and the file it names is replaced). On any failure
-/// the partial is removed and target is untouched.
-void write_atomically(const std::filesystem::path& target, const std::function<void(std::ostream&)>& write);
+/// the partial is removed and target is untouched. before_commit, when given, runs between the check
+/// and the rename (a second output renamed there leaves the two renames microseconds apart, so that
+/// even SIGKILL can hardly part them); if it throws, nothing is renamed.
+void write_atomically(const std::filesystem::path& target, const std::function<void(std::ostream&)>& write,
+                      const std::function<void()>& before_commit = {});
 
 /// Declares, at a command's start, that target (and, through a folder writer, any file named
 /// target) must be created new: if it does not exist now, a later write_atomically or

@@ -22,6 +22,7 @@
 
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -82,7 +83,9 @@ std::string base64(const unsigned char* data, std::size_t size);
 void write_base64(std::ostream& out, const unsigned char* data, std::size_t size);
 /// Writes glb bytes to path atomically, as they are (.glb) or as one .gltf text (glb_to_gltf);
 /// returns the bytes written. Throws InvalidInput for another extension, io::FileError for files.
-std::size_t write_gltf(const std::vector<unsigned char>& glb, const std::filesystem::path& path);
+/// before_commit: as io::write_atomically's (another output renamed just before this one).
+std::size_t write_gltf(const std::vector<unsigned char>& glb, const std::filesystem::path& path,
+                       const std::function<void()>& before_commit = {});
 /// A glb as one .gltf text: its JSON with the binary chunk as a base64 data URI.
 std::string glb_to_gltf(const std::vector<unsigned char>& glb);
 
