@@ -93,6 +93,7 @@ class CgnsFile final : public VolumeFile {
     check(cg_nbases(fn, &bases), "reading the bases");
     if (bases < 1) throw FileError(path.string() + ": no CGNS base");
     std::map<std::string, std::set<std::uint32_t>> patches;
+    std::set<std::string> bcs;  // the boundary conditions' own names (the others are their families)
     for (int b = 1; b <= bases; ++b) {
       int zones = 0, cell_dim = 0, phys_dim = 0;
       char bname_[64] = {};
@@ -225,6 +226,7 @@ class CgnsFile final : public VolumeFile {
             }
           }
           patches[bname].insert(pts.begin(), pts.end());
+          bcs.insert(bname);
           char family[64] = {};
           if (cg_goto(fn, b, "Zone_t", z, "ZoneBC_t", 1, "BC_t", bc, "end") == CG_OK &&
               cg_famname_read(family) == CG_OK && family[0] && std::string(family) != bname)
@@ -238,6 +240,7 @@ class CgnsFile final : public VolumeFile {
       Patch p;
       p.name = name;
       p.points.assign(pts.begin(), pts.end());
+      p.boundary = bcs.count(name) > 0;
       mesh_.patches.push_back(std::move(p));
     }
     orient_cells(mesh_.cells, mesh_.points);

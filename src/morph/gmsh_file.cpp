@@ -440,6 +440,11 @@ class GmshFile final : public VolumeFile {
       p.type.assign(type.begin(), type.end());
       mesh_.patches.push_back(std::move(p));
     }
+    // A group of one dimension below the mesh's (surfaces of a volume mesh) is a boundary.
+    bool solid = false;
+    for (const auto t : mesh_.cells.type)
+      solid |= t == VTK_TETRA || t == VTK_HEXAHEDRON || t == VTK_WEDGE || t == VTK_PYRAMID;
+    for (Patch& p : mesh_.patches) p.boundary = p.type == (solid ? "dim 2" : "dim 1");
   }
 
   /// The file with its $Nodes coordinates replaced: every other byte as it was (Gmsh's own writer

@@ -145,7 +145,7 @@ MeshQuality combine(MorphBackend& b, MeshQuality q) {
 std::string motion_summary(const Motion& m) {
   std::string s;
   for (const auto& p : m.patches) {
-    static const char* kinds[] = {"fixed", "translate", "rotate", "displacements"};
+    static const char* kinds[] = {"fixed", "translate", "rotate", "displacements", "slip", "free"};
     s += (s.empty() ? "" : ", ") + p.patch + " " + kinds[int(p.kind)];
   }
   return s;
@@ -293,10 +293,11 @@ std::string outcome_json(const MorphOutcome& o) {
                    {"written", o.written},
                    {"points", o.points},
                    {"cells", o.cells},
-                   {"patches", o.patches},
+                   {"patch_count", o.patches},
                    {"prescribed", rep.prescribed},
                    {"moving", rep.moving},
                    {"fixed", rep.fixed},
+                   {"slip", rep.slip},
                    {"controls", rep.controls},
                    {"greedy_rounds", rep.greedy_rounds},
                    {"max_displacement", rep.max_displacement},
@@ -319,6 +320,9 @@ std::string outcome_json(const MorphOutcome& o) {
   // a polynomial moves the whole space); staying controls farther than R from every moving one.
   j["reach"] = std::isfinite(rep.reach) ? nlohmann::json(rep.reach) : nlohmann::json(nullptr);
   j["far_fixed"] = rep.far_fixed;
+  // Every patch: what it did (moving, fixed, slip or free) and why (listed, group, type, planar...).
+  j["patches"] = nlohmann::json::array();
+  for (const auto& p : rep.patches) j["patches"].push_back({{"name", p.name}, {"kind", p.kind}, {"why", p.why}});
   return j.dump(2);
 }
 
@@ -328,13 +332,19 @@ std::string outcome_text(const MorphOutcome& o) {
   s << "csrbf morph: " << o.mesh << " (" << o.format << ", " << o.encoding << "): " << o.points << " points, "
     << o.cells << " cells, " << o.patches << " patches\n"
     << "  motion " << o.motion << ": " << o.motion_summary << "\n"
-    << "  " << rep.prescribed << " prescribed points (" << rep.moving << " moving, " << rep.fixed << " fixed), "
-    << rep.controls << " controls";
+    << "  " << rep.prescribed << " prescribed points (" << rep.moving << " moving, " << rep.fixed << " fixed, "
+    << rep.slip << " slip), " << rep.controls << " controls";
   if (rep.greedy_rounds) s << " chosen in " << rep.greedy_rounds << " greedy rounds";
   s << "; largest displacement " << rep.max_displacement << ", largest boundary error " << rep.max_boundary_error
     << " before exact placement\n"
     << "  R = " << o.options.fit.radius << ", kernel " << kernel_name(o.options.fit.kernel) << ", polynomial "
     << polynomial_name(o.options.fit.polynomial) << ", phase " << o.options.phase << "\n";
+  // The patches the motion left unlisted, and what each did (the listed ones are in the motion line).
+  std::string unlisted;
+  for (const auto& p : rep.patches)
+    if (p.why != "listed")
+      unlisted += (unlisted.empty() ? "" : ", ") + printable(p.name) + " " + p.kind + " (" + p.why + ")";
+  if (!unlisted.empty()) s << "  other patches: " << unlisted << "\n";
   if (std::isfinite(rep.reach))
     s << "  reach " << rep.reach << ": a point this far or farther from every moving point keeps its coordinates "
       << "bit for bit (" << rep.far_fixed << " staying points farther than R from every moving one were left "

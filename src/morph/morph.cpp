@@ -6,6 +6,7 @@
 #include "csrbf/morph/volume_file.hpp"
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/space_map.hpp"
+#include "patch_kinds.hpp"
 
 #include <algorithm>
 #include <array>
@@ -144,7 +145,12 @@ MorphBackend& local_backend() {
   return b;
 }
 
-std::size_t Prescribed::moving() const { return std::size_t(std::count(fixed.begin(), fixed.end(), char(0))); }
+std::size_t Prescribed::moving() const {
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < points.size(); ++i)
+    n += !fixed[i] && (slip.empty() || slip[i] < 0) && displacements[i] != Vec3::Zero();
+  return n;
+}
 
 Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
   const std::size_t np = mesh.points.size();
@@ -168,11 +174,12 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
   for (std::size_t m = 0; m < motion.patches.size(); ++m) {
     const PatchMotion& pm = motion.patches[m];
     if (part && pm.kind == PatchMotion::Kind::Displacements) out.used[m].assign(pm.given.size(), 0);
+    if (pm.kind == PatchMotion::Kind::Free) continue;  // no controls
     const Patch* patch = mesh.patch(pm.patch);
     if (!patch)
       throw FileError(pm.where + ": the mesh has no patch '" + pm.patch + "'; its patches: " + patch_list(mesh));
     if (patch->points.empty()) {
-      if (part) continue;  // the patch lies in other parts of the mesh
+      if (part || pm.by_default) continue;  // the patch lies in other parts of the mesh, or is unlisted
       throw FileError(pm.where + ": patch '" + pm.patch + "' has no points");
     }
     std::vector<Vec3> given;
@@ -215,10 +222,10 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
                           std::to_string(number(patch->points[k])));
         }
     }
-    const bool fixed = pm.kind == PatchMotion::Kind::Fixed;
+    const bool fixed = pm.kind == PatchMotion::Kind::Fixed, slip = pm.kind == PatchMotion::Kind::Slip;
     for (std::size_t k = 0; k < patch->points.size(); ++k) {
       const std::uint32_t p = patch->points[k];
-      const Vec3 dp = fixed ? Vec3::Zero() : (given.empty() ? pm.displacement(mesh.points[p]) : given[k]);
+      const Vec3 dp = fixed || slip ? Vec3::Zero() : (given.empty() ? pm.displacement(mesh.points[p]) : given[k]);
       if (!dp.allFinite())
         throw FileError(pm.where + ": the displacement of point " + std::to_string(number(p)) + " is not finite");
       if (who[p] < 0) {
@@ -228,6 +235,14 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
       }
       const PatchMotion& other = motion.patches[std::size_t(who[p])];
       const bool other_fixed = other.kind == PatchMotion::Kind::Fixed;
+      // Slip yields to every other kind: a point on a slip patch's edge with a fixed or moving
+      // patch is that patch's.
+      if (slip) continue;
+      if (other.kind == PatchMotion::Kind::Slip) {
+        who[p] = std::int32_t(m);
+        d[p] = dp;
+        continue;
+      }
       if (fixed) continue;  // a moving patch's point moves
       if (other_fixed) {
         who[p] = std::int32_t(m);
@@ -246,23 +261,33 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
     out.points.push_back(std::uint32_t(p));
     out.displacements.push_back(d[p]);
     out.fixed.push_back(motion.patches[std::size_t(who[p])].kind == PatchMotion::Kind::Fixed);
+    out.slip.push_back(motion.patches[std::size_t(who[p])].kind == PatchMotion::Kind::Slip ? who[p] : -1);
   }
   return out;
 }
 
-MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options, MorphBackend* backend) {
+MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOptions& options, MorphBackend* backend) {
   MorphBackend& b = backend ? *backend : local_backend();
   if (!(options.fit.radius > 0) || !std::isfinite(options.fit.radius))
     throw InvalidInput("the radius must be a finite number > 0, got " + io::format_number(options.fit.radius));
   if (!std::isfinite(options.phase)) throw InvalidInput("the phase must be finite");
   if (!(options.greedy >= 0) || !std::isfinite(options.greedy))
     throw InvalidInput("the greedy tolerance must be a finite number >= 0, got " + io::format_number(options.greedy));
+  // Every patch's kind: the motion's entries matched by name, group or expression, and defaults
+  // for the boundaries it leaves unlisted (slip where planar, fixed otherwise).
+  const auto flat = flat_axis(mesh);
+  const std::vector<detail::PatchPlane> planes = detail::patch_planes(mesh, b);
+  const double size = b.max(mesh_size(mesh));
+  Motion motion;
+  std::vector<PatchReport> patch_reports;
+  b.agree(caught(
+      [&] { motion = detail::resolve_patches(mesh, motion_in, planes, size, flat.has_value(), patch_reports); }));
   Prescribed pres;
   b.agree(caught([&] { pres = prescribe(mesh, motion, b.part()); }));
   if (b.part()) {
     for (std::size_t m = 0; m < motion.patches.size(); ++m) {
       const PatchMotion& pm = motion.patches[m];
-      if (b.max(double(mesh.patch(pm.patch)->points.size())) == 0)
+      if (b.max(double(mesh.patch(pm.patch)->points.size())) == 0 && !pm.by_default)
         throw FileError(pm.where + ": patch '" + pm.patch + "' has no points");
       if (pm.kind != PatchMotion::Kind::Displacements) continue;
       // Each line of a displacements file must move a point of the patch in some part.
@@ -277,18 +302,17 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   }
   MorphResult r;
   MorphReport& rep = r.report;
+  rep.patches = patch_reports;
   rep.prescribed = pres.points.size();
   rep.moving = pres.moving();
-  rep.fixed = rep.prescribed - rep.moving;
+  rep.fixed = std::size_t(std::count(pres.fixed.begin(), pres.fixed.end(), char(1)));
+  rep.slip = std::size_t(std::count_if(pres.slip.begin(), pres.slip.end(), [](std::int32_t s) { return s >= 0; }));
   r.points = mesh.points;
   const std::size_t n = pres.points.size();
   for (const Vec3& dv : pres.displacements) rep.max_displacement = std::max(rep.max_displacement, dv.norm());
   rep.max_displacement = b.max(rep.max_displacement);
   if (b.max(double(rep.moving)) == 0 || rep.max_displacement == 0 || options.phase == 0) return r;  // nothing moves
 
-  // The controls: the prescribed points, or in a 2-D case their projections on the mid-plane, each
-  // pair of the two planes' points one control.
-  const auto flat = flat_axis(mesh);
   if (b.part()) {  // every part with points must see the same 2-D axis, or none
     const double mine = mesh.points.empty() ? -1.0 : flat ? double(flat->axis + 1) : 0.0;
     const double hi = b.max(mine), lo = -b.max(mine < 0 ? -1e9 : -mine);
@@ -299,170 +323,289 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   }
   const double tol = 1e-12 * std::max(b.max(mesh_size(mesh)), 1e-300);
   const auto number = [&](std::uint32_t p) { return mesh.point_ids.empty() ? std::uint64_t(p) : mesh.point_ids[p]; };
+  // The controls: the prescribed points (those included), or in a 2-D case their projections on
+  // the mid-plane, each pair of the two planes' points one control; then the fit.
   std::vector<Vec3> sources, targets;
   std::vector<std::uint64_t> ids;
-  sources.reserve(n);
-  targets.reserve(n);
-  ids.reserve(n);
-  b.agree(caught([&] {
-    if (flat) {
-      const int a = flat->axis;
-      const double mid = 0.5 * (flat->lo + flat->hi);
-      std::vector<std::uint32_t> order(n);
-      std::iota(order.begin(), order.end(), 0u);
-      const auto projected = [&](std::uint32_t i) {
-        Vec3 p = mesh.points[pres.points[i]];
-        p[a] = mid;
-        return p;
-      };
-      const auto less = [&](std::uint32_t i, std::uint32_t j) {
-        const Vec3 p = projected(i), q = projected(j);
-        return std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3);
-      };
-      std::sort(order.begin(), order.end(), less);
-      for (std::size_t k = 0; k < n; ++k) {
-        const std::uint32_t i = order[k];
-        const Vec3& d = pres.displacements[i];
-        if (std::abs(d[a]) > tol)
-          throw io::FileError(
-              motion.file + ": the mesh is 2-D (patch '" + flat->patch + "' is empty), but point " +
-              std::to_string(mesh.point_ids.empty() ? std::uint64_t(pres.points[i]) : mesh.point_ids[pres.points[i]]) +
-              " moves out of its plane by " + std::to_string(d[a]));
-        const Vec3 p = projected(i);
-        if (!sources.empty() && sources.back() == p) {
-          if ((targets.back() - sources.back() - d).norm() > tol)
-            throw io::FileError(motion.file + ": the mesh is 2-D (patch '" + flat->patch + "' is empty), but points " +
-                                std::to_string(pres.points[order[k - 1]]) + " and " + std::to_string(pres.points[i]) +
-                                " of its two planes move differently");
-          continue;
-        }
-        sources.push_back(p);
-        targets.push_back(p + d);
-        ids.push_back(number(pres.points[i]));
-      }
-    } else {
-      for (std::size_t i = 0; i < n; ++i) {
-        sources.push_back(mesh.points[pres.points[i]]);
-        targets.push_back(sources.back() + pres.displacements[i]);
-        ids.push_back(number(pres.points[i]));
-      }
-    }
-  }));
-  // Exact locality (polynomial none): a control that stays is fitted only where a moving one lies
-  // within R of it. Every source of the fit is then within R of a moving control, and its kernel
-  // reaches R further: a point 2R or farther from every moving control sums no term and keeps its
-  // coordinates bit for bit (the report's reach). Staying controls farther away carried
-  // coefficients of 1e-16 and moved the whole connected mesh by up to 4e-7 (a flow solver's
-  // residuals jumped 63x on such a mesh); they are placed exactly afterwards, as every prescribed
-  // point is. With a polynomial, the mapping moves the whole space: every control is kept.
-  if (options.fit.polynomial == Polynomial::None) {
-    rep.reach = 2.0 * options.fit.radius;
-    std::vector<Vec3> moving;
-    for (std::size_t i = 0; i < sources.size(); ++i)
-      if (targets[i] != sources[i]) moving.push_back(sources[i]);
-    const std::vector<Vec3> all_moving = b.gather(moving);
-    std::size_t kept = sources.size();
-    std::vector<Vec3> dropped;
-    if (!all_moving.empty()) {
-      kept = 0;
-      const NeighborIndex near(all_moving, options.fit.radius);
-      for (std::size_t i = 0; i < sources.size(); ++i) {
-        bool keep = targets[i] != sources[i];
-        if (!keep) near.for_each_within(sources[i], [&](std::size_t, double) { keep = true; });
-        if (!keep) {
-          if (b.part()) dropped.push_back(sources[i]);
-          continue;
-        }
-        sources[kept] = sources[i];
-        targets[kept] = targets[i];
-        ids[kept] = ids[i];
-        ++kept;
-      }
-    }
-    if (b.part()) {
-      // A point on a processor boundary is a control of each part that holds it: counted once.
-      std::vector<Vec3> all = b.gather(dropped);
-      const auto less = [](const Vec3& a, const Vec3& c) {
-        return std::lexicographical_compare(a.data(), a.data() + 3, c.data(), c.data() + 3);
-      };
-      std::sort(all.begin(), all.end(), less);
-      rep.far_fixed = std::size_t(std::unique(all.begin(), all.end()) - all.begin());
-    } else {
-      rep.far_fixed = sources.size() - kept;
-    }
-    sources.resize(kept);
-    targets.resize(kept);
-    ids.resize(kept);
-  }
-  const std::size_t nc = sources.size();
-  const auto t_fit = Clock::now();
-  std::vector<Vec3> at(nc);
-  const auto worst = [&](FittedMapping& map, std::vector<double>& err) {
-    map.apply(sources, at, 1.0);
-    err.resize(nc);
-    double e = 0;
-    for (std::size_t i = 0; i < nc; ++i) e = std::max(e, err[i] = (at[i] - targets[i]).norm());
-    return b.max(e);
-  };
   std::vector<double> err;
-  std::unique_ptr<FittedMapping> map;
-  b.balance(mesh.points);
-  if (options.greedy > 0 && b.max(double(nc)) > 1) {
-    const double limit = options.greedy * rep.max_displacement;
-    std::vector<char> chosen(nc, 0);
-    std::vector<std::uint32_t> subset;
-    std::size_t first = 0;
-    for (std::size_t i = 1; i < nc; ++i)
-      if ((targets[i] - sources[i]).squaredNorm() > (targets[first] - sources[first]).squaredNorm()) first = i;
-    if (nc > 0) {
-      subset.push_back(std::uint32_t(first));
-      chosen[first] = 1;
-    }
-    std::vector<std::uint32_t> by_error(nc);
-    for (;;) {
-      ++rep.greedy_rounds;
-      std::sort(subset.begin(), subset.end());
-      std::vector<Vec3> s(subset.size()), t(subset.size());
-      std::vector<std::uint64_t> u(subset.size());
-      for (std::size_t k = 0; k < subset.size(); ++k) {
-        s[k] = sources[subset[k]];
-        t[k] = targets[subset[k]];
-        u[k] = ids[subset[k]];
+  const auto fit_controls = [&](const auto& included, const std::vector<Vec3>& displacements,
+                                double largest) -> std::unique_ptr<FittedMapping> {
+    sources.clear();
+    targets.clear();
+    ids.clear();
+    std::unique_ptr<FittedMapping> map;
+    b.agree(caught([&] {
+      if (flat) {
+        const int a = flat->axis;
+        const double mid = 0.5 * (flat->lo + flat->hi);
+        std::vector<std::uint32_t> order;
+        for (std::uint32_t i = 0; i < n; ++i)
+          if (included(i)) order.push_back(i);
+        const auto projected = [&](std::uint32_t i) {
+          Vec3 p = mesh.points[pres.points[i]];
+          p[a] = mid;
+          return p;
+        };
+        const auto less = [&](std::uint32_t i, std::uint32_t j) {
+          const Vec3 p = projected(i), q = projected(j);
+          return std::lexicographical_compare(p.data(), p.data() + 3, q.data(), q.data() + 3);
+        };
+        std::sort(order.begin(), order.end(), less);
+        for (std::size_t k = 0; k < order.size(); ++k) {
+          const std::uint32_t i = order[k];
+          const Vec3& d = displacements[i];
+          if (std::abs(d[a]) > tol)
+            throw io::FileError(motion.file + ": the mesh is 2-D (patch '" + flat->patch + "' is empty), but point " +
+                                std::to_string(mesh.point_ids.empty() ? std::uint64_t(pres.points[i])
+                                                                      : mesh.point_ids[pres.points[i]]) +
+                                " moves out of its plane by " + std::to_string(d[a]));
+          const Vec3 p = projected(i);
+          if (!sources.empty() && sources.back() == p) {
+            if ((targets.back() - sources.back() - d).norm() > tol)
+              throw io::FileError(motion.file + ": the mesh is 2-D (patch '" + flat->patch +
+                                  "' is empty), but points " + std::to_string(pres.points[order[k - 1]]) + " and " +
+                                  std::to_string(pres.points[i]) + " of its two planes move differently");
+            continue;
+          }
+          sources.push_back(p);
+          targets.push_back(p + d);
+          ids.push_back(number(pres.points[i]));
+        }
+      } else {
+        for (std::size_t i = 0; i < n; ++i) {
+          if (!included(std::uint32_t(i))) continue;
+          sources.push_back(mesh.points[pres.points[i]]);
+          targets.push_back(sources.back() + displacements[i]);
+          ids.push_back(number(pres.points[i]));
+        }
       }
-      map.reset();
-      map = b.fit(s, t, options.fit, u);
+    }));
+    // Exact locality (polynomial none): a control that stays is fitted only where a moving one lies
+    // within R of it. Every source of the fit is then within R of a moving control, and its kernel
+    // reaches R further: a point 2R or farther from every moving control sums no term and keeps its
+    // coordinates bit for bit (the report's reach). Staying controls farther away carried
+    // coefficients of 1e-16 and moved the whole connected mesh by up to 4e-7 (a flow solver's
+    // residuals jumped 63x on such a mesh); they are placed exactly afterwards, as every prescribed
+    // point is. With a polynomial, the mapping moves the whole space: every control is kept.
+    if (options.fit.polynomial == Polynomial::None) {
+      rep.reach = 2.0 * options.fit.radius;
+      std::vector<Vec3> moving;
+      for (std::size_t i = 0; i < sources.size(); ++i)
+        if (targets[i] != sources[i]) moving.push_back(sources[i]);
+      const std::vector<Vec3> all_moving = b.gather(moving);
+      std::size_t kept = sources.size();
+      std::vector<Vec3> dropped;
+      if (!all_moving.empty()) {
+        kept = 0;
+        const NeighborIndex near(all_moving, options.fit.radius);
+        for (std::size_t i = 0; i < sources.size(); ++i) {
+          bool keep = targets[i] != sources[i];
+          if (!keep) near.for_each_within(sources[i], [&](std::size_t, double) { keep = true; });
+          if (!keep) {
+            if (b.part()) dropped.push_back(sources[i]);
+            continue;
+          }
+          sources[kept] = sources[i];
+          targets[kept] = targets[i];
+          ids[kept] = ids[i];
+          ++kept;
+        }
+      }
+      if (b.part()) {
+        // A point on a processor boundary is a control of each part that holds it: counted once.
+        std::vector<Vec3> all = b.gather(dropped);
+        const auto less = [](const Vec3& a, const Vec3& c) {
+          return std::lexicographical_compare(a.data(), a.data() + 3, c.data(), c.data() + 3);
+        };
+        std::sort(all.begin(), all.end(), less);
+        rep.far_fixed = std::size_t(std::unique(all.begin(), all.end()) - all.begin());
+      } else {
+        rep.far_fixed = sources.size() - kept;
+      }
+      sources.resize(kept);
+      targets.resize(kept);
+      ids.resize(kept);
+    }
+    const std::size_t nc = sources.size();
+    std::vector<Vec3> at(nc);
+    const auto worst = [&](FittedMapping& map, std::vector<double>& err) {
+      map.apply(sources, at, 1.0);
+      err.resize(nc);
+      double e = 0;
+      for (std::size_t i = 0; i < nc; ++i) e = std::max(e, err[i] = (at[i] - targets[i]).norm());
+      return b.max(e);
+    };
+    if (options.greedy > 0 && b.max(double(nc)) > 1) {
+      const double limit = options.greedy * largest;
+      std::vector<char> chosen(nc, 0);
+      std::vector<std::uint32_t> subset;
+      std::size_t first = 0;
+      for (std::size_t i = 1; i < nc; ++i)
+        if ((targets[i] - sources[i]).squaredNorm() > (targets[first] - sources[first]).squaredNorm()) first = i;
+      if (nc > 0) {
+        subset.push_back(std::uint32_t(first));
+        chosen[first] = 1;
+      }
+      std::vector<std::uint32_t> by_error(nc);
+      for (;;) {
+        ++rep.greedy_rounds;
+        std::sort(subset.begin(), subset.end());
+        std::vector<Vec3> s(subset.size()), t(subset.size());
+        std::vector<std::uint64_t> u(subset.size());
+        for (std::size_t k = 0; k < subset.size(); ++k) {
+          s[k] = sources[subset[k]];
+          t[k] = targets[subset[k]];
+          u[k] = ids[subset[k]];
+        }
+        map.reset();
+        map = b.fit(s, t, options.fit, u);
+        rep.max_boundary_error = worst(*map, err);
+        if (rep.max_boundary_error <= limit || b.max(double(subset.size() < nc)) == 0) break;
+        std::iota(by_error.begin(), by_error.end(), 0u);
+        std::sort(by_error.begin(), by_error.end(), [&](std::uint32_t a, std::uint32_t b) { return err[a] > err[b]; });
+        SpacedSet spaced(options.fit.radius);
+        const std::size_t before = subset.size();
+        for (const std::uint32_t i : by_error) {
+          if (err[i] <= limit) break;
+          if (chosen[i] || !spaced.try_add(sources[i])) continue;
+          chosen[i] = 1;
+          subset.push_back(i);
+        }
+        // Only controls themselves miss the tolerance (it is below what the solve reaches): stop.
+        if (b.max(double(subset.size() > before)) == 0) break;
+      }
+      rep.controls = subset.size();
+    } else {
+      map = b.fit(sources, targets, options.fit, ids);
       rep.max_boundary_error = worst(*map, err);
-      if (rep.max_boundary_error <= limit || b.max(double(subset.size() < nc)) == 0) break;
-      std::iota(by_error.begin(), by_error.end(), 0u);
-      std::sort(by_error.begin(), by_error.end(), [&](std::uint32_t a, std::uint32_t b) { return err[a] > err[b]; });
-      SpacedSet spaced(options.fit.radius);
-      const std::size_t before = subset.size();
-      for (const std::uint32_t i : by_error) {
-        if (err[i] <= limit) break;
-        if (chosen[i] || !spaced.try_add(sources[i])) continue;
-        chosen[i] = 1;
-        subset.push_back(i);
-      }
-      // Only controls themselves miss the tolerance (it is below what the solve reaches): stop.
-      if (b.max(double(subset.size() > before)) == 0) break;
+      rep.controls = nc;
     }
-    rep.controls = subset.size();
-  } else {
-    map = b.fit(sources, targets, options.fit, ids);
-    rep.max_boundary_error = worst(*map, err);
-    rep.controls = nc;
+    return map;
+  };
+  const auto t_fit = Clock::now();
+  b.balance(mesh.points);
+  // Slip: the fit of the moving and fixed points gives each slip point its displacement, whose part
+  // off its patch's surface (the normal part on a plane; to the surface's closest point on a
+  // curved one) is then taken back by a second fit of those corrections (the other prescribed
+  // points held at 0), added to the first: the patch's points stay on its surface and the cells
+  // beside it follow. A plane containing the motion (the sides of an extruded 2-D mesh) needs no
+  // correction and no second fit.
+  const bool any_slip = b.max(double(rep.slip)) > 0;
+  std::vector<std::optional<detail::SurfaceProjector>> surfaces(motion.patches.size());
+  const auto plane_of = [&](std::size_t e) -> const detail::PatchPlane* {
+    const std::size_t k = std::size_t(mesh.patch(motion.patches[e].patch) - mesh.patches.data());
+    return planes[k].deviation <= detail::kPlanarTolerance * size ? &planes[k] : nullptr;
+  };
+  if (any_slip)
+    b.agree(caught([&] {
+      for (std::size_t i = 0; i < n; ++i) {
+        const auto e = std::size_t(pres.slip[i] < 0 ? 0 : pres.slip[i]);
+        if (pres.slip[i] >= 0 && !surfaces[e] && !plane_of(e))
+          surfaces[e].emplace(mesh, *mesh.patch(motion.patches[e].patch), motion.patches[e].where);
+      }
+    }));
+  std::unique_ptr<FittedMapping> map =
+      fit_controls([&](std::uint32_t i) { return pres.slip[i] < 0; }, pres.displacements, rep.max_displacement);
+  std::unique_ptr<FittedMapping> correction;
+  std::vector<Vec3> first_d;  // the first mapping's displacements, where a correction follows
+  std::vector<Vec3> projected_points;
+  // Where the mapping is evaluated: the points, or in a 2-D case their projections on the mid-plane.
+  const auto evaluated_at = [&]() -> std::span<const Vec3> {
+    if (!flat) return mesh.points;
+    if (projected_points.empty()) {
+      projected_points = mesh.points;
+      for (Vec3& p : projected_points) p[flat->axis] = 0.5 * (flat->lo + flat->hi);
+    }
+    return projected_points;
+  };
+  if (any_slip) {
+    std::vector<Vec3> at_slip, d_slip;
+    std::vector<std::uint32_t> which;
+    for (std::uint32_t i = 0; i < n; ++i) {
+      if (pres.slip[i] < 0) continue;
+      Vec3 p = mesh.points[pres.points[i]];
+      if (flat) p[flat->axis] = 0.5 * (flat->lo + flat->hi);
+      at_slip.push_back(p);
+      which.push_back(i);
+    }
+    d_slip.resize(at_slip.size());
+    map->displacements(at_slip, d_slip);
+    // A point on two or more slip patches (an edge, a corner) stays on each: the planes' normals.
+    std::vector<std::vector<Vec3>> normals(n);
+    for (std::size_t e = 0; e < motion.patches.size(); ++e) {
+      if (motion.patches[e].kind != PatchMotion::Kind::Slip) continue;
+      const detail::PatchPlane* plane = plane_of(e);
+      if (!plane) continue;
+      for (const auto p : mesh.patch(motion.patches[e].patch)->points) {
+        const auto it = std::lower_bound(pres.points.begin(), pres.points.end(), p);
+        if (it != pres.points.end() && *it == p && pres.slip[std::size_t(it - pres.points.begin())] >= 0)
+          normals[std::size_t(it - pres.points.begin())].push_back(plane->normal);
+      }
+    }
+    // The displacement kept within every plane of the point: the plane's, the line two planes share,
+    // or none where three meet (parallel planes count once).
+    const auto within_planes = [](Vec3 d, const std::vector<Vec3>& ns) -> Vec3 {
+      std::vector<Vec3> basis;  // orthonormal, spanning the normals
+      for (Vec3 v : ns) {
+        for (const Vec3& u : basis) v -= v.dot(u) * u;
+        if (v.norm() > 1e-6) basis.push_back(v.normalized());
+      }
+      for (const Vec3& u : basis) d -= d.dot(u) * u;
+      return basis.size() >= 3 ? Vec3::Zero() : d;
+    };
+    std::vector<Vec3> corrections(n, Vec3::Zero());
+    double largest = 0;
+    for (std::size_t k = 0; k < which.size(); ++k) {
+      const std::uint32_t i = which[k];
+      const std::size_t e = std::size_t(pres.slip[i]);
+      Vec3 d = d_slip[k];
+      if (d != Vec3::Zero()) {  // beyond the reach: exactly still
+        d = within_planes(d, normals[i]);
+        if (!plane_of(e)) {
+          const Vec3& x = mesh.points[pres.points[i]];
+          d = surfaces[e]->project(x + d) - x;
+        }
+      }
+      if (flat) d[flat->axis] = 0;
+      pres.displacements[i] = d;
+      corrections[i] = d - d_slip[k];
+      if (flat) corrections[i][flat->axis] = 0;
+      largest = std::max(largest, corrections[i].norm());
+    }
+    // Corrections below 1e-9 of the mesh's size move no cell: they are left to the exact placement.
+    const double small = 1e-9 * size;
+    for (Vec3& c : corrections)
+      if (c.norm() <= small) c = Vec3::Zero();
+    if (b.max(largest) > small) {
+      // The first mapping is evaluated before the second fit (a backend may hold one mapping).
+      first_d.resize(mesh.points.size());
+      map->displacements(evaluated_at(), first_d);
+      rep.fit = map->stats();  // the first fit's figures (the motion's own); the correction's are smaller
+      map.reset();
+      const std::size_t first_controls = rep.controls;
+      const double first_error = rep.max_boundary_error;
+      correction = fit_controls([](std::uint32_t) { return true; }, corrections, b.max(largest));
+      rep.controls += first_controls;
+      rep.max_boundary_error = std::max(rep.max_boundary_error, first_error);
+    }
   }
-  rep.fit = map->stats();
+  if (!correction) rep.fit = map->stats();
   rep.seconds_fit = seconds_since(t_fit);
 
   const auto t_eval = Clock::now();
-  if (flat) {
+  if (correction) {
+    // x + phase (d1 + d2): the first mapping's displacements (kept) and the correction's.
+    std::vector<Vec3> c(mesh.points.size());
+    correction->displacements(evaluated_at(), c);
+    for (std::size_t i = 0; i < c.size(); ++i) {
+      r.points[i] = mesh.points[i] + options.phase * (first_d[i] + c[i]);
+      if (flat) r.points[i][flat->axis] = mesh.points[i][flat->axis];
+    }
+  } else if (flat) {
     // The displacement at each point's projection: the two planes' points move alike, and never
     // out of their planes (every control's displacement is 0 along the axis).
-    std::vector<Vec3> projected(mesh.points), d(mesh.points.size());
-    const double mid = 0.5 * (flat->lo + flat->hi);
-    for (Vec3& p : projected) p[flat->axis] = mid;
-    map->displacements(projected, d);
+    std::vector<Vec3> d(mesh.points.size());
+    map->displacements(evaluated_at(), d);
     for (std::size_t i = 0; i < d.size(); ++i) {
       r.points[i] = mesh.points[i] + options.phase * d[i];
       r.points[i][flat->axis] = mesh.points[i][flat->axis];
@@ -473,6 +616,10 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t p = pres.points[i];
     r.points[p] = pres.fixed[i] ? mesh.points[p] : Vec3(mesh.points[p] + options.phase * pres.displacements[i]);
+    if (pres.slip[i] >= 0 && pres.displacements[i] != Vec3::Zero()) {
+      const auto& surface = surfaces[std::size_t(pres.slip[i])];
+      if (surface) r.points[p] = surface->project(r.points[p]);
+    }
   }
   rep.seconds_evaluate = seconds_since(t_eval);
   return r;

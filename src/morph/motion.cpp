@@ -105,9 +105,12 @@ Motion read_motion(const fs::path& path) {
     pm.patch = name;
     pm.where = m.file + ": " + node.path();
     if (value.is_string()) {
-      if (value.get<std::string>() != "fixed")
-        node.expected("\"fixed\", or an object with translate, rotate or displacements");
-      pm.kind = PatchMotion::Kind::Fixed;
+      const std::string kind = value.get<std::string>();
+      if (kind != "fixed" && kind != "slip" && kind != "free")
+        node.expected("\"fixed\", \"slip\", \"free\", or an object with translate, rotate or displacements");
+      pm.kind = kind == "slip"   ? PatchMotion::Kind::Slip
+                : kind == "free" ? PatchMotion::Kind::Free
+                                 : PatchMotion::Kind::Fixed;
     } else if (value.is_object() && value.size() == 1) {
       node.only({"translate", "rotate", "displacements"});
       if (node.has("translate")) {
@@ -129,7 +132,7 @@ Motion read_motion(const fs::path& path) {
         read_displacements(pm, base);
       }
     } else {
-      node.expected("\"fixed\", or an object with one of translate, rotate, displacements");
+      node.expected("\"fixed\", \"slip\", or an object with one of translate, rotate, displacements");
     }
     m.patches.push_back(std::move(pm));
   }

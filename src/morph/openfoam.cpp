@@ -502,6 +502,21 @@ void read_boundary(Parser& p, std::vector<Patch>& patches,
       } else if (key == "type") {
         patch.type = std::string(p.word());
         p.expect(';', "after type");
+      } else if (key == "inGroups") {  // inGroups List<word> 2(wall movingWalls);
+        int depth = 0;
+        for (;;) {
+          const std::string w(p.word());
+          if (w == "(")
+            ++depth;
+          else if (w == ")")
+            --depth;
+          else if (w == ";" && depth == 0)
+            break;
+          else if (depth == 1)
+            patch.groups.push_back(w);
+          if (depth < 0 || w == "{" || w == "}" || w == "end of file")
+            p.fail("patch " + quote(patch.name) + ": inGroups must be a list of words, e.g. inGroups 1(wall);");
+        }
       } else {
         p.skip_value();
       }
@@ -611,6 +626,9 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes) {
         throw FileError(l.path.string() + ": " + name + ": startFace " + std::to_string(start) + ", expected " +
                         std::to_string(next) + " (patches follow the internal faces and each other)");
       next = start + count;
+      m.patches[i].face_begin = start;
+      m.patches[i].face_end = start + count;
+      m.patches[i].boundary = m.patches[i].type != "processor" && m.patches[i].type != "processorCyclic";
       // The patch's points, each once (a stamp per point), ascending: sorted when few, else
       // gathered by one pass over the stamps.
       std::vector<std::uint32_t>& pts = m.patches[i].points;

@@ -12,6 +12,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <string>
 #include <vector>
 
 namespace csrbf::morph {
@@ -21,9 +22,13 @@ struct Prescribed {
   std::vector<std::uint32_t> points;  ///< ascending
   std::vector<Vec3> displacements;
   std::vector<char> fixed;
+  /// The motion entry of a slip point (its displacement is the mapping's, projected onto the
+  /// patch's surface, set by morph), or -1.
+  std::vector<std::int32_t> slip;
   /// A part of a decomposed mesh: for each motion patch with a displacements file, which of its
   /// lines this part used (the others are other parts' points, or wrong).
   std::vector<std::vector<char>> used;
+  /// Points that move: not fixed, not slip, with a non-zero displacement.
   std::size_t moving() const;
 };
 
@@ -43,9 +48,18 @@ struct MorphOptions {
   double greedy = 0.0;
 };
 
+/// What one patch of the mesh did: its kind ("moving", "fixed", "slip" or "free") and why
+/// ("listed", "listed as 'wall.*'", "group 'wall'", "type symmetryPlane", "planar", "curved", ...).
+struct PatchReport {
+  std::string name, kind, why;
+};
+
 struct MorphReport {
-  std::size_t prescribed = 0, moving = 0, fixed = 0;
-  std::size_t controls = 0;  ///< sources of the fit (all prescribed points, or greedy's subset)
+  /// moving: prescribed points with a non-zero displacement (a fixed one, or one that a motion
+  /// moves by 0, does not count); slip: points kept on their patch's surface (moved or not).
+  std::size_t prescribed = 0, moving = 0, fixed = 0, slip = 0;
+  std::vector<PatchReport> patches;  ///< every patch of the mesh
+  std::size_t controls = 0;          ///< sources of the fit (all prescribed points, or greedy's subset)
   std::size_t greedy_rounds = 0;
   double max_displacement = 0;  ///< largest prescribed, at phase 1
   /// Largest distance between a prescribed point's interpolated and prescribed position, before

@@ -22,9 +22,14 @@
 namespace csrbf::morph {
 
 struct PatchMotion {
-  enum class Kind { Fixed, Translate, Rotate, Displacements };
+  /// Slip: each point moves only within its patch's surface, as the mapping of the other patches'
+  /// motion carries it (a plane stays a plane; a curved patch is projected back onto its faces).
+  /// Free: the patch's points are no controls; they move as the mapping carries them (as interior
+  /// points do).
+  enum class Kind { Fixed, Translate, Rotate, Displacements, Slip, Free };
   std::string patch;
-  std::string where;  ///< "motion.json: patches.wing", for messages
+  std::string where;        ///< "motion.json: patches.wing", for messages
+  bool by_default = false;  ///< not listed: the kind is the default of its type or shape
   Kind kind = Kind::Fixed;
   Vec3 translation = Vec3::Zero();
   Vec3 axis = Vec3::UnitZ();  ///< unit
@@ -50,7 +55,10 @@ struct Motion {
   std::optional<Polynomial> polynomial;
   /// VTK meshes: the integer point or cell data array whose values name the patches.
   std::string patch_array;
-  std::vector<PatchMotion> patches;  ///< by name
+  /// By name, group name (OpenFOAM's inGroups) or regular expression (OpenFOAM's "wall.*"), in the
+  /// file's order: a patch named exactly takes that entry, else the first group, else the first
+  /// expression that matches it in full. Patches no entry names get a default (morph.hpp).
+  std::vector<PatchMotion> patches;
 };
 
 /// Reads and checks a motion file; displacement files are read relative to its folder. Errors name

@@ -18,6 +18,14 @@ struct Patch {
   std::string name;
   std::string type;  ///< as the format names it ("wall", "patch", "empty"), or empty
   std::vector<std::uint32_t> points;
+  std::vector<std::string> groups;  ///< OpenFOAM's inGroups
+  /// The patch's faces, [face_begin, face_end) of VolumeMesh::poly (OpenFOAM), or none: a curved
+  /// patch's surface, which slip projects onto.
+  std::uint64_t face_begin = 0, face_end = 0;
+  /// A boundary of the mesh (an OpenFOAM patch other than processor ones, a Gmsh group of one
+  /// dimension below the mesh's, a CGNS boundary condition): what a motion leaves unlisted gets a
+  /// default kind (slip where planar, fixed otherwise); other patches are left free.
+  bool boundary = false;
 };
 
 /// Polyhedral cells as OpenFOAM stores them: faces (point loops), each with an owner cell and,
