@@ -1,3 +1,4 @@
+#include "csrbf/geometry.hpp"
 #include "picker_document.hpp"
 
 #include <algorithm>
@@ -161,30 +162,10 @@ void Document::export_mesh(const std::filesystem::path& path) const {
 }
 
 double distance_to_mesh(const std::vector<Vec3>& pos, const PolygonList& faces, const Vec3& p) {
-  // Ericson, Real-Time Collision Detection, 5.1.5: the closest point on a triangle by regions.
-  const auto closest = [](const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) -> Vec3 {
-    const Vec3 ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-    if (d1 <= 0 && d2 <= 0) return a;
-    const Vec3 bp = p - b;
-    const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-    if (d3 >= 0 && d4 <= d3) return b;
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + ab * (d1 / (d1 - d3));
-    const Vec3 cp = p - c;
-    const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-    if (d6 >= 0 && d5 <= d6) return c;
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + ac * (d2 / (d2 - d6));
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
-    const double den = 1 / (va + vb + vc);
-    return a + ab * (vb * den) + ac * (vc * den);
-  };
   double best = std::numeric_limits<double>::infinity();
   for (const auto& f : faces)
     for (std::size_t k = 1; k + 1 < f.size(); ++k)
-      best = std::min(best, (closest(p, pos[f[0]], pos[f[k]], pos[f[k + 1]]) - p).norm());
+      best = std::min(best, (closest_point_on_triangle(p, pos[f[0]], pos[f[k]], pos[f[k + 1]]) - p).norm());
   return best;
 }
 

@@ -1,5 +1,6 @@
 #include "patch_kinds.hpp"
 
+#include "csrbf/geometry.hpp"
 #include "csrbf/io/error.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -99,8 +100,8 @@ Motion resolve_patches(const VolumeMesh& mesh, const Motion& motion, std::span<c
   for (std::size_t e = 0; e < motion.patches.size(); ++e) {
     const PatchMotion& pm = motion.patches[e];
     if (!hits[e])
-      throw FileError(pm.where + ": the mesh has no patch '" + pm.patch + "'; its patches: " +
-                      (names.empty() ? "(none)" : names) +
+      throw FileError(pm.where + ": the mesh has no patch '" + pm.patch +
+                      "'; its patches: " + (names.empty() ? "(none)" : names) +
                       " (an entry may also name a group, or be a regular expression matching whole names)");
     if (pm.kind == PatchMotion::Kind::Displacements && hits[e] > 1)
       throw FileError(pm.where + ": a displacements file moves one patch, but '" + pm.patch + "' names " +
@@ -181,37 +182,12 @@ SurfaceProjector::SurfaceProjector(const VolumeMesh& mesh, const Patch& patch, c
   index_ = NeighborIndex(centres_, 2 * reach_);
 }
 
-namespace {
-
-/// The closest point of triangle (a, b, c) to p (Ericson, Real-Time Collision Detection, 5.1.5).
-Vec3 closest_on_triangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
-  const Vec3 ab = b - a, ac = c - a, ap = p - a;
-  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
-  if (d1 <= 0 && d2 <= 0) return a;
-  const Vec3 bp = p - b;
-  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
-  if (d3 >= 0 && d4 <= d3) return b;
-  const double vc = d1 * d4 - d3 * d2;
-  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
-  const Vec3 cp = p - c;
-  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
-  if (d6 >= 0 && d5 <= d6) return c;
-  const double vb = d5 * d2 - d1 * d6;
-  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
-  const double va = d3 * d6 - d5 * d4;
-  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
-  const double denom = 1 / (va + vb + vc);
-  return a + ab * (vb * denom) + ac * (vc * denom);
-}
-
-}  // namespace
-
 Vec3 SurfaceProjector::project(const Vec3& y) const {
   Vec3 best = y;
   double best_d2 = std::numeric_limits<double>::infinity();
   const auto consider = [&](std::size_t k) {
     const auto& tr = triangles_[k];
-    const Vec3 q = closest_on_triangle(y, tr[0], tr[1], tr[2]);
+    const Vec3 q = closest_point_on_triangle(y, tr[0], tr[1], tr[2]);
     const double d2 = (q - y).squaredNorm();
     if (d2 < best_d2) {
       best_d2 = d2;
