@@ -45,6 +45,7 @@ nlohmann::json quality_json(const MeshQuality& m) {
                   {"quads", c.quads},
                   {"min_scaled_jacobian", c.min_scaled_jacobian},
                   {"mean_scaled_jacobian", c.mean_scaled_jacobian},
+                  {"min_volume_ratio", c.min_volume_ratio},
                   {"inverted_cells", c.inverted_cells}};
   }
   if (!m.poly) return j;
@@ -58,6 +59,7 @@ nlohmann::json quality_json(const MeshQuality& m) {
                     {"bad_face_pyramids", q.bad_pyramids},
                     {"inverted_cells", q.inverted_cells},
                     {"min_volume", q.min_volume},
+                    {"min_volume_ratio", q.min_volume_ratio},
                     {"total_volume", q.total_volume}};
   return j;
 }
@@ -80,6 +82,7 @@ std::string quality_table(const MeshQuality& qa, const MeshQuality& qb) {
     row("min scaled Jacobian", num(a.min_scaled_jacobian, "%.4f"), num(b.min_scaled_jacobian, "%.4f"));
     row("mean scaled Jacobian", num(a.mean_scaled_jacobian, "%.4f"), num(b.mean_scaled_jacobian, "%.4f"));
     row("inverted cells", std::to_string(a.inverted_cells), std::to_string(b.inverted_cells));
+    row("min volume after/before", "", num(b.min_volume_ratio, "%.4f"));
   }
   if (!qa.poly || !qb.poly) return s.str();
   const PolyQuality &a = *qa.poly, &b = *qb.poly;
@@ -90,6 +93,7 @@ std::string quality_table(const MeshQuality& qa, const MeshQuality& qb) {
   row("bad face pyramids", std::to_string(a.bad_pyramids), std::to_string(b.bad_pyramids));
   row("inverted cells", std::to_string(a.inverted_cells), std::to_string(b.inverted_cells));
   row("min cell volume", num(a.min_volume, "%.6g"), num(b.min_volume, "%.6g"));
+  row("min volume after/before", "", num(b.min_volume_ratio, "%.4f"));
   return s.str();
 }
 
@@ -119,6 +123,7 @@ MeshQuality combine(MorphBackend& b, MeshQuality q) {
     p.bad_pyramids = sum(p.bad_pyramids);
     p.inverted_cells = sum(p.inverted_cells);
     p.min_volume = min(mine ? p.min_volume : std::numeric_limits<double>::infinity());
+    p.min_volume_ratio = min(mine ? p.min_volume_ratio : std::numeric_limits<double>::infinity());
     p.total_volume = b.sum(p.total_volume);
     q.poly = p;
   }
@@ -135,6 +140,7 @@ MeshQuality combine(MorphBackend& b, MeshQuality q) {
     c.triangles = sum(c.triangles);
     c.quads = sum(c.quads);
     c.min_scaled_jacobian = min(mine ? c.min_scaled_jacobian : 1.0);
+    c.min_volume_ratio = min(mine ? c.min_volume_ratio : 1.0);
     c.mean_scaled_jacobian = n > 0 ? mean_sum / n : 1.0;
     c.inverted_cells = sum(c.inverted_cells);
     q.cells = c;

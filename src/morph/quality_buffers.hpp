@@ -13,6 +13,7 @@ namespace csrbf::morph::detail {
 struct PolyBuffers {
   std::vector<Vec3> fc, fa, cc;
   std::vector<double> vol;
+  std::vector<double> reference_volumes;  ///< QualityMeter's first measure's, for volume ratios
   std::vector<char> inverted;
   std::vector<std::uint64_t> first;  ///< the cell-to-face index: the topology's, built once
   std::vector<std::uint32_t> faces_of;

@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 
 namespace csrbf::morph {
 
@@ -63,6 +64,43 @@ struct Cells {
   vtkNew<vtkHexahedron> hex;
 };
 
+/// A cell's size as a sum of its tetrahedra's signed volumes (a 2-D cell: its triangles' area
+/// vectors projected on the reference's), over points p; the same split before and after a morph,
+/// so that after / before is the cell's volume ratio whatever the corner order's orientation.
+double cell_size(std::uint8_t type, const std::uint32_t* v, std::span<const Vec3> p, std::span<const Vec3> ref) {
+  static constexpr int hex[6][4] = {{0, 1, 2, 6}, {0, 2, 3, 6}, {0, 3, 7, 6}, {0, 7, 4, 6}, {0, 4, 5, 6}, {0, 5, 1, 6}};
+  static constexpr int wedge[3][4] = {{0, 1, 2, 5}, {0, 1, 5, 4}, {0, 4, 5, 3}};
+  static constexpr int pyramid[2][4] = {{0, 1, 2, 4}, {0, 2, 3, 4}};
+  static constexpr int tet[1][4] = {{0, 1, 2, 3}};
+  const auto sum = [&](const auto& tets) {
+    double s = 0;
+    for (const auto& k : tets) {
+      const Vec3& a = p[v[k[0]]];
+      s += (p[v[k[1]]] - a).cross(p[v[k[2]]] - a).dot(p[v[k[3]]] - a);
+    }
+    return s / 6;
+  };
+  switch (type) {
+    case VTK_TETRA:
+      return sum(tet);
+    case VTK_HEXAHEDRON:
+      return sum(hex);
+    case VTK_WEDGE:
+      return sum(wedge);
+    case VTK_PYRAMID:
+      return sum(pyramid);
+    default: {  // a triangle or a quadrilateral (fans from corner 0)
+      const int n = type == VTK_TRIANGLE ? 3 : 4;
+      Vec3 now = Vec3::Zero(), before = Vec3::Zero();
+      for (int k = 1; k + 1 < n; ++k) {
+        now += (p[v[k]] - p[v[0]]).cross(p[v[k + 1]] - p[v[0]]);
+        before += (ref[v[k]] - ref[v[0]]).cross(ref[v[k + 1]] - ref[v[0]]);
+      }
+      return now.dot(before.normalized()) / 2;
+    }
+  }
+}
+
 }  // namespace
 
 CellQuality cell_quality(const CellTopology& t, std::span<const Vec3> points, std::span<const Vec3> reference) {
@@ -73,7 +111,7 @@ CellQuality cell_quality(const CellTopology& t, std::span<const Vec3> points, st
   tbb::enumerable_thread_specific<Cells> cells;
   struct Acc {
     std::size_t measured = 0, inverted = 0, tet = 0, hex = 0, prism = 0, pyramid = 0, tri = 0, quad = 0;
-    double min = 1, sum = 0;
+    double min = 1, sum = 0, ratio = std::numeric_limits<double>::infinity();
   };
   const Acc acc = tbb::parallel_deterministic_reduce(
       tbb::blocked_range<std::size_t>(0, t.size(), 2048), Acc{},
@@ -111,6 +149,13 @@ CellQuality cell_quality(const CellTopology& t, std::span<const Vec3> points, st
               continue;
           }
           if (!std::isfinite(j)) j = -1.0;
+          // The volume ratio, after / before, of cells that had a volume (a degenerate cell of the
+          // input has none to compare with).
+          const double before = cell_size(t.type[i], v, reference, reference);
+          if (std::abs(before) > 1e-300) {
+            const double ratio = cell_size(t.type[i], v, points, reference) / before;
+            a.ratio = std::min(a.ratio, std::isfinite(ratio) ? ratio : -1.0);
+          }
           ++a.measured;
           a.inverted += j <= 0;
           a.min = std::min(a.min, j);
@@ -129,9 +174,11 @@ CellQuality cell_quality(const CellTopology& t, std::span<const Vec3> points, st
         x.quad += y.quad;
         x.min = std::min(x.min, y.min);
         x.sum += y.sum;
+        x.ratio = std::min(x.ratio, y.ratio);
         return x;
       });
   q.cells = acc.measured;
+  q.min_volume_ratio = std::isfinite(acc.ratio) ? acc.ratio : 1.0;
   q.inverted_cells = acc.inverted;
   q.tetrahedra = acc.tet;
   q.hexahedra = acc.hex;
@@ -185,7 +232,20 @@ QualityMeter::~QualityMeter() = default;
 
 MeshQuality QualityMeter::measure(std::span<const Vec3> points) {
   MeshQuality q;
-  if (mesh_->poly.faces()) q.poly = detail::poly_quality(mesh_->poly, points, *buffers_);
+  if (mesh_->poly.faces()) {
+    q.poly = detail::poly_quality(mesh_->poly, points, *buffers_);
+    // The first measure is the reference of the volume ratios of the later ones.
+    auto& ref = buffers_->reference_volumes;
+    const auto& vol = buffers_->vol;
+    if (ref.empty()) {
+      ref = vol;
+    } else {
+      double ratio = std::numeric_limits<double>::infinity();
+      for (std::size_t c = 0; c < vol.size() && c < ref.size(); ++c)
+        if (ref[c] > 1e-300) ratio = std::min(ratio, vol[c] / ref[c]);
+      q.poly->min_volume_ratio = std::isfinite(ratio) ? ratio : 1.0;
+    }
+  }
   if (mesh_->cells.size()) q.cells = cell_quality(mesh_->cells, points, mesh_->points);
   return q;
 }

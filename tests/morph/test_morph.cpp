@@ -335,6 +335,13 @@ TEST_F(BoxMorph, PatchesResolveWithTheirRules) {
       EXPECT_FALSE(p.fixed[i]) << p.points[i];
     }
 
+  // Issue 31, point 7: a patch moved by 0 and a rotation's points on its axis do not count as moving.
+  const Motion still = motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, 0]}, "xmin": "fixed"}})");
+  EXPECT_EQ(prescribe(c.mesh, still).moving(), 0u);
+  const Motion turn = motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [0, 0, 1], "degrees": 5,
+                                                                 "origin": [0, 0, 0]}}}})");
+  EXPECT_EQ(prescribe(c.mesh, turn).moving(), 48u);  // the corner at the origin stays
+
   // Two moving patches that disagree at their shared edge.
   const std::string e = error_of([&] {
     prescribe(
@@ -867,4 +874,52 @@ TEST_F(BoxMorph, UnlistedPlanarPatchesSlipWithinTheirPlanes) {
   // and a pattern that names nothing is an error that lists the patches.
   const std::string e = error_of([&] { run(R"(, "wall.*": "fixed")"); });
   EXPECT_NE(e.find("the mesh has no patch 'wall.*'; its patches: "), std::string::npos) << e;
+}
+
+// Issue 31, point 7: the smallest cell volume ratio, after / before. Under an affine map x -> Ax
+// every cell's volume is multiplied by det A: the closed form, for OpenFOAM's polyhedra (against
+// the meter's first measure) and for every standard cell type (against the reference points).
+TEST_F(BoxMorph, TheVolumeRatioIsTheDeterminantOfAnAffineMap) {
+  Eigen::Matrix3d a;
+  a << 1.1, 0.2, 0.0, -0.1, 0.9, 0.3, 0.05, 0.0, 0.8;
+  const double det = a.determinant();
+  const auto mapped = [&](const std::vector<Vec3>& p, const Eigen::Matrix3d& m) {
+    std::vector<Vec3> out(p.size());
+    for (std::size_t i = 0; i < p.size(); ++i) out[i] = m * p[i] + Vec3(0.3, -2, 5);
+    return out;
+  };
+  QualityMeter meter(c.mesh);
+  EXPECT_EQ(meter.measure(c.mesh.points).poly->min_volume_ratio, 1.0);
+  EXPECT_NEAR(meter.measure(mapped(c.mesh.points, a)).poly->min_volume_ratio, det, 1e-12);
+  // Squeezing the box's bottom layer to a fifth of its height: 0.2.
+  std::vector<Vec3> squeezed = c.mesh.points;
+  for (Vec3& p : squeezed) p.z() = p.z() < 1.0 / 6 + 1e-9 ? p.z() / 5 : p.z() - (1.0 / 6) * 4 / 5;
+  EXPECT_NEAR(meter.measure(squeezed).poly->min_volume_ratio, 0.2, 1e-12);
+  // A tetrahedron, a hexahedron, a prism, a pyramid; then a triangle and a quadrilateral alone.
+  std::vector<Vec3> p{{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1},  // tet
+                      {2, 0, 0}, {3, 0, 0}, {3, 1, 0}, {2, 1, 0}, {2, 0, 1},      {3, 0, 1},
+                      {3, 1, 1}, {2, 1, 1},                                                   // hex
+                      {4, 0, 0}, {5, 0, 0}, {4, 1, 0}, {4, 0, 1}, {5, 0, 1},      {4, 1, 1},  // prism
+                      {6, 0, 0}, {7, 0, 0}, {7, 1, 0}, {6, 1, 0}, {6.5, 0.5, 0.8}};           // pyramid
+  CellTopology solid;
+  const std::uint32_t tet[] = {0, 1, 2, 3}, hex[] = {4, 5, 6, 7, 8, 9, 10, 11}, prism[] = {12, 13, 14, 15, 16, 17},
+                      pyramid[] = {18, 19, 20, 21, 22};
+  solid.add(10, tet);
+  solid.add(12, hex);
+  solid.add(13, prism);
+  solid.add(14, pyramid);
+  EXPECT_EQ(cell_quality(solid, p, p).min_volume_ratio, 1.0);
+  EXPECT_NEAR(cell_quality(solid, mapped(p, a), p).min_volume_ratio, det, 1e-12);
+  // One cell crushed to a third: the smallest ratio is its.
+  std::vector<Vec3> crushed = p;
+  for (int k : {8, 9, 10, 11}) crushed[std::size_t(k)].z() = 1.0 / 3;
+  EXPECT_NEAR(cell_quality(solid, crushed, p).min_volume_ratio, 1.0 / 3, 1e-12);
+  // In-plane cells (a 2-D mesh): a map that keeps the plane z = 0 scales areas by its 2x2 block.
+  CellTopology flat;
+  const std::uint32_t tri[] = {0, 1, 2}, quad[] = {4, 5, 6, 7};
+  flat.add(5, tri);
+  flat.add(9, quad);
+  Eigen::Matrix3d b = Eigen::Matrix3d::Identity();
+  b.topLeftCorner<2, 2>() << 1.3, 0.4, -0.2, 0.7;
+  EXPECT_NEAR(cell_quality(flat, mapped(p, b), p).min_volume_ratio, b.determinant(), 1e-12);
 }

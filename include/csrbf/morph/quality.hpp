@@ -29,6 +29,9 @@ struct PolyQuality {
   std::size_t bad_pyramids = 0;       ///< face pyramids of negative volume ("faces incorrectly oriented")
   std::size_t inverted_cells = 0;     ///< cells with a non-positive volume or a bad pyramid
   double min_volume = 0, total_volume = 0;
+  /// The smallest cell volume after / before (QualityMeter: against its first measure; 1 for that
+  /// one and for poly_quality alone). Below 0: a cell turned inside out; near 0: one crushed.
+  double min_volume_ratio = 1;
 };
 
 /// The checkMesh measures of t over points. Parallel over faces; deterministic.
@@ -40,6 +43,9 @@ struct CellQuality {
   double min_scaled_jacobian = 1;  ///< in [-1, 1]; 1 for a perfect cell
   double mean_scaled_jacobian = 1;
   std::size_t inverted_cells = 0;  ///< cells with a corner Jacobian <= 0
+  /// The smallest cell volume (2-D cells: area) over points / over reference, by the same split
+  /// into tetrahedra (triangles): 1 when nothing moved.
+  double min_volume_ratio = 1;
 };
 
 /// reference: the points before the morph, which give 2-D cells their normals (may be points).
