@@ -24,6 +24,7 @@
 #endif
 
 #include <charconv>
+#include <cstring>
 #include <sys/resource.h>
 #include <unistd.h>
 #include <csignal>
@@ -438,6 +439,12 @@ int main(int argc, char** argv) {
   const bool quiet = false;
   const auto leave = [](int code) { return code; };
 #endif
+  // OpenFOAM's spellings, which CLI11 would read as bundled short flags: -time T and -latestTime.
+  static char time_option[] = "--time", latest_time[] = "--time=latest";
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "-time") == 0) argv[i] = time_option;
+    if (std::strcmp(argv[i], "-latestTime") == 0) argv[i] = latest_time;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -58,6 +58,10 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
          "leave of it are refused")
       ->check(finite_in(1e-6, 1e6, "--memory-limit"))
       ->capture_default_str();
+  cmd->add_option("--time", a.time,
+                  "OpenFOAM: morph the mesh of this time folder, latest or a time (0.5), and write the moved "
+                  "points there; a time without its own polyMesh is constant's, as OpenFOAM reads it. Also "
+                  "spelled -time T and -latestTime, as OpenFOAM's utilities take them");
   cmd->add_flag("--json", a.json, "Print the report as one JSON object");
   cmd->add_flag("--force", a.force, "Write the mesh even if the morph inverts cells");
   return cmd;
@@ -80,6 +84,7 @@ morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
   job.phase = a.phase;
   job.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
   job.force = a.force;
+  job.time = a.time;
   return job;
 }
 
@@ -194,6 +199,7 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
       o.result.report.prescribed = std::size_t(backend.sum(double(local.result.report.prescribed)));
       o.result.report.moving = std::size_t(backend.sum(double(local.result.report.moving)));
       o.result.report.fixed = std::size_t(backend.sum(double(local.result.report.fixed)));
+      o.result.report.slip = std::size_t(backend.sum(double(local.result.report.slip)));
       o.result.report.controls = backend.stats().controls;  // shared points once
       o.ms_read = backend.max(local.ms_read);
       o.ms_quality = backend.max(local.ms_quality);

@@ -11,6 +11,7 @@ struct MorphArgs {
   std::string mesh, out, motion;
   std::optional<double> radius, greedy;
   std::string kernel, polynomial, solver = "auto";
+  std::string time;  ///< OpenFOAM's -time: latest or a time
   double phase = 1.0;
   double memory_limit_gib = 4.0;
   bool json = false, force = false, in_place = false;

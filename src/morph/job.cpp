@@ -1,4 +1,5 @@
 #include "csrbf/morph/job.hpp"
+#include "csrbf/morph/openfoam.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/memory.hpp"
@@ -214,7 +215,9 @@ MorphOutcome run_job(const MorphJob& job) {
     OpenOptions open;
     open.patch_array = motion.patch_array;
     open.max_file_bytes = job.memory_limit_bytes;  // a mesh file, uncompressed, within --memory-limit
+    open.time = job.time;
     file = open_volume(b.mesh_path(job.mesh), open);
+    if (file->foam()) o.time = file->foam()->time;
     const VolumeMesh& mesh = file->mesh();
     if (!motion.patch_array.empty() && file->format() != "vtu" && file->format() != "vtk")
       throw io::FileError(o.motion + ": patch_array: names a VTK data array, but " + o.mesh + " is " + file->format() +
@@ -326,6 +329,7 @@ std::string outcome_json(const MorphOutcome& o) {
   // a polynomial moves the whole space); staying controls farther than R from every moving one.
   j["reach"] = std::isfinite(rep.reach) ? nlohmann::json(rep.reach) : nlohmann::json(nullptr);
   j["far_fixed"] = rep.far_fixed;
+  j["time"] = o.time.empty() ? nlohmann::json("constant") : nlohmann::json(o.time);
   // Every patch: what it did (moving, fixed, slip or free) and why (listed, group, type, planar...).
   j["patches"] = nlohmann::json::array();
   for (const auto& p : rep.patches) j["patches"].push_back({{"name", p.name}, {"kind", p.kind}, {"why", p.why}});
@@ -335,8 +339,8 @@ std::string outcome_json(const MorphOutcome& o) {
 std::string outcome_text(const MorphOutcome& o) {
   const MorphReport& rep = o.result.report;
   std::ostringstream s;
-  s << "csrbf morph: " << o.mesh << " (" << o.format << ", " << o.encoding << "): " << o.points << " points, "
-    << o.cells << " cells, " << o.patches << " patches\n"
+  s << "csrbf morph: " << o.mesh << (o.time.empty() ? "" : " at time " + o.time) << " (" << o.format << ", "
+    << o.encoding << "): " << o.points << " points, " << o.cells << " cells, " << o.patches << " patches\n"
     << "  motion " << o.motion << ": " << o.motion_summary << "\n"
     << "  " << rep.prescribed << " prescribed points (" << rep.moving << " moving, " << rep.fixed << " fixed, "
     << rep.slip << " slip), " << rep.controls << " controls";

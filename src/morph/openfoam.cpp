@@ -543,7 +543,53 @@ bool is_openfoam(const fs::path& path) {
   return fs::is_directory(path, ec) && !find_poly_mesh(path).empty();
 }
 
-FoamCase read_openfoam(const fs::path& path, double max_file_bytes) {
+std::vector<std::string> foam_times(const fs::path& case_folder) {
+  std::vector<std::pair<double, std::string>> times;
+  std::error_code ec;
+  for (fs::directory_iterator it(case_folder, ec), end; !ec && it != end; it.increment(ec)) {
+    const std::string name = it->path().filename().string();
+    double v = 0;
+    const auto r = std::from_chars(name.data(), name.data() + name.size(), v);
+    if (r.ec == std::errc() && r.ptr == name.data() + name.size() && std::isfinite(v) && it->is_directory(ec))
+      times.emplace_back(v, name);
+  }
+  std::sort(times.begin(), times.end());
+  std::vector<std::string> out;
+  for (auto& t : times) out.push_back(std::move(t.second));
+  return out;
+}
+
+namespace {
+
+/// The time folder that `time` names (foam_times' spelling), or an error listing the case's times.
+std::string find_time(const fs::path& root, const std::string& time) {
+  const std::vector<std::string> times = foam_times(root);
+  std::string list;
+  for (const auto& t : times) list += (list.empty() ? "" : ", ") + t;
+  if (list.empty()) list = "none";
+  if (time == "latest") {
+    if (times.empty()) throw FileError(root.string() + ": -time latest: the case has no time folders");
+    return times.back();
+  }
+  double want = 0;
+  const auto r = std::from_chars(time.data(), time.data() + time.size(), want);
+  if (r.ec != std::errc() || r.ptr != time.data() + time.size() || !std::isfinite(want))
+    throw FileError("-time '" + time + "': expected latest or a time (a number); the case's times: " + list);
+  for (const auto& t : times) {
+    const double v = std::strtod(t.c_str(), nullptr);
+    if (std::abs(v - want) <= 1e-12 * std::max(1.0, std::abs(want))) return t;
+  }
+  throw FileError(root.string() + ": no time folder " + time + "; the case's times: " + list);
+}
+
+bool has_file(const fs::path& dir, const char* name) {
+  std::error_code ec;
+  return fs::exists(dir / name, ec) || fs::exists(dir / (std::string(name) + ".gz"), ec);
+}
+
+}  // namespace
+
+FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::string& time) {
   std::error_code ec;
   if (!fs::is_directory(path, ec))
     throw FileError(path.string() + ": not a folder (an OpenFOAM case, or its constant/polyMesh, is a folder)");
@@ -553,12 +599,24 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes) {
   if (c.poly_mesh.empty())
     throw FileError(path.string() + ": not an OpenFOAM case: no constant/polyMesh, and no faces or owner file");
   VolumeMesh& m = c.mesh;
+  fs::path points_dir = c.poly_mesh, target_dir = c.poly_mesh;
+  if (!time.empty()) {
+    if (c.poly_mesh != path / "constant" / "polyMesh")
+      throw FileError(path.string() +
+                      ": -time needs the case folder (holding constant/ and the time folders), "
+                      "not a polyMesh folder");
+    c.time = find_time(path, time);
+    target_dir = path / c.time / "polyMesh";
+    if (has_file(target_dir, "points")) points_dir = target_dir;
+    if (has_file(target_dir, "faces")) c.poly_mesh = target_dir;  // the topology changed at that time
+  }
 
   {
-    Loaded l = load(c.poly_mesh, "points", max_file_bytes);
+    Loaded l = load(points_dir, "points", max_file_bytes);
     Parser p(l.text, l.path.string());
     const Header h = read_header(p);
     c.points_file.path = l.path;
+    c.points_file.target = target_dir / l.path.filename();
     c.points_file.gzip = l.gz;
     c.points_file.binary = h.binary;
     c.points_file.scalar_bytes = h.scalar_bytes;
@@ -753,7 +811,7 @@ void write_bytes(const fs::path& file, const std::string& bytes) {
 void place_points(const FoamCase& c, const std::string& bytes, const fs::path& copy_root) {
   std::error_code ec;
   // Lexically: the path as the case names it, links not followed (fs::relative would resolve them).
-  const fs::path rel = c.points_file.path.lexically_normal().lexically_relative(c.root.lexically_normal());
+  const fs::path rel = c.points_file.target.lexically_normal().lexically_relative(c.root.lexically_normal());
   if (rel.empty() || *rel.begin() == "..")
     throw FileError("cannot place the points of '" + c.root.string() + "' in the copy");
   // A folder on the way that the copy kept as a link (a case whose polyMesh links to another case's)
@@ -770,6 +828,7 @@ void place_points(const FoamCase& c, const std::string& bytes, const fs::path& c
       throw FileError("cannot copy '" + linked.string() + "' (linked from the case) into the copy: " + ec.message());
   }
   const fs::path copied = copy_root / rel;
+  fs::create_directories(copied.parent_path(), ec);  // a time folder whose mesh was constant's
   const fs::path fresh = copied.parent_path() / (".csrbf-new-" + copied.filename().string());
   write_bytes(fresh, bytes);
   fs::rename(fresh, copied, ec);
@@ -803,7 +862,9 @@ void write_openfoam_points_into(const FoamCase& c, std::span<const Vec3> points,
 }
 
 fs::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points) {
-  const fs::path& target = c.points_file.path;
+  const fs::path& target = c.points_file.target;
+  std::error_code ec;
+  fs::create_directories(target.parent_path(), ec);
   const fs::path staged = target.parent_path() / (".csrbf-new-" + target.filename().string());
   try {
     write_bytes(staged, encoded_points(c, points));
@@ -816,10 +877,10 @@ fs::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points) 
 
 void commit_openfoam_points(const FoamCase& c, const fs::path& staged) {
   std::error_code ec;
-  fs::rename(staged, c.points_file.path, ec);
+  fs::rename(staged, c.points_file.target, ec);
   if (ec) {
     discard_openfoam_points(staged);
-    throw FileError("cannot write '" + c.points_file.path.string() + "': " + ec.message());
+    throw FileError("cannot write '" + c.points_file.target.string() + "': " + ec.message());
   }
 }
 
@@ -830,7 +891,9 @@ void discard_openfoam_points(const fs::path& staged) noexcept {
 
 void write_openfoam_in_place(const FoamCase& c, std::span<const Vec3> points) {
   const std::string bytes = encoded_points(c, points);
-  io::write_atomically(c.points_file.path,
+  std::error_code ec;
+  fs::create_directories(c.points_file.target.parent_path(), ec);  // TIME/polyMesh, new where constant's
+  io::write_atomically(c.points_file.target,
                        [&](std::ostream& o) { o.write(bytes.data(), std::streamsize(bytes.size())); });
 }
 

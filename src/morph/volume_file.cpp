@@ -18,7 +18,7 @@ namespace {
 
 class FoamFile final : public VolumeFile {
  public:
-  FoamFile(const fs::path& path, const OpenOptions& o) : case_(read_openfoam(path, o.max_file_bytes)) {}
+  FoamFile(const fs::path& path, const OpenOptions& o) : case_(read_openfoam(path, o.max_file_bytes, o.time)) {}
   const VolumeMesh& mesh() const override { return case_.mesh; }
   std::string format() const override { return "openfoam"; }
   std::string encoding() const override {
@@ -69,6 +69,9 @@ std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions&
     return detail::open_openfoam(path, options);
   }
   const std::string ext = detail::lower_extension(path);
+  if (!options.time.empty())
+    throw io::FileError(path.string() + ": -time '" + options.time +
+                        "' picks an OpenFOAM case's time folder; this is a mesh file, which has no times");
   if (fs::exists(path, ec) && !fs::is_regular_file(path, ec))
     throw io::FileError(path.string() + ": not a regular file (a mesh file is read whole, not from a pipe or device)");
   if (ext == ".vtu" || ext == ".vtk") return detail::open_vtk(path, options);

@@ -580,7 +580,10 @@ void DecomposedBackend::write_in_place(const morph::VolumeFile& file, std::span<
   // 3. the old files' second names are removed.
   int rank = 0;
   MPI_Comm_rank(comm_, &rank);
-  const fs::path target = file.foam() ? file.foam()->points_file.path : d_.parts.at(std::size_t(rank));
+  const fs::path target = file.foam() ? file.foam()->points_file.target : d_.parts.at(std::size_t(rank));
+  // A time folder whose mesh was constant's gets its first points file: there is no old one to keep.
+  std::error_code exists_ec;
+  const bool fresh = !fs::exists(fs::symlink_status(target, exists_ec));
   const fs::path kept = target.parent_path() / (".csrbf-old-" + target.filename().string());
   fs::path staged;
   bool linked = false, renamed = false;
@@ -599,6 +602,7 @@ void DecomposedBackend::write_in_place(const morph::VolumeFile& file, std::span<
       file.write_copy(points, staged);
     }
     std::error_code ec;
+    if (fresh) return;
     fs::remove(kept, ec);
     fs::create_hard_link(target, kept, ec);
     if (ec)
@@ -620,10 +624,14 @@ void DecomposedBackend::write_in_place(const morph::VolumeFile& file, std::span<
   try {
     agree(e2);
   } catch (...) {
-    if (renamed) {  // put the old file back
+    if (renamed) {  // put the old file back (or take away the first one, which this run made)
       std::error_code ec;
-      fs::rename(kept, target, ec);
-      if (!ec) linked = false;
+      if (fresh) {
+        fs::remove(target, ec);
+      } else {
+        fs::rename(kept, target, ec);
+        if (!ec) linked = false;
+      }
     }
     tidy();
     throw;

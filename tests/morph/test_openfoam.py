@@ -228,6 +228,62 @@ class OpenFoamCases(MorphCase):
         self.assertEqual(sorted(os.listdir(poly)), ["boundary", "faces", "neighbour", "owner", "points"])
         self.assertTrue(check_mesh(case)["ok"])
 
+    def test_time_folders_are_read_and_written_as_openfoam_does(self):
+        # Issue 31, point 6: a case whose mesh already moved (a time folder with polyMesh/points) is
+        # morphed from that mesh, and the moved points go into the time folder; constant/ stays.
+        case = self.pitz_daily()
+        poly = os.path.join(case, "constant", "polyMesh")
+        constant_points = read_text(os.path.join(poly, "points"))
+        motion = self.motion({"radius": 0.03, "patches": {"lowerWall": {"translate": [0, 0.0003, 0]},
+                                                          "upperWall": "fixed"}})
+        # No such time: an error that lists the case's times; nothing written.
+        r = run([CLI, "morph", case, "--in-place", "-time", "0.1", "--motion", motion])
+        self.assertEqual(r.returncode, 1, r.stderr)
+        self.assertIn("no time folder 0.1; the case's times: 0", r.stderr)
+        # A time folder without a mesh of its own reads constant's (as OpenFOAM does) and gets the
+        # moved points.
+        os.mkdir(os.path.join(case, "0.1"))
+        r = run([CLI, "morph", case, "--in-place", "-time", "0.1", "--motion", motion, "--json"])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(json.loads(r.stdout)["time"], "0.1")
+        self.assertEqual(read_text(os.path.join(poly, "points")), constant_points)
+        moved = os.path.join(case, "0.1", "polyMesh", "points")
+        self.assertTrue(os.path.exists(moved))
+        cm = run(["checkMesh", "-time", "0.1"], cwd=case)
+        self.assertIn("Mesh OK.", cm.stdout, cm.stdout[-2000:])
+        # The next morph, of the latest time (OpenFOAM's -latestTime), starts from that moved mesh:
+        # the lower wall has moved twice.
+        out = os.path.join(self.tmp, "twice")
+        moved_before = read_text(moved)
+        r = run([CLI, "morph", case, "-o", out, "-latestTime", "--motion", motion, "--json"])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(json.loads(r.stdout)["time"], "0.1")
+        self.assertEqual(read_text(os.path.join(out, "constant", "polyMesh", "points")), constant_points)
+        self.assertEqual(read_text(moved), moved_before)  # the input's time folder is not written
+
+        def lower_wall_y(points_file):
+            text = read_text(points_file).decode()
+            pts = re.findall(r"^\(([-+.0-9eE]+) ([-+.0-9eE]+) ([-+.0-9eE]+)\)$", text, re.M)
+            return [float(p[1]) for p in pts]
+
+        first = lower_wall_y(os.path.join(poly, "points"))
+        second = lower_wall_y(os.path.join(out, "0.1", "polyMesh", "points"))
+        once = lower_wall_y(moved)
+        moved_twice = [i for i in range(len(first)) if abs(second[i] - first[i] - 0.0006) < 1e-12]
+        moved_once = [i for i in range(len(first)) if abs(once[i] - first[i] - 0.0003) < 1e-12]
+        self.assertGreater(len(moved_once), 100)
+        self.assertEqual(moved_twice, moved_once)
+        cm = run(["checkMesh", "-time", "0.1"], cwd=out)
+        self.assertIn("Mesh OK.", cm.stdout, cm.stdout[-2000:])
+        # A mesh file has no times.
+        vtu = os.path.join(SOURCE, "examples", "vtk")
+        files = [f for f in os.listdir(vtu) if f.endswith(".vtu")]
+        if files:
+            r = run([CLI, "morph", os.path.join(vtu, files[0]), "-o", os.path.join(self.tmp, "x.vtu"),
+                     "-time", "latest", "--motion", motion])
+            self.assertEqual(r.returncode, 1, r.stderr)
+            self.assertIn("this is a mesh file, which has no times", r.stderr)
+
     def test_bad_input_is_refused_with_nothing_written(self):
         case = os.path.join(SOURCE, "examples", "airfoil", "case")
         out = os.path.join(self.tmp, "out")

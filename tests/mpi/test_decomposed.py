@@ -110,6 +110,44 @@ class Decomposed(unittest.TestCase):
         r = run(["checkMesh"], cwd=case)
         self.assertIn("Mesh OK.", r.stdout, r.stdout[-3000:])
 
+    def test_a_time_folder_of_every_part_is_read_and_written(self):
+        # Issue 31, point 6, under mpirun: each part's time folder (here without a mesh of its own,
+        # so constant's is read, as OpenFOAM does) gets its moved points; constant/ stays, and the
+        # result equals the serial morph of the same time.
+        plain = self.airfoil("plain-time")
+        case = self.path("case-time")
+        shutil.copytree(plain, case)
+        decompose(case, 2, "simple", "2 1 1")
+        def raw(path):
+            with open(path, "rb") as f:
+                return f.read()
+
+        before = [raw(os.path.join(case, "processor%d/constant/polyMesh/points" % k)) for k in range(2)]
+        for k in range(2):
+            os.mkdir(os.path.join(case, "processor%d" % k, "0.5"))
+        os.mkdir(os.path.join(plain, "0.5"))
+        r = run(MPIRUN + ["2", CLI, "morph", case, "--in-place", "-time", "0.5", "--motion", self.path("motion.json"),
+                          "--json"])
+        self.assertEqual(r.returncode, 0, r.stdout[-2000:] + r.stderr[-3000:])
+        self.assertEqual(json.loads(r.stdout)["time"], "0.5")
+        for k in range(2):
+            poly = os.path.join(case, "processor%d" % k)
+            self.assertEqual(raw(os.path.join(poly, "constant/polyMesh/points")), before[k])
+            self.assertTrue(os.path.exists(os.path.join(poly, "0.5/polyMesh/points")))
+        r = run([CLI, "morph", plain, "--in-place", "-time", "0.5", "--motion", self.path("motion.json")])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        want = points(os.path.join(plain, "0.5", "polyMesh"))
+        got = np.full(want.shape, np.nan)
+        for k in range(2):
+            part = os.path.join(case, "processor%d" % k)
+            got[labels(os.path.join(part, "constant/polyMesh/pointProcAddressing"))] = points(
+                os.path.join(part, "0.5", "polyMesh"))
+        self.assertLess(np.abs(got - want).max(), 1e-10)
+        self.assertGreater(np.abs(want - points(os.path.join(plain, "constant", "polyMesh"))).max(), 0.01)
+        for k in range(2):
+            r = run(["checkMesh", "-time", "0.5"], cwd=os.path.join(case, "processor%d" % k))
+            self.assertIn("Mesh OK.", r.stdout, r.stdout[-3000:])
+
     def serial(self, case, out, *extra):
         r = run([CLI, "morph", case, "-o", out, "--motion", self.path("motion.json"), "--json", *extra])
         self.assertEqual(r.returncode, 0, r.stderr)

@@ -33,6 +33,9 @@ struct MorphJob {
   double phase = 1.0;
   double memory_limit_bytes = 4.0 * (1ull << 30);
   bool force = false;  ///< write even if cells invert
+  /// OpenFOAM: the time whose mesh is morphed ("latest" or a time, as `-time`; empty: constant),
+  /// and whose polyMesh gets the moved points (openfoam.hpp).
+  std::string time;
   /// Where the mapping is fitted and evaluated, and the mesh read and written (MorphBackend);
   /// null: this process alone.
   MorphBackend* backend = nullptr;
@@ -41,6 +44,7 @@ struct MorphJob {
 struct MorphOutcome {
   std::string mesh, motion, output;
   std::string format, encoding;
+  std::string time;  ///< the OpenFOAM time folder read and written, or empty
   std::size_t points = 0, cells = 0, patches = 0;
   std::string motion_summary;  ///< "wing rotate, inlet fixed"
   MorphOptions options;

@@ -8,12 +8,16 @@
 #include <filesystem>
 #include <span>
 #include <string>
+#include <vector>
 
 namespace csrbf::morph {
 
 /// The points file as read, kept to write new points the same way.
 struct FoamPointsFile {
   std::filesystem::path path;  ///< as found: ".../points" or ".../points.gz"
+  /// Where moved points go: path, or with a time, that time's polyMesh/points (which may not exist
+  /// yet: a time whose mesh is constant's gets its own moved points, as moveMesh writes them).
+  std::filesystem::path target;
   bool binary = false;
   bool gzip = false;
   int scalar_bytes = 8;        ///< binary: 4 or 8 (arch "scalar=32|64")
@@ -24,7 +28,8 @@ struct FoamPointsFile {
 
 struct FoamCase {
   std::filesystem::path root;       ///< the folder given: a case, or a polyMesh folder
-  std::filesystem::path poly_mesh;  ///< root/constant/polyMesh, or root itself
+  std::filesystem::path poly_mesh;  ///< root/constant/polyMesh, or root itself, or root/TIME/polyMesh
+  std::string time;                 ///< the time folder read ("0.5"), or empty: constant
   VolumeMesh mesh;
   FoamPointsFile points_file;
 };
@@ -36,7 +41,15 @@ bool is_openfoam(const std::filesystem::path& path);
 /// others (point labels against the points, owner against faces, patches against faces) and any
 /// error names the file, its line (ASCII) or the entry, and the value. Files are refused past
 /// max_file_bytes (uncompressed). Throws io::FileError.
-FoamCase read_openfoam(const std::filesystem::path& path, double max_file_bytes = 8.0 * (1ull << 30));
+/// time: empty (constant/polyMesh), "latest" (the largest time folder) or a time ("0.5", matched
+/// by value as OpenFOAM matches it): that time's polyMesh where it has one, file by file (points
+/// from TIME/polyMesh/points when there, faces and the rest from TIME/polyMesh when it has faces),
+/// else constant's, as OpenFOAM falls back. The moved points are written to TIME/polyMesh.
+FoamCase read_openfoam(const std::filesystem::path& path, double max_file_bytes = 8.0 * (1ull << 30),
+                       const std::string& time = {});
+
+/// The case's time folders (names that are numbers, "0" included), in increasing time.
+std::vector<std::string> foam_times(const std::filesystem::path& case_folder);
 
 /// The points file's bytes (uncompressed) with points in place of the old ones: the header, the
 /// layout and every coordinate that did not change are kept byte for byte; a changed one is

@@ -20,6 +20,8 @@ struct OpenOptions {
   /// the motion file).
   std::string patch_array;
   double max_file_bytes = 8.0 * (1ull << 30);
+  /// OpenFOAM: the time folder's mesh ("latest" or a time; empty: constant). Other formats refuse it.
+  std::string time;
 };
 
 struct FoamCase;
