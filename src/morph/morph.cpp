@@ -321,7 +321,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
                       ": the parts of the mesh disagree about being 2-D (an 'empty' patch with "
                       "faces in some parts, not in others): decompose the case again");
   }
-  const double tol = 1e-12 * std::max(b.max(mesh_size(mesh)), 1e-300);
+  const double tol = 1e-12 * std::max(size, 1e-300);
   const auto number = [&](std::uint32_t p) { return mesh.point_ids.empty() ? std::uint64_t(p) : mesh.point_ids[p]; };
   // The controls: the prescribed points (those included), or in a 2-D case their projections on
   // the mid-plane, each pair of the two planes' points one control; then the fit.
@@ -491,17 +491,19 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   // beside it follow. A plane containing the motion (the sides of an extruded 2-D mesh) needs no
   // correction and no second fit.
   const bool any_slip = b.max(double(rep.slip)) > 0;
+  // Each slip entry's plane, or (curved) the surface of its faces that its points are projected on.
+  std::vector<const detail::PatchPlane*> plane_of(motion.patches.size(), nullptr);
   std::vector<std::optional<detail::SurfaceProjector>> surfaces(motion.patches.size());
-  const auto plane_of = [&](std::size_t e) -> const detail::PatchPlane* {
-    const std::size_t k = std::size_t(mesh.patch(motion.patches[e].patch) - mesh.patches.data());
-    return planes[k].deviation <= detail::kPlanarTolerance * size ? &planes[k] : nullptr;
-  };
   if (any_slip)
     b.agree(caught([&] {
-      for (std::size_t i = 0; i < n; ++i) {
-        const auto e = std::size_t(pres.slip[i] < 0 ? 0 : pres.slip[i]);
-        if (pres.slip[i] >= 0 && !surfaces[e] && !plane_of(e))
-          surfaces[e].emplace(mesh, *mesh.patch(motion.patches[e].patch), motion.patches[e].where);
+      for (std::size_t e = 0; e < motion.patches.size(); ++e) {
+        if (motion.patches[e].kind != PatchMotion::Kind::Slip) continue;
+        const Patch* patch = mesh.patch(motion.patches[e].patch);
+        const detail::PatchPlane& plane = planes[std::size_t(patch - mesh.patches.data())];
+        if (plane.deviation <= detail::kPlanarTolerance * size)
+          plane_of[e] = &plane;
+        else if (!patch->points.empty())
+          surfaces[e].emplace(mesh, *patch, motion.patches[e].where);
       }
     }));
   std::unique_ptr<FittedMapping> map =
@@ -533,8 +535,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
     // A point on two or more slip patches (an edge, a corner) stays on each: the planes' normals.
     std::vector<std::vector<Vec3>> normals(n);
     for (std::size_t e = 0; e < motion.patches.size(); ++e) {
-      if (motion.patches[e].kind != PatchMotion::Kind::Slip) continue;
-      const detail::PatchPlane* plane = plane_of(e);
+      const detail::PatchPlane* plane = plane_of[e];
       if (!plane) continue;
       for (const auto p : mesh.patch(motion.patches[e].patch)->points) {
         const auto it = std::lower_bound(pres.points.begin(), pres.points.end(), p);
@@ -561,7 +562,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       Vec3 d = d_slip[k];
       if (d != Vec3::Zero()) {  // beyond the reach: exactly still
         d = within_planes(d, normals[i]);
-        if (!plane_of(e)) {
+        if (surfaces[e]) {
           const Vec3& x = mesh.points[pres.points[i]];
           d = surfaces[e]->project(x + d) - x;
         }

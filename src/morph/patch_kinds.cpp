@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <regex>
 
 namespace csrbf::morph::detail {
@@ -60,12 +61,13 @@ const char* kind_name(PatchMotion::Kind k) {
   }
 }
 
-/// Whether text is a regular expression that matches name in full (an invalid one never does).
-bool matches(const std::string& pattern, const std::string& name) {
+/// The regular expression a motion entry's name is, or none (a name that is no valid expression
+/// matches by name and group only).
+std::optional<std::regex> expression(const std::string& pattern) {
   try {
-    return std::regex_match(name, std::regex(pattern, std::regex::ECMAScript));
+    return std::regex(pattern, std::regex::ECMAScript);
   } catch (const std::regex_error&) {
-    return false;
+    return std::nullopt;
   }
 }
 
@@ -82,13 +84,14 @@ Motion resolve_patches(const VolumeMesh& mesh, const Motion& motion, std::span<c
   for (int pass = 0; pass < 3; ++pass)
     for (std::size_t e = 0; e < motion.patches.size(); ++e) {
       const std::string& key = motion.patches[e].patch;
+      const std::optional<std::regex> re = pass == 2 ? expression(key) : std::nullopt;
       for (std::size_t k = 0; k < np; ++k) {
         if (entry[k] >= 0) continue;
         const Patch& p = mesh.patches[k];
         bool hit = false;
         if (pass == 0) hit = p.name == key;
         if (pass == 1) hit = std::find(p.groups.begin(), p.groups.end(), key) != p.groups.end();
-        if (pass == 2) hit = matches(key, p.name);
+        if (pass == 2) hit = re && std::regex_match(p.name, *re);
         if (!hit) continue;
         entry[k] = int(e);
         how[k] = pass == 0 ? "listed" : pass == 1 ? "group '" + key + "'" : "listed as '" + key + "'";

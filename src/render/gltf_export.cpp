@@ -164,10 +164,16 @@ double angle_between(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
 
 /// Sorted, unique times in [0, end] as glTF stores them (float32): the given ones, rounded, merged
 /// where they round to the same float.
-std::vector<double> unique_times(std::vector<double> t, double end) {
+/// The times in [0, end] (end as float32 may round up), sorted.
+std::vector<double> sorted_within(std::vector<double> t, double end) {
   const double last = std::max(end, double(float(end)));
   t.erase(std::remove_if(t.begin(), t.end(), [&](double x) { return !(x >= 0 && x <= last); }), t.end());
   std::sort(t.begin(), t.end());
+  return t;
+}
+
+std::vector<double> unique_times(std::vector<double> t, double end) {
+  t = sorted_within(std::move(t), end);
   std::vector<double> out;
   for (const double x : t) {
     const double f = double(float(x));
@@ -181,9 +187,7 @@ std::vector<double> unique_times(std::vector<double> t, double end) {
 /// each other one (a track that jumps between two keys 1e-9 s apart would turn the glTF by the jump).
 template <class Gap>
 double merged_gap(std::vector<double> t, double end, const Gap& gap) {
-  const double last = std::max(end, double(float(end)));
-  t.erase(std::remove_if(t.begin(), t.end(), [&](double x) { return !(x >= 0 && x <= last); }), t.end());
-  std::sort(t.begin(), t.end());
+  t = sorted_within(std::move(t), end);
   double worst = 0;
   for (std::size_t first = 0, i = 1; i < t.size(); ++i) {
     if (float(t[i]) != float(t[first])) {
