@@ -61,6 +61,8 @@ nlohmann::json quality_json(const MeshQuality& m) {
                     {"inverted_cells", q.inverted_cells},
                     {"min_volume", q.min_volume},
                     {"min_volume_ratio", q.min_volume_ratio},
+                    {"min_determinant", q.min_determinant},
+                    {"mean_determinant", q.mean_determinant},
                     {"total_volume", q.total_volume}};
   return j;
 }
@@ -95,6 +97,7 @@ std::string quality_table(const MeshQuality& qa, const MeshQuality& qb) {
   row("inverted cells", std::to_string(a.inverted_cells), std::to_string(b.inverted_cells));
   row("min cell volume", num(a.min_volume, "%.6g"), num(b.min_volume, "%.6g"));
   row("min volume after/before", "", num(b.min_volume_ratio, "%.4f"));
+  row("min cell determinant", num(a.min_determinant, "%.4g"), num(b.min_determinant, "%.4g"));
   return s.str();
 }
 
@@ -125,6 +128,10 @@ MeshQuality combine(MorphBackend& b, MeshQuality q) {
     p.inverted_cells = sum(p.inverted_cells);
     p.min_volume = min(mine ? p.min_volume : std::numeric_limits<double>::infinity());
     p.min_volume_ratio = min(mine ? p.min_volume_ratio : std::numeric_limits<double>::infinity());
+    p.mean_determinant =
+        p.cells > 0 ? b.sum(mine ? p.mean_determinant * double(q.poly->cells) : 0.0) / double(p.cells) : 0.0;
+    p.min_determinant = min(mine ? p.min_determinant : std::numeric_limits<double>::infinity());
+    if (!std::isfinite(p.min_determinant)) p.min_determinant = 0;
     p.total_volume = b.sum(p.total_volume);
     q.poly = p;
   }

@@ -188,6 +188,53 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
       },
       std::plus<>());
   q.inverted_cells = std::size_t(std::count(inverted.begin(), inverted.end(), char(1)));
+  // Cell determinant (primitiveMeshTools::cellDeterminant): how well a cell's faces span space.
+  const auto counted = [&](std::uint32_t f) {
+    if (f < ni) return true;
+    for (const auto& [begin, end] : b.coupled)
+      if (f >= begin && f < end) return true;
+    return false;
+  };
+  struct Det {
+    double min = std::numeric_limits<double>::infinity(), sum = 0;
+  };
+  const Det det = tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<std::size_t>(0, nc, 4096), Det{},
+      [&](const tbb::blocked_range<std::size_t>& r, Det d) {
+        for (std::size_t c = r.begin(); c < r.end(); ++c) {
+          double mean_area = 0;
+          int n = 0;
+          for (std::uint64_t k = first[c]; k < first[c + 1]; ++k) {
+            const std::uint32_t f = faces_of[k] & 0x7fffffffu;
+            if (!counted(f)) continue;
+            mean_area += fa[f].norm();
+            ++n;
+          }
+          double value = 0;
+          if (n > 0 && mean_area >= kVSmall) {
+            mean_area /= n;
+            Eigen::Matrix3d tensor = Eigen::Matrix3d::Zero();
+            for (std::uint64_t k = first[c]; k < first[c + 1]; ++k) {
+              const std::uint32_t f = faces_of[k] & 0x7fffffffu;
+              if (!counted(f)) continue;
+              const Vec3 s = fa[f] / mean_area;
+              tensor += s * s.transpose();
+            }
+            if (b.empty_axis >= 0) tensor(b.empty_axis, b.empty_axis) = 1;
+            value = std::abs(tensor.determinant()) / 8;  // a cube inside the mesh: 1
+          }
+          d.min = std::min(d.min, value);
+          d.sum += value;
+        }
+        return d;
+      },
+      [](Det x, const Det& y) {
+        x.min = std::min(x.min, y.min);
+        x.sum += y.sum;
+        return x;
+      });
+  q.min_determinant = nc ? det.min : 0.0;
+  q.mean_determinant = nc ? det.sum / double(nc) : 0.0;
   return q;
 }
 

@@ -6,6 +6,7 @@
 #include "csrbf/morph/quality.hpp"
 
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace csrbf::morph::detail {
@@ -17,6 +18,10 @@ struct PolyBuffers {
   std::vector<char> inverted;
   std::vector<std::uint64_t> first;  ///< the cell-to-face index: the topology's, built once
   std::vector<std::uint32_t> faces_of;
+  /// The cell determinant's faces besides internal ones: coupled patches' [begin, end) (cyclic,
+  /// processor), and the axis a 2-D mesh's empty patches face (-1: 3-D).
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> coupled;
+  int empty_axis = -1;
 };
 
 PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, PolyBuffers& b);

@@ -227,7 +227,27 @@ MeshQuality mesh_quality(const VolumeMesh& mesh, std::span<const Vec3> points) {
   return QualityMeter(mesh).measure(points);
 }
 
-QualityMeter::QualityMeter(const VolumeMesh& mesh) : mesh_(&mesh), buffers_(std::make_unique<detail::PolyBuffers>()) {}
+QualityMeter::QualityMeter(const VolumeMesh& mesh) : mesh_(&mesh), buffers_(std::make_unique<detail::PolyBuffers>()) {
+  // The cell determinant's coupled faces and a 2-D mesh's missing direction, as checkMesh takes
+  // them: processor and cyclic patches are coupled; the axis empty patches face is not a
+  // geometric direction.
+  Vec3 empty = Vec3::Zero();
+  for (const Patch& p : mesh.patches) {
+    if (p.face_end <= p.face_begin) continue;
+    if (p.type.starts_with("processor") || p.type.starts_with("cyclic") || p.type.starts_with("nonConformalCyclic"))
+      buffers_->coupled.emplace_back(p.face_begin, p.face_end);
+    if (p.type != "empty") continue;
+    for (std::uint64_t f = p.face_begin; f < p.face_end && f + 1 < mesh.poly.face_start.size(); ++f) {
+      const std::uint32_t* v = mesh.poly.face_points.data() + mesh.poly.face_start[f];
+      const std::size_t n = std::size_t(mesh.poly.face_start[f + 1] - mesh.poly.face_start[f]);
+      if (n < 3) continue;
+      Vec3 area = Vec3::Zero();
+      for (std::size_t i = 0; i < n; ++i) area += mesh.points[v[i]].cross(mesh.points[v[(i + 1) % n]]);
+      empty += area.cwiseAbs();
+    }
+  }
+  if (empty.maxCoeff() > 0) empty.maxCoeff(&buffers_->empty_axis);
+}
 QualityMeter::~QualityMeter() = default;
 
 MeshQuality QualityMeter::measure(std::span<const Vec3> points) {

@@ -246,6 +246,14 @@ TEST(Quality, UnitCellsHaveTheirVolumeAndNoNonOrthogonality) {
   EXPECT_NEAR(q.max_skewness, 0.0, 1e-12);
   EXPECT_EQ(q.inverted_cells, 0u);
   EXPECT_EQ(q.bad_pyramids, 0u);
+  // The cell determinant of a cube is (internal faces along x)(along y)(along z) / 8: 1 x 1 x 1 at a
+  // corner of the 4 x 3 x 2 box; the mean is (6/4)(4/3)(2/2) / 8.
+  EXPECT_NEAR(q.min_determinant, 0.125, 1e-15);
+  EXPECT_NEAR(q.mean_determinant, 0.25, 1e-15);
+  // A uniform scaling changes no determinant (faces are scaled by their mean).
+  std::vector<Vec3> big = c.mesh.points;
+  for (Vec3& p : big) p *= 7.0;
+  EXPECT_NEAR(poly_quality(c.mesh.poly, big).min_determinant, 0.125, 1e-14);
   (void)box;
 }
 

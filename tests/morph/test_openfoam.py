@@ -83,6 +83,18 @@ class OpenFoamCases(MorphCase):
         self.assertAlmostEqual(q["max_skewness"], cm["max_skewness"], delta=1e-4 * max(1, cm["max_skewness"]))
         self.assertAlmostEqual(q["min_volume"], cm["min_volume"], delta=1e-5 * abs(cm["min_volume"]))
 
+    def assert_determinant_matches(self, report, case):
+        """The cell determinant against checkMesh -allGeometry's (a 2-D mesh: its empty direction)."""
+        copy = case + "-checked"  # checkMesh -allGeometry writes sets of faces into the case
+        shutil.copytree(case, copy)
+        out = run(["checkMesh", "-allGeometry"], cwd=copy).stdout
+        shutil.rmtree(copy)
+        d = re.search(r"Cell determinant \(wellposedness\) : minimum: (\S+) average: (\S+)", out)
+        self.assertIsNotNone(d, out[-3000:])
+        q = report["quality"]["after"]["polyhedra"]
+        self.assertAlmostEqual(q["min_determinant"], float(d.group(1)), delta=2e-6 * float(d.group(1)))  # printed to 6 digits or more
+        self.assertAlmostEqual(q["mean_determinant"], float(d.group(2)), delta=2e-6 * float(d.group(2)))
+
     def test_bundled_airfoil_pitches_and_passes_check_mesh(self):
         case = os.path.join(SOURCE, "examples", "airfoil", "case")
         out = os.path.join(self.tmp, "pitched")
@@ -95,6 +107,7 @@ class OpenFoamCases(MorphCase):
         cm = check_mesh(out)
         self.assertTrue(cm["ok"], cm["text"])
         self.assert_quality_matches(report, cm)
+        self.assert_determinant_matches(report, out)
         self.assert_kept(case, out)
         # The airfoil's points are rotated by exactly -5 degrees about (0.25, 0, 0), to 1e-12 of the
         # domain; the far field's are unchanged bit for bit (the same text).
@@ -283,6 +296,31 @@ class OpenFoamCases(MorphCase):
                      "-time", "latest", "--motion", motion])
             self.assertEqual(r.returncode, 1, r.stderr)
             self.assertIn("this is a mesh file, which has no times", r.stderr)
+
+    def test_a_3d_cavity_with_a_graded_lid_reports_checkmeshs_determinant(self):
+        # The cavity tutorial made 3-D (8 cells deep, graded, its front and back walls) and its lid
+        # pushed in: the cell determinant counts every internal face, in three directions.
+        case = os.path.join(self.tmp, "cavity3d")
+        shutil.copytree(os.path.join(os.path.dirname(TUTORIALS), "..", "incompressible", "icoFoam", "cavity", "cavity"),
+                        case)
+        mesh_dict = os.path.join(case, "system", "blockMeshDict")
+        text = read_text(mesh_dict).decode()
+        text = text.replace("(20 20 1) simpleGrading (1 1 1)", "(12 10 8) simpleGrading (2 1 0.5)")
+        text = re.sub(r"(frontAndBack\s*\{\s*type\s+)empty;", r"\1wall;", text)
+        with open(mesh_dict, "w") as f:
+            f.write(text)
+        r = run(["blockMesh"], cwd=case)
+        self.assertEqual(r.returncode, 0, r.stdout[-2000:])
+        motion = self.motion({"radius": 0.05, "patches": {"movingWall": {"translate": [0, -0.002, 0]},
+                                                          "fixedWalls": "fixed", "frontAndBack": "fixed"}})
+        out = case + "-morphed"
+        r = morph(case, out, motion)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        report = json.loads(r.stdout)
+        self.assertEqual(report["cells"], 960)
+        self.assert_determinant_matches(report, out)
+        before, after = report["quality"]["before"]["polyhedra"], report["quality"]["after"]["polyhedra"]
+        self.assertNotEqual(before["mean_determinant"], after["mean_determinant"])
 
     def test_bad_input_is_refused_with_nothing_written(self):
         case = os.path.join(SOURCE, "examples", "airfoil", "case")

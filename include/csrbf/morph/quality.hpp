@@ -32,9 +32,17 @@ struct PolyQuality {
   /// The smallest cell volume after / before (QualityMeter: against its first measure; 1 for that
   /// one and for poly_quality alone). Below 0: a cell turned inside out; near 0: one crushed.
   double min_volume_ratio = 1;
+  /// checkMesh -allGeometry's "Cell determinant (wellposedness)": per cell, det of the sum of its
+  /// internal and coupled faces' outer products S S^T, each S scaled by the cell's mean face area
+  /// (in a 2-D mesh the empty direction's diagonal set to 1), over 8: 1 for a cube whose six
+  /// faces are internal, 0 for a cell without such faces. checkMesh warns below 0.001. Smallest
+  /// and mean over the cells.
+  double min_determinant = 0, mean_determinant = 0;
 };
 
-/// The checkMesh measures of t over points. Parallel over faces; deterministic.
+/// The checkMesh measures of t over points. Parallel over faces; deterministic. The cell
+/// determinant counts internal faces alone and takes the mesh as 3-D (QualityMeter knows the
+/// patches: coupled ones count, and an empty patch's direction is the 2-D mesh's missing one).
 PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points);
 
 struct CellQuality {
