@@ -35,8 +35,11 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
                     "Rewrite the input with the moved points, atomically (OpenFOAM: its points file alone)");
   out->excludes(in_place);
   cmd->add_option("--motion", a.motion, "Motion JSON: what each patch does (docs/morphing.md)")->required();
-  cmd->add_option("--radius,-r", a.radius, "Radius of support R (overrides the motion file's)")
-      ->check(finite_in(1e-150, 1e150, "--radius"));
+  cmd->add_option("--radius,-r", a.radius,
+                  "Radius of support R, or auto: chosen from the motion's largest displacement, the boundary's "
+                  "spacing and --memory-limit, and the report says why (auto is the default where the motion "
+                  "file gives no radius; R overrides the motion file's)")
+      ->check(CLI::IsMember({"auto"}) | finite_in(1e-150, 1e150, "--radius"));
   cmd->add_option("--kernel,-k", a.kernel, "Wendland kernel c0, c2, c4, c6 (overrides the motion file's; default c2)")
       ->transform(CLI::IsMember(csrbf::names<csrbf::Kernel>(), CLI::ignore_case));
   cmd->add_option("--polynomial,-p", a.polynomial,
@@ -76,7 +79,10 @@ morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
   job.out = a.out;
   job.in_place = a.in_place;
   if (a.out.empty() && !a.in_place) throw UsageError("morph: give -o OUT (a new case folder or file) or --in-place");
-  job.radius = a.radius;
+  if (a.radius == "auto")
+    job.radius_auto = true;
+  else if (!a.radius.empty())
+    job.radius = std::stod(a.radius);
   if (!a.kernel.empty()) job.kernel = *parse_name<Kernel>(a.kernel);
   if (!a.polynomial.empty()) job.polynomial = *parse_name<Polynomial>(a.polynomial);
   job.greedy = a.greedy;

@@ -204,12 +204,14 @@ MorphOutcome run_job(const MorphJob& job) {
     }
     motion = read_motion(job.motion);
     MorphOptions& opt = o.options;
+    // --radius, else the motion file's, else auto.
     if (job.radius)
       opt.fit.radius = *job.radius;
-    else if (motion.radius)
+    else if (!job.radius_auto && motion.radius)
       opt.fit.radius = *motion.radius;
     else
-      throw JobError("no radius: give one, or \"radius\" in " + job.motion.string());
+      opt.radius_auto = true;
+    opt.progress = job.progress;
     opt.fit.kernel = job.kernel.value_or(motion.kernel.value_or(Kernel::C2));
     opt.fit.polynomial = job.polynomial.value_or(motion.polynomial.value_or(Polynomial::None));
     opt.fit.solver = job.solver;
@@ -318,7 +320,14 @@ std::string outcome_json(const MorphOutcome& o) {
                    {"greedy_rounds", rep.greedy_rounds},
                    {"max_displacement", rep.max_displacement},
                    {"max_boundary_error", rep.max_boundary_error},
-                   {"radius", o.options.fit.radius},
+                   {"radius", rep.radius},
+                   {"radius_why", rep.radius_why},
+                   {"predicted",
+                    {{"neighbours_per_control", rep.predicted.neighbours_per_control},
+                     {"neighbours_per_point", rep.predicted.neighbours_per_point},
+                     {"bytes", rep.predicted.bytes},
+                     {"seconds_fit", rep.predicted.seconds_fit},
+                     {"seconds_evaluate", rep.predicted.seconds_evaluate}}},
                    {"kernel", kernel_name(o.options.fit.kernel)},
                    {"polynomial", polynomial_name(o.options.fit.polynomial)},
                    {"solver", rep.controls ? std::string(name_of(rep.fit.solver)) : std::string("none")},
@@ -354,8 +363,9 @@ std::string outcome_text(const MorphOutcome& o) {
   if (rep.greedy_rounds) s << " chosen in " << rep.greedy_rounds << " greedy rounds";
   s << "; largest displacement " << rep.max_displacement << ", largest boundary error " << rep.max_boundary_error
     << " before exact placement\n"
-    << "  R = " << o.options.fit.radius << ", kernel " << kernel_name(o.options.fit.kernel) << ", polynomial "
-    << polynomial_name(o.options.fit.polynomial) << ", phase " << o.options.phase << "\n";
+    << "  R = " << rep.radius << (o.options.radius_auto ? " (auto: " + rep.radius_why + ")" : std::string())
+    << ", kernel " << kernel_name(o.options.fit.kernel) << ", polynomial " << polynomial_name(o.options.fit.polynomial)
+    << ", phase " << o.options.phase << "\n";
   // The patches the motion left unlisted, and what each did (the listed ones are in the motion line).
   std::string unlisted;
   for (const auto& p : rep.patches)

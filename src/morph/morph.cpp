@@ -7,6 +7,7 @@
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/space_map.hpp"
 #include "patch_kinds.hpp"
+#include "radius.hpp"
 
 #include <algorithm>
 #include <array>
@@ -268,7 +269,7 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
 
 MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOptions& options, MorphBackend* backend) {
   MorphBackend& b = backend ? *backend : local_backend();
-  if (!(options.fit.radius > 0) || !std::isfinite(options.fit.radius))
+  if (!options.radius_auto && (!(options.fit.radius > 0) || !std::isfinite(options.fit.radius)))
     throw InvalidInput("the radius must be a finite number > 0, got " + io::format_number(options.fit.radius));
   if (!std::isfinite(options.phase)) throw InvalidInput("the phase must be finite");
   if (!(options.greedy >= 0) || !std::isfinite(options.greedy))
@@ -308,6 +309,12 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   rep.fixed = std::size_t(std::count(pres.fixed.begin(), pres.fixed.end(), char(1)));
   rep.slip = std::size_t(std::count_if(pres.slip.begin(), pres.slip.end(), [](std::int32_t s) { return s >= 0; }));
   r.points = mesh.points;
+  FitOptions fit = options.fit;  // its radius chosen here with radius_auto
+  rep.radius = options.radius_auto ? 0.0 : fit.radius;
+  rep.radius_why = options.radius_auto ? "nothing moves" : "given";
+  const auto note = [&](const std::string& line) {
+    if (options.progress) options.progress->note(line);
+  };
   const std::size_t n = pres.points.size();
   for (const Vec3& dv : pres.displacements) rep.max_displacement = std::max(rep.max_displacement, dv.norm());
   rep.max_displacement = b.max(rep.max_displacement);
@@ -328,6 +335,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   std::vector<Vec3> sources, targets;
   std::vector<std::uint64_t> ids;
   std::vector<double> err;
+  bool first_fit = true;
   const auto fit_controls = [&](const auto& included, const std::vector<Vec3>& displacements,
                                 double largest) -> std::unique_ptr<FittedMapping> {
     sources.clear();
@@ -380,6 +388,20 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
         }
       }
     }));
+    if (first_fit && options.radius_auto) {
+      // Every process's controls, in one order whatever the decomposition: the same R everywhere.
+      std::vector<Vec3> moving_c, staying_c;
+      for (std::size_t i = 0; i < sources.size(); ++i)
+        (targets[i] != sources[i] ? moving_c : staying_c).push_back(sources[i]);
+      moving_c = detail::sorted_unique(b.gather(moving_c));
+      staying_c = detail::sorted_unique(b.gather(staying_c));
+      const detail::RadiusChoice c =
+          detail::choose_radius(moving_c, staying_c, std::abs(options.phase) * largest, size,
+                                detail::kAutoMemoryShare * fit.memory_limit_bytes, fit.polynomial == Polynomial::None);
+      fit.radius = rep.radius = c.radius;
+      rep.radius_why = c.why;
+      note("radius auto: R = " + io::format_number(c.radius) + ": " + c.why);
+    }
     // Exact locality (polynomial none): a control that stays is fitted only where a moving one lies
     // within R of it. Every source of the fit is then within R of a moving control, and its kernel
     // reaches R further: a point 2R or farther from every moving control sums no term and keeps its
@@ -387,8 +409,8 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
     // coefficients of 1e-16 and moved the whole connected mesh by up to 4e-7 (a flow solver's
     // residuals jumped 63x on such a mesh); they are placed exactly afterwards, as every prescribed
     // point is. With a polynomial, the mapping moves the whole space: every control is kept.
-    if (options.fit.polynomial == Polynomial::None) {
-      rep.reach = 2.0 * options.fit.radius;
+    if (fit.polynomial == Polynomial::None) {
+      rep.reach = 2.0 * fit.radius;
       std::vector<Vec3> moving;
       for (std::size_t i = 0; i < sources.size(); ++i)
         if (targets[i] != sources[i]) moving.push_back(sources[i]);
@@ -397,7 +419,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       std::vector<Vec3> dropped;
       if (!all_moving.empty()) {
         kept = 0;
-        const NeighborIndex near(all_moving, options.fit.radius);
+        const NeighborIndex near(all_moving, fit.radius);
         for (std::size_t i = 0; i < sources.size(); ++i) {
           bool keep = targets[i] != sources[i];
           if (!keep) near.for_each_within(sources[i], [&](std::size_t, double) { keep = true; });
@@ -427,6 +449,22 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       ids.resize(kept);
     }
     const std::size_t nc = sources.size();
+    if (first_fit) {
+      // The prediction, before anything large is built (the fit checks its memory again).
+      const std::vector<Vec3> all_sources = b.part() ? b.gather(sources) : sources;
+      rep.predicted =
+          detail::predict(all_sources, mesh.points, flat ? flat->axis : -1, flat ? 0.5 * (flat->lo + flat->hi) : 0.0,
+                          fit.radius, b.sum(double(mesh.points.size())), b);
+      const MorphPrediction& p = rep.predicted;
+      std::ostringstream os;
+      os.precision(3);
+      os << "predicted: " << all_sources.size() << " controls with " << p.neighbours_per_control
+         << " neighbours each and " << p.neighbours_per_point << " per point; the fit about "
+         << p.bytes / double(1ull << 30) << " GiB (of " << fit.memory_limit_bytes / double(1ull << 30)
+         << " GiB left to it) and " << p.seconds_fit << " s, the evaluation " << p.seconds_evaluate << " s";
+      note(os.str());
+      first_fit = false;
+    }
     std::vector<Vec3> at(nc);
     const auto worst = [&](FittedMapping& map, std::vector<double>& err) {
       map.apply(sources, at, 1.0);
@@ -458,12 +496,12 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
           u[k] = ids[subset[k]];
         }
         map.reset();
-        map = b.fit(s, t, options.fit, u);
+        map = b.fit(s, t, fit, u);
         rep.max_boundary_error = worst(*map, err);
         if (rep.max_boundary_error <= limit || b.max(double(subset.size() < nc)) == 0) break;
         std::iota(by_error.begin(), by_error.end(), 0u);
         std::sort(by_error.begin(), by_error.end(), [&](std::uint32_t a, std::uint32_t b) { return err[a] > err[b]; });
-        SpacedSet spaced(options.fit.radius);
+        SpacedSet spaced(fit.radius);
         const std::size_t before = subset.size();
         for (const std::uint32_t i : by_error) {
           if (err[i] <= limit) break;
@@ -476,7 +514,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       }
       rep.controls = subset.size();
     } else {
-      map = b.fit(sources, targets, options.fit, ids);
+      map = b.fit(sources, targets, fit, ids);
       rep.max_boundary_error = worst(*map, err);
       rep.controls = nc;
     }

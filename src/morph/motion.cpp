@@ -84,7 +84,14 @@ Motion read_motion(const fs::path& path) {
     m.patch_array = root["patch_array"].string();
     if (m.patch_array.empty()) root["patch_array"].expected("the name of an integer point or cell data array");
   }
-  if (root.has("radius")) m.radius = root["radius"].number(1e-150, 1e150);
+  if (root.has("radius")) {
+    if (root["radius"].json().is_string() && root["radius"].json().get<std::string>() == "auto")
+      m.radius_auto = true;
+    else if (root["radius"].json().is_string())
+      root["radius"].expected("a number > 0 or \"auto\"");
+    else
+      m.radius = root["radius"].number(1e-150, 1e150);
+  }
   if (root.has("kernel")) {
     const auto k = parse_name<Kernel>(root["kernel"].string());
     if (!k) root["kernel"].expected("a kernel (c0, c2, c4, c6)");

@@ -931,3 +931,65 @@ TEST_F(BoxMorph, TheVolumeRatioIsTheDeterminantOfAnAffineMap) {
   b.topLeftCorner<2, 2>() << 1.3, 0.4, -0.2, 0.7;
   EXPECT_NEAR(cell_quality(flat, mapped(p, b), p).min_volume_ratio, b.determinant(), 1e-12);
 }
+
+// Issue 31, point 3: --radius auto.
+TEST_F(BoxMorph, AutoRadiusFollowsTheDisplacementTheSpacingAndTheMemoryLimit) {
+  const auto run = [&](double dz, double limit_bytes) {
+    const Motion m = motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, )" + std::to_string(dz) +
+                                          R"j(]}, "zmax": "fixed", "[xy]m(in|ax)": "fixed"}})j");
+    MorphOptions o;
+    o.radius_auto = true;
+    o.fit.memory_limit_bytes = limit_bytes;
+    return morph(c.mesh, m, o);
+  };
+  // 20 x the largest displacement, where that is above 4 x the boundary's spacing (1/6).
+  const MorphResult big = run(0.05, 4e9);
+  EXPECT_NEAR(big.report.radius, 1.0, 1e-12);
+  EXPECT_NE(big.report.radius_why.find("20 x the largest displacement 0.05"), std::string::npos)
+      << big.report.radius_why;
+  EXPECT_EQ(big.report.reach, 2 * big.report.radius);
+  // A small motion: 4 x the spacing.
+  const MorphResult small = run(0.002, 4e9);
+  EXPECT_NEAR(small.report.radius, 4.0 / 6, 1e-12);
+  EXPECT_NE(small.report.radius_why.find("4 x the boundary's spacing 0.1667"), std::string::npos)
+      << small.report.radius_why;
+  // The prediction: neighbours per control as the fit found them (every source counted, at most
+  // 256 of them, or a sample), and per point against brute force over every point.
+  for (const MorphResult* r : {&big, &small}) {
+    const double R = r->report.radius;
+    EXPECT_NEAR(r->report.predicted.neighbours_per_control, r->report.fit.mean_neighbors,
+                0.05 * r->report.fit.mean_neighbors);
+    std::vector<Vec3> moving, fitted;
+    for (const auto p : c.mesh.patch("zmin")->points) moving.push_back(c.mesh.points[p]);
+    fitted = moving;
+    for (const Patch& patch : c.mesh.patches)
+      for (const auto p : patch.points) {
+        const Vec3& x = c.mesh.points[p];
+        if (x.z() == 0) continue;
+        bool near = false;
+        for (const Vec3& m : moving) near |= (m - x).norm() < R;
+        if (near && std::find(fitted.begin(), fitted.end(), x) == fitted.end()) fitted.push_back(x);
+      }
+    EXPECT_EQ(fitted.size(), r->report.controls);
+    double terms = 0;
+    for (const Vec3& x : c.mesh.points)
+      for (const Vec3& s : fitted) terms += (s - x).norm() < R;
+    EXPECT_NEAR(r->report.predicted.neighbours_per_point, terms / double(c.mesh.points.size()), 1e-12);
+    EXPECT_GT(r->report.predicted.bytes, 0);
+    EXPECT_GT(r->report.predicted.seconds_fit, 0);
+  }
+  // A memory limit that the displacement's R would pass: R shrinks until the prediction fits half
+  // of it, and the report says so.
+  const double at_one = big.report.predicted.bytes;
+  const MorphResult capped = run(0.05, at_one);
+  EXPECT_LT(capped.report.radius, 1.0);
+  EXPECT_GT(capped.report.radius, 0.3);
+  EXPECT_NE(capped.report.radius_why.find("above what --memory-limit leaves it"), std::string::npos)
+      << capped.report.radius_why;
+  EXPECT_LE(capped.report.predicted.bytes, 0.5 * at_one);
+  // Nothing moves: no radius is needed, and none is chosen.
+  const MorphResult still = run(0.0, 4e9);
+  EXPECT_EQ(still.report.radius, 0.0);
+  EXPECT_EQ(still.report.radius_why, "nothing moves");
+  EXPECT_EQ(still.points, c.mesh.points);
+}

@@ -322,12 +322,38 @@ class OpenFoamCases(MorphCase):
         before, after = report["quality"]["before"]["polyhedra"], report["quality"]["after"]["polyhedra"]
         self.assertNotEqual(before["mean_determinant"], after["mean_determinant"])
 
+    def test_a_motion_without_a_radius_chooses_one_and_says_why(self):
+        case = os.path.join(SOURCE, "examples", "airfoil", "case")
+        rotate = {"airfoil": {"rotate": {"axis": [0, 0, 1], "degrees": -5, "origin": [0.25, 0, 0]}}, "farfield": "fixed"}
+        reports = []
+        for i, (motion, extra) in enumerate((({"patches": rotate}, []), ({"radius": "auto", "patches": rotate}, []),
+                                             ({"radius": 4, "patches": rotate}, ["--radius", "auto"]))):
+            out = os.path.join(self.tmp, "auto%d" % i)
+            r = morph(case, out, self.motion(motion), *extra)
+            self.assertEqual(r.returncode, 0, r.stderr)
+            reports.append(json.loads(r.stdout))
+            self.assertTrue(check_mesh(out)["ok"])
+        for report in reports:
+            # 20 x the trailing edge's displacement (0.75 x sin 5 degrees, as a chord).
+            self.assertAlmostEqual(report["radius"], 20 * report["max_displacement"], delta=1e-12)
+            self.assertIn("20 x the largest displacement", report["radius_why"])
+            self.assertEqual(report["reach"], 2 * report["radius"])
+            self.assertGreater(report["predicted"]["neighbours_per_control"], 10)
+        # The text report says it too; a radius given is "given".
+        r = run([CLI, "morph", case, "-o", os.path.join(self.tmp, "text"), "--motion", self.motion({"patches": rotate})])
+        self.assertIn("(auto: 20 x the largest displacement", r.stdout)
+        r = morph(case, os.path.join(self.tmp, "given"), self.motion({"radius": 4, "patches": rotate}))
+        self.assertEqual(json.loads(r.stdout)["radius_why"], "given")
+        r = morph(case, os.path.join(self.tmp, "bad"), self.motion({"patches": rotate}), "--radius", "huge")
+        self.assertEqual(r.returncode, 2)
+        self.assertIn("--radius", r.stderr)
+
     def test_bad_input_is_refused_with_nothing_written(self):
         case = os.path.join(SOURCE, "examples", "airfoil", "case")
         out = os.path.join(self.tmp, "out")
         cases = [
             ({"radius": 4, "patches": {"wing": "fixed"}}, 1, "no patch 'wing'; its patches: airfoil, farfield, frontAndBack"),
-            ({"patches": {"airfoil": "fixed"}}, 2, "no radius"),
+            ({"radius": "big", "patches": {"airfoil": "fixed"}}, 1, 'radius: expected a number > 0 or "auto"'),
             ({"radius": 4, "patches": {"airfoil": {"rotate": {"axis": [0, 0, 0], "degrees": 5}}}}, 1,
              "patches.airfoil.rotate.axis"),
             ({"radius": 4, "patches": {"airfoil": {"translate": [0, 0.1, 0]}, "frontAndBack": {"translate": [0, 0, 0.1]}}},

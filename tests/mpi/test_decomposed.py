@@ -217,8 +217,9 @@ class Decomposed(unittest.TestCase):
         r = run(["blockMesh"], cwd=case)
         self.assertEqual(r.returncode, 0, r.stdout[-2000:])
         with open(self.path("motion.json"), "w") as f:
-            json.dump({"radius": 0.02, "patches": {"lowerWall": {"translate": [0, 0.0001, 0]}, "upperWall": "fixed",
-                                                   "inlet": "fixed", "outlet": "fixed"}}, f)
+            # No radius: auto, chosen alike by the serial run and by four parts from their gathered controls.
+            json.dump({"patches": {"lowerWall": {"translate": [0, 0.0001, 0]}, "upperWall": "fixed",
+                                   "inlet": "fixed", "outlet": "fixed"}}, f)
         plain = self.path("plain")
         shutil.copytree(case, plain)
         want = self.serial(plain, self.path("serial"))
@@ -226,6 +227,10 @@ class Decomposed(unittest.TestCase):
         out = self.path("out")
         r = run(MPIRUN + ["4", CLI, "morph", case, "-o", out, "--motion", self.path("motion.json"), "--json"])
         self.assertEqual(r.returncode, 0, r.stdout[-2000:] + r.stderr[-3000:])
+        report = json.loads(r.stdout)
+        self.assertEqual(report["radius"], self.serial_report["radius"])
+        self.assertEqual(report["radius_why"], self.serial_report["radius_why"])
+        self.assertIn("x the boundary's spacing", report["radius_why"])
         # The cell determinant counts the faces between processors as coupled, as checkMesh does:
         # the parts' figures make the serial one.
         for when in ("before", "after"):

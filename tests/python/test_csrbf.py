@@ -431,8 +431,8 @@ class Morph(unittest.TestCase):
             bad = os.path.join(tmp, "m.json")
             with open(bad, "w") as f:
                 json.dump({"patches": {"wing": "fixed"}}, f)
-            with self.assertRaisesRegex(ValueError, "no radius"):
-                csrbf.morph(case, bad)
+            with self.assertRaisesRegex(ValueError, "the radius must be a finite number > 0, got -1"):
+                csrbf.morph(case, bad, radius=-1.0)
             with self.assertRaisesRegex(csrbf.FileError, "no patch 'wing'"):
                 csrbf.morph(case, bad, radius=1.0)
             steep = os.path.join(tmp, "steep.json")

@@ -26,6 +26,7 @@ struct MorphJob {
   bool write = true;  ///< false: measure only (Python without an output)
   /// Override the motion file's values.
   std::optional<double> radius;
+  bool radius_auto = false;  ///< `--radius auto`; also where neither radius nor the motion file gives one
   std::optional<Kernel> kernel;
   std::optional<Polynomial> polynomial;
   std::optional<double> greedy;
@@ -39,6 +40,8 @@ struct MorphJob {
   /// Where the mapping is fitted and evaluated, and the mesh read and written (MorphBackend);
   /// null: this process alone.
   MorphBackend* backend = nullptr;
+  /// Told of the radius chosen, the prediction and each phase's progress (null: nothing).
+  Progress* progress = nullptr;
 };
 
 struct MorphOutcome {

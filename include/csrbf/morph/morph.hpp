@@ -7,6 +7,7 @@
 #include "csrbf/fit_stats.hpp"
 #include "csrbf/morph/backend.hpp"
 #include "csrbf/morph/motion.hpp"
+#include "csrbf/morph/progress.hpp"
 #include "csrbf/morph/quality.hpp"
 #include "csrbf/morph/volume_mesh.hpp"
 
@@ -46,6 +47,20 @@ struct MorphOptions {
   /// > 0: greedy reduction (Rendall & Allen 2009): controls are added, worst first, until every
   /// prescribed point is interpolated within greedy x the largest displacement.
   double greedy = 0.0;
+  /// `--radius auto`: fit.radius is ignored, and R is chosen from the motion's largest displacement
+  /// (as applied), the boundary's spacing and fit.memory_limit_bytes (MorphReport::radius_why).
+  bool radius_auto = false;
+  /// Told of the radius chosen, the prediction, and each phase's progress (null: nothing).
+  Progress* progress = nullptr;
+};
+
+/// What a fit and its evaluation will need, predicted before either starts: neighbours (other
+/// controls within R) per control and controls within R per mesh point, from seeded samples; the
+/// fit's memory (its neighbour graph, matrix and factor) and times (a model of this machine's
+/// cost per matrix entry and per kernel term; docs/morphing.md gives its measured accuracy).
+struct MorphPrediction {
+  double neighbours_per_control = 0, neighbours_per_point = 0;
+  double bytes = 0, seconds_fit = 0, seconds_evaluate = 0;
 };
 
 /// What one patch of the mesh did: its kind ("moving", "fixed", "slip" or "free") and why
@@ -74,6 +89,9 @@ struct MorphReport {
   std::size_t far_fixed = 0;
   FitStats fit;
   double seconds_fit = 0, seconds_evaluate = 0;
+  double radius = 0;       ///< the R fitted (chosen, with radius_auto)
+  std::string radius_why;  ///< radius_auto: how R was chosen; else "given"
+  MorphPrediction predicted;
 };
 
 struct MorphResult {

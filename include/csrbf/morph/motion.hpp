@@ -51,6 +51,7 @@ struct PatchMotion {
 struct Motion {
   std::string file;
   std::optional<double> radius;
+  bool radius_auto = false;  ///< "radius": "auto"
   std::optional<Kernel> kernel;
   std::optional<Polynomial> polynomial;
   /// VTK meshes: the integer point or cell data array whose values name the patches.

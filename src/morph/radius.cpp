@@ -1,0 +1,156 @@
+#include "radius.hpp"
+
+#include "csrbf/fit_options.hpp"
+#include "csrbf/io/error.hpp"
+#include "csrbf/neighbor_index.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <sstream>
+
+namespace csrbf::morph::detail {
+
+namespace {
+
+/// At most `most` indices of [0, n), seeded: all of them where n is small.
+std::vector<std::size_t> sample(std::size_t n, std::size_t most) {
+  std::vector<std::size_t> s;
+  if (n <= most) {
+    s.resize(n);
+    for (std::size_t i = 0; i < n; ++i) s[i] = i;
+    return s;
+  }
+  std::mt19937_64 rng(20261204);
+  s.resize(most);
+  for (auto& i : s) i = std::size_t(rng() % n);
+  return s;
+}
+
+std::string num(double v) {
+  std::ostringstream os;
+  os.precision(4);
+  os << v;
+  return os.str();
+}
+
+}  // namespace
+
+std::vector<Vec3> sorted_unique(std::vector<Vec3> v) {
+  const auto less = [](const Vec3& a, const Vec3& c) {
+    return std::lexicographical_compare(a.data(), a.data() + 3, c.data(), c.data() + 3);
+  };
+  std::sort(v.begin(), v.end(), less);
+  v.erase(std::unique(v.begin(), v.end()), v.end());
+  return v;
+}
+
+double boundary_spacing(std::span<const Vec3> controls, std::span<const Vec3> moving) {
+  if (controls.size() < 2 || moving.empty()) return 0;
+  const std::vector<std::size_t> picked = sample(moving.size(), 512);
+  std::vector<double> nearest(picked.size(), std::numeric_limits<double>::infinity());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, picked.size(), 4), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t k = r.begin(); k < r.end(); ++k) {
+      const Vec3& p = moving[picked[k]];
+      double best = std::numeric_limits<double>::infinity();
+      for (const Vec3& q : controls) {
+        const double d = (q - p).squaredNorm();
+        if (d > 0 && d < best) best = d;
+      }
+      nearest[k] = std::sqrt(best);
+    }
+  });
+  std::nth_element(nearest.begin(), nearest.begin() + std::ptrdiff_t(nearest.size() / 2), nearest.end());
+  const double h = nearest[nearest.size() / 2];
+  return std::isfinite(h) ? h : 0.0;
+}
+
+std::vector<Vec3> fitted_controls(std::span<const Vec3> moving, std::span<const Vec3> staying, double radius,
+                                  bool local) {
+  std::vector<Vec3> out(moving.begin(), moving.end());
+  if (!local || moving.empty()) {
+    out.insert(out.end(), staying.begin(), staying.end());
+    return out;
+  }
+  const NeighborIndex near(moving, radius);
+  for (const Vec3& s : staying) {
+    bool keep = false;
+    near.for_each_slot_within(s, [&](std::size_t, double) { keep = true; });
+    if (keep) out.push_back(s);
+  }
+  return out;
+}
+
+RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> staying, double displacement,
+                           double size, double budget, bool local) {
+  std::vector<Vec3> all(moving.begin(), moving.end());
+  all.insert(all.end(), staying.begin(), staying.end());
+  const double h = boundary_spacing(all, moving);
+  RadiusChoice c;
+  const double by_motion = kDisplacementFactor * displacement, by_spacing = kSpacingFactor * h;
+  c.radius = std::max(by_motion, by_spacing);
+  c.why = by_motion >= by_spacing ? num(kDisplacementFactor) + " x the largest displacement " + num(displacement) +
+                                        " (the boundary's spacing is " + num(h) + ")"
+                                  : num(kSpacingFactor) + " x the boundary's spacing " + num(h) + " (above " +
+                                        num(kDisplacementFactor) + " x the largest displacement " +
+                                        num(displacement) + ")";
+  if (c.radius > size) {
+    c.radius = size;
+    c.why += ", capped at the mesh's size";
+  }
+  // The largest R within the budget: memory, and neighbours per control (the time of the fit).
+  const auto fits = [&](double r, FitMemoryEstimate* out = nullptr) {
+    const std::vector<Vec3> s = fitted_controls(moving, staying, r, local);
+    const FitMemoryEstimate e = estimate_fit_memory(s, r);
+    if (out) *out = e;
+    return e.bytes <= budget && e.mean_neighbors <= kMostNeighbours;
+  };
+  FitMemoryEstimate at;
+  if (!fits(c.radius, &at)) {
+    const bool memory = at.bytes > budget;
+    double lo = std::min(c.radius, std::max(h, 1e-9 * size)), hi = c.radius;
+    for (int k = 0; k < 24 && hi - lo > 1e-3 * hi; ++k) {
+      const double mid = 0.5 * (lo + hi);
+      (fits(mid) ? lo : hi) = mid;
+    }
+    c.why += memory ? ", reduced from " + num(c.radius) + " where the fit would need about " +
+                          num(at.bytes / double(1ull << 30)) + " GiB, above what --memory-limit leaves it (" +
+                          num(budget / double(1ull << 30)) + " GiB)"
+                    : ", reduced from " + num(c.radius) + " where each control would have " +
+                          num(at.mean_neighbors) + " neighbours (at most " + num(kMostNeighbours) + ")";
+    c.radius = lo;
+    if (lo < by_motion) c.why += "; below the displacement rule, cells near moving walls may shear: check the quality";
+  }
+  return c;
+}
+
+MorphPrediction predict(std::span<const Vec3> controls, std::span<const Vec3> points, int flat_axis, double mid,
+                        double radius, double total_points, MorphBackend& b) {
+  MorphPrediction p;
+  const FitMemoryEstimate e = estimate_fit_memory(controls, radius);
+  p.neighbours_per_control = e.mean_neighbors;
+  p.bytes = e.bytes;
+  double terms = 0, counted = 0;
+  if (!controls.empty() && !points.empty()) {
+    const NeighborIndex near(controls, radius);
+    for (const std::size_t i : sample(points.size(), 512)) {
+      Vec3 q = points[i];
+      if (flat_axis >= 0) q[flat_axis] = mid;
+      near.for_each_slot_within(q, [&](std::size_t, double) { terms += 1; });
+      counted += 1;
+    }
+  }
+  terms = b.sum(terms);
+  counted = b.sum(counted);
+  p.neighbours_per_point = counted > 0 ? terms / counted : 0.0;
+  const double entries = double(controls.size()) * (1 + p.neighbours_per_control);
+  p.seconds_fit = kSecondsPerEntry * entries;
+  p.seconds_evaluate = total_points * (kSecondsPerPoint + kSecondsPerTerm * p.neighbours_per_point);
+  return p;
+}
+
+}  // namespace csrbf::morph::detail

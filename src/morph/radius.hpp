@@ -1,0 +1,55 @@
+// `csrbf morph --radius auto` and the prediction of a fit's size and time (private to csrbf::morph).
+#pragma once
+
+#include "csrbf/morph/morph.hpp"
+
+#include <span>
+#include <string>
+#include <vector>
+
+namespace csrbf::morph::detail {
+
+/// Points sorted (lexicographically) and unique: every process's controls, gathered, in an order
+/// that does not depend on how the mesh was decomposed (a processor boundary's point once).
+std::vector<Vec3> sorted_unique(std::vector<Vec3> v);
+
+/// The median distance from a moving control to its nearest other control, over a seeded sample
+/// of at most 512 moving controls: the boundary's spacing. 0 where there are not two controls.
+double boundary_spacing(std::span<const Vec3> controls, std::span<const Vec3> moving);
+
+/// The controls a fit of radius R takes (polynomial none): the moving ones and the staying ones
+/// within R of a moving one; with a polynomial, all.
+std::vector<Vec3> fitted_controls(std::span<const Vec3> moving, std::span<const Vec3> staying, double radius,
+                                  bool local);
+
+struct RadiusChoice {
+  double radius = 0;
+  std::string why;
+};
+
+/// R for a motion whose largest displacement (as applied) is `displacement`: kDisplacementFactor
+/// times it, at least kSpacingFactor times the boundary's spacing, at most the mesh's size, and
+/// smaller where the fit's predicted memory would pass `budget` bytes or each control would have
+/// more than kMostNeighbours neighbours (bisection on the prediction). moving, staying: sorted_unique.
+inline constexpr double kDisplacementFactor = 20.0;
+inline constexpr double kSpacingFactor = 4.0;
+inline constexpr double kMostNeighbours = 400.0;
+/// The share of the memory left to the fit that auto's R may predict (the evaluation's grid and
+/// the solver's work space take the rest).
+inline constexpr double kAutoMemoryShare = 0.5;
+RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> staying, double displacement,
+                           double size, double budget, bool local);
+
+/// What a fit of `controls` (sorted_unique, every process's) at radius R and the evaluation of
+/// `points` (this process's) will need: neighbours per control (a sample) and per point (a seeded
+/// sample of at most 512 points), the fit's memory (estimate_fit_memory) and the times of
+/// kSecondsPerEntry, kSecondsPerTerm and kSecondsPerPoint (measured on 2 cores: docs/morphing.md).
+/// total_points: every process's.
+inline constexpr double kSecondsPerEntry = 2.2e-7;  ///< a fit, per non-zero of A (its factorisation or CG, three right-hand sides)
+inline constexpr double kSecondsPerTerm = 5e-10;  ///< an evaluation, per kernel term of a point
+inline constexpr double kSecondsPerPoint = 1.5e-7;  ///< an evaluation, per point (its grid cell, its copy)
+/// flat_axis >= 0: a 2-D mesh, whose points are evaluated at `mid` along that axis.
+MorphPrediction predict(std::span<const Vec3> controls, std::span<const Vec3> points, int flat_axis, double mid,
+                        double radius, double total_points, MorphBackend& b);
+
+}  // namespace csrbf::morph::detail
