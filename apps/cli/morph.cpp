@@ -2,6 +2,7 @@
 
 #include "animate.hpp"
 #include "commands.hpp"
+#include "progress.hpp"
 #include "csrbf/morph/job.hpp"
 #include "csrbf/names.hpp"
 
@@ -66,6 +67,9 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
                   "points there; a time without its own polyMesh is constant's, as OpenFOAM reads it. Also "
                   "spelled -time T and -latestTime, as OpenFOAM's utilities take them");
   cmd->add_flag("--json", a.json, "Print the report as one JSON object");
+  cmd->add_flag("--quiet,-q", a.quiet,
+                "No progress on the terminal (bars of the phases longer than a second, the radius chosen, the "
+                "prediction); the report is printed all the same");
   cmd->add_flag("--force", a.force, "Write the mesh even if the morph inverts cells");
   return cmd;
 }
@@ -118,12 +122,16 @@ int run_morph(const MorphArgs& a) {
                 << " is decomposed (processor folders): one process morphs its constant/polyMesh and "
                    "leaves the processor folders as they are; mpirun -np PROCESSORS csrbf morph morphs them\n";
   }
+  TerminalProgress progress(!a.quiet && TerminalProgress::terminal());
+  morph::MorphJob job_shown = job;
+  job_shown.progress = &progress;
   morph::MorphOutcome o;
   try {
-    o = morph::run_job(job);
+    o = morph::run_job(job_shown);
   } catch (const morph::JobError& e) {
     throw UsageError(std::string("morph: ") + e.what());
   }
+  progress.end();
   std::cout << (a.json ? morph::outcome_json(o) + "\n" : csrbf::printable(morph::outcome_text(o), true));
   return report_inversion(a, o);
 }
@@ -197,8 +205,11 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
       return 2;
     }
     job.backend = &backend;
+    TerminalProgress progress(rt.rank() == 0 && !a.quiet && TerminalProgress::terminal());
+    job.progress = &progress;
     try {
       const morph::MorphOutcome local = morph::run_job(job);
+      progress.end();
       const auto ranks = backend.rank_stats();
       morph::MorphOutcome o = local;
       o.points = std::size_t(backend.sum(double(local.points)));
@@ -232,9 +243,12 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
   try {
     morph::MorphJob job = job_of(a, true);
     job.backend = &backend;
+    TerminalProgress progress(!a.quiet && TerminalProgress::terminal());
+    job.progress = &progress;
     morph::MorphOutcome o;
     try {
       o = morph::run_job(job);
+      progress.end();
     } catch (const morph::JobError& e) {
       throw UsageError(std::string("morph: ") + e.what());
     }

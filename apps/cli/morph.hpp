@@ -16,6 +16,7 @@ struct MorphArgs {
   double phase = 1.0;
   double memory_limit_gib = 4.0;
   bool json = false, force = false, in_place = false;
+  bool quiet = false;  ///< no progress bars or notes on the terminal
 };
 
 /// Adds `csrbf morph` and its options to app.

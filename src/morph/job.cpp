@@ -17,6 +17,7 @@
 #include <exception>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <vector>
 #include <cmath>
 #include <chrono>
@@ -156,6 +157,31 @@ MeshQuality combine(MorphBackend& b, MeshQuality q) {
   return q;
 }
 
+// The progress bars' predictions where the work is not counted (measured on 2 cores: ASCII
+// OpenFOAM files read at about 100 MB/s, checkMesh's measures at 3.2e-7 s a cell).
+constexpr double kReadBytesPerSecond = 1e8;
+constexpr double kQualitySecondsPerCell = 3.2e-7;
+constexpr double kWriteSecondsPerPoint = 5e-7;
+
+/// The bytes a mesh's reader goes through: a file's, or an OpenFOAM case's polyMesh files (a
+/// gzipped one counted 5 times: what it inflates to, about).
+double input_bytes(const fs::path& mesh) {
+  std::error_code ec;
+  if (!fs::is_directory(mesh, ec)) {
+    const auto size = fs::file_size(mesh, ec);
+    return ec ? 0.0 : double(size);
+  }
+  fs::path poly = mesh / "constant" / "polyMesh";
+  if (!fs::is_directory(poly, ec)) poly = mesh;
+  double bytes = 0;
+  for (fs::directory_iterator it(poly, ec), end; !ec && it != end; it.increment(ec)) {
+    if (!it->is_regular_file(ec)) continue;
+    const auto size = it->file_size(ec);
+    if (!ec) bytes += double(size) * (it->path().extension() == ".gz" ? 5.0 : 1.0);
+  }
+  return bytes;
+}
+
 std::string motion_summary(const Motion& m) {
   std::string s;
   for (const auto& p : m.patches) {
@@ -221,6 +247,7 @@ MorphOutcome run_job(const MorphJob& job) {
     o.motion_summary = motion_summary(motion);
 
     t_read = Clock::now();
+    ProgressPhase reading(job.progress, "read", 0, input_bytes(b.mesh_path(job.mesh)) / kReadBytesPerSecond);
     OpenOptions open;
     open.patch_array = motion.patch_array;
     open.max_file_bytes = job.memory_limit_bytes;  // a mesh file, uncompressed, within --memory-limit
@@ -248,7 +275,11 @@ MorphOutcome run_job(const MorphJob& job) {
   o.ms_read = ms_since(t_read);
   auto t_q = Clock::now();
   QualityMeter meter(mesh);
-  o.before = combine(b, meter.measure(mesh.points));
+  const double cells_here = double(mesh.poly.faces() ? mesh.poly.cells : mesh.cells.size());
+  {
+    ProgressPhase measuring(job.progress, "quality", 0, cells_here * kQualitySecondsPerCell);
+    o.before = combine(b, meter.measure(mesh.points));
+  }
   if (o.before.cells)
     o.cells = o.before.cells->cells;  // the volume cells, not the boundary faces a file also holds
   else if (b.part() && o.before.poly)
@@ -271,10 +302,16 @@ MorphOutcome run_job(const MorphJob& job) {
     throw io::FileError(o.mesh + ": " + e.what());
   }
   t_q = Clock::now();
-  o.after = combine(b, meter.measure(o.result.points));
+  {
+    ProgressPhase measuring(job.progress, "quality", 0, cells_here * kQualitySecondsPerCell);
+    o.after = combine(b, meter.measure(o.result.points));
+  }
   o.ms_quality += ms_since(t_q);
   o.inverts = o.after.inverted_cells() > o.before.inverted_cells();
   o.safe_phase = job.phase;
+  // The bisection measures the mesh about 14 times.
+  std::optional<ProgressPhase> bisecting;
+  if (o.inverts) bisecting.emplace(job.progress, "safe phase", 0, 14 * cells_here * kQualitySecondsPerCell);
   if (o.inverts && !b.part())
     o.safe_phase = largest_safe_phase(mesh, o.result.points, job.phase, o.before.inverted_cells());
   if (o.inverts && b.part()) {  // the bisection of largest_safe_phase, counting every part's cells
@@ -288,8 +325,10 @@ MorphOutcome run_job(const MorphJob& job) {
     }
     o.safe_phase = lo;
   }
+  bisecting.reset();
   if (job.write && (!o.inverts || job.force)) {
     const auto t_w = Clock::now();
+    ProgressPhase writing(job.progress, "write", 0, double(mesh.points.size()) * kWriteSecondsPerPoint);
     if (job.in_place)
       b.write_in_place(*file, o.result.points);
     else

@@ -474,6 +474,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       return b.max(e);
     };
     if (options.greedy > 0 && b.max(double(nc)) > 1) {
+      ProgressPhase rounds(options.progress, "greedy", 0, 0);  // rounds counted; their number is not known
       const double limit = options.greedy * largest;
       std::vector<char> chosen(nc, 0);
       std::vector<std::uint32_t> subset;
@@ -487,6 +488,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       std::vector<std::uint32_t> by_error(nc);
       for (;;) {
         ++rep.greedy_rounds;
+        rounds.advance(double(rep.greedy_rounds));
         std::sort(subset.begin(), subset.end());
         std::vector<Vec3> s(subset.size()), t(subset.size());
         std::vector<std::uint64_t> u(subset.size());
@@ -514,6 +516,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       }
       rep.controls = subset.size();
     } else {
+      ProgressPhase fitting(options.progress, "fit", 0, rep.predicted.seconds_fit);
       map = b.fit(sources, targets, fit, ids);
       rep.max_boundary_error = worst(*map, err);
       rep.controls = nc;
@@ -632,10 +635,22 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   rep.seconds_fit = seconds_since(t_fit);
 
   const auto t_eval = Clock::now();
+  // In this process the points are evaluated in slices, which the progress counts; a backend that
+  // spreads them over processes takes them whole (its calls are collective).
+  ProgressPhase evaluating(options.progress, "evaluate", double(mesh.points.size()), rep.predicted.seconds_evaluate);
+  const bool sliced = &b == &local_backend();
+  const auto displacements_of = [&](FittedMapping& m, std::span<const Vec3> in, std::span<Vec3> out) {
+    const std::size_t step = sliced ? std::max<std::size_t>(std::size_t(1) << 16, in.size() / 50) : in.size();
+    for (std::size_t s = 0; s < in.size(); s += step) {
+      const std::size_t k = std::min(step, in.size() - s);
+      m.displacements(in.subspan(s, k), out.subspan(s, k));
+      evaluating.advance(double(s + k));
+    }
+  };
   if (correction) {
     // x + phase (d1 + d2): the first mapping's displacements (kept) and the correction's.
     std::vector<Vec3> c(mesh.points.size());
-    correction->displacements(evaluated_at(), c);
+    displacements_of(*correction, evaluated_at(), c);
     for (std::size_t i = 0; i < c.size(); ++i) {
       r.points[i] = mesh.points[i] + options.phase * (first_d[i] + c[i]);
       if (flat) r.points[i][flat->axis] = mesh.points[i][flat->axis];
@@ -644,10 +659,19 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
     // The displacement at each point's projection: the two planes' points move alike, and never
     // out of their planes (every control's displacement is 0 along the axis).
     std::vector<Vec3> d(mesh.points.size());
-    map->displacements(evaluated_at(), d);
+    displacements_of(*map, evaluated_at(), d);
     for (std::size_t i = 0; i < d.size(); ++i) {
       r.points[i] = mesh.points[i] + options.phase * d[i];
       r.points[i][flat->axis] = mesh.points[i][flat->axis];
+    }
+  } else if (sliced) {
+    const std::span<const Vec3> in = mesh.points;
+    const std::span<Vec3> out = r.points;
+    const std::size_t step = std::max<std::size_t>(std::size_t(1) << 16, in.size() / 50);
+    for (std::size_t s = 0; s < in.size(); s += step) {
+      const std::size_t k = std::min(step, in.size() - s);
+      map->apply(in.subspan(s, k), out.subspan(s, k), options.phase);
+      evaluating.advance(double(s + k));
     }
   } else {
     map->apply(mesh.points, r.points, options.phase);

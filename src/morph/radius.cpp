@@ -53,17 +53,18 @@ double boundary_spacing(std::span<const Vec3> controls, std::span<const Vec3> mo
   if (controls.size() < 2 || moving.empty()) return 0;
   const std::vector<std::size_t> picked = sample(moving.size(), 512);
   std::vector<double> nearest(picked.size(), std::numeric_limits<double>::infinity());
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, picked.size(), 4), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t k = r.begin(); k < r.end(); ++k) {
-      const Vec3& p = moving[picked[k]];
-      double best = std::numeric_limits<double>::infinity();
-      for (const Vec3& q : controls) {
-        const double d = (q - p).squaredNorm();
-        if (d > 0 && d < best) best = d;
-      }
-      nearest[k] = std::sqrt(best);
-    }
-  });
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, picked.size(), 4),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t k = r.begin(); k < r.end(); ++k) {
+                        const Vec3& p = moving[picked[k]];
+                        double best = std::numeric_limits<double>::infinity();
+                        for (const Vec3& q : controls) {
+                          const double d = (q - p).squaredNorm();
+                          if (d > 0 && d < best) best = d;
+                        }
+                        nearest[k] = std::sqrt(best);
+                      }
+                    });
   std::nth_element(nearest.begin(), nearest.begin() + std::ptrdiff_t(nearest.size() / 2), nearest.end());
   const double h = nearest[nearest.size() / 2];
   return std::isfinite(h) ? h : 0.0;
@@ -93,11 +94,11 @@ RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> s
   RadiusChoice c;
   const double by_motion = kDisplacementFactor * displacement, by_spacing = kSpacingFactor * h;
   c.radius = std::max(by_motion, by_spacing);
-  c.why = by_motion >= by_spacing ? num(kDisplacementFactor) + " x the largest displacement " + num(displacement) +
-                                        " (the boundary's spacing is " + num(h) + ")"
-                                  : num(kSpacingFactor) + " x the boundary's spacing " + num(h) + " (above " +
-                                        num(kDisplacementFactor) + " x the largest displacement " +
-                                        num(displacement) + ")";
+  c.why = by_motion >= by_spacing
+              ? num(kDisplacementFactor) + " x the largest displacement " + num(displacement) +
+                    " (the boundary's spacing is " + num(h) + ")"
+              : num(kSpacingFactor) + " x the boundary's spacing " + num(h) + " (above " + num(kDisplacementFactor) +
+                    " x the largest displacement " + num(displacement) + ")";
   if (c.radius > size) {
     c.radius = size;
     c.why += ", capped at the mesh's size";
@@ -120,8 +121,8 @@ RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> s
     c.why += memory ? ", reduced from " + num(c.radius) + " where the fit would need about " +
                           num(at.bytes / double(1ull << 30)) + " GiB, above what --memory-limit leaves it (" +
                           num(budget / double(1ull << 30)) + " GiB)"
-                    : ", reduced from " + num(c.radius) + " where each control would have " +
-                          num(at.mean_neighbors) + " neighbours (at most " + num(kMostNeighbours) + ")";
+                    : ", reduced from " + num(c.radius) + " where each control would have " + num(at.mean_neighbors) +
+                          " neighbours (at most " + num(kMostNeighbours) + ")";
     c.radius = lo;
     if (lo < by_motion) c.why += "; below the displacement rule, cells near moving walls may shear: check the quality";
   }

@@ -45,8 +45,9 @@ RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> s
 /// sample of at most 512 points), the fit's memory (estimate_fit_memory) and the times of
 /// kSecondsPerEntry, kSecondsPerTerm and kSecondsPerPoint (measured on 2 cores: docs/morphing.md).
 /// total_points: every process's.
-inline constexpr double kSecondsPerEntry = 2.2e-7;  ///< a fit, per non-zero of A (its factorisation or CG, three right-hand sides)
-inline constexpr double kSecondsPerTerm = 5e-10;  ///< an evaluation, per kernel term of a point
+inline constexpr double kSecondsPerEntry =
+    2.2e-7;  ///< a fit, per non-zero of A (its factorisation or CG, three right-hand sides)
+inline constexpr double kSecondsPerTerm = 5e-10;    ///< an evaluation, per kernel term of a point
 inline constexpr double kSecondsPerPoint = 1.5e-7;  ///< an evaluation, per point (its grid cell, its copy)
 /// flat_axis >= 0: a 2-D mesh, whose points are evaluated at `mid` along that axis.
 MorphPrediction predict(std::span<const Vec3> controls, std::span<const Vec3> points, int flat_axis, double mid,

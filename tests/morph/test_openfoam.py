@@ -348,6 +348,57 @@ class OpenFoamCases(MorphCase):
         self.assertEqual(r.returncode, 2)
         self.assertIn("--radius", r.stderr)
 
+    def test_progress_shows_on_a_terminal_only(self):
+        # A 3-D cavity of 68 921 points whose lid moves: its fit at R = 0.02 has ~1000 neighbours a control.
+        case = os.path.join(self.tmp, "cavity")
+        shutil.copytree(os.path.join(os.path.dirname(TUTORIALS), "..", "incompressible", "icoFoam", "cavity", "cavity"),
+                        case)
+        mesh_dict = os.path.join(case, "system", "blockMeshDict")
+        text = read_text(mesh_dict).decode().replace("(20 20 1) simpleGrading", "(40 40 40) simpleGrading")
+        with open(mesh_dict, "w") as f:
+            f.write(re.sub(r"(frontAndBack\s*\{\s*type\s+)empty;", r"\1wall;", text))
+        self.assertEqual(run(["blockMesh"], cwd=case).returncode, 0)
+        motion = self.motion({"radius": 0.02, "patches": {"movingWall": {"translate": [0, -0.0003, 0]},
+                                                          "fixedWalls": "fixed", "frontAndBack": "fixed"}})
+
+        def on_terminal(out, *extra):
+            """(status, standard output, what a terminal on standard error showed)"""
+            import pty
+            master, slave = pty.openpty()
+            p = subprocess.Popen([CLI, "morph", case, "-o", out, "--motion", motion, "--json", *extra],
+                                 stdout=subprocess.PIPE, stderr=slave, env=dict(ENV, CSRBF_PROGRESS_DELAY_MS="0"))
+            os.close(slave)
+            shown = b""
+            while True:
+                try:
+                    chunk = os.read(master, 65536)
+                except OSError:  # the child closed the terminal
+                    break
+                if not chunk:
+                    break
+                shown += chunk
+            os.close(master)
+            stdout, _ = p.communicate(timeout=600)
+            return p.returncode, stdout.decode(), shown.decode()
+
+        code, stdout, shown = on_terminal(os.path.join(self.tmp, "shown"))
+        self.assertEqual(code, 0, shown)
+        report = json.loads(stdout)  # the report is whole: nothing of the progress in it
+        self.assertTrue(report["written"])
+        self.assertIn("csrbf: predicted: ", shown)
+        self.assertIn("neighbours each", shown)
+        # A bar with its fraction and the time left, for the fit at least; each drawn over the last
+        # (carriage return, erase line) and erased when its phase ends.
+        bars = re.findall(r"\r\x1b\[K  (\S+(?: \S+)?)\s+\[([#.]{30})\]\s+(\d+)%  [^\r]*", shown)
+        self.assertIn("fit", {b[0] for b in bars}, shown)
+        self.assertTrue(shown.endswith("\r\x1b[K"), repr(shown[-200:]))
+        # --quiet, or standard error not a terminal: nothing.
+        code, stdout, shown = on_terminal(os.path.join(self.tmp, "quiet"), "--quiet")
+        self.assertEqual((code, shown), (0, ""))
+        self.assertEqual(json.loads(stdout)["radius"], 0.02)
+        r = run([CLI, "morph", case, "-o", os.path.join(self.tmp, "piped"), "--motion", motion])
+        self.assertEqual((r.returncode, r.stderr), (0, ""))
+
     def test_bad_input_is_refused_with_nothing_written(self):
         case = os.path.join(SOURCE, "examples", "airfoil", "case")
         out = os.path.join(self.tmp, "out")

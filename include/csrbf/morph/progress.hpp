@@ -24,4 +24,23 @@ class Progress {
   virtual void end() {}
 };
 
+/// A phase on a Progress (nothing where null), begun here and ended when it goes out of scope.
+class ProgressPhase {
+ public:
+  ProgressPhase(Progress* p, const std::string& phase, double total = 0, double seconds = 0) : p_(p) {
+    if (p_) p_->begin(phase, total, seconds);
+  }
+  ~ProgressPhase() {
+    if (p_) p_->end();
+  }
+  ProgressPhase(const ProgressPhase&) = delete;
+  ProgressPhase& operator=(const ProgressPhase&) = delete;
+  void advance(double done) {
+    if (p_) p_->advance(done);
+  }
+
+ private:
+  Progress* p_;
+};
+
 }  // namespace csrbf::morph
