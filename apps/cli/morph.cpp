@@ -35,7 +35,13 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
       cmd->add_flag("--in-place", a.in_place,
                     "Rewrite the input with the moved points, atomically (OpenFOAM: its points file alone)");
   out->excludes(in_place);
-  cmd->add_option("--motion", a.motion, "Motion JSON: what each patch does (docs/morphing.md)")->required();
+  auto* motion = cmd->add_option("--motion", a.motion, "Motion JSON: what each patch does (docs/morphing.md)");
+  auto* series = cmd->add_option(
+      "--motion-series", a.motion_series,
+      "OpenFOAM: a folder of motion files named by time (0.1.json, 0.2.json, ...), each from the mesh read; each "
+      "time's moved points go into that time's polyMesh, one matrix factorised for all where R and the controls "
+      "stay the same");
+  motion->excludes(series);
   cmd->add_option("--radius,-r", a.radius,
                   "Radius of support R, or auto: chosen from the motion's largest displacement, the boundary's "
                   "spacing and --memory-limit, and the report says why (auto is the default where the motion "
@@ -80,6 +86,11 @@ morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
   morph::MorphJob job;
   job.mesh = a.mesh;
   job.motion = a.motion;
+  job.motion_series = a.motion_series;
+  if (a.motion.empty() && a.motion_series.empty())
+    throw UsageError("morph: give --motion FILE (or --motion-series DIR, a motion a time)");
+  if (distributed && !a.motion_series.empty())
+    throw UsageError("morph: --motion-series runs in one process: run it without mpirun");
   job.out = a.out;
   job.in_place = a.in_place;
   if (a.out.empty() && !a.in_place) throw UsageError("morph: give -o OUT (a new case folder or file) or --in-place");
@@ -96,6 +107,16 @@ morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
   job.force = a.force;
   job.time = a.time;
   return job;
+}
+
+/// f(), its JobError (contradicting options) a usage error.
+template <class F>
+auto usage_errors(F&& f) {
+  try {
+    return f();
+  } catch (const morph::JobError& e) {
+    throw UsageError(std::string("morph: ") + e.what());
+  }
 }
 
 /// The exit status of an outcome: 1 where the morph inverts cells and nothing was written.
@@ -125,12 +146,20 @@ int run_morph(const MorphArgs& a) {
   TerminalProgress progress(!a.quiet && TerminalProgress::terminal());
   morph::MorphJob job_shown = job;
   job_shown.progress = &progress;
-  morph::MorphOutcome o;
-  try {
-    o = morph::run_job(job_shown);
-  } catch (const morph::JobError& e) {
-    throw UsageError(std::string("morph: ") + e.what());
+  if (!job.motion_series.empty()) {
+    const morph::SeriesOutcome s = usage_errors([&] { return morph::run_series(job_shown); });
+    progress.end();
+    std::cout << (a.json ? morph::series_json(s) + "\n" : csrbf::printable(morph::series_text(s), true));
+    if (!s.steps.empty() && s.steps.back().inverts && !s.written) {
+      const morph::MorphOutcome& o = s.steps.back();
+      std::cerr << "csrbf: error: time " << o.time << " (" << o.motion << "): the morph inverts "
+                << o.after.inverted_cells() - o.before.inverted_cells() << " cells; the largest phase <= " << a.phase
+                << " that inverts none is " << o.safe_phase << "; no time written (--force writes anyway)\n";
+      return 1;
+    }
+    return 0;
   }
+  const morph::MorphOutcome o = usage_errors([&] { return morph::run_job(job_shown); });
   progress.end();
   std::cout << (a.json ? morph::outcome_json(o) + "\n" : csrbf::printable(morph::outcome_text(o), true));
   return report_inversion(a, o);
@@ -245,13 +274,8 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
     job.backend = &backend;
     TerminalProgress progress(!a.quiet && TerminalProgress::terminal());
     job.progress = &progress;
-    morph::MorphOutcome o;
-    try {
-      o = morph::run_job(job);
-      progress.end();
-    } catch (const morph::JobError& e) {
-      throw UsageError(std::string("morph: ") + e.what());
-    }
+    const morph::MorphOutcome o = usage_errors([&] { return morph::run_job(job); });
+    progress.end();
     const auto ranks = backend.rank_stats();
     print_outcome(a, o, ranks, backend.stats(), "scattered from rank 0");
     code = report_inversion(a, o);

@@ -9,7 +9,8 @@ namespace csrbf::cli {
 
 struct MorphArgs {
   std::string mesh, out, motion;
-  std::string radius;  ///< R, "auto", or empty (the motion file's, else auto)
+  std::string motion_series;  ///< --motion-series DIR
+  std::string radius;         ///< R, "auto", or empty (the motion file's, else auto)
   std::optional<double> greedy;
   std::string kernel, polynomial, solver = "auto";
   std::string time;  ///< OpenFOAM's -time: latest or a time

@@ -191,6 +191,53 @@ std::string motion_summary(const Motion& m) {
   return s;
 }
 
+/// The job's options and output, checked before anything is read.
+void check_job(const MorphJob& job) {
+  if (job.write && job.out.empty() && !job.in_place)
+    throw JobError("give an output (a new case folder or file) or in place");
+  if (job.write && !job.out.empty() && job.in_place) throw JobError("give an output or in place, not both");
+  if (job.radius && !(*job.radius > 0 && std::isfinite(*job.radius)))
+    throw JobError("the radius must be a finite number > 0, got " + io::format_number(*job.radius));
+  if (!(job.phase >= 0 && job.phase <= 1))
+    throw JobError("the phase must be in [0, 1], got " + io::format_number(job.phase));
+  if (job.greedy && !(*job.greedy > 0 && *job.greedy <= 1))
+    throw JobError("the greedy tolerance must be in (0, 1], got " + io::format_number(*job.greedy));
+  if (!(job.memory_limit_bytes > 0)) throw JobError("the memory limit must be > 0");
+  if (job.write && !job.out.empty()) {
+    std::error_code ec;
+    if (fs::symlink_status(job.out, ec).type() != fs::file_type::not_found)
+      throw io::FileError("cannot write '" + job.out.string() +
+                          "': it exists (csrbf morph writes a new case folder or file; --in-place rewrites the input)");
+    io::must_be_new(job.out);  // never replaced, even by a copy another morph finishes first
+    const fs::path parent = job.out.has_parent_path() ? job.out.parent_path() : fs::path(".");
+    if (!fs::is_directory(parent, ec))
+      throw io::FileError("cannot write '" + job.out.string() + "': folder '" + parent.string() + "' does not exist");
+    if (!fs::is_directory(job.mesh, ec) && detail::lower_extension(job.out) != detail::lower_extension(job.mesh))
+      throw JobError("output " + job.out.string() +
+                     ": the output is written in the input's format, so it needs the extension '" +
+                     detail::lower_extension(job.mesh) + "'");
+  }
+}
+
+/// The morph's options: the job's, else the motion file's, else the defaults (R: auto).
+MorphOptions options_of(const MorphJob& job, const Motion& motion) {
+  MorphOptions opt;
+  if (job.radius)
+    opt.fit.radius = *job.radius;
+  else if (!job.radius_auto && motion.radius)
+    opt.fit.radius = *motion.radius;
+  else
+    opt.radius_auto = true;
+  opt.progress = job.progress;
+  opt.fit.kernel = job.kernel.value_or(motion.kernel.value_or(Kernel::C2));
+  opt.fit.polynomial = job.polynomial.value_or(motion.polynomial.value_or(Polynomial::None));
+  opt.fit.solver = job.solver;
+  opt.fit.memory_limit_bytes = job.memory_limit_bytes;
+  opt.phase = job.phase;
+  opt.greedy = job.greedy.value_or(0.0);
+  return opt;
+}
+
 }  // namespace
 
 MorphOutcome run_job(const MorphJob& job) {
@@ -203,47 +250,9 @@ MorphOutcome run_job(const MorphJob& job) {
   std::unique_ptr<VolumeFile> file;
   auto t_read = Clock::now();
   b.agree(caught([&] {
-    if (job.write && job.out.empty() && !job.in_place)
-      throw JobError("give an output (a new case folder or file) or in place");
-    if (job.write && !job.out.empty() && job.in_place) throw JobError("give an output or in place, not both");
-    if (job.radius && !(*job.radius > 0 && std::isfinite(*job.radius)))
-      throw JobError("the radius must be a finite number > 0, got " + io::format_number(*job.radius));
-    if (!(job.phase >= 0 && job.phase <= 1))
-      throw JobError("the phase must be in [0, 1], got " + io::format_number(job.phase));
-    if (job.greedy && !(*job.greedy > 0 && *job.greedy <= 1))
-      throw JobError("the greedy tolerance must be in (0, 1], got " + io::format_number(*job.greedy));
-    if (!(job.memory_limit_bytes > 0)) throw JobError("the memory limit must be > 0");
-    if (job.write && !job.out.empty()) {
-      std::error_code ec;
-      if (fs::symlink_status(job.out, ec).type() != fs::file_type::not_found)
-        throw io::FileError(
-            "cannot write '" + job.out.string() +
-            "': it exists (csrbf morph writes a new case folder or file; --in-place rewrites the input)");
-      io::must_be_new(job.out);  // never replaced, even by a copy another morph finishes first
-      const fs::path parent = job.out.has_parent_path() ? job.out.parent_path() : fs::path(".");
-      if (!fs::is_directory(parent, ec))
-        throw io::FileError("cannot write '" + job.out.string() + "': folder '" + parent.string() + "' does not exist");
-      if (!fs::is_directory(job.mesh, ec) && detail::lower_extension(job.out) != detail::lower_extension(job.mesh))
-        throw JobError("output " + job.out.string() +
-                       ": the output is written in the input's format, so it needs the extension '" +
-                       detail::lower_extension(job.mesh) + "'");
-    }
+    check_job(job);
     motion = read_motion(job.motion);
-    MorphOptions& opt = o.options;
-    // --radius, else the motion file's, else auto.
-    if (job.radius)
-      opt.fit.radius = *job.radius;
-    else if (!job.radius_auto && motion.radius)
-      opt.fit.radius = *motion.radius;
-    else
-      opt.radius_auto = true;
-    opt.progress = job.progress;
-    opt.fit.kernel = job.kernel.value_or(motion.kernel.value_or(Kernel::C2));
-    opt.fit.polynomial = job.polynomial.value_or(motion.polynomial.value_or(Polynomial::None));
-    opt.fit.solver = job.solver;
-    opt.fit.memory_limit_bytes = job.memory_limit_bytes;
-    opt.phase = job.phase;
-    opt.greedy = job.greedy.value_or(0.0);
+    o.options = options_of(job, motion);
     o.motion_summary = motion_summary(motion);
 
     t_read = Clock::now();
@@ -424,6 +433,221 @@ std::string outcome_text(const MorphOutcome& o) {
   if (o.written)
     s << "  -> " << o.output << (o.inverts ? " (written with --force: it has inverted cells)" : "") << "\n";
   return s.str();
+}
+
+}  // namespace csrbf::morph
+
+namespace csrbf::morph {
+
+namespace {
+
+/// The motion files of a series folder, in increasing time: (time as named, path).
+std::vector<std::pair<std::string, fs::path>> series_files(const fs::path& dir) {
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec))
+    throw io::FileError("motion series '" + dir.string() +
+                        "': not a folder (give a folder of motion files named by "
+                        "time: 0.1.json, 0.2.json, ...)");
+  std::vector<std::tuple<double, std::string, fs::path>> found;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    const fs::path& p = it->path();
+    if (p.extension() != ".json") continue;
+    const std::string stem = p.stem().string();
+    char* stop = nullptr;
+    const double t = std::strtod(stem.c_str(), &stop);
+    if (stem.empty() || stop != stem.c_str() + stem.size() || !std::isfinite(t) || t < 0 ||
+        stem.find_first_not_of("0123456789.eE+-") != std::string::npos)
+      throw io::FileError("motion series '" + dir.string() + "': '" + p.filename().string() +
+                          "' is not named by a time (0.1.json, 2.json, 1e-3.json)");
+    found.emplace_back(t, stem, p);
+  }
+  if (ec) throw io::FileError("motion series '" + dir.string() + "': cannot list it: " + ec.message());
+  if (found.empty())
+    throw io::FileError("motion series '" + dir.string() +
+                        "': no motion files named by time (0.1.json, 0.2.json, ...)");
+  std::sort(found.begin(), found.end());
+  for (std::size_t k = 1; k < found.size(); ++k)
+    if (std::get<0>(found[k]) == std::get<0>(found[k - 1]))
+      throw io::FileError("motion series '" + dir.string() + "': '" + std::get<2>(found[k - 1]).filename().string() +
+                          "' and '" + std::get<2>(found[k]).filename().string() + "' name the same time");
+  std::vector<std::pair<std::string, fs::path>> out;
+  for (auto& [t, name, p] : found) out.emplace_back(name, p);
+  return out;
+}
+
+}  // namespace
+
+SeriesOutcome run_series(const MorphJob& job) {
+  const auto t0 = Clock::now();
+  SeriesOutcome s;
+  s.mesh = job.mesh.string();
+  s.series = job.motion_series.string();
+  check_job(job);
+  const auto files = series_files(job.motion_series);
+  std::vector<Motion> motions;
+  for (const auto& f : files) motions.push_back(read_motion(f.second));
+  const auto t_read = Clock::now();
+  std::unique_ptr<VolumeFile> file;
+  {
+    ProgressPhase reading(job.progress, "read", 0, input_bytes(job.mesh) / kReadBytesPerSecond);
+    OpenOptions open;
+    open.max_file_bytes = job.memory_limit_bytes;
+    open.time = job.time;
+    file = open_volume(job.mesh, open);
+  }
+  const FoamCase* foam = file->foam();
+  std::error_code ec;
+  if (!foam || !fs::is_directory(foam->root / "constant", ec))
+    throw JobError("--motion-series writes one moved mesh a time into the time folders of an OpenFOAM case; " + s.mesh +
+                   " is " + (foam ? "a polyMesh folder, not a case" : "a " + file->format() + " file"));
+  for (const auto& f : files)
+    if (!foam->time.empty() && std::strtod(f.first.c_str(), nullptr) <= std::strtod(foam->time.c_str(), nullptr))
+      throw io::FileError(f.second.string() + ": time " + f.first + " is not after the time read, " + foam->time);
+  const VolumeMesh& mesh = file->mesh();
+  s.ms_read = ms_since(t_read);
+  // Auto's R from the series' largest displacement: one R, one matrix for every step.
+  double largest = 0;
+  for (const Motion& m : motions) largest = std::max(largest, largest_displacement(mesh, m));
+  QualityMeter meter(mesh);
+  const MeshQuality before = meter.measure(mesh.points);
+  SeriesBackend backend;
+  std::optional<io::Partial> partial;
+  std::vector<std::pair<fs::path, std::string>> staged;  // in place: (staged file, its time)
+  std::vector<fs::path> made;                            // in place: time folders that staging created
+  const auto discard = [&] {
+    for (const auto& st : staged) discard_openfoam_points(st.first);
+    for (const fs::path& d : made) {  // each was not there before; removed only where empty
+      std::error_code e;
+      fs::remove(d / "polyMesh", e);
+      fs::remove(d, e);
+    }
+  };
+  try {
+    for (std::size_t k = 0; k < files.size(); ++k) {
+      if (job.progress) job.progress->note("time " + files[k].first + " (" + files[k].second.filename().string() + ")");
+      MorphOutcome o;
+      o.mesh = s.mesh;
+      o.motion = files[k].second.string();
+      o.time = files[k].first;
+      o.format = file->format();
+      o.encoding = file->encoding();
+      o.points = mesh.points.size();
+      o.cells = mesh.poly.cells;
+      o.patches = mesh.patches.size();
+      o.motion_summary = motion_summary(motions[k]);
+      o.options = options_of(job, motions[k]);
+      o.options.auto_displacement = largest;
+      const auto t_step = Clock::now();
+      const std::size_t factorised = backend.factorisations();
+      try {
+        o.result = morph(mesh, motions[k], o.options, &backend);
+      } catch (const io::FileError&) {
+        throw;
+      } catch (const Error& e) {
+        throw io::FileError(o.motion + ": " + e.what());
+      }
+      s.reused.push_back(backend.factorisations() == factorised && o.result.report.controls > 0);
+      const auto t_q = Clock::now();
+      o.before = before;
+      {
+        ProgressPhase measuring(job.progress, "quality", 0, double(mesh.poly.cells) * kQualitySecondsPerCell);
+        o.after = meter.measure(o.result.points);
+      }
+      o.ms_quality = ms_since(t_q);
+      o.inverts = o.after.inverted_cells() > before.inverted_cells();
+      o.safe_phase = job.phase;
+      if (o.inverts) {
+        o.safe_phase = largest_safe_phase(mesh, o.result.points, job.phase, before.inverted_cells());
+        if (!job.force) {
+          s.steps.push_back(std::move(o));
+          discard();
+          s.ms_total = ms_since(t0);
+          return s;  // written stays false: the caller reports the step
+        }
+      }
+      if (job.write) {
+        const auto t_w = Clock::now();
+        ProgressPhase writing(job.progress, "write", 0, double(mesh.points.size()) * kWriteSecondsPerPoint);
+        if (job.in_place) {
+          const fs::path folder = foam->root / o.time;
+          if (!fs::exists(fs::symlink_status(folder, ec))) made.push_back(folder);
+          staged.emplace_back(stage_openfoam_points(*foam, o.result.points, o.time), o.time);
+        } else {
+          if (!partial) {
+            partial.emplace(job.out, io::Partial::Kind::Folder);
+            fs::copy(foam->root, partial->path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
+            if (ec)
+              throw io::FileError("cannot copy '" + foam->root.string() + "' to '" + job.out.string() +
+                                  "': " + ec.message());
+          }
+          write_openfoam_points_into(*foam, o.result.points, partial->path(), o.time);
+        }
+        o.ms_write = ms_since(t_w);
+        s.ms_write += o.ms_write;
+      }
+      o.ms_total = ms_since(t_step);
+      o.result.points = {};  // written: each step's points are not kept
+      s.steps.push_back(std::move(o));
+    }
+    if (job.write) {
+      if (job.in_place) {
+        for (const auto& st : staged) commit_openfoam_points(*foam, st.first, st.second);
+        staged.clear();
+      } else {
+        partial->commit_new(job.out);
+      }
+      s.written = true;
+      s.output = job.in_place ? s.mesh : job.out.string();
+    }
+  } catch (...) {
+    discard();
+    throw;
+  }
+  s.factorisations = backend.factorisations();
+  s.solves_reused = backend.reused();
+  s.ms_total = ms_since(t0);
+  return s;
+}
+
+std::string series_json(const SeriesOutcome& s) {
+  nlohmann::json j{{"case", s.mesh},
+                   {"motion_series", s.series},
+                   {"output", s.output},
+                   {"written", s.written},
+                   {"factorisations", s.factorisations},
+                   {"solves_reused", s.solves_reused},
+                   {"ms", {{"read", s.ms_read}, {"write", s.ms_write}, {"total", s.ms_total}}}};
+  j["steps"] = nlohmann::json::array();
+  for (std::size_t k = 0; k < s.steps.size(); ++k) {
+    nlohmann::json step = nlohmann::json::parse(outcome_json(s.steps[k]));
+    step["reused_factorisation"] = k < s.reused.size() && s.reused[k];
+    j["steps"].push_back(step);
+  }
+  return j.dump(2);
+}
+
+std::string series_text(const SeriesOutcome& s) {
+  std::ostringstream o;
+  o << "csrbf morph: " << s.mesh << ", motion series " << s.series << ": " << s.steps.size() << " times, "
+    << s.factorisations << " factorisation" << (s.factorisations == 1 ? "" : "s") << ", " << s.solves_reused << " solve"
+    << (s.solves_reused == 1 ? "" : "s") << " that reused one\n";
+  for (std::size_t k = 0; k < s.steps.size(); ++k) {
+    const MorphOutcome& st = s.steps[k];
+    const MorphReport& r = st.result.report;
+    char line[320];
+    const double ratio = st.after.poly ? st.after.poly->min_volume_ratio : 1.0;
+    const double non_orth = st.after.poly ? st.after.poly->max_non_orthogonality : 0.0;
+    std::snprintf(line, sizeof line,
+                  "  time %-10s %s: largest displacement %.6g, R = %.6g, %zu controls, fit %.1f ms%s, evaluate %.1f "
+                  "ms; max non-orthogonality %.3f deg, min volume after/before %.4f, inverted cells %zu\n",
+                  st.time.c_str(), fs::path(st.motion).filename().string().c_str(), r.max_displacement, r.radius,
+                  r.controls, r.seconds_fit * 1e3, k < s.reused.size() && s.reused[k] ? " (factorisation reused)" : "",
+                  r.seconds_evaluate * 1e3, non_orth, ratio, st.after.inverted_cells());
+    o << line;
+  }
+  o << "  time: read " << s.ms_read << " ms, write " << s.ms_write << " ms, total " << s.ms_total << " ms\n";
+  if (s.written) o << "  -> " << s.output << " (TIME/polyMesh/points for each time)\n";
+  return o.str();
 }
 
 }  // namespace csrbf::morph

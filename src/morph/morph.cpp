@@ -135,6 +135,37 @@ std::unique_ptr<FittedMapping> MorphBackend::fit(std::span<const Vec3> sources, 
   return std::make_unique<LocalMapping>(SpaceMap::fit(sources, targets, options));
 }
 
+struct SeriesBackend::Entry {
+  std::vector<Vec3> sources;
+  FitOptions options;
+  SpaceMap map;
+};
+
+std::unique_ptr<FittedMapping> SeriesBackend::fit(std::span<const Vec3> sources, std::span<const Vec3> targets,
+                                                  const FitOptions& options, std::span<const std::uint64_t>) {
+  const auto same = [&](const Entry& e) {
+    return e.options.radius == options.radius && e.options.kernel == options.kernel &&
+           e.options.polynomial == options.polynomial && e.options.solver == options.solver &&
+           e.options.ordering == options.ordering && e.sources.size() == sources.size() &&
+           std::equal(sources.begin(), sources.end(), e.sources.begin());
+  };
+  for (std::size_t k = 0; k < last_.size(); ++k) {
+    if (!same(*last_[k])) continue;
+    ++reused_;
+    auto e = last_[k];
+    e->map = e->map.with_destinations(targets);
+    last_.erase(last_.begin() + std::ptrdiff_t(k));
+    last_.insert(last_.begin(), e);
+    return std::make_unique<LocalMapping>(e->map);
+  }
+  auto e = std::make_shared<Entry>(
+      Entry{{sources.begin(), sources.end()}, options, SpaceMap::fit(sources, targets, options)});
+  ++factorisations_;
+  last_.insert(last_.begin(), e);
+  if (last_.size() > 2) last_.pop_back();
+  return std::make_unique<LocalMapping>(e->map);
+}
+
 void MorphBackend::write_copy(const VolumeFile& file, std::span<const Vec3> points, const std::filesystem::path& out) {
   file.write_copy(points, out);
 }
@@ -395,9 +426,10 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
         (targets[i] != sources[i] ? moving_c : staying_c).push_back(sources[i]);
       moving_c = detail::sorted_unique(b.gather(moving_c));
       staying_c = detail::sorted_unique(b.gather(staying_c));
-      const detail::RadiusChoice c =
-          detail::choose_radius(moving_c, staying_c, std::abs(options.phase) * largest, size,
-                                detail::kAutoMemoryShare * fit.memory_limit_bytes, fit.polynomial == Polynomial::None);
+      const detail::RadiusChoice c = detail::choose_radius(
+          moving_c, staying_c,
+          std::abs(options.phase) * (options.auto_displacement > 0 ? options.auto_displacement : largest), size,
+          detail::kAutoMemoryShare * fit.memory_limit_bytes, fit.polynomial == Polynomial::None);
       fit.radius = rep.radius = c.radius;
       rep.radius_why = c.why;
       note("radius auto: R = " + io::format_number(c.radius) + ": " + c.why);
@@ -638,9 +670,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   // In this process the points are evaluated in slices, which the progress counts; a backend that
   // spreads them over processes takes them whole (its calls are collective).
   ProgressPhase evaluating(options.progress, "evaluate", double(mesh.points.size()), rep.predicted.seconds_evaluate);
-  const bool sliced = &b == &local_backend();
+  const auto here = [](FittedMapping* m) { return dynamic_cast<LocalMapping*>(m) != nullptr; };
   const auto displacements_of = [&](FittedMapping& m, std::span<const Vec3> in, std::span<Vec3> out) {
-    const std::size_t step = sliced ? std::max<std::size_t>(std::size_t(1) << 16, in.size() / 50) : in.size();
+    const std::size_t step = here(&m) ? std::max<std::size_t>(std::size_t(1) << 16, in.size() / 50) : in.size();
     for (std::size_t s = 0; s < in.size(); s += step) {
       const std::size_t k = std::min(step, in.size() - s);
       m.displacements(in.subspan(s, k), out.subspan(s, k));
@@ -664,7 +696,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       r.points[i] = mesh.points[i] + options.phase * d[i];
       r.points[i][flat->axis] = mesh.points[i][flat->axis];
     }
-  } else if (sliced) {
+  } else if (here(map.get())) {
     const std::span<const Vec3> in = mesh.points;
     const std::span<Vec3> out = r.points;
     const std::size_t step = std::max<std::size_t>(std::size_t(1) << 16, in.size() / 50);
@@ -686,6 +718,18 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   }
   rep.seconds_evaluate = seconds_since(t_eval);
   return r;
+}
+
+double largest_displacement(const VolumeMesh& mesh, const Motion& motion_in) {
+  MorphBackend& b = local_backend();
+  const auto flat = flat_axis(mesh);
+  const std::vector<detail::PatchPlane> planes = detail::patch_planes(mesh, b);
+  std::vector<PatchReport> reports;
+  const Motion motion = detail::resolve_patches(mesh, motion_in, planes, mesh_size(mesh), flat.has_value(), reports);
+  const Prescribed pres = prescribe(mesh, motion);
+  double largest = 0;
+  for (const Vec3& d : pres.displacements) largest = std::max(largest, d.norm());
+  return largest;
 }
 
 double largest_safe_phase(const VolumeMesh& mesh, std::span<const Vec3> moved, double phase,

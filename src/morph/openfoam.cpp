@@ -808,10 +808,10 @@ void write_bytes(const fs::path& file, const std::string& bytes) {
 
 /// c's points file in copy_root, a copy of c.root: csrbf's own file there, replaced through a new
 /// file (a link in the case is replaced by a file, never written through).
-void place_points(const FoamCase& c, const std::string& bytes, const fs::path& copy_root) {
+void place_points(const FoamCase& c, const std::string& bytes, const fs::path& copy_root, const fs::path& target) {
   std::error_code ec;
   // Lexically: the path as the case names it, links not followed (fs::relative would resolve them).
-  const fs::path rel = c.points_file.target.lexically_normal().lexically_relative(c.root.lexically_normal());
+  const fs::path rel = target.lexically_normal().lexically_relative(c.root.lexically_normal());
   if (rel.empty() || *rel.begin() == "..")
     throw FileError("cannot place the points of '" + c.root.string() + "' in the copy");
   // A folder on the way that the copy kept as a link (a case whose polyMesh links to another case's)
@@ -853,16 +853,25 @@ void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const 
   io::Partial partial(out, io::Partial::Kind::Folder);
   fs::copy(c.root, partial.path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
   if (ec) throw FileError("cannot copy '" + c.root.string() + "' to '" + out.string() + "': " + ec.message());
-  place_points(c, bytes, partial.path());
+  place_points(c, bytes, partial.path(), c.points_file.target);
   partial.commit_new(out);
 }
 
-void write_openfoam_points_into(const FoamCase& c, std::span<const Vec3> points, const fs::path& copy_root) {
-  place_points(c, encoded_points(c, points), copy_root);
+fs::path foam_points_target(const FoamCase& c, const std::string& time) {
+  if (time.empty()) return c.points_file.target;
+  std::error_code ec;
+  if (!fs::is_directory(c.root / "constant", ec))
+    throw FileError("'" + c.root.string() + "' is a polyMesh folder, not a case: it has no time folders to write");
+  return c.root / time / "polyMesh" / c.points_file.path.filename();
 }
 
-fs::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points) {
-  const fs::path& target = c.points_file.target;
+void write_openfoam_points_into(const FoamCase& c, std::span<const Vec3> points, const fs::path& copy_root,
+                                const std::string& time) {
+  place_points(c, encoded_points(c, points), copy_root, foam_points_target(c, time));
+}
+
+fs::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points, const std::string& time) {
+  const fs::path target = foam_points_target(c, time);
   std::error_code ec;
   fs::create_directories(target.parent_path(), ec);
   const fs::path staged = target.parent_path() / (".csrbf-new-" + target.filename().string());
@@ -875,12 +884,13 @@ fs::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points) 
   return staged;
 }
 
-void commit_openfoam_points(const FoamCase& c, const fs::path& staged) {
+void commit_openfoam_points(const FoamCase& c, const fs::path& staged, const std::string& time) {
   std::error_code ec;
-  fs::rename(staged, c.points_file.target, ec);
+  const fs::path target = foam_points_target(c, time);
+  fs::rename(staged, target, ec);
   if (ec) {
     discard_openfoam_points(staged);
-    throw FileError("cannot write '" + c.points_file.target.string() + "': " + ec.message());
+    throw FileError("cannot write '" + target.string() + "': " + ec.message());
   }
 }
 

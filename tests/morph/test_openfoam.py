@@ -399,6 +399,79 @@ class OpenFoamCases(MorphCase):
         r = run([CLI, "morph", case, "-o", os.path.join(self.tmp, "piped"), "--motion", motion])
         self.assertEqual((r.returncode, r.stderr), (0, ""))
 
+    def test_a_motion_series_writes_each_time_from_one_factorisation(self):
+        source = os.path.join(SOURCE, "examples", "airfoil", "case")
+        series = os.path.join(self.tmp, "series")
+        os.makedirs(series)
+
+        def pitch(degrees):
+            return {"patches": {"airfoil": {"rotate": {"axis": [0, 0, 1], "degrees": degrees, "origin": [0.25, 0, 0]}},
+                                "farfield": "fixed"}}
+        times = {"0.001": -1, "0.002": -2.5, "0.0035": -4}
+        for t, d in times.items():
+            with open(os.path.join(series, t + ".json"), "w") as f:
+                json.dump(pitch(d), f)
+        out = os.path.join(self.tmp, "out")
+        r = run([CLI, "morph", source, "-o", out, "--motion-series", series, "--json"])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        report = json.loads(r.stdout)
+        self.assertTrue(report["written"])
+        self.assertEqual([s["time"] for s in report["steps"]], ["0.001", "0.002", "0.0035"])
+        # Auto's R from the series' largest displacement: one R, one factorisation, two solves.
+        radii = {s["radius"] for s in report["steps"]}
+        self.assertEqual(len(radii), 1)
+        self.assertAlmostEqual(radii.pop(), 20 * report["steps"][-1]["max_displacement"], delta=1e-12)
+        self.assertEqual((report["factorisations"], report["solves_reused"]), (1, 2))
+        self.assertEqual([s["reused_factorisation"] for s in report["steps"]], [False, True, True])
+        # Each time's points equal a morph of that motion alone; constant/ is the input's.
+        self.assertEqual(read_text(os.path.join(out, "constant/polyMesh/points")),
+                         read_text(os.path.join(source, "constant/polyMesh/points")))
+        for t, d in times.items():
+            single = os.path.join(self.tmp, "single" + t)
+            r = morph(source, single, self.motion(pitch(d)), "--radius", repr(report["steps"][0]["radius"]))
+            self.assertEqual(r.returncode, 0, r.stderr)
+            want = [list(map(float, l.strip("()").split())) for l in
+                    read_text(os.path.join(single, "constant/polyMesh/points")).decode().split("\n") if l.startswith("(")
+                    and l.count(" ") == 2]
+            got = [list(map(float, l.strip("()").split())) for l in
+                   read_text(os.path.join(out, t, "polyMesh/points")).decode().split("\n") if l.startswith("(")
+                   and l.count(" ") == 2]
+            self.assertEqual(len(got), 7872)
+            self.assertLess(max(abs(a - b) for p, q in zip(got, want) for a, b in zip(p, q)), 1e-12)
+            cm = run(["checkMesh", "-time", t], cwd=out)
+            self.assertIn("Mesh OK.", cm.stdout, cm.stdout[-2000:])
+        # In place: a copy of the case gets its time folders; a series whose last step inverts cells
+        # writes no time at all and leaves no folder behind.
+        case = os.path.join(self.tmp, "case")
+        shutil.copytree(source, case)
+        with open(os.path.join(series, "0.005.json"), "w") as f:
+            json.dump({"radius": 0.3, "patches": {"airfoil": {"translate": [0, 0.5, 0]}, "farfield": "fixed"}}, f)
+        r = run([CLI, "morph", case, "--in-place", "--motion-series", series])
+        self.assertEqual(r.returncode, 1, r.stdout)
+        self.assertIn("time 0.005", r.stderr)
+        self.assertIn("no time written", r.stderr)
+        self.assertEqual(sorted(os.listdir(case)), sorted(os.listdir(source)))
+        os.remove(os.path.join(series, "0.005.json"))
+        r = run([CLI, "morph", case, "--in-place", "--motion-series", series])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for t in times:
+            self.assertEqual(read_text(os.path.join(case, t, "polyMesh/points")),
+                             read_text(os.path.join(out, t, "polyMesh/points")))
+        # Refused: a file not named by a time, a mesh file, --motion beside it, under a time already passed.
+        with open(os.path.join(series, "final.json"), "w") as f:
+            json.dump(pitch(-1), f)
+        r = run([CLI, "morph", source, "-o", os.path.join(self.tmp, "x"), "--motion-series", series])
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("'final.json' is not named by a time", r.stderr)
+        os.remove(os.path.join(series, "final.json"))
+        r = run([CLI, "morph", source, "-o", os.path.join(self.tmp, "x"), "--motion-series", series, "--motion",
+                 os.path.join(series, "0.001.json")])
+        self.assertEqual(r.returncode, 2)
+        r = run([CLI, "morph", case, "-o", os.path.join(self.tmp, "x"), "--motion-series", series, "-time", "0.002"])
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("time 0.001 is not after the time read, 0.002", r.stderr)
+        self.assertFalse(os.path.exists(os.path.join(self.tmp, "x")))
+
     def test_bad_input_is_refused_with_nothing_written(self):
         case = os.path.join(SOURCE, "examples", "airfoil", "case")
         out = os.path.join(self.tmp, "out")

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace csrbf::morph {
 
@@ -21,7 +22,8 @@ class JobError : public InvalidInput {
 
 struct MorphJob {
   std::filesystem::path mesh, motion;
-  std::filesystem::path out;  ///< empty: no output (or in_place)
+  std::filesystem::path motion_series;  ///< run_series: the folder of motions named by time
+  std::filesystem::path out;            ///< empty: no output (or in_place)
   bool in_place = false;
   bool write = true;  ///< false: measure only (Python without an output)
   /// Override the motion file's values.
@@ -63,6 +65,28 @@ struct MorphOutcome {
 /// them), other csrbf::Error for a fit that fails. A morph that inverts cells is not an exception:
 /// written is false unless force.
 MorphOutcome run_job(const MorphJob& job);
+
+/// A series of motions, one a time step (`csrbf morph --motion-series DIR`): DIR's files named by
+/// time (`0.1.json`, `0.2.json`: a motion file each, whose displacements are from the mesh read,
+/// not from the previous step's), morphed in increasing time, each written into that time's
+/// polyMesh (of the -o copy, or of the case with in_place), so a coupled solver finds one moved
+/// mesh a time. Every step takes the same R where it can (auto: from the series' largest
+/// displacement), so the fits share one matrix and one factorisation and each step solves for
+/// its displacements alone. All or nothing: a step that fails or inverts cells (unless force)
+/// writes no step. OpenFOAM cases only.
+struct SeriesOutcome {
+  std::string mesh, series, output;
+  std::vector<MorphOutcome> steps;  ///< each: its time (MorphOutcome::time) and motion file
+  std::vector<char> reused;         ///< per step: its fits took an earlier step's factorisation
+  std::size_t factorisations = 0, solves_reused = 0;
+  bool written = false;
+  double ms_read = 0, ms_write = 0, ms_total = 0;
+};
+
+/// job.motion_series names the folder (job.motion is unused). Throws as run_job does.
+SeriesOutcome run_series(const MorphJob& job);
+std::string series_json(const SeriesOutcome& s);
+std::string series_text(const SeriesOutcome& s);
 
 /// The outcome as one JSON object (the report of `csrbf morph --json`).
 std::string outcome_json(const MorphOutcome& o);

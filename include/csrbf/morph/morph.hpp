@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,9 @@ struct MorphOptions {
   /// `--radius auto`: fit.radius is ignored, and R is chosen from the motion's largest displacement
   /// (as applied), the boundary's spacing and fit.memory_limit_bytes (MorphReport::radius_why).
   bool radius_auto = false;
+  /// radius_auto: the displacement its rule takes in place of this motion's largest (a series of
+  /// motions: the series' largest, so that every time has one R and one matrix). 0: the motion's.
+  double auto_displacement = 0;
   /// Told of the radius chosen, the prediction, and each phase's progress (null: nothing).
   Progress* progress = nullptr;
 };
@@ -104,6 +108,27 @@ struct MorphResult {
 /// evaluates (default: SpaceMap in this process; csrbf::mpi's over MPI ranks).
 MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptions& options,
                   MorphBackend* backend = nullptr);
+
+/// The largest displacement a motion prescribes on mesh (at phase 1), its patches resolved as
+/// morph() resolves them. This process alone. Throws io::FileError as morph() does.
+double largest_displacement(const VolumeMesh& mesh, const Motion& motion);
+
+/// A backend for a series of morphs of one mesh in this process (a motion a time step): a fit
+/// whose sources, radius, kernel, polynomial and solver equal one of the last two fits' (a morph
+/// with slip fits twice) takes that fit's matrix and factorisation and solves for the new
+/// displacements alone (SpaceMap::with_destinations): one factorisation, many right-hand sides.
+class SeriesBackend final : public MorphBackend {
+ public:
+  std::unique_ptr<FittedMapping> fit(std::span<const Vec3> sources, std::span<const Vec3> targets,
+                                     const FitOptions& options, std::span<const std::uint64_t> ids) override;
+  std::size_t factorisations() const noexcept { return factorisations_; }  ///< fits done whole
+  std::size_t reused() const noexcept { return reused_; }                  ///< fits that took a factorisation
+
+ private:
+  struct Entry;
+  std::vector<std::shared_ptr<Entry>> last_;  // the last two, newest first
+  std::size_t factorisations_ = 0, reused_ = 0;
+};
 
 /// The largest phase s in [0, phase] at which the morph (positions linear in s between points
 /// and moved) inverts no cell that was not inverted before, found by bisection to 1e-4 of phase.

@@ -64,16 +64,22 @@ void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const 
 /// Rewrites the points file alone, atomically (other files untouched).
 void write_openfoam_in_place(const FoamCase& c, std::span<const Vec3> points);
 
-/// For a case decomposed over MPI ranks, whose parts are written together:
+/// For a case decomposed over MPI ranks, whose parts are written together, and for a motion
+/// series (one moved mesh a time). time: where the points go, TIME/polyMesh of c's case (empty:
+/// c's own target, FoamPointsFile::target):
 /// - the points of c written into copy_root, a copy of c.root made by the caller (c's points file
 ///   at the same place in it), through a new file renamed over the copied one;
-void write_openfoam_points_into(const FoamCase& c, std::span<const Vec3> points,
-                                const std::filesystem::path& copy_root);
+void write_openfoam_points_into(const FoamCase& c, std::span<const Vec3> points, const std::filesystem::path& copy_root,
+                                const std::string& time = {});
 /// - the points of c written beside c's points file, complete and checked, for
 ///   commit_openfoam_points to rename over it once every part has been staged (or
 ///   discard_openfoam_points to remove). Returns the staged file.
-std::filesystem::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points);
-void commit_openfoam_points(const FoamCase& c, const std::filesystem::path& staged);
+std::filesystem::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points,
+                                            const std::string& time = {});
+void commit_openfoam_points(const FoamCase& c, const std::filesystem::path& staged, const std::string& time = {});
+/// Where c's points go for a time (c's own target where time is empty). Throws io::FileError where
+/// c was read from a polyMesh folder, not a case (it has no time folders).
+std::filesystem::path foam_points_target(const FoamCase& c, const std::string& time);
 void discard_openfoam_points(const std::filesystem::path& staged) noexcept;
 
 }  // namespace csrbf::morph
