@@ -16,6 +16,7 @@
 #include "csrbf/space_map.hpp"
 #include "csrbf/version.hpp"
 
+#include <nlohmann/json.hpp>
 #include <pybind11/numpy.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -513,17 +514,27 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
 #ifdef CSRBF_HAVE_MORPH
   m.def(
       "morph",
-      [](const std::filesystem::path& mesh, const std::filesystem::path& motion,
-         const std::optional<std::filesystem::path>& output, bool in_place, std::optional<double> radius,
-         std::optional<std::string> kernel, std::optional<std::string> polynomial, std::optional<double> greedy,
-         double phase, const std::string& solver, bool force, double memory_limit) {
-        csrbf::morph::MorphJob job;
-        job.mesh = mesh;
-        job.motion = motion;
+      [](const py::object& mesh, const py::object& motion, const std::optional<std::filesystem::path>& output,
+         bool in_place, const py::object& radius, std::optional<std::string> kernel,
+         std::optional<std::string> polynomial, std::optional<double> greedy, double phase, const std::string& solver,
+         bool force, double memory_limit, const std::optional<py::dict>& patches) {
+        namespace mo = csrbf::morph;
+        const auto is_path = [](const py::object& o) {
+          return py::isinstance<py::str>(o) || py::isinstance<py::bytes>(o) || py::hasattr(o, "__fspath__");
+        };
+        mo::MorphJob job;
         job.in_place = in_place;
         job.write = output.has_value() || in_place;
         if (output) job.out = *output;
-        job.radius = radius;
+        if (py::isinstance<py::str>(radius) && radius.cast<std::string>() == "auto")
+          job.radius_auto = true;
+        else if (!radius.is_none()) {
+          if (!py::isinstance<py::float_>(radius) && !py::isinstance<py::int_>(radius) &&
+              !py::hasattr(radius, "__float__"))
+            throw py::type_error("radius must be a number > 0, \"auto\" or None, got " +
+                                 py::repr(radius).cast<std::string>());
+          job.radius = radius.cast<double>();
+        }
         if (kernel) job.kernel = named<csrbf::Kernel>(*kernel, "kernel");
         if (polynomial) job.polynomial = named<csrbf::Polynomial>(*polynomial, "polynomial");
         job.greedy = greedy;
@@ -531,14 +542,113 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
         job.phase = phase;
         job.force = force;
         job.memory_limit_bytes = memory_limit * double(1ull << 30);
-        csrbf::morph::MorphOutcome o;
-        {
-          py::gil_scoped_release release;
-          o = csrbf::morph::run_job(job);
+        const bool points_given = !is_path(mesh);
+        // The mesh: a file or case, or points with patches of point indices.
+        mo::VolumeMesh cloud;
+        if (points_given) {
+          if (job.write)
+            throw py::value_error(
+                "output, in_place: mesh is an array of points, which has no file to write; the "
+                "moved points are returned");
+          if (!patches || patches->empty())
+            throw py::value_error("patches: mesh is an array of points, so give patches={name: point indices}");
+          cloud.points = to_vec3(mesh, "mesh");
+          for (const auto& [key, value] : *patches) {
+            mo::Patch p;
+            p.name = py::str(key).cast<std::string>();
+            p.boundary = true;
+            const py::array a = py::array::ensure(value);
+            if (!a || a.ndim() != 1 || (a.size() > 0 && a.dtype().kind() != 'i' && a.dtype().kind() != 'u'))
+              throw py::type_error("patches['" + p.name + "'] must be a 1-D array of point indices, got " +
+                                   py::repr(value).cast<std::string>().substr(0, 80));
+            const auto idx = py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure(a);
+            for (py::ssize_t k = 0; k < idx.size(); ++k) {
+              const long long i = idx.data()[k];
+              if (i < 0 || std::size_t(i) >= cloud.points.size())
+                throw py::value_error("patches['" + p.name + "'][" + std::to_string(k) + "] is " + std::to_string(i) +
+                                      ": mesh has " + std::to_string(cloud.points.size()) + " points");
+              p.points.push_back(std::uint32_t(i));
+            }
+            std::sort(p.points.begin(), p.points.end());
+            p.points.erase(std::unique(p.points.begin(), p.points.end()), p.points.end());
+            cloud.patches.push_back(std::move(p));
+          }
+        } else {
+          if (patches) throw py::value_error("patches: only for a mesh given as an array of points");
+          job.mesh = mesh.cast<std::filesystem::path>();
         }
-        py::object report = py::module_::import("json").attr("loads")(csrbf::morph::outcome_json(o));
+        // The motion: a file, or a dict of the same form (numpy arrays allowed in it).
+        if (is_path(motion)) {
+          job.motion = motion.cast<std::filesystem::path>();
+        } else if (py::isinstance<py::dict>(motion)) {
+          const py::object dumps = py::module_::import("json").attr("dumps");
+          const py::cpp_function plain([](const py::object& o) -> py::object {
+            if (py::hasattr(o, "tolist")) return o.attr("tolist")();
+            throw py::type_error("motion: " + py::repr(o).cast<std::string>().substr(0, 80) + " is not JSON");
+          });
+          nlohmann::json j = nlohmann::json::parse(dumps(motion, py::arg("default") = plain).cast<std::string>());
+          // Points given: a patch's displacements may be rows (dx, dy, dz), one per index of the patch
+          // as given.
+          if (points_given && j.is_object() && j.contains("patches") && j["patches"].is_object())
+            for (auto& [name, entry] : j["patches"].items()) {
+              if (!entry.is_object() || !entry.contains("displacements") || !entry["displacements"].is_array())
+                continue;
+              auto& rows = entry["displacements"];
+              if (rows.empty() || !rows[0].is_array() || rows[0].size() != 3) continue;
+              const py::str key(name);
+              if (!patches->contains(key))
+                throw py::value_error("motion: patches." + name +
+                                      ".displacements: rows (dx, dy, dz) belong to a "
+                                      "patch given in patches=, and there is no '" +
+                                      name + "'");
+              const auto idx =
+                  py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure((*patches)[key]);
+              if (!idx || std::size_t(idx.size()) != rows.size())
+                throw py::value_error("motion: patches." + name + ".displacements has " + std::to_string(rows.size()) +
+                                      " rows, patches['" + name + "'] " + std::to_string(idx ? idx.size() : 0) +
+                                      " points");
+              for (std::size_t k = 0; k < rows.size(); ++k) {
+                if (!rows[k].is_array() || rows[k].size() != 3)
+                  throw py::value_error("motion: patches." + name + ".displacements[" + std::to_string(k) +
+                                        "] is not a row (dx, dy, dz)");
+                rows[k].insert(rows[k].begin(), std::uint64_t(idx.data()[k]));  // checked >= 0 above
+              }
+            }
+          try {
+            job.motion_given = mo::motion_from_json(j, "motion", std::filesystem::current_path());
+          } catch (const csrbf::io::FileError& e) {
+            throw py::value_error(e.what());
+          }
+          job.motion = "motion (dict)";
+        } else {
+          throw py::type_error("motion must be a motion file's path or a dict of its form, got " +
+                               py::repr(motion).cast<std::string>().substr(0, 80));
+        }
+        mo::MorphOutcome o;
+        if (points_given) {
+          const mo::Motion mot = job.motion_given ? *job.motion_given : mo::read_motion(job.motion);
+          if (job.radius && !(*job.radius > 0 && std::isfinite(*job.radius)))
+            throw py::value_error("radius must be a finite number > 0, got " + std::to_string(*job.radius));
+          if (!(phase >= 0 && phase <= 1)) throw py::value_error("phase must be in [0, 1]");
+          o.mesh = "points";
+          o.motion = job.motion.string();
+          o.format = "points";
+          o.points = cloud.points.size();
+          o.patches = cloud.patches.size();
+          o.options = mo::morph_options(job, mot);
+          try {
+            py::gil_scoped_release release;
+            o.result = mo::morph(cloud, mot, o.options);
+          } catch (const csrbf::io::FileError& e) {
+            throw py::value_error(e.what());
+          }
+        } else {
+          py::gil_scoped_release release;
+          o = mo::run_job(job);
+        }
+        py::object report = py::module_::import("json").attr("loads")(mo::outcome_json(o));
         if (job.write && o.inverts && !o.written)
-          throw py::value_error(mesh.string() + ": the morph inverts " +
+          throw py::value_error(job.mesh.string() + ": the morph inverts " +
                                 std::to_string(o.after.inverted_cells() - o.before.inverted_cells()) +
                                 " cells; the largest phase that inverts none is " + std::to_string(o.safe_phase) +
                                 "; nothing written (force=True writes anyway)");
@@ -547,15 +657,54 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       py::arg("mesh"), py::arg("motion"), py::arg("output") = py::none(), py::arg("in_place") = false,
       py::arg("radius") = py::none(), py::arg("kernel") = py::none(), py::arg("polynomial") = py::none(),
       py::arg("greedy") = py::none(), py::arg("phase") = 1.0, py::arg("solver") = "auto", py::arg("force") = false,
-      py::arg("memory_limit") = 4.0,
-      R"doc(Morphs a volume mesh as `csrbf morph` does (docs/morphing.md).
+      py::arg("memory_limit") = 4.0, py::arg("patches") = py::none(),
+      R"doc(Morphs a volume mesh, or a cloud of points, as `csrbf morph` does (docs/morphing.md).
 
-mesh: an OpenFOAM case folder, a .vtu, .vtk, .msh or .cgns file; motion: the motion JSON file.
-output: a new case folder or file to write (None: nothing is written); in_place: rewrite the input.
-radius, kernel, polynomial override the motion file's; greedy: the greedy tolerance.
-Returns (points (n, 3), report): the moved points and the report of `csrbf morph --json`, with the
-quality before and after. A morph that inverts cells writes nothing and raises ValueError, unless
-force=True; without an output it only reports them (report["safe_phase"]).)doc");
+Parameters
+----------
+mesh : str or os.PathLike or array_like (n, 3)
+    An OpenFOAM case folder, a .vtu, .vtk, .msh or .cgns file; or the points themselves, whose
+    boundaries ``patches`` names.
+motion : str or os.PathLike or dict
+    The motion JSON file, or a dict of its form: ``{"radius": 0.5, "patches": {"wall":
+    {"translate": [0, 0.01, 0]}, "far": "fixed"}}``. A patch's ``"displacements"`` may be a file,
+    rows ``[point, dx, dy, dz]``, or (points given) an (k, 3) array, one row per index of
+    ``patches[name]`` in its order. numpy arrays may stand anywhere in the dict.
+output : str or os.PathLike, optional
+    A new case folder or file to write (None: nothing is written).
+in_place : bool
+    Rewrite the input.
+radius : float or "auto", optional
+    Overrides the motion's; "auto" (the default where neither gives one) picks R from the largest
+    displacement, the boundary's spacing and ``memory_limit`` (``report["radius_why"]``).
+kernel, polynomial : str, optional
+    Override the motion's.
+greedy : float, optional
+    The greedy tolerance.
+patches : dict of str to array_like of int, optional
+    With points: each patch's point indices.
+
+Returns
+-------
+points : ndarray (n, 3)
+    The moved points.
+report : dict
+    The report of ``csrbf morph --json``: with a mesh, the quality before and after.
+
+A morph that inverts cells writes nothing and raises ValueError, unless force=True; without an
+output it only reports them (``report["safe_phase"]``). Bad arguments raise ValueError or
+TypeError naming them; a bad file raises csrbf.FileError.
+
+Examples
+--------
+>>> import numpy as np, csrbf
+>>> g = np.stack(np.meshgrid(*[np.linspace(0, 1, 11)] * 3, indexing="ij"), -1).reshape(-1, 3)
+>>> bottom, top = np.flatnonzero(g[:, 2] == 0), np.flatnonzero(g[:, 2] == 1)
+>>> moved, report = csrbf.morph(g, {"radius": 0.5, "patches": {"bottom": {"translate": [0, 0, 0.05]},
+...                                 "top": "fixed"}}, patches={"bottom": bottom, "top": top})
+>>> float(moved[bottom, 2].max()), bool((moved[top] == g[top]).all())
+(0.05, True)
+)doc");
 #endif
 
   py::class_<ScenePlayer>(m, "Scene", "An animation scene file (docs/scene-format.md), evaluated at any time")

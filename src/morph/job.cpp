@@ -219,8 +219,9 @@ void check_job(const MorphJob& job) {
   }
 }
 
-/// The morph's options: the job's, else the motion file's, else the defaults (R: auto).
-MorphOptions options_of(const MorphJob& job, const Motion& motion) {
+}  // namespace
+
+MorphOptions morph_options(const MorphJob& job, const Motion& motion) {
   MorphOptions opt;
   if (job.radius)
     opt.fit.radius = *job.radius;
@@ -238,7 +239,7 @@ MorphOptions options_of(const MorphJob& job, const Motion& motion) {
   return opt;
 }
 
-}  // namespace
+namespace {}  // namespace
 
 MorphOutcome run_job(const MorphJob& job) {
   MorphBackend& b = job.backend ? *job.backend : local_backend();
@@ -251,8 +252,8 @@ MorphOutcome run_job(const MorphJob& job) {
   auto t_read = Clock::now();
   b.agree(caught([&] {
     check_job(job);
-    motion = read_motion(job.motion);
-    o.options = options_of(job, motion);
+    motion = job.motion_given ? *job.motion_given : read_motion(job.motion);
+    o.options = morph_options(job, motion);
     o.motion_summary = motion_summary(motion);
 
     t_read = Clock::now();
@@ -535,7 +536,7 @@ SeriesOutcome run_series(const MorphJob& job) {
       o.cells = mesh.poly.cells;
       o.patches = mesh.patches.size();
       o.motion_summary = motion_summary(motions[k]);
-      o.options = options_of(job, motions[k]);
+      o.options = morph_options(job, motions[k]);
       o.options.auto_displacement = largest;
       const auto t_step = Clock::now();
       const std::size_t factorised = backend.factorisations();

@@ -220,7 +220,7 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
       std::vector<std::size_t> line(patch->points.size(), 0);
       for (std::size_t gi = 0; gi < pm.given.size(); ++gi) {
         const auto& g = pm.given[gi];
-        const std::string at = pm.file.string() + ":" + std::to_string(g.line) + ": ";
+        const std::string at = pm.at(g);
         std::uint64_t index = g.point;
         if (!mesh.point_ids.empty()) {  // the file's own numbers (Gmsh node tags)
           const auto id = ids.find(g.point);
@@ -241,15 +241,16 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
           throw FileError(at + "point " + std::to_string(g.point) + " is not on patch '" + pm.patch + "'");
         const auto k = std::size_t(it - patch->points.begin());
         if (line[k])
-          throw FileError(at + "point " + std::to_string(g.point) + " is given twice (also on line " +
-                          std::to_string(line[k]) + ")");
+          throw FileError(
+              at + "point " + std::to_string(g.point) + " is given twice (also " +
+              (pm.file.empty() ? "as row " + std::to_string(line[k] - 1) : "on line " + std::to_string(line[k])) + ")");
         line[k] = g.line;
         given[k] = g.d;
       }
       for (std::size_t k = 0; k < line.size(); ++k)
         if (!line[k]) {
           const std::size_t missing = std::size_t(std::count(line.begin(), line.end(), std::size_t(0)));
-          throw FileError(pm.file.string() + ": " + std::to_string(missing) + " of the " + std::to_string(line.size()) +
+          throw FileError(pm.source() + ": " + std::to_string(missing) + " of the " + std::to_string(line.size()) +
                           " points of patch '" + pm.patch + "' have no displacement; the first is point " +
                           std::to_string(number(patch->points[k])));
         }
@@ -327,8 +328,8 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       b.max(std::span<double>(used));
       for (std::size_t gi = 0; gi < used.size(); ++gi)
         if (used[gi] == 0)
-          throw FileError(pm.file.string() + ":" + std::to_string(pm.given[gi].line) + ": point " +
-                          std::to_string(pm.given[gi].point) + " is not a point of patch '" + pm.patch +
+          throw FileError(pm.at(pm.given[gi]) + "point " + std::to_string(pm.given[gi].point) +
+                          " is not a point of patch '" + pm.patch +
                           "' in any part of the mesh (out of range, or on another patch)");
     }
   }

@@ -75,8 +75,19 @@ void read_displacements(PatchMotion& m, const fs::path& base) {
 
 Motion read_motion(const fs::path& path) {
   const nlohmann::json j = io::detail::read_json_file(path);
+  return motion_from_json(j, path.string(), path.has_parent_path() ? path.parent_path() : fs::path("."));
+}
+
+std::string PatchMotion::source() const { return file.empty() ? where + ".displacements" : file.string(); }
+
+std::string PatchMotion::at(const Given& g) const {
+  return file.empty() ? where + ".displacements[" + std::to_string(g.line - 1) + "]: "
+                      : file.string() + ":" + std::to_string(g.line) + ": ";
+}
+
+Motion motion_from_json(const nlohmann::json& j, const std::string& name, const fs::path& base) {
   Motion m;
-  m.file = path.string();
+  m.file = name;
   const JsonNode root(j, m.file);
   if (!j.is_object()) root.expected("an object with \"patches\"");
   root.only({"radius", "kernel", "polynomial", "patch_array", "patches"});
@@ -105,7 +116,6 @@ Motion read_motion(const fs::path& path) {
   const JsonNode patches = root["patches"];
   if (!patches.json().is_object() || patches.json().empty())
     patches.expected("an object naming at least one patch, e.g. {\"wall\": \"fixed\"}");
-  const fs::path base = path.has_parent_path() ? path.parent_path() : fs::path(".");
   for (const auto& [name, value] : patches.json().items()) {
     const JsonNode node = patches[name.c_str()];
     PatchMotion pm;
@@ -134,9 +144,33 @@ Motion read_motion(const fs::path& path) {
         if (r.has("origin")) pm.origin = r["origin"].vec3();
       } else {
         pm.kind = PatchMotion::Kind::Displacements;
-        pm.file = node["displacements"].string();
-        if (pm.file.empty()) node["displacements"].expected("the name of a file of 'point_id dx dy dz' lines");
-        read_displacements(pm, base);
+        const JsonNode rows = node["displacements"];
+        if (rows.json().is_array()) {  // inline: [[point_id, dx, dy, dz], ...]
+          if (rows.size() == 0) rows.expected("rows [point_id, dx, dy, dz], at least one");
+          for (std::size_t k = 0; k < rows.size(); ++k) {
+            const JsonNode row = rows[k];
+            if (!row.json().is_array() || row.size() != 4) row.expected("a row [point_id, dx, dy, dz]");
+            PatchMotion::Given g{};
+            // A float that is a whole number is one too (numpy's (k, 4) rows are all floats).
+            const JsonNode id = row[std::size_t(0)];
+            if (id.json().is_number_float()) {
+              const double v = id.json().get<double>();
+              if (!(v >= 0 && v < 9.007199254740992e15 && v == std::floor(v)))
+                id.expected("a point id, an integer >= 0");
+              g.point = std::uint64_t(v);
+            } else {
+              g.point = id.index();
+            }
+            for (int c = 0; c < 3; ++c) g.d[c] = row[std::size_t(c) + 1].number();
+            g.line = k + 1;
+            pm.given.push_back(g);
+          }
+        } else {
+          pm.file = rows.string();
+          if (pm.file.empty())
+            rows.expected("the name of a file of 'point_id dx dy dz' lines, or rows [point_id, dx, dy, dz]");
+          read_displacements(pm, base);
+        }
       }
     } else {
       node.expected("\"fixed\", \"slip\", or an object with one of translate, rotate, displacements");

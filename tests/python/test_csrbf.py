@@ -425,6 +425,81 @@ class Morph(unittest.TestCase):
             base, _ = csrbf.morph(case, motion, radius=3.0, phase=0.0)
             np.testing.assert_allclose(half - base, 0.5 * (points2 - base), atol=1e-14)
 
+    def test_points_and_a_dict_against_a_dense_solve(self):
+        # A 7 x 7 x 7 grid of points, its bottom bumped by displacements given as an array aligned
+        # with the patch's indices, its top fixed: the moved points against numpy's dense solve of
+        # the same system (moving controls and the fixed ones within R of one).
+        g = np.stack(np.meshgrid(*[np.linspace(0, 1, 7)] * 3, indexing="ij"), -1).reshape(-1, 3)
+        bottom, top = np.flatnonzero(g[:, 2] == 0), np.flatnonzero(g[:, 2] == 1)
+        d = np.zeros((len(bottom), 3))
+        d[:, 2] = 0.02 * np.sin(np.pi * g[bottom, 0]) * np.sin(np.pi * g[bottom, 1])
+        radius = 0.45
+        motion = {"radius": radius, "kernel": "c2", "patches": {"bottom": {"displacements": d}, "top": "fixed"}}
+        moved, report = csrbf.morph(g, motion, patches={"bottom": bottom, "top": top[::-1]})
+        self.assertEqual(moved.shape, g.shape)
+        self.assertEqual(report["format"], "points")
+        self.assertEqual(report["moving"], int((np.abs(d).sum(axis=1) > 0).sum()))
+        moving = bottom[np.abs(d).sum(axis=1) > 0]
+        near = [i for i in top if np.linalg.norm(g[moving] - g[i], axis=1).min() < radius]
+        self.assertEqual(near, [])  # the top is 1 away: outside R of every moving point
+        controls = np.concatenate([bottom, top[[np.linalg.norm(g[moving] - g[i], axis=1).min() < radius for i in top]]])
+        self.assertEqual(report["controls"], len(controls))
+        s = g[controls]
+        dd = np.zeros((len(controls), 3))
+        dd[:len(bottom)] = d
+        a = wendland_c2(np.linalg.norm(s[:, None] - s[None], axis=2) / radius)
+        alpha = np.linalg.solve(a, dd)
+        want = g + wendland_c2(np.linalg.norm(g[:, None] - s[None], axis=2) / radius) @ alpha
+        want[bottom] = g[bottom] + d  # prescribed points are placed exactly
+        want[top] = g[top]
+        np.testing.assert_allclose(moved, want, rtol=0, atol=1e-13)
+        self.assertTrue(np.array_equal(moved[top], g[top]))
+        # The same as rows [point, dx, dy, dz], and radius "auto".
+        rows = np.column_stack([bottom, d])
+        moved2, _ = csrbf.morph(g, {"radius": radius, "patches": {"bottom": {"displacements": rows.tolist()},
+                                                                 "top": "fixed"}},
+                                patches={"bottom": bottom, "top": top})
+        self.assertTrue(np.array_equal(moved, moved2))
+        _, auto = csrbf.morph(g, {"patches": {"bottom": {"displacements": d}, "top": "fixed"}},
+                              patches={"bottom": bottom, "top": top}, radius="auto")
+        self.assertIn("boundary's spacing", auto["radius_why"])
+
+    def test_a_dict_motion_on_a_case_equals_its_file(self):
+        case = os.path.join(EXAMPLES, "airfoil", "case")
+        path = os.path.join(EXAMPLES, "airfoil", "motion.json")
+        with open(path) as f:
+            motion = json.load(f)
+        a, ra = csrbf.morph(case, path)
+        b, rb = csrbf.morph(case, motion)
+        self.assertTrue(np.array_equal(a, b))
+        self.assertEqual(ra["quality"], rb["quality"])
+        self.assertEqual(rb["motion"] if "motion" in rb else "motion (dict)", "motion (dict)")
+
+    def test_points_and_dicts_refuse_bad_arguments_by_name(self):
+        g = np.stack(np.meshgrid(*[np.linspace(0, 1, 4)] * 3, indexing="ij"), -1).reshape(-1, 3)
+        bottom = np.flatnonzero(g[:, 2] == 0)
+        motion = {"radius": 0.6, "patches": {"bottom": {"translate": [0, 0, 0.01]}}}
+        cases = [
+            (dict(), ValueError, "patches: mesh is an array of points"),
+            (dict(patches={"bottom": [0, 1, 999]}), ValueError, r"patches\['bottom'\]\[2\] is 999: mesh has 64 points"),
+            (dict(patches={"bottom": [0.5]}), TypeError, r"patches\['bottom'\] must be a 1-D array of point indices"),
+            (dict(patches={"bottom": bottom}, output="x.vtu"), ValueError, "has no file to write"),
+            (dict(patches={"bottom": bottom}, radius="big"), TypeError, "radius must be a number > 0"),
+            (dict(patches={"wall": bottom}), ValueError, "no patch 'bottom'"),
+        ]
+        for kwargs, error, text in cases:
+            with self.subTest(kwargs=list(kwargs)), self.assertRaisesRegex(error, text):
+                csrbf.morph(g, motion, **kwargs)
+        with self.assertRaisesRegex(ValueError, "patches.bottom.translate"):
+            csrbf.morph(g, {"radius": 0.6, "patches": {"bottom": {"translate": [0, 0]}}}, patches={"bottom": bottom})
+        with self.assertRaisesRegex(ValueError, "has 2 rows, patches\\['bottom'\\] 16 points"):
+            csrbf.morph(g, {"radius": 0.6, "patches": {"bottom": {"displacements": np.zeros((2, 3))}}},
+                        patches={"bottom": bottom})
+        with self.assertRaisesRegex(TypeError, "motion must be a motion file's path or a dict"):
+            csrbf.morph(g, 3, patches={"bottom": bottom})
+        with self.assertRaisesRegex(ValueError, "patches: only for a mesh given as an array"):
+            csrbf.morph(os.path.join(EXAMPLES, "airfoil", "case"), motion, patches={"bottom": bottom})
+
     def test_errors(self):
         case = os.path.join(EXAMPLES, "airfoil", "case")
         with tempfile.TemporaryDirectory() as tmp:

@@ -4,6 +4,7 @@
 
 #include "csrbf/errors.hpp"
 #include "csrbf/morph/morph.hpp"
+#include "csrbf/morph/motion.hpp"
 #include "csrbf/morph/quality.hpp"
 
 #include <filesystem>
@@ -23,7 +24,10 @@ class JobError : public InvalidInput {
 struct MorphJob {
   std::filesystem::path mesh, motion;
   std::filesystem::path motion_series;  ///< run_series: the folder of motions named by time
-  std::filesystem::path out;            ///< empty: no output (or in_place)
+  /// The motion itself, in place of the file `motion` (Python's dict; `motion` then names it in
+  /// the report).
+  std::optional<Motion> motion_given;
+  std::filesystem::path out;  ///< empty: no output (or in_place)
   bool in_place = false;
   bool write = true;  ///< false: measure only (Python without an output)
   /// Override the motion file's values.
@@ -60,6 +64,10 @@ struct MorphOutcome {
   bool written = false;
   double ms_read = 0, ms_quality = 0, ms_write = 0, ms_total = 0;
 };
+
+/// The morph's options of a job and its motion: the job's, else the motion's, else the defaults
+/// (R: auto).
+MorphOptions morph_options(const MorphJob& job, const Motion& motion);
 
 /// Runs the job. Throws JobError for contradicting options, io::FileError for bad files (naming
 /// them), other csrbf::Error for a fit that fails. A morph that inverts cells is not an exception:

@@ -13,6 +13,8 @@
 #include "csrbf/fit_options.hpp"
 #include "csrbf/types.hpp"
 
+#include <nlohmann/json_fwd.hpp>
+
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -35,7 +37,8 @@ struct PatchMotion {
   Vec3 axis = Vec3::UnitZ();  ///< unit
   double degrees = 0;
   Vec3 origin = Vec3::Zero();
-  /// Displacements: the file, and its (point id, displacement, line) in file order.
+  /// Displacements: the file (empty: rows given in the motion itself), and its (point id,
+  /// displacement, line: the file's, or the row's index + 1) in file order.
   std::filesystem::path file;
   struct Given {
     std::uint64_t point;
@@ -43,6 +46,10 @@ struct PatchMotion {
     std::size_t line;
   };
   std::vector<Given> given;
+  /// Where displacements came from, for messages: the file, or "motion: patches.flap.displacements".
+  std::string source() const;
+  /// "flap.txt:12: " or "motion: patches.flap.displacements[11]: ".
+  std::string at(const Given& g) const;
 
   /// The rigid motion's displacement of x (translate, rotate; zero when fixed).
   Vec3 displacement(const Vec3& x) const;
@@ -66,5 +73,10 @@ struct Motion {
 /// the file and the JSON path (or the line of a displacement file) and the value. Throws
 /// io::FileError.
 Motion read_motion(const std::filesystem::path& path);
+
+/// The same from a parsed JSON value (Python's csrbf.morph takes a dict): name stands for the
+/// file in messages; displacement files are read relative to base. A patch's "displacements" may
+/// also be rows [point_id, dx, dy, dz] in the motion itself.
+Motion motion_from_json(const nlohmann::json& j, const std::string& name, const std::filesystem::path& base);
 
 }  // namespace csrbf::morph
