@@ -56,6 +56,12 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
                   "Greedy reduction: use the fewest boundary points as controls that interpolate every one within "
                   "TOL x the largest displacement (e.g. 1e-3)")
       ->check(finite_in(1e-15, 1.0, "--greedy"));
+  cmd->add_option("--greedy-budget", a.greedy_budget,
+                  "Greedy's rounds may take this fraction of the plain fit and evaluation's predicted time (at least "
+                  "0.1 s); past it greedy stops and every control is fitted, so greedy never costs more than about "
+                  "1 + this times the plain morph")
+      ->check(finite_in(0.0, 1e6, "--greedy-budget"))
+      ->capture_default_str();
   cmd->add_option("--phase,-t", a.phase, "Fraction of the motion applied, in [0, 1]")
       ->check(finite_in(0.0, 1.0, "--phase"))
       ->capture_default_str();
@@ -101,6 +107,7 @@ morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
   if (!a.kernel.empty()) job.kernel = *parse_name<Kernel>(a.kernel);
   if (!a.polynomial.empty()) job.polynomial = *parse_name<Polynomial>(a.polynomial);
   job.greedy = a.greedy;
+  job.greedy_budget = a.greedy_budget;
   job.solver = distributed && a.solver == "mumps" ? Solver::Auto : serial_solver(a.solver);
   job.phase = a.phase;
   job.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
@@ -216,10 +223,6 @@ int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
           throw morph::JobError("morph: " + a.mesh + " is decomposed into " + std::to_string(parts) + what +
                                 ": run it with mpirun -np " + std::to_string(parts) + ", not " +
                                 std::to_string(rt.size()));
-        if (a.greedy)
-          throw morph::JobError(
-              "morph: --greedy picks controls worst first over the whole boundary; a decomposed mesh "
-              "is morphed with all its boundary points (leave --greedy out)");
       });
     } catch (const mpi::Failure& f) {
       print_error(f.what(), -1);

@@ -12,6 +12,7 @@ struct MorphArgs {
   std::string motion_series;  ///< --motion-series DIR
   std::string radius;         ///< R, "auto", or empty (the motion file's, else auto)
   std::optional<double> greedy;
+  double greedy_budget = 0.2;
   std::string kernel, polynomial, solver = "auto";
   std::string time;  ///< OpenFOAM's -time: latest or a time
   double phase = 1.0;

@@ -236,6 +236,7 @@ MorphOptions morph_options(const MorphJob& job, const Motion& motion) {
   opt.fit.memory_limit_bytes = job.memory_limit_bytes;
   opt.phase = job.phase;
   opt.greedy = job.greedy.value_or(0.0);
+  opt.greedy_budget = job.greedy_budget;
   return opt;
 }
 
@@ -353,42 +354,44 @@ MorphOutcome run_job(const MorphJob& job) {
 
 std::string outcome_json(const MorphOutcome& o) {
   const MorphReport& rep = o.result.report;
-  nlohmann::json j{{"case", o.mesh},
-                   {"format", o.format},
-                   {"encoding", o.encoding},
-                   {"output", o.output},
-                   {"written", o.written},
-                   {"points", o.points},
-                   {"cells", o.cells},
-                   {"patch_count", o.patches},
-                   {"prescribed", rep.prescribed},
-                   {"moving", rep.moving},
-                   {"fixed", rep.fixed},
-                   {"slip", rep.slip},
-                   {"controls", rep.controls},
-                   {"greedy_rounds", rep.greedy_rounds},
-                   {"max_displacement", rep.max_displacement},
-                   {"max_boundary_error", rep.max_boundary_error},
-                   {"radius", rep.radius},
-                   {"radius_why", rep.radius_why},
-                   {"predicted",
-                    {{"neighbours_per_control", rep.predicted.neighbours_per_control},
-                     {"neighbours_per_point", rep.predicted.neighbours_per_point},
-                     {"bytes", rep.predicted.bytes},
-                     {"seconds_fit", rep.predicted.seconds_fit},
-                     {"seconds_evaluate", rep.predicted.seconds_evaluate}}},
-                   {"kernel", kernel_name(o.options.fit.kernel)},
-                   {"polynomial", polynomial_name(o.options.fit.polynomial)},
-                   {"solver", rep.controls ? std::string(name_of(rep.fit.solver)) : std::string("none")},
-                   {"phase", o.options.phase},
-                   {"quality", {{"before", quality_json(o.before)}, {"after", quality_json(o.after)}}},
-                   {"ms",
-                    {{"read", o.ms_read},
-                     {"fit", rep.seconds_fit * 1e3},
-                     {"evaluate", rep.seconds_evaluate * 1e3},
-                     {"quality", o.ms_quality},
-                     {"write", o.ms_write},
-                     {"total", o.ms_total}}}};
+  nlohmann::json j{
+      {"case", o.mesh},
+      {"format", o.format},
+      {"encoding", o.encoding},
+      {"output", o.output},
+      {"written", o.written},
+      {"points", o.points},
+      {"cells", o.cells},
+      {"patch_count", o.patches},
+      {"prescribed", rep.prescribed},
+      {"moving", rep.moving},
+      {"fixed", rep.fixed},
+      {"slip", rep.slip},
+      {"controls", rep.controls},
+      {"greedy_rounds", rep.greedy_rounds},
+      {"greedy_stopped", rep.greedy_stopped.empty() ? nlohmann::json(nullptr) : nlohmann::json(rep.greedy_stopped)},
+      {"max_displacement", rep.max_displacement},
+      {"max_boundary_error", rep.max_boundary_error},
+      {"radius", rep.radius},
+      {"radius_why", rep.radius_why},
+      {"predicted",
+       {{"neighbours_per_control", rep.predicted.neighbours_per_control},
+        {"neighbours_per_point", rep.predicted.neighbours_per_point},
+        {"bytes", rep.predicted.bytes},
+        {"seconds_fit", rep.predicted.seconds_fit},
+        {"seconds_evaluate", rep.predicted.seconds_evaluate}}},
+      {"kernel", kernel_name(o.options.fit.kernel)},
+      {"polynomial", polynomial_name(o.options.fit.polynomial)},
+      {"solver", rep.controls ? std::string(name_of(rep.fit.solver)) : std::string("none")},
+      {"phase", o.options.phase},
+      {"quality", {{"before", quality_json(o.before)}, {"after", quality_json(o.after)}}},
+      {"ms",
+       {{"read", o.ms_read},
+        {"fit", rep.seconds_fit * 1e3},
+        {"evaluate", rep.seconds_evaluate * 1e3},
+        {"quality", o.ms_quality},
+        {"write", o.ms_write},
+        {"total", o.ms_total}}}};
   if (o.inverts) j["safe_phase"] = o.safe_phase;
   // Points this far or farther from every moving control keep their coordinates bit for bit (null:
   // a polynomial moves the whole space); staying controls farther than R from every moving one.
@@ -409,7 +412,8 @@ std::string outcome_text(const MorphOutcome& o) {
     << "  motion " << o.motion << ": " << o.motion_summary << "\n"
     << "  " << rep.prescribed << " prescribed points (" << rep.moving << " moving, " << rep.fixed << " fixed, "
     << rep.slip << " slip), " << rep.controls << " controls";
-  if (rep.greedy_rounds) s << " chosen in " << rep.greedy_rounds << " greedy rounds";
+  if (rep.greedy_rounds && rep.greedy_stopped.empty()) s << " chosen in " << rep.greedy_rounds << " greedy rounds";
+  if (!rep.greedy_stopped.empty()) s << " (greedy stopped " << rep.greedy_stopped << ")";
   s << "; largest displacement " << rep.max_displacement << ", largest boundary error " << rep.max_boundary_error
     << " before exact placement\n"
     << "  R = " << rep.radius << (o.options.radius_auto ? " (auto: " + rep.radius_why + ")" : std::string())

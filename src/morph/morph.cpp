@@ -506,9 +506,17 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       for (std::size_t i = 0; i < nc; ++i) e = std::max(e, err[i] = (at[i] - targets[i]).norm());
       return b.max(e);
     };
-    if (options.greedy > 0 && b.max(double(nc)) > 1) {
+    bool fit_all = !(options.greedy > 0 && b.max(double(nc)) > 1);
+    if (!fit_all) {
       ProgressPhase rounds(options.progress, "greedy", 0, 0);  // rounds counted; their number is not known
       const double limit = options.greedy * largest;
+      // The budget: a share of the plain morph's predicted fit and evaluation. The fit's share is
+      // refined by each round's own cost per matrix entry, once a round fits 1000 controls or more
+      // (a small fit is mostly fixed costs).
+      const double entries_all = b.sum(double(nc)) * (1 + rep.predicted.neighbours_per_control);
+      double fit_all_seconds = rep.predicted.seconds_fit;
+      double spent = 0;
+      std::size_t rounds_here = 0;  // this fit's (a slip correction's greedy counts its own)
       std::vector<char> chosen(nc, 0);
       std::vector<std::uint32_t> subset;
       std::size_t first = 0;
@@ -521,7 +529,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       std::vector<std::uint32_t> by_error(nc);
       for (;;) {
         ++rep.greedy_rounds;
+        ++rounds_here;
         rounds.advance(double(rep.greedy_rounds));
+        const auto t_round = Clock::now();
         std::sort(subset.begin(), subset.end());
         std::vector<Vec3> s(subset.size()), t(subset.size());
         std::vector<std::uint64_t> u(subset.size());
@@ -531,9 +541,31 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
           u[k] = ids[subset[k]];
         }
         map.reset();
+        const auto t_fit_round = Clock::now();
         map = b.fit(s, t, fit, u);
+        const double fit_seconds = b.max(seconds_since(t_fit_round));
         rep.max_boundary_error = worst(*map, err);
         if (rep.max_boundary_error <= limit || b.max(double(subset.size() < nc)) == 0) break;
+        const FitStats st = map->stats();
+        const double entries = double(st.controls) + 2.0 * double(st.neighbor_pairs);
+        if (st.controls >= 1000 && entries > 0) fit_all_seconds = fit_seconds / entries * entries_all;
+        const double round_seconds = b.max(seconds_since(t_round));
+        spent += round_seconds;
+        const double budget = std::max(options.greedy_budget * (fit_all_seconds + rep.predicted.seconds_evaluate),
+                                       options.greedy_budget_floor);
+        // The next round fits more controls: it costs at least this one.
+        if (spent + round_seconds > budget) {
+          std::ostringstream os;
+          os.precision(3);
+          os << "after " << rounds_here << (rounds_here == 1 ? " round (" : " rounds (") << subset.size()
+             << " controls, error " << rep.max_boundary_error / largest << " of the largest displacement against "
+             << options.greedy << "), greedy had spent " << spent << " s of its budget of " << budget << " s ("
+             << options.greedy_budget << " x the plain fit and evaluation, predicted " << fit_all_seconds << " + "
+             << rep.predicted.seconds_evaluate << " s): every control is fitted instead";
+          rep.greedy_stopped = os.str();
+          fit_all = true;
+          break;
+        }
         std::iota(by_error.begin(), by_error.end(), 0u);
         std::sort(by_error.begin(), by_error.end(), [&](std::uint32_t a, std::uint32_t b) { return err[a] > err[b]; });
         SpacedSet spaced(fit.radius);
@@ -548,7 +580,10 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
         if (b.max(double(subset.size() > before)) == 0) break;
       }
       rep.controls = subset.size();
-    } else {
+      if (fit_all && options.progress) options.progress->note("greedy stopped " + rep.greedy_stopped);
+    }
+    if (fit_all) {
+      map.reset();
       ProgressPhase fitting(options.progress, "fit", 0, rep.predicted.seconds_fit);
       map = b.fit(sources, targets, fit, ids);
       rep.max_boundary_error = worst(*map, err);

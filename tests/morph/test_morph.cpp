@@ -993,3 +993,31 @@ TEST_F(BoxMorph, AutoRadiusFollowsTheDisplacementTheSpacingAndTheMemoryLimit) {
   EXPECT_EQ(still.report.radius_why, "nothing moves");
   EXPECT_EQ(still.points, c.mesh.points);
 }
+
+// Issue 31, point 4: greedy never loses. Past its budget it stops and fits every control: the
+// result is then the plain morph's, bit for bit, and the report says why.
+TEST_F(BoxMorph, GreedyPastItsBudgetFitsEveryControl) {
+  const Motion m =
+      motion_from(dir, R"j({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},
+                                                    "zmax": "fixed", "[xy]m(in|ax)": "fixed"}})j");
+  MorphOptions plain;
+  plain.fit.radius = 0.8;
+  const MorphResult all = morph(c.mesh, m, plain);
+  MorphOptions o = plain;
+  o.greedy = 1e-3;
+  o.greedy_budget = 0;  // no time at all: one round, then every control
+  o.greedy_budget_floor = 0;
+  const MorphResult stopped = morph(c.mesh, m, o);
+  EXPECT_EQ(stopped.report.greedy_rounds, 1u);
+  EXPECT_EQ(stopped.report.controls, all.report.controls);
+  EXPECT_EQ(stopped.points, all.points);
+  EXPECT_NE(stopped.report.greedy_stopped.find("every control is fitted instead"), std::string::npos)
+      << stopped.report.greedy_stopped;
+  EXPECT_NE(stopped.report.greedy_stopped.find("after 1 round ("), std::string::npos) << stopped.report.greedy_stopped;
+  // Unbounded, it runs to its tolerance with fewer controls.
+  o.greedy_budget = std::numeric_limits<double>::infinity();
+  const MorphResult ran = morph(c.mesh, m, o);
+  EXPECT_TRUE(ran.report.greedy_stopped.empty());
+  EXPECT_LT(ran.report.controls, all.report.controls);
+  EXPECT_LE(ran.report.max_boundary_error, 1e-3 * ran.report.max_displacement);
+}

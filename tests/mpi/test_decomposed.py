@@ -210,6 +210,29 @@ class Decomposed(unittest.TestCase):
                         with open(os.path.join(case, "processor%d/constant/polyMesh/points" % k), "rb") as f:
                             self.assertEqual(f.read(), inputs[k])
 
+    def test_greedy_on_a_decomposed_case_meets_its_tolerance(self):
+        # Issue 31, point 4: greedy under mpirun. Each part adds its own worst points a round; the
+        # rounds end together, every boundary point within the tolerance, the mesh valid.
+        plain = self.airfoil("plain")
+        want = self.serial(plain, self.path("serial"))
+        case = self.path("case")
+        shutil.copytree(plain, case)
+        decompose(case, 2, "simple", "2 1 1")
+        out = self.path("out")
+        r = run(MPIRUN + ["2", CLI, "morph", case, "-o", out, "--motion", self.path("motion.json"), "--greedy", "1e-3",
+                          "--json"])
+        self.assertEqual(r.returncode, 0, r.stdout[-2000:] + r.stderr[-3000:])
+        report = json.loads(r.stdout)
+        self.assertGreater(report["greedy_rounds"], 1)
+        self.assertIsNone(report["greedy_stopped"])
+        self.assertLess(report["controls"], self.serial_report["controls"])
+        self.assertLessEqual(report["max_boundary_error"], 1e-3 * report["max_displacement"])
+        got = gathered(out, 2)
+        largest = np.abs(want - points(os.path.join(plain, "constant", "polyMesh"))).max()
+        self.assertLess(np.abs(got - want).max(), 0.05 * largest)
+        self.assertEqual(run(["reconstructParMesh", "-constant"], cwd=out).returncode, 0)
+        self.check_mesh(out)
+
     def test_pitzdaily_hierarchical_on_four_ranks(self):
         case = self.path("pitzDaily")
         shutil.copytree(os.path.join(TUTORIALS, "pitzDaily"), case)

@@ -36,6 +36,7 @@ struct MorphJob {
   std::optional<Kernel> kernel;
   std::optional<Polynomial> polynomial;
   std::optional<double> greedy;
+  double greedy_budget = 0.2;  ///< MorphOptions::greedy_budget
   Solver solver = Solver::Auto;
   double phase = 1.0;
   double memory_limit_bytes = 4.0 * (1ull << 30);

@@ -48,6 +48,14 @@ struct MorphOptions {
   /// > 0: greedy reduction (Rendall & Allen 2009): controls are added, worst first, until every
   /// prescribed point is interpolated within greedy x the largest displacement.
   double greedy = 0.0;
+  /// Greedy never loses: its rounds may take this fraction of the time the fit of every control and
+  /// its evaluation are predicted to take (the prediction refined by each round's measured cost per
+  /// matrix entry); past it, greedy stops and every control is fitted, so the whole morph takes at
+  /// most about 1 + greedy_budget times the plain one. Infinity: greedy runs until it meets its
+  /// tolerance.
+  double greedy_budget = 0.2;
+  /// ... and at least this many seconds (a morph of a few milliseconds is not worth stopping).
+  double greedy_budget_floor = 0.1;
   /// `--radius auto`: fit.radius is ignored, and R is chosen from the motion's largest displacement
   /// (as applied), the boundary's spacing and fit.memory_limit_bytes (MorphReport::radius_why).
   bool radius_auto = false;
@@ -80,6 +88,9 @@ struct MorphReport {
   std::vector<PatchReport> patches;  ///< every patch of the mesh
   std::size_t controls = 0;          ///< sources of the fit (all prescribed points, or greedy's subset)
   std::size_t greedy_rounds = 0;
+  /// Where greedy stopped before its tolerance and every control was fitted instead: why (its
+  /// budget and what it had spent); empty otherwise.
+  std::string greedy_stopped;
   double max_displacement = 0;  ///< largest prescribed, at phase 1
   /// Largest distance between a prescribed point's interpolated and prescribed position, before
   /// the prescribed points are placed exactly (greedy's measure; ~1e-12 without greedy).
