@@ -3,6 +3,7 @@
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
 
+#include <tbb/parallel_for.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -79,19 +80,48 @@ std::string gunzip(const std::string& data, const fs::path& file, double max_byt
   return out;
 }
 
+/// data as one gzip member, written as pigz writes it: cut into blocks (1 MiB or more, 64 at most
+/// beyond 64 MiB), each deflated on its own in parallel at zlib's fastest level and ended by a
+/// sync flush (the last by the stream's end), the blocks' CRC-32s combined. Any gzip reader
+/// (OpenFOAM's, zlib's, gzip's) reads it as one stream. The fastest level: a 1e7-point case's points
+/// took about 20 s to compress at zlib's default level on one core, longer than the whole morph.
 std::string gzip(const std::string& data) {
-  z_stream zs{};
-  if (deflateInit2(&zs, Z_DEFAULT_COMPRESSION, Z_DEFLATED, 15 + 16, 8, Z_DEFAULT_STRATEGY) != Z_OK)
-    throw FileError("cannot start gzip compression");
-  std::string out(deflateBound(&zs, uLong(data.size())), '\0');
-  zs.next_in = reinterpret_cast<Bytef*>(const_cast<char*>(data.data()));
-  zs.avail_in = uInt(data.size());
-  zs.next_out = reinterpret_cast<Bytef*>(out.data());
-  zs.avail_out = uInt(out.size());
-  const int rc = deflate(&zs, Z_FINISH);
-  out.resize(out.size() - zs.avail_out);
-  deflateEnd(&zs);
-  if (rc != Z_STREAM_END) throw FileError("gzip compression failed");
+  const std::size_t block = std::max<std::size_t>(std::size_t(1) << 20, data.size() / 64 + 1);
+  const std::size_t blocks = std::max<std::size_t>(1, (data.size() + block - 1) / block);
+  std::vector<std::string> parts(blocks);
+  std::vector<uLong> crcs(blocks);
+  std::vector<int> failed(blocks, 0);
+  tbb::parallel_for(std::size_t(0), blocks, [&](std::size_t k) {
+    const std::size_t begin = std::min(data.size(), k * block), n = std::min(block, data.size() - begin);
+    const auto* in = reinterpret_cast<const Bytef*>(data.data() + begin);
+    crcs[k] = crc32(0L, in, uInt(n));
+    z_stream zs{};
+    if (deflateInit2(&zs, Z_BEST_SPEED, Z_DEFLATED, -15, 8, Z_DEFAULT_STRATEGY) != Z_OK) {
+      failed[k] = 1;
+      return;
+    }
+    std::string& out = parts[k];
+    out.resize(deflateBound(&zs, uLong(n)) + 64);  // room for the sync flush's empty block too
+    zs.next_in = const_cast<Bytef*>(in);
+    zs.avail_in = uInt(n);
+    zs.next_out = reinterpret_cast<Bytef*>(out.data());
+    zs.avail_out = uInt(out.size());
+    const bool last = k + 1 == blocks;
+    const int rc = deflate(&zs, last ? Z_FINISH : Z_SYNC_FLUSH);
+    if ((last ? rc != Z_STREAM_END : rc != Z_OK) || zs.avail_in != 0) failed[k] = 1;
+    out.resize(out.size() - zs.avail_out);
+    deflateEnd(&zs);
+  });
+  if (std::count(failed.begin(), failed.end(), 1)) throw FileError("gzip compression failed");
+  std::string out("\x1f\x8b\x08\x00\x00\x00\x00\x00\x00\x03", 10);  // deflate, no name, no time, Unix
+  uLong crc = crcs[0];
+  for (std::size_t k = 0; k < blocks; ++k) {
+    out += parts[k];
+    if (k > 0) crc = crc32_combine(crc, crcs[k], z_off_t(std::min(block, data.size() - k * block)));
+  }
+  const std::uint32_t size = std::uint32_t(data.size() & 0xffffffffu);
+  for (int b = 0; b < 4; ++b) out += char((crc >> (8 * b)) & 0xff);
+  for (int b = 0; b < 4; ++b) out += char((size >> (8 * b)) & 0xff);
   return out;
 }
 
