@@ -469,7 +469,9 @@ TEST(Trust, ExportAndAnimateKeepTheMemoryAndTimeLimits) {
       run_shell("env -u DISPLAY " + kCli + " animate " + scene + " --to 0.08 --memory-limit 0.02 -o " + d + "/t.mp4");
   EXPECT_EQ(tiny.code, 1) << tiny.out;
   EXPECT_NE(tiny.out.find("--memory-limit 0.02 GiB is too small: csrbf already holds"), std::string::npos) << tiny.out;
-  const auto bake = run_shell(kCli + " export " + scene + " --bake always --memory-limit 0.06 -o " + d + "/b.glb");
+  // 0.045: between what the program holds as it starts (0.037 GiB since MPI and PETSc are loaded only
+  // under mpirun) and what baking needs beside it.
+  const auto bake = run_shell(kCli + " export " + scene + " --bake always --memory-limit 0.045 -o " + d + "/b.glb");
   EXPECT_EQ(bake.code, 1) << bake.out;
   EXPECT_NE(bake.out.find("export: writing the glTF takes about 0.0164 GiB (the player 0.000284, the buffer 0.00591, "
                           "morph targets and baked frames 0.00878), more than the"),
@@ -608,10 +610,10 @@ TEST(Trust, LinksIntoAFrameFolderBigJsonTexturesAndNamesInReports) {
   }
   write_text(dir / "many.controls", lines);
   const auto [ccode, cpeak] =
-      run_measured(kCli + " info --controls " + d + "/many.controls --radius 0.01 --memory-limit 0.07", dir / "log");
+      run_measured(kCli + " info --controls " + d + "/many.controls --radius 0.01 --memory-limit 0.058", dir / "log");
   EXPECT_EQ(ccode, 1) << read_text(dir / "log");
   EXPECT_NE(read_text(dir / "log").find("250001 lines would take about"), std::string::npos) << read_text(dir / "log");
-  EXPECT_LE(cpeak, 1.1 * 0.07 * double(1ull << 30));
+  EXPECT_LE(cpeak, 1.1 * 0.058 * double(1ull << 30));
   // A 4096 x 4096 texture: counted decoded (151 MB), refused under 0.1, within 0.3 when allowed.
   ASSERT_EQ(run_shell("/usr/bin/python3 -c \"import zlib,struct\nw=h=4096\ndef c(t,d): return "
                       "struct.pack('>I',len(d))+t+d+struct.pack('>I',zlib.crc32(t+d))\nopen('" +

@@ -1,0 +1,74 @@
+// `csrbf`: the command users run. It answers --version itself and runs the program that does the
+// work: csrbf-cli, or under mpirun with more than one rank csrbf-cli-mpi, the same program built
+// with MPI and PETSc. Those two libraries cost every command about 0.1 s to load (measured: 70-106
+// ms to dlopen them, of a 0.14 s start-up), so only a distributed run loads them. The programs
+// live in LIBEXEC/csrbf beside BIN (build/libexec/csrbf in the build tree), found from this
+// program's own path; the same argv goes over, argv[0] included, so every message and --help
+// names `csrbf`.
+#include "csrbf/version.hpp"
+
+#include <sys/resource.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <climits>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <string>
+
+namespace {
+
+/// The ranks mpirun (Open MPI, MPICH, PMIx) started, from the environment it sets; 0 outside it.
+int launched_ranks() {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMIX_SIZE", "PMI_SIZE", "MPI_LOCALNRANKS"}) {
+    const char* v = std::getenv(name);
+    if (!v || !*v) continue;
+    char* end = nullptr;
+    const long n = std::strtol(v, &end, 10);
+    if (end != v && *end == 0 && n > 0 && n < INT_MAX) return int(n);
+  }
+  return 0;
+}
+
+/// OpenBLAS (under CHOLMOD) starts its threads as it is loaded, each taking a 128 MiB buffer, and
+/// libgomp likewise: under an address-space limit (ulimit -v) or a tight process limit they cannot,
+/// and spin or end the process. Both read their thread counts only at load, so they are set here,
+/// before the program that loads them starts.
+void single_threads_under_limits() {
+  rlimit as{}, procs{};
+  const bool limited =
+      (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) ||
+      (::getrlimit(RLIMIT_NPROC, &procs) == 0 && procs.rlim_cur != RLIM_INFINITY && procs.rlim_cur < 4096);
+  if (!limited) return;
+  for (const char* v : {"OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"})
+    if (!std::getenv(v)) ::setenv(v, "1", 1);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  if (argc == 2 && std::strcmp(argv[1], "--version") == 0) {
+    std::printf("csrbf %s\n", csrbf::kVersion);
+    return std::fflush(stdout) == 0 && !std::ferror(stdout) ? 0 : 1;
+  }
+  char self[PATH_MAX];
+  const ssize_t n = ::readlink("/proc/self/exe", self, sizeof self - 1);
+  if (n <= 0) {
+    std::fprintf(stderr, "csrbf: error: cannot find this program's own path (/proc/self/exe): %s\n",
+                 std::strerror(errno));
+    return 1;
+  }
+  self[n] = 0;
+  std::string dir(self);
+  dir.erase(dir.find_last_of('/') + 1);
+  const std::string libexec = dir + CSRBF_LIBEXEC_FROM_BIN + "/";
+  std::string program = libexec + "csrbf-cli";
+  if (launched_ranks() > 1 && ::access((libexec + "csrbf-cli-mpi").c_str(), X_OK) == 0)
+    program = libexec + "csrbf-cli-mpi";
+  single_threads_under_limits();
+  ::execv(program.c_str(), argv);
+  std::fprintf(stderr, "csrbf: error: cannot run %s: %s (csrbf is not installed whole: install it again)\n",
+               program.c_str(), std::strerror(errno));
+  return 1;
+}
