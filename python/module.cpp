@@ -529,11 +529,17 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
         if (py::isinstance<py::str>(radius) && radius.cast<std::string>() == "auto")
           job.radius_auto = true;
         else if (!radius.is_none()) {
-          if (!py::isinstance<py::float_>(radius) && !py::isinstance<py::int_>(radius) &&
-              !py::hasattr(radius, "__float__"))
+          if (py::isinstance<py::bool_>(radius) ||
+              (!py::isinstance<py::float_>(radius) && !py::isinstance<py::int_>(radius) &&
+               !py::hasattr(radius, "__float__")))
             throw py::type_error("radius must be a number > 0, \"auto\" or None, got " +
-                                 py::repr(radius).cast<std::string>());
-          job.radius = radius.cast<double>();
+                                 py::repr(radius).cast<std::string>().substr(0, 80));
+          try {
+            job.radius = py::float_(radius).cast<double>();
+          } catch (const py::error_already_set&) {
+            throw py::value_error("radius must be a finite number > 0, got " +
+                                  py::repr(radius).cast<std::string>().substr(0, 80));
+          }
         }
         if (kernel) job.kernel = named<csrbf::Kernel>(*kernel, "kernel");
         if (polynomial) job.polynomial = named<csrbf::Polynomial>(*polynomial, "polynomial");
@@ -555,12 +561,23 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
           cloud.points = to_vec3(mesh, "mesh");
           for (const auto& [key, value] : *patches) {
             mo::Patch p;
-            p.name = py::str(key).cast<std::string>();
+            if (!py::isinstance<py::str>(key))
+              throw py::type_error("patches: its keys are patch names (str), got " +
+                                   py::repr(key).cast<std::string>().substr(0, 80));
+            p.name = key.cast<std::string>();
             p.boundary = true;
             const py::array a = py::array::ensure(value);
             if (!a || a.ndim() != 1 || (a.size() > 0 && a.dtype().kind() != 'i' && a.dtype().kind() != 'u'))
               throw py::type_error("patches['" + p.name + "'] must be a 1-D array of point indices, got " +
                                    py::repr(value).cast<std::string>().substr(0, 80));
+            if (a.size() > 0 && a.dtype().kind() == 'u' && a.itemsize() == 8) {
+              const auto big = py::array_t<unsigned long long, py::array::c_style | py::array::forcecast>::ensure(a);
+              for (py::ssize_t k = 0; k < big.size(); ++k)
+                if (big.data()[k] >= cloud.points.size())
+                  throw py::value_error("patches['" + p.name + "'][" + std::to_string(k) + "] is " +
+                                        std::to_string(big.data()[k]) + ": mesh has " +
+                                        std::to_string(cloud.points.size()) + " points");
+            }
             const auto idx = py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure(a);
             for (py::ssize_t k = 0; k < idx.size(); ++k) {
               const long long i = idx.data()[k];
@@ -586,7 +603,21 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
             if (py::hasattr(o, "tolist")) return o.attr("tolist")();
             throw py::type_error("motion: " + py::repr(o).cast<std::string>().substr(0, 80) + " is not JSON");
           });
-          nlohmann::json j = nlohmann::json::parse(dumps(motion, py::arg("default") = plain).cast<std::string>());
+          std::string text;
+          try {
+            text = dumps(motion, py::arg("default") = plain, py::arg("allow_nan") = false).cast<std::string>();
+          } catch (py::error_already_set& e) {
+            if (!e.matches(PyExc_ValueError)) throw;
+            throw py::value_error(
+                "motion: a number in it is not finite (NaN or infinity): every number of a motion "
+                "must be finite");
+          }
+          nlohmann::json j;
+          try {
+            j = nlohmann::json::parse(text);
+          } catch (const nlohmann::json::exception& e) {
+            throw py::value_error(std::string("motion: not a motion's JSON: ") + e.what());
+          }
           // Points given: a patch's displacements may be rows (dx, dy, dz), one per index of the patch
           // as given.
           if (points_given && j.is_object() && j.contains("patches") && j["patches"].is_object())
@@ -627,9 +658,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
         mo::MorphOutcome o;
         if (points_given) {
           const mo::Motion mot = job.motion_given ? *job.motion_given : mo::read_motion(job.motion);
-          if (job.radius && !(*job.radius > 0 && std::isfinite(*job.radius)))
-            throw py::value_error("radius must be a finite number > 0, got " + std::to_string(*job.radius));
-          if (!(phase >= 0 && phase <= 1)) throw py::value_error("phase must be in [0, 1]");
+          mo::check_job(job);  // the command's checks of the options (radius, phase, greedy, memory)
           o.mesh = "points";
           o.motion = job.motion.string();
           o.format = "points";

@@ -6,7 +6,9 @@
 // program's own path; the same argv goes over, argv[0] included, so every message and --help
 // names `csrbf`.
 #include "csrbf/version.hpp"
+#include "standard_streams.hpp"
 
+#include <fcntl.h>
 #include <sys/resource.h>
 #include <unistd.h>
 
@@ -48,6 +50,7 @@ void single_threads_under_limits() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  csrbf::cli::hold_standard_streams();
   if (argc == 2 && std::strcmp(argv[1], "--version") == 0) {
     std::printf("csrbf %s\n", csrbf::kVersion);
     return std::fflush(stdout) == 0 && !std::ferror(stdout) ? 0 : 1;

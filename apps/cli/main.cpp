@@ -3,6 +3,7 @@
 #include "export.hpp"
 #include "bench.hpp"
 #include "commands.hpp"
+#include "standard_streams.hpp"
 #include "morph.hpp"
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/controls.hpp"
@@ -23,8 +24,10 @@
 #include "csrbf/mpi/runtime.hpp"
 #endif
 
+#include <cerrno>
 #include <charconv>
 #include <cstring>
+#include <fcntl.h>
 #include <sys/resource.h>
 #include <unistd.h>
 #include <csignal>
@@ -314,6 +317,7 @@ void single_blas_thread_under_limits(char** argv) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  csrbf::cli::hold_standard_streams();
   single_blas_thread_under_limits(argv);
   // A file size limit (ulimit -f, or a quota) must fail the write, so that the temporary file is
   // removed and the target kept, rather than kill the process with SIGXFSZ half-way.

@@ -56,12 +56,15 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
                   "Greedy reduction: use the fewest boundary points as controls that interpolate every one within "
                   "TOL x the largest displacement (e.g. 1e-3)")
       ->check(finite_in(1e-15, 1.0, "--greedy"));
-  cmd->add_option("--greedy-budget", a.greedy_budget,
-                  "Greedy's rounds may take this fraction of the plain fit and evaluation's predicted time (at least "
-                  "0.1 s); past it greedy stops and every control is fitted, so greedy never costs more than about "
-                  "1 + this times the plain morph")
-      ->check(finite_in(0.0, 1e6, "--greedy-budget"))
-      ->capture_default_str();
+  auto* greedy_budget =
+      cmd->add_option(
+             "--greedy-budget", a.greedy_budget,
+             "Greedy's rounds may take this fraction of the plain fit and evaluation's predicted time (at least "
+             "0.1 s); past it greedy stops and every control is fitted, so greedy never costs more than about "
+             "1 + this times the plain morph")
+          ->check(finite_in(0.0, 1e6, "--greedy-budget"))
+          ->capture_default_str();
+  greedy_budget->needs(cmd->get_option("--greedy"));
   cmd->add_option("--phase,-t", a.phase, "Fraction of the motion applied, in [0, 1]")
       ->check(finite_in(0.0, 1.0, "--phase"))
       ->capture_default_str();
@@ -77,7 +80,12 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
   cmd->add_option("--time", a.time,
                   "OpenFOAM: morph the mesh of this time folder, latest or a time (0.5), and write the moved "
                   "points there; a time without its own polyMesh is constant's, as OpenFOAM reads it. Also "
-                  "spelled -time T and -latestTime, as OpenFOAM's utilities take them");
+                  "spelled -time T and -latestTime, as OpenFOAM's utilities take them")
+      ->check(CLI::Validator(
+          [](std::string& v) {
+            return v.empty() ? std::string("--time: give a time (0.5) or latest, not nothing") : std::string();
+          },
+          "TIME"));
   cmd->add_flag("--json", a.json, "Print the report as one JSON object");
   cmd->add_flag("--quiet,-q", a.quiet,
                 "No progress on the terminal (bars of the phases longer than a second, the radius chosen, the "

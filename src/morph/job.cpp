@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cerrno>
 #include <cctype>
 #include <exception>
 #include <limits>
@@ -191,7 +192,8 @@ std::string motion_summary(const Motion& m) {
   return s;
 }
 
-/// The job's options and output, checked before anything is read.
+}  // namespace
+
 void check_job(const MorphJob& job) {
   if (job.write && job.out.empty() && !job.in_place)
     throw JobError("give an output (a new case folder or file) or in place");
@@ -219,7 +221,7 @@ void check_job(const MorphJob& job) {
   }
 }
 
-}  // namespace
+namespace {}  // namespace
 
 MorphOptions morph_options(const MorphJob& job, const Motion& motion) {
   MorphOptions opt;
@@ -425,7 +427,9 @@ std::string outcome_text(const MorphOutcome& o) {
     if (p.why != "listed")
       unlisted += (unlisted.empty() ? "" : ", ") + printable(p.name) + " " + p.kind + " (" + p.why + ")";
   if (!unlisted.empty()) s << "  other patches: " << unlisted << "\n";
-  if (std::isfinite(rep.reach))
+  if (rep.moving == 0 || rep.max_displacement == 0 || o.options.phase == 0)
+    s << "  nothing moves: every point keeps its coordinates bit for bit\n";
+  else if (std::isfinite(rep.reach))
     s << "  reach " << rep.reach << ": a point this far or farther from every moving point keeps its coordinates "
       << "bit for bit (" << rep.far_fixed << " staying points farther than R from every moving one were left "
       << "out of the fit, and stay)\n";
@@ -458,9 +462,13 @@ std::vector<std::pair<std::string, fs::path>> series_files(const fs::path& dir) 
     const fs::path& p = it->path();
     if (p.extension() != ".json") continue;
     const std::string stem = p.stem().string();
+    if (!it->is_regular_file(ec))
+      throw io::FileError("motion series '" + dir.string() + "': '" + p.filename().string() +
+                          "' is not a regular file");
     char* stop = nullptr;
+    errno = 0;
     const double t = std::strtod(stem.c_str(), &stop);
-    if (stem.empty() || stop != stem.c_str() + stem.size() || !std::isfinite(t) || t < 0 ||
+    if (stem.empty() || stop != stem.c_str() + stem.size() || !std::isfinite(t) || t < 0 || errno == ERANGE ||
         stem.find_first_not_of("0123456789.eE+-") != std::string::npos)
       throw io::FileError("motion series '" + dir.string() + "': '" + p.filename().string() +
                           "' is not named by a time (0.1.json, 2.json, 1e-3.json)");
@@ -488,7 +496,7 @@ SeriesOutcome run_series(const MorphJob& job) {
   s.mesh = job.mesh.string();
   s.series = job.motion_series.string();
   check_job(job);
-  const auto files = series_files(job.motion_series);
+  auto files = series_files(job.motion_series);
   std::vector<Motion> motions;
   for (const auto& f : files) motions.push_back(read_motion(f.second));
   const auto t_read = Clock::now();
@@ -505,6 +513,12 @@ SeriesOutcome run_series(const MorphJob& job) {
   if (!foam || !fs::is_directory(foam->root / "constant", ec))
     throw JobError("--motion-series writes one moved mesh a time into the time folders of an OpenFOAM case; " + s.mesh +
                    " is " + (foam ? "a polyMesh folder, not a case" : "a " + file->format() + " file"));
+  if (job.write && !job.in_place) check_openfoam_copy_target(*foam, job.out);
+  // A time the case has already is matched by value, as OpenFOAM matches times: 0.50.json writes
+  // into the case's 0.5.
+  for (const std::string& have : foam_times(foam->root))
+    for (auto& f : files)
+      if (std::strtod(have.c_str(), nullptr) == std::strtod(f.first.c_str(), nullptr)) f.first = have;
   for (const auto& f : files)
     if (!foam->time.empty() && std::strtod(f.first.c_str(), nullptr) <= std::strtod(foam->time.c_str(), nullptr))
       throw io::FileError(f.second.string() + ": time " + f.first + " is not after the time read, " + foam->time);
@@ -517,14 +531,15 @@ SeriesOutcome run_series(const MorphJob& job) {
   const MeshQuality before = meter.measure(mesh.points);
   SeriesBackend backend;
   std::optional<io::Partial> partial;
-  std::vector<std::pair<fs::path, std::string>> staged;  // in place: (staged file, its time)
-  std::vector<fs::path> made;                            // in place: time folders that staging created
+  // In place: each time's points staged in a partial file of csrbf's own (removed if not
+  // committed, and on a signal), and the folders staging made (removed only where empty).
+  std::vector<std::pair<std::unique_ptr<io::Partial>, std::string>> staged;
+  std::vector<fs::path> made;
   const auto discard = [&] {
-    for (const auto& st : staged) discard_openfoam_points(st.first);
-    for (const fs::path& d : made) {  // each was not there before; removed only where empty
+    staged.clear();
+    for (auto it = made.rbegin(); it != made.rend(); ++it) {
       std::error_code e;
-      fs::remove(d / "polyMesh", e);
-      fs::remove(d, e);
+      fs::remove(*it, e);  // an empty folder only: fs::remove does not remove what is in one
     }
   };
   try {
@@ -575,7 +590,8 @@ SeriesOutcome run_series(const MorphJob& job) {
         ProgressPhase writing(job.progress, "write", 0, double(mesh.points.size()) * kWriteSecondsPerPoint);
         if (job.in_place) {
           const fs::path folder = foam->root / o.time;
-          if (!fs::exists(fs::symlink_status(folder, ec))) made.push_back(folder);
+          for (const fs::path& d : {folder, folder / "polyMesh"})
+            if (!fs::exists(fs::symlink_status(d, ec))) made.push_back(d);
           staged.emplace_back(stage_openfoam_points(*foam, o.result.points, o.time), o.time);
         } else {
           if (!partial) {
@@ -596,7 +612,7 @@ SeriesOutcome run_series(const MorphJob& job) {
     }
     if (job.write) {
       if (job.in_place) {
-        for (const auto& st : staged) commit_openfoam_points(*foam, st.first, st.second);
+        for (auto& st : staged) commit_openfoam_points(*foam, *st.first, st.second);
         staged.clear();
       } else {
         partial->commit_new(job.out);

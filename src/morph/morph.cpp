@@ -245,6 +245,9 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
               at + "point " + std::to_string(g.point) + " is given twice (also " +
               (pm.file.empty() ? "as row " + std::to_string(line[k] - 1) : "on line " + std::to_string(line[k])) + ")");
         line[k] = g.line;
+        if (!(g.d.cwiseAbs().maxCoeff() <= 1e150))  // what a fit takes (its coordinates within 1e150)
+          throw FileError(at + "point " + std::to_string(g.point) + ": displacement (" + io::format_number(g.d.x()) +
+                          ", " + io::format_number(g.d.y()) + ", " + io::format_number(g.d.z()) + ") is beyond 1e150");
         given[k] = g.d;
       }
       for (std::size_t k = 0; k < line.size(); ++k)

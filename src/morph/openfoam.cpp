@@ -10,6 +10,7 @@
 #include <bit>
 #include <charconv>
 #include <cmath>
+#include <cerrno>
 #include <cstring>
 #include <fstream>
 #include <limits>
@@ -828,6 +829,7 @@ std::string encoded_points(const FoamCase& c, std::span<const Vec3> points) {
 
 void write_bytes(const fs::path& file, const std::string& bytes) {
   std::ofstream o(file, std::ios::binary | std::ios::trunc);
+  if (!o) throw FileError("cannot write '" + file.string() + "': " + std::strerror(errno));
   o.write(bytes.data(), std::streamsize(bytes.size()));
   o.close();
   std::error_code ec;
@@ -867,7 +869,7 @@ void place_points(const FoamCase& c, const std::string& bytes, const fs::path& c
 
 }  // namespace
 
-void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const fs::path& out) {
+void check_openfoam_copy_target(const FoamCase& c, const fs::path& out) {
   std::error_code ec;
   if (fs::symlink_status(out, ec).type() != fs::file_type::not_found)
     throw FileError("cannot write '" + out.string() +
@@ -879,6 +881,11 @@ void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const 
   if (r_end == root.end())
     throw FileError("cannot write '" + out.string() + "': it is inside the case '" + c.root.string() +
                     "' being copied");
+}
+
+void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const fs::path& out) {
+  check_openfoam_copy_target(c, out);
+  std::error_code ec;
   const std::string bytes = encoded_points(c, points);
   io::Partial partial(out, io::Partial::Kind::Folder);
   fs::copy(c.root, partial.path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
@@ -900,33 +907,21 @@ void write_openfoam_points_into(const FoamCase& c, std::span<const Vec3> points,
   place_points(c, encoded_points(c, points), copy_root, foam_points_target(c, time));
 }
 
-fs::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points, const std::string& time) {
+std::unique_ptr<io::Partial> stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points,
+                                                   const std::string& time) {
   const fs::path target = foam_points_target(c, time);
   std::error_code ec;
   fs::create_directories(target.parent_path(), ec);
-  const fs::path staged = target.parent_path() / (".csrbf-new-" + target.filename().string());
-  try {
-    write_bytes(staged, encoded_points(c, points));
-  } catch (...) {
-    discard_openfoam_points(staged);
-    throw;
-  }
+  if (ec && !fs::is_directory(target.parent_path()))
+    throw FileError("cannot write '" + target.string() + "': cannot make its folder: " + ec.message());
+  const std::string bytes = encoded_points(c, points);
+  auto staged = std::make_unique<io::Partial>(target, io::Partial::Kind::File);
+  write_bytes(staged->path(), bytes);
   return staged;
 }
 
-void commit_openfoam_points(const FoamCase& c, const fs::path& staged, const std::string& time) {
-  std::error_code ec;
-  const fs::path target = foam_points_target(c, time);
-  fs::rename(staged, target, ec);
-  if (ec) {
-    discard_openfoam_points(staged);
-    throw FileError("cannot write '" + target.string() + "': " + ec.message());
-  }
-}
-
-void discard_openfoam_points(const fs::path& staged) noexcept {
-  std::error_code ec;
-  fs::remove(staged, ec);
+void commit_openfoam_points(const FoamCase& c, io::Partial& staged, const std::string& time) {
+  staged.commit(foam_points_target(c, time));
 }
 
 void write_openfoam_in_place(const FoamCase& c, std::span<const Vec3> points) {

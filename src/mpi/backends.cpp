@@ -586,15 +586,18 @@ void DecomposedBackend::write_in_place(const morph::VolumeFile& file, std::span<
   const bool fresh = !fs::exists(fs::symlink_status(target, exists_ec));
   const fs::path kept = target.parent_path() / (".csrbf-old-" + target.filename().string());
   fs::path staged;
+  std::unique_ptr<io::Partial> staged_foam;  // an OpenFOAM part's: a partial file of csrbf's own
   bool linked = false, renamed = false;
   const auto tidy = [&] {
     std::error_code ec;
-    if (!staged.empty() && !renamed) fs::remove(staged, ec);
+    if (!staged_foam && !staged.empty() && !renamed) fs::remove(staged, ec);
+    staged_foam.reset();  // removes it where not committed
     if (linked) fs::remove(kept, ec);
   };
   const std::exception_ptr e1 = caught([&] {
     if (file.foam()) {
-      staged = morph::stage_openfoam_points(*file.foam(), points);
+      staged_foam = morph::stage_openfoam_points(*file.foam(), points);
+      staged = staged_foam->path();
     } else {
       staged = target.parent_path() / (".csrbf-new-" + target.filename().string());
       std::error_code ec;
@@ -616,9 +619,13 @@ void DecomposedBackend::write_in_place(const morph::VolumeFile& file, std::span<
     throw;
   }
   const std::exception_ptr e2 = caught([&] {
-    std::error_code ec;
-    fs::rename(staged, target, ec);
-    if (ec) throw io::FileError("cannot write '" + target.string() + "': " + ec.message());
+    if (staged_foam) {
+      morph::commit_openfoam_points(*file.foam(), *staged_foam);
+    } else {
+      std::error_code ec;
+      fs::rename(staged, target, ec);
+      if (ec) throw io::FileError("cannot write '" + target.string() + "': " + ec.message());
+    }
     renamed = true;
   });
   try {

@@ -447,11 +447,32 @@ class OpenFoamCases(MorphCase):
         shutil.copytree(source, case)
         with open(os.path.join(series, "0.005.json"), "w") as f:
             json.dump({"radius": 0.3, "patches": {"airfoil": {"translate": [0, 0.5, 0]}, "farfield": "fixed"}}, f)
+        # What the attacker found: a link planted where an older csrbf staged its points (a fixed
+        # name) is neither written through nor removed; an existing time folder without a polyMesh
+        # is left as it was.
+        victim = os.path.join(self.tmp, "victim.txt")
+        with open(victim, "w") as f:
+            f.write("mine")
+        os.makedirs(os.path.join(case, "0.002", "polyMesh"))
+        planted = os.path.join(case, "0.002", "polyMesh", ".csrbf-new-points")
+        os.symlink(victim, planted)
+        os.makedirs(os.path.join(case, "0.001"))
         r = run([CLI, "morph", case, "--in-place", "--motion-series", series])
         self.assertEqual(r.returncode, 1, r.stdout)
         self.assertIn("time 0.005", r.stderr)
         self.assertIn("no time written", r.stderr)
+        with open(victim) as f:
+            self.assertEqual(f.read(), "mine")
+        self.assertTrue(os.path.islink(planted))
+        self.assertEqual(os.listdir(os.path.join(case, "0.001")), [])
+        self.assertEqual(os.listdir(os.path.join(case, "0.002", "polyMesh")), [".csrbf-new-points"])
+        shutil.rmtree(os.path.join(case, "0.001"))
+        shutil.rmtree(os.path.join(case, "0.002"))
         self.assertEqual(sorted(os.listdir(case)), sorted(os.listdir(source)))
+        # -o inside the case is refused before anything is copied.
+        r = run([CLI, "morph", case, "-o", os.path.join(case, "out"), "--motion-series", series])
+        self.assertEqual(r.returncode, 1)
+        self.assertIn("it is inside the case", r.stderr)
         os.remove(os.path.join(series, "0.005.json"))
         r = run([CLI, "morph", case, "--in-place", "--motion-series", series])
         self.assertEqual(r.returncode, 0, r.stderr)

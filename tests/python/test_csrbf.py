@@ -495,6 +495,15 @@ class Morph(unittest.TestCase):
         with self.assertRaisesRegex(ValueError, "has 2 rows, patches\\['bottom'\\] 16 points"):
             csrbf.morph(g, {"radius": 0.6, "patches": {"bottom": {"displacements": np.zeros((2, 3))}}},
                         patches={"bottom": bottom})
+        with self.assertRaisesRegex(ValueError, "motion: a number in it is not finite"):
+            csrbf.morph(g, {"radius": 0.6, "patches": {"bottom": {"translate": [0, 0, float("nan")]}}},
+                        patches={"bottom": bottom})
+        with self.assertRaisesRegex(ValueError, r"the greedy tolerance must be in \(0, 1\], got 2"):
+            csrbf.morph(g, motion, patches={"bottom": bottom}, greedy=2.0)
+        with self.assertRaisesRegex(TypeError, "radius must be a number > 0"):
+            csrbf.morph(g, motion, patches={"bottom": bottom}, radius=True)
+        with self.assertRaisesRegex(TypeError, "its keys are patch names"):
+            csrbf.morph(g, motion, patches={1: bottom})
         with self.assertRaisesRegex(TypeError, "motion must be a motion file's path or a dict"):
             csrbf.morph(g, 3, patches={"bottom": bottom})
         with self.assertRaisesRegex(ValueError, "patches: only for a mesh given as an array"):

@@ -66,6 +66,10 @@ struct MorphOutcome {
   double ms_read = 0, ms_quality = 0, ms_write = 0, ms_total = 0;
 };
 
+/// The job's options and its output, checked before anything is read (run_job and run_series
+/// call it). Throws JobError, or io::FileError for an output that exists or a missing folder.
+void check_job(const MorphJob& job);
+
 /// The morph's options of a job and its motion: the job's, else the motion's, else the defaults
 /// (R: auto).
 MorphOptions morph_options(const MorphJob& job, const Motion& motion);

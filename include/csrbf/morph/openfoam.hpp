@@ -3,9 +3,11 @@
 // compression, every other byte as it was.
 #pragma once
 
+#include "csrbf/io/atomic_file.hpp"
 #include "csrbf/morph/volume_mesh.hpp"
 
 #include <filesystem>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -60,6 +62,9 @@ std::string foam_points_bytes(const FoamCase& c, std::span<const Vec3> points);
 /// must not exist and must not be inside the case. Atomic: a partial folder beside out is renamed
 /// to out only when complete. Throws io::FileError.
 void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const std::filesystem::path& out);
+/// write_openfoam_copy's checks of out alone (it must not exist, nor lie inside the case, links
+/// followed). Throws io::FileError.
+void check_openfoam_copy_target(const FoamCase& c, const std::filesystem::path& out);
 
 /// Rewrites the points file alone, atomically (other files untouched).
 void write_openfoam_in_place(const FoamCase& c, std::span<const Vec3> points);
@@ -71,15 +76,15 @@ void write_openfoam_in_place(const FoamCase& c, std::span<const Vec3> points);
 ///   at the same place in it), through a new file renamed over the copied one;
 void write_openfoam_points_into(const FoamCase& c, std::span<const Vec3> points, const std::filesystem::path& copy_root,
                                 const std::string& time = {});
-/// - the points of c written beside c's points file, complete and checked, for
-///   commit_openfoam_points to rename over it once every part has been staged (or
-///   discard_openfoam_points to remove). Returns the staged file.
-std::filesystem::path stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points,
-                                            const std::string& time = {});
-void commit_openfoam_points(const FoamCase& c, const std::filesystem::path& staged, const std::string& time = {});
+/// - the points of c written beside c's points file, complete and checked, in a partial file of
+///   csrbf's own (a new name, made exclusively: never a file or link already there), for
+///   commit_openfoam_points to rename over it once every part has been staged. A partial that is
+///   not committed is removed when it goes, or on a signal.
+std::unique_ptr<io::Partial> stage_openfoam_points(const FoamCase& c, std::span<const Vec3> points,
+                                                   const std::string& time = {});
+void commit_openfoam_points(const FoamCase& c, io::Partial& staged, const std::string& time = {});
 /// Where c's points go for a time (c's own target where time is empty). Throws io::FileError where
 /// c was read from a polyMesh folder, not a case (it has no time folders).
 std::filesystem::path foam_points_target(const FoamCase& c, const std::string& time);
-void discard_openfoam_points(const std::filesystem::path& staged) noexcept;
 
 }  // namespace csrbf::morph
