@@ -517,7 +517,8 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       [](const py::object& mesh, const py::object& motion, const std::optional<std::filesystem::path>& output,
          bool in_place, const py::object& radius, std::optional<std::string> kernel,
          std::optional<std::string> polynomial, std::optional<double> greedy, double phase, const std::string& solver,
-         bool force, double memory_limit, const std::optional<py::dict>& patches) {
+         bool force, double memory_limit, const std::optional<py::dict>& patches, const py::object& greedy_budget,
+         const py::object& time) {
         namespace mo = csrbf::morph;
         const auto is_path = [](const py::object& o) {
           return py::isinstance<py::str>(o) || py::isinstance<py::bytes>(o) || py::hasattr(o, "__fspath__");
@@ -544,6 +545,26 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
         if (kernel) job.kernel = named<csrbf::Kernel>(*kernel, "kernel");
         if (polynomial) job.polynomial = named<csrbf::Polynomial>(*polynomial, "polynomial");
         job.greedy = greedy;
+        if (!greedy_budget.is_none()) {
+          if (py::isinstance<py::bool_>(greedy_budget) ||
+              (!py::isinstance<py::float_>(greedy_budget) && !py::isinstance<py::int_>(greedy_budget)))
+            throw py::type_error("greedy_budget must be a number >= 0, got " +
+                                 py::repr(greedy_budget).cast<std::string>().substr(0, 80));
+          if (!greedy) throw py::value_error("greedy_budget: it bounds greedy's rounds, so give greedy= too");
+          job.greedy_budget = greedy_budget.cast<double>();
+        }
+        if (!time.is_none()) {
+          if (!is_path(mesh)) throw py::value_error("time: mesh is an array of points, which has no time folders");
+          if (py::isinstance<py::str>(time))
+            job.time = time.cast<std::string>();
+          else if (!py::isinstance<py::bool_>(time) &&
+                   (py::isinstance<py::int_>(time) || py::isinstance<py::float_>(time)))
+            job.time = py::str(time).cast<std::string>();
+          else
+            throw py::type_error("time must be \"latest\", a time (str or number) or None, got " +
+                                 py::repr(time).cast<std::string>().substr(0, 80));
+          if (job.time.empty()) throw py::value_error("time: '' names no time (\"latest\" or a time such as 0.5)");
+        }
         job.solver = named<csrbf::Solver>(solver, "solver");
         job.phase = phase;
         job.force = force;
@@ -686,7 +707,8 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       py::arg("mesh"), py::arg("motion"), py::arg("output") = py::none(), py::arg("in_place") = false,
       py::arg("radius") = py::none(), py::arg("kernel") = py::none(), py::arg("polynomial") = py::none(),
       py::arg("greedy") = py::none(), py::arg("phase") = 1.0, py::arg("solver") = "auto", py::arg("force") = false,
-      py::arg("memory_limit") = 4.0, py::arg("patches") = py::none(),
+      py::arg("memory_limit") = 4.0, py::arg("patches") = py::none(), py::arg("greedy_budget") = py::none(),
+      py::arg("time") = py::none(),
       R"doc(Morphs a volume mesh, or a cloud of points, as `csrbf morph` does (docs/morphing.md).
 
 Parameters
@@ -710,6 +732,12 @@ kernel, polynomial : str, optional
     Override the motion's.
 greedy : float, optional
     The greedy tolerance.
+greedy_budget : float, optional
+    With greedy: its rounds' budget, a share of the plain fit and evaluation (default 0.2); past
+    it every control is fitted (``report["greedy_stopped"]``).
+time : str or float, optional
+    OpenFOAM: the time whose mesh is morphed, ``"latest"`` or a time such as ``0.5``, as
+    ``-time``; the moved points are written into that time's folder.
 patches : dict of str to array_like of int, optional
     With points: each patch's point indices.
 

@@ -204,6 +204,8 @@ void check_job(const MorphJob& job) {
     throw JobError("the phase must be in [0, 1], got " + io::format_number(job.phase));
   if (job.greedy && !(*job.greedy > 0 && *job.greedy <= 1))
     throw JobError("the greedy tolerance must be in (0, 1], got " + io::format_number(*job.greedy));
+  if (!(job.greedy_budget >= 0 && job.greedy_budget <= 1e6))
+    throw JobError("the greedy budget must be in [0, 1e6], got " + io::format_number(job.greedy_budget));
   if (!(job.memory_limit_bytes > 0)) throw JobError("the memory limit must be > 0");
   if (job.write && !job.out.empty()) {
     std::error_code ec;

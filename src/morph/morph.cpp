@@ -17,6 +17,7 @@
 #include <memory>
 #include <numeric>
 #include <optional>
+#include <iomanip>
 #include <sstream>
 #include <unordered_map>
 
@@ -371,6 +372,8 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   std::vector<std::uint64_t> ids;
   std::vector<double> err;
   bool first_fit = true;
+  bool correcting = false;                            // the second fit, a slip correction's
+  const bool any_slip = b.max(double(rep.slip)) > 0;  // (every process, in this order)
   const auto fit_controls = [&](const auto& included, const std::vector<Vec3>& displacements,
                                 double largest) -> std::unique_ptr<FittedMapping> {
     sources.clear();
@@ -436,7 +439,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
           detail::kAutoMemoryShare * fit.memory_limit_bytes, fit.polynomial == Polynomial::None);
       fit.radius = rep.radius = c.radius;
       rep.radius_why = c.why;
-      note("radius auto: R = " + io::format_number(c.radius) + ": " + c.why);
+      std::ostringstream os;
+      os << "radius auto: R = " << std::setprecision(6) << c.radius << ": " << c.why;
+      note(os.str());
     }
     // Exact locality (polynomial none): a control that stays is fitted only where a moving one lies
     // within R of it. Every source of the fit is then within R of a moving control, and its kernel
@@ -509,7 +514,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       for (std::size_t i = 0; i < nc; ++i) e = std::max(e, err[i] = (at[i] - targets[i]).norm());
       return b.max(e);
     };
-    bool fit_all = !(options.greedy > 0 && b.max(double(nc)) > 1);
+    // Once greedy stopped in the motion's fit, a slip correction's fit takes every control too: the
+    // result is then the plain morph's, and the report's one stop describes it.
+    bool fit_all = !(options.greedy > 0 && b.max(double(nc)) > 1) || !rep.greedy_stopped.empty();
     if (!fit_all) {
       ProgressPhase rounds(options.progress, "greedy", 0, 0);  // rounds counted; their number is not known
       const double limit = options.greedy * largest;
@@ -560,11 +567,13 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
         if (spent + round_seconds > budget) {
           std::ostringstream os;
           os.precision(3);
-          os << "after " << rounds_here << (rounds_here == 1 ? " round (" : " rounds (") << subset.size()
-             << " controls, error " << rep.max_boundary_error / largest << " of the largest displacement against "
-             << options.greedy << "), greedy had spent " << spent << " s of its budget of " << budget << " s ("
-             << options.greedy_budget << " x the plain fit and evaluation, predicted " << fit_all_seconds << " + "
-             << rep.predicted.seconds_evaluate << " s): every control is fitted instead";
+          os << (correcting ? "in the slip correction's fit, after " : "after ") << rounds_here
+             << (rounds_here == 1 ? " round (" : " rounds (") << subset.size() << " controls, error "
+             << rep.max_boundary_error / largest << " of the largest displacement against " << options.greedy
+             << "), greedy had spent " << spent << " s of its budget of " << budget << " s (" << options.greedy_budget
+             << " x the plain fit and evaluation, predicted " << fit_all_seconds << " + "
+             << rep.predicted.seconds_evaluate << " s): every control is fitted instead"
+             << (correcting ? "" : (any_slip ? ", in this fit and the slip correction's" : ""));
           rep.greedy_stopped = os.str();
           fit_all = true;
           break;
@@ -602,7 +611,6 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   // points held at 0), added to the first: the patch's points stay on its surface and the cells
   // beside it follow. A plane containing the motion (the sides of an extruded 2-D mesh) needs no
   // correction and no second fit.
-  const bool any_slip = b.max(double(rep.slip)) > 0;
   // Each slip entry's plane, or (curved) the surface of its faces that its points are projected on.
   std::vector<const detail::PatchPlane*> plane_of(motion.patches.size(), nullptr);
   std::vector<std::optional<detail::SurfaceProjector>> surfaces(motion.patches.size());
@@ -697,6 +705,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       map.reset();
       const std::size_t first_controls = rep.controls;
       const double first_error = rep.max_boundary_error;
+      correcting = true;
       correction = fit_controls([](std::uint32_t) { return true; }, corrections, b.max(largest));
       rep.controls += first_controls;
       rep.max_boundary_error = std::max(rep.max_boundary_error, first_error);

@@ -1020,4 +1020,19 @@ TEST_F(BoxMorph, GreedyPastItsBudgetFitsEveryControl) {
   EXPECT_TRUE(ran.report.greedy_stopped.empty());
   EXPECT_LT(ran.report.controls, all.report.controls);
   EXPECT_LE(ran.report.max_boundary_error, 1e-3 * ran.report.max_displacement);
+
+  // With slip sides a second fit corrects the slip points: once greedy stopped in the first fit,
+  // the correction takes every control too, so the result is still the plain morph's.
+  const Motion slip =
+      motion_from(dir, R"j({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},
+                                                    "zmax": "fixed", "[xy]m(in|ax)": "slip"}})j");
+  const MorphResult slip_all = morph(c.mesh, slip, plain);
+  ASSERT_GT(slip_all.report.controls, all.report.controls);  // the two fits' controls: a correction ran
+  o.greedy_budget = 0;
+  const MorphResult slip_stopped = morph(c.mesh, slip, o);
+  EXPECT_EQ(slip_stopped.report.greedy_rounds, 1u);
+  EXPECT_EQ(slip_stopped.report.controls, slip_all.report.controls);
+  EXPECT_EQ(slip_stopped.points, slip_all.points);
+  EXPECT_NE(slip_stopped.report.greedy_stopped.find("in this fit and the slip correction's"), std::string::npos)
+      << slip_stopped.report.greedy_stopped;
 }

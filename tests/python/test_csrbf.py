@@ -5,6 +5,7 @@ csrbf program and CSRBF_SOURCE_DIR at the repository.
 """
 import json
 import os
+import shutil
 import subprocess
 import tempfile
 import threading
@@ -508,6 +509,40 @@ class Morph(unittest.TestCase):
             csrbf.morph(g, 3, patches={"bottom": bottom})
         with self.assertRaisesRegex(ValueError, "patches: only for a mesh given as an array"):
             csrbf.morph(os.path.join(EXAMPLES, "airfoil", "case"), motion, patches={"bottom": bottom})
+
+    def test_time_folders_and_greedy_budget(self):
+        # A case whose mesh already moved (time 0.5 holds the points a first morph wrote) is morphed
+        # from that time's mesh with time="latest" or time=0.5, as `csrbf morph -time`.
+        motion = os.path.join(EXAMPLES, "airfoil", "motion.json")
+        with tempfile.TemporaryDirectory() as tmp:
+            case = os.path.join(tmp, "case")
+            shutil.copytree(os.path.join(EXAMPLES, "airfoil", "case"), case)
+            first, _ = csrbf.morph(case, motion, output=os.path.join(tmp, "first"))
+            os.makedirs(os.path.join(case, "0.5", "polyMesh"))
+            shutil.copy(os.path.join(tmp, "first", "constant", "polyMesh", "points"),
+                        os.path.join(case, "0.5", "polyMesh", "points"))
+            still, report = csrbf.morph(case, motion, time="latest", phase=0.0)
+            self.assertEqual(report["time"], "0.5")
+            np.testing.assert_array_equal(still, first)
+            again, report = csrbf.morph(case, motion, time=0.5)
+            self.assertEqual(report["time"], "0.5")
+            twice, _ = csrbf.morph(case, motion)
+            self.assertGreater(np.abs(again - twice).max(), 1e-3)  # moved from the moved mesh, not constant's
+            with self.assertRaisesRegex(csrbf.FileError, "0.7"):
+                csrbf.morph(case, motion, time=0.7)
+            with self.assertRaisesRegex(TypeError, "time must be"):
+                csrbf.morph(case, motion, time=True)
+        # greedy_budget: unbounded, greedy runs to its tolerance with fewer controls than the plain fit.
+        case = os.path.join(EXAMPLES, "airfoil", "case")
+        _, plain = csrbf.morph(case, motion)
+        _, report = csrbf.morph(case, motion, greedy=1e-4, greedy_budget=1e6)
+        self.assertIsNone(report["greedy_stopped"])
+        self.assertLess(report["controls"], plain["controls"])
+        self.assertLessEqual(report["max_boundary_error"], 1e-4 * report["max_displacement"])
+        with self.assertRaisesRegex(ValueError, "give greedy= too"):
+            csrbf.morph(case, motion, greedy_budget=0.5)
+        with self.assertRaisesRegex(ValueError, r"the greedy budget must be in \[0, 1e6\], got -1"):
+            csrbf.morph(case, motion, greedy=1e-3, greedy_budget=-1)
 
     def test_errors(self):
         case = os.path.join(EXAMPLES, "airfoil", "case")
