@@ -4,6 +4,7 @@
 #include "csrbf/io/error.hpp"
 
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -12,6 +13,7 @@
 #include <cmath>
 #include <cerrno>
 #include <cstring>
+#include <exception>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -642,43 +644,69 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::s
     if (has_file(target_dir, "faces")) c.poly_mesh = target_dir;  // the topology changed at that time
   }
 
+  // The four files are read and parsed at once (a task each; the faces, the largest, start first).
+  // A face's point labels are checked against the points' count when both are read: where one is
+  // out of range, the faces are parsed again with the bound, which names the face and its line.
+  Loaded faces_file;
+  std::uint32_t largest_label = 0;
+  std::exception_ptr faces_failed;
+  Loaded owner_file, neighbour_file;
   {
-    Loaded l = load(points_dir, "points", max_file_bytes);
-    Parser p(l.text, l.path.string());
-    const Header h = read_header(p);
-    c.points_file.path = l.path;
-    c.points_file.target = target_dir / l.path.filename();
-    c.points_file.gzip = l.gz;
-    c.points_file.binary = h.binary;
-    c.points_file.scalar_bytes = h.scalar_bytes;
-    read_points(p, h, c.points_file, m.points);
-    c.points_file.text = std::move(l.text);
+    tbb::task_group tasks;
+    tasks.run([&] {
+      faces_file = load(c.poly_mesh, "faces", max_file_bytes);
+      Parser p(faces_file.text, faces_file.path.string());
+      try {
+        read_faces(p, read_header(p), m.poly, kNoBound);
+      } catch (const FileError&) {
+        faces_failed = std::current_exception();  // told after the points are counted
+        return;
+      }
+      for (const std::uint32_t v : m.poly.face_points) largest_label = std::max(largest_label, v);
+    });
+    tasks.run([&] {
+      Loaded l = load(points_dir, "points", max_file_bytes);
+      Parser p(l.text, l.path.string());
+      const Header h = read_header(p);
+      c.points_file.path = l.path;
+      c.points_file.target = target_dir / l.path.filename();
+      c.points_file.gzip = l.gz;
+      c.points_file.binary = h.binary;
+      c.points_file.scalar_bytes = h.scalar_bytes;
+      read_points(p, h, c.points_file, m.points);
+      c.points_file.text = std::move(l.text);
+    });
+    tasks.run([&] {
+      owner_file = load(c.poly_mesh, "owner", max_file_bytes);
+      Parser p(owner_file.text, owner_file.path.string());
+      m.poly.owner = read_labels(p, read_header(p), "owner cells", kNoBound);
+      owner_file.text = std::string();
+    });
+    tasks.run([&] {
+      neighbour_file = load(c.poly_mesh, "neighbour", max_file_bytes);
+      Parser p(neighbour_file.text, neighbour_file.path.string());
+      m.poly.neighbour = read_labels(p, read_header(p), "neighbour cells", kNoBound);
+      neighbour_file.text = std::string();
+    });
+    tasks.wait();  // the first file's error, if any, is thrown here
   }
   const std::size_t np = m.points.size();
-  {
-    Loaded l = load(c.poly_mesh, "faces", max_file_bytes);
-    Parser p(l.text, l.path.string());
-    read_faces(p, read_header(p), m.poly, np);
+  if (faces_failed || (!m.poly.face_points.empty() && largest_label >= np)) {
+    Parser p(faces_file.text, faces_file.path.string());
+    PolyTopology again;
+    read_faces(p, read_header(p), again, np);  // throws, naming the face
+    if (faces_failed) std::rethrow_exception(faces_failed);
   }
+  faces_file.text = std::string();
   const std::size_t nf = m.poly.face_start.size() - 1;
   if (nf >= kMaxFaces)
     throw FileError(c.poly_mesh.string() + ": " + std::to_string(nf) + " faces: more than csrbf reads (2^31)");
-  {
-    Loaded l = load(c.poly_mesh, "owner", max_file_bytes);
-    Parser p(l.text, l.path.string());
-    m.poly.owner = read_labels(p, read_header(p), "owner cells", kNoBound);
-    if (m.poly.owner.size() != nf)
-      throw FileError(l.path.string() + ": " + std::to_string(m.poly.owner.size()) + " owner cells, but faces has " +
-                      std::to_string(nf) + " faces");
-  }
-  {
-    Loaded l = load(c.poly_mesh, "neighbour", max_file_bytes);
-    Parser p(l.text, l.path.string());
-    m.poly.neighbour = read_labels(p, read_header(p), "neighbour cells", kNoBound);
-    if (m.poly.neighbour.size() > nf)
-      throw FileError(l.path.string() + ": " + std::to_string(m.poly.neighbour.size()) +
-                      " neighbour cells, more than the " + std::to_string(nf) + " faces");
-  }
+  if (m.poly.owner.size() != nf)
+    throw FileError(owner_file.path.string() + ": " + std::to_string(m.poly.owner.size()) +
+                    " owner cells, but faces has " + std::to_string(nf) + " faces");
+  if (m.poly.neighbour.size() > nf)
+    throw FileError(neighbour_file.path.string() + ": " + std::to_string(m.poly.neighbour.size()) +
+                    " neighbour cells, more than the " + std::to_string(nf) + " faces");
   std::uint64_t cells = 0;
   for (const auto o : m.poly.owner) cells = std::max<std::uint64_t>(cells, o + 1ull);
   for (const auto o : m.poly.neighbour) cells = std::max<std::uint64_t>(cells, o + 1ull);

@@ -60,18 +60,27 @@ void face_geometry(const PolyTopology& t, std::span<const Vec3> p, std::size_t f
 
 namespace detail {
 
-PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, PolyBuffers& b) {
+PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, PolyBuffers& b, const Dirty* dirty) {
   PolyQuality q;
   const std::size_t nf = t.faces(), ni = t.internal_faces(), nc = t.cells;
   q.cells = nc;
   q.faces = nf;
   q.internal_faces = ni;
+  // Each face's and cell's figures are kept (b.cosine, b.skew, b.vol, b.det, b.bad): a later
+  // measure recomputes only what its dirty flags name, and the reductions below run over the whole
+  // arrays in one fixed order, so that its result equals a whole measure's bit for bit.
+  const auto face_dirty = [&](std::size_t f) { return !dirty || dirty->face[f]; };
+  const auto cell_dirty = [&](std::size_t c) { return !dirty || dirty->cell[c]; };
+  const auto face_measured = [&](std::size_t f) {
+    return !dirty || dirty->cell[t.owner[f]] || (f < ni && dirty->cell[t.neighbour[f]]);
+  };
   auto& fc = b.fc;
   auto& fa = b.fa;
   fc.resize(nf);
   fa.resize(nf);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t f = r.begin(); f < r.end(); ++f) face_geometry(t, points, f, fc[f], fa[f]);
+    for (std::size_t f = r.begin(); f < r.end(); ++f)
+      if (face_dirty(f)) face_geometry(t, points, f, fc[f], fa[f]);
   });
   // Cell centres and volumes (primitiveMeshCellCentresAndVols): an estimated centre, the mean of
   // the cell's face centres, then pyramids from it to each face. Each cell's faces by a counting
@@ -90,12 +99,15 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
   }
   auto& cc = b.cc;
   auto& vol = b.vol;
-  auto& inverted = b.inverted;
   cc.resize(nc);
   vol.resize(nc);
-  inverted.assign(nc, 0);
+  b.cosine.resize(nf);
+  b.skew.resize(nf);
+  b.det.resize(nc);
+  b.bad.resize(nc);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nc, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t c = r.begin(); c < r.end(); ++c) {
+      if (!cell_dirty(c)) continue;
       const std::uint64_t b = first[c], e = first[c + 1];
       Vec3 est = Vec3::Zero();
       for (std::uint64_t k = b; k < e; ++k) est += fc[faces_of[k] & 0x7fffffffu];
@@ -112,18 +124,86 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
       vol[c] = v / 3.0;
     }
   });
+  // Non-orthogonality: the angle between the face's area vector and the line between the centres
+  // of its cells (internal faces). Skewness: how far the face centre lies from where that line
+  // crosses the face, over the distance from the face centre to its edge in that direction.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t f = r.begin(); f < r.end(); ++f) {
+      if (!face_measured(f)) continue;
+      const Vec3& own = cc[t.owner[f]];
+      const Vec3 cpf = fc[f] - own;
+      Vec3 d;
+      double fd0;
+      if (f < ni) {
+        d = cc[t.neighbour[f]] - own;
+        b.cosine[f] = d.dot(fa[f]) / (d.norm() * fa[f].norm() + kVSmall);
+        fd0 = 0.2 * d.norm();
+      } else {
+        const Vec3 normal = fa[f] / (fa[f].norm() + kRootVSmall);
+        d = normal * normal.dot(cpf);
+        fd0 = 0.4 * d.norm();
+      }
+      const Vec3 sv = cpf - (fa[f].dot(cpf) / (fa[f].dot(d) + kRootVSmall)) * d;
+      const Vec3 sv_hat = sv / (sv.norm() + kRootVSmall);
+      double fd = fd0 + kRootVSmall;
+      for (std::uint64_t k = t.face_start[f]; k < t.face_start[f + 1]; ++k)
+        fd = std::max(fd, std::abs(sv_hat.dot(points[t.face_points[k]] - fc[f])));
+      b.skew[f] = sv.norm() / fd;
+    }
+  });
+  // Face pyramids (checkFacePyramids): the pyramid from each face to its owner's centre, and to
+  // its neighbour's, must not have negative volume (below -1e-15, checkMesh's threshold), the
+  // face's normal pointing away from the cell. Each bad pyramid counts, as in checkMesh; a cell
+  // with one is inverted. Cell determinant (primitiveMeshTools::cellDeterminant): how well a
+  // cell's faces span space.
+  constexpr double kMinPyramid = -1e-15;
+  const auto counted = [&](std::uint32_t f) {
+    if (f < ni) return true;
+    for (const auto& [begin, end] : b.coupled)
+      if (f >= begin && f < end) return true;
+    return false;
+  };
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nc, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t c = r.begin(); c < r.end(); ++c) {
+      if (!cell_dirty(c)) continue;
+      std::uint32_t bad = 0;
+      double mean_area = 0;
+      int n = 0;
+      for (std::uint64_t k = first[c]; k < first[c + 1]; ++k) {
+        const std::uint32_t f = faces_of[k] & 0x7fffffffu;
+        const double pyr =
+            (faces_of[k] & 0x80000000u) ? fa[f].dot(cc[c] - fc[f]) / 3.0 : fa[f].dot(fc[f] - cc[c]) / 3.0;
+        if (pyr < kMinPyramid) ++bad;
+        if (!counted(f)) continue;
+        mean_area += fa[f].norm();
+        ++n;
+      }
+      b.bad[c] = bad;
+      double value = 0;
+      if (n > 0 && mean_area >= kVSmall) {
+        mean_area /= n;
+        Eigen::Matrix3d tensor = Eigen::Matrix3d::Zero();
+        for (std::uint64_t k = first[c]; k < first[c + 1]; ++k) {
+          const std::uint32_t f = faces_of[k] & 0x7fffffffu;
+          if (!counted(f)) continue;
+          const Vec3 s = fa[f] / mean_area;
+          tensor += s * s.transpose();
+        }
+        if (b.empty_axis >= 0) tensor(b.empty_axis, b.empty_axis) = 1;
+        value = std::abs(tensor.determinant()) / 8;  // a cube inside the mesh: 1
+      }
+      b.det[c] = value;
+    }
+  });
+  // The reductions, over every face and cell.
   q.min_volume = nc ? std::numeric_limits<double>::infinity() : 0.0;
   for (std::size_t c = 0; c < nc; ++c) {
     q.min_volume = std::min(q.min_volume, vol[c]);
     q.total_volume += vol[c];
-    if (vol[c] <= kVSmall) {
-      ++q.negative_volumes;
-      inverted[c] = 1;
-    }
+    if (vol[c] <= kVSmall) ++q.negative_volumes;
+    q.bad_pyramids += b.bad[c];
+    if (vol[c] <= kVSmall || b.bad[c]) ++q.inverted_cells;
   }
-  // Non-orthogonality: the angle between the face's area vector and the line between the centres
-  // of its cells (internal faces). Skewness: how far the face centre lies from where that line
-  // crosses the face, over the distance from the face centre to its edge in that direction.
   struct Acc {
     double min_cos = 1, sum_cos = 0, max_skew = 0;
   };
@@ -131,27 +211,11 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
       tbb::blocked_range<std::size_t>(0, nf, 4096), Acc{},
       [&](const tbb::blocked_range<std::size_t>& r, Acc a) {
         for (std::size_t f = r.begin(); f < r.end(); ++f) {
-          const Vec3& own = cc[t.owner[f]];
-          const Vec3 cpf = fc[f] - own;
-          Vec3 d;
-          double fd0;
           if (f < ni) {
-            d = cc[t.neighbour[f]] - own;
-            const double cosine = d.dot(fa[f]) / (d.norm() * fa[f].norm() + kVSmall);
-            a.min_cos = std::min(a.min_cos, cosine);
-            a.sum_cos += cosine;
-            fd0 = 0.2 * d.norm();
-          } else {
-            const Vec3 normal = fa[f] / (fa[f].norm() + kRootVSmall);
-            d = normal * normal.dot(cpf);
-            fd0 = 0.4 * d.norm();
+            a.min_cos = std::min(a.min_cos, b.cosine[f]);
+            a.sum_cos += b.cosine[f];
           }
-          const Vec3 sv = cpf - (fa[f].dot(cpf) / (fa[f].dot(d) + kRootVSmall)) * d;
-          const Vec3 sv_hat = sv / (sv.norm() + kRootVSmall);
-          double fd = fd0 + kRootVSmall;
-          for (std::uint64_t k = t.face_start[f]; k < t.face_start[f + 1]; ++k)
-            fd = std::max(fd, std::abs(sv_hat.dot(points[t.face_points[k]] - fc[f])));
-          a.max_skew = std::max(a.max_skew, sv.norm() / fd);
+          a.max_skew = std::max(a.max_skew, b.skew[f]);
         }
         return a;
       },
@@ -166,35 +230,6 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
   q.max_non_orthogonality = ni ? degrees(acc.min_cos) : 0.0;
   q.mean_non_orthogonality = ni ? degrees(acc.sum_cos / double(ni)) : 0.0;
   q.max_skewness = acc.max_skew;
-  // Face pyramids (checkFacePyramids): the pyramid from each face to its owner's centre, and to
-  // its neighbour's, must not have negative volume (below -1e-15, checkMesh's threshold), the
-  // face's normal pointing away from the cell. Each bad pyramid counts, as in checkMesh; a cell
-  // with one is inverted.
-  constexpr double kMinPyramid = -1e-15;
-  q.bad_pyramids = tbb::parallel_deterministic_reduce(
-      tbb::blocked_range<std::size_t>(0, nc, 4096), std::size_t(0),
-      [&](const tbb::blocked_range<std::size_t>& r, std::size_t bad) {
-        for (std::size_t c = r.begin(); c < r.end(); ++c)
-          for (std::uint64_t k = first[c]; k < first[c + 1]; ++k) {
-            const std::uint32_t f = faces_of[k] & 0x7fffffffu;
-            const double pyr =
-                (faces_of[k] & 0x80000000u) ? fa[f].dot(cc[c] - fc[f]) / 3.0 : fa[f].dot(fc[f] - cc[c]) / 3.0;
-            if (pyr < kMinPyramid) {
-              ++bad;
-              inverted[c] = 1;
-            }
-          }
-        return bad;
-      },
-      std::plus<>());
-  q.inverted_cells = std::size_t(std::count(inverted.begin(), inverted.end(), char(1)));
-  // Cell determinant (primitiveMeshTools::cellDeterminant): how well a cell's faces span space.
-  const auto counted = [&](std::uint32_t f) {
-    if (f < ni) return true;
-    for (const auto& [begin, end] : b.coupled)
-      if (f >= begin && f < end) return true;
-    return false;
-  };
   struct Det {
     double min = std::numeric_limits<double>::infinity(), sum = 0;
   };
@@ -202,29 +237,8 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
       tbb::blocked_range<std::size_t>(0, nc, 4096), Det{},
       [&](const tbb::blocked_range<std::size_t>& r, Det d) {
         for (std::size_t c = r.begin(); c < r.end(); ++c) {
-          double mean_area = 0;
-          int n = 0;
-          for (std::uint64_t k = first[c]; k < first[c + 1]; ++k) {
-            const std::uint32_t f = faces_of[k] & 0x7fffffffu;
-            if (!counted(f)) continue;
-            mean_area += fa[f].norm();
-            ++n;
-          }
-          double value = 0;
-          if (n > 0 && mean_area >= kVSmall) {
-            mean_area /= n;
-            Eigen::Matrix3d tensor = Eigen::Matrix3d::Zero();
-            for (std::uint64_t k = first[c]; k < first[c + 1]; ++k) {
-              const std::uint32_t f = faces_of[k] & 0x7fffffffu;
-              if (!counted(f)) continue;
-              const Vec3 s = fa[f] / mean_area;
-              tensor += s * s.transpose();
-            }
-            if (b.empty_axis >= 0) tensor(b.empty_axis, b.empty_axis) = 1;
-            value = std::abs(tensor.determinant()) / 8;  // a cube inside the mesh: 1
-          }
-          d.min = std::min(d.min, value);
-          d.sum += value;
+          d.min = std::min(d.min, b.det[c]);
+          d.sum += b.det[c];
         }
         return d;
       },

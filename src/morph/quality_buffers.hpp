@@ -15,7 +15,14 @@ struct PolyBuffers {
   std::vector<Vec3> fc, fa, cc;
   std::vector<double> vol;
   std::vector<double> reference_volumes;  ///< QualityMeter's first measure's, for volume ratios
-  std::vector<char> inverted;
+  /// Each face's non-orthogonality cosine (internal faces) and skewness; each cell's determinant
+  /// and bad face pyramids: the last measure's, which a later one updates where points moved.
+  std::vector<double> cosine, skew, det;
+  std::vector<std::uint32_t> bad;
+  /// QualityMeter: the points that differed from the mesh's at the last measure, whose faces and
+  /// cells hold figures of those points (recomputed at the next measure whether or not they move).
+  std::vector<char> touched;
+  bool whole = false;                ///< a whole measure has filled the arrays above
   std::vector<std::uint64_t> first;  ///< the cell-to-face index: the topology's, built once
   std::vector<std::uint32_t> faces_of;
   /// The cell determinant's faces besides internal ones: coupled patches' [begin, end) (cyclic,
@@ -24,6 +31,15 @@ struct PolyBuffers {
   int empty_axis = -1;
 };
 
-PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, PolyBuffers& b);
+/// What a measure recomputes: the faces with a moved point, and their cells (whose faces' non-
+/// orthogonality and skewness are then recomputed too). Everything else keeps the figures in the
+/// buffers, which must then be those of the same points there.
+struct Dirty {
+  std::vector<char> face, cell;
+};
+
+/// dirty: nullptr measures everything.
+PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, PolyBuffers& b,
+                         const Dirty* dirty = nullptr);
 
 }  // namespace csrbf::morph::detail

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <map>
 #include <numbers>
+#include <random>
 
 namespace fs = std::filesystem;
 using csrbf::Vec3;
@@ -882,6 +883,51 @@ TEST_F(BoxMorph, UnlistedPlanarPatchesSlipWithinTheirPlanes) {
   // and a pattern that names nothing is an error that lists the patches.
   const std::string e = error_of([&] { run(R"(, "wall.*": "fixed")"); });
   EXPECT_NE(e.find("the mesh has no patch 'wall.*'; its patches: "), std::string::npos) << e;
+}
+
+// A QualityMeter's later measures recompute only the faces and cells of points that differ from
+// the mesh's (now or at the last measure): each equals a whole measure of the same points (a
+// fresh poly_quality) bit for bit, through a sequence that moves a corner, moves more, inverts a
+// cell, moves back part of the way and returns to the mesh's own points.
+TEST_F(BoxMorph, ALaterMeasureEqualsAWholeOne) {
+  const auto same = [](const PolyQuality& a, const PolyQuality& b) {
+    EXPECT_EQ(a.max_non_orthogonality, b.max_non_orthogonality);
+    EXPECT_EQ(a.mean_non_orthogonality, b.mean_non_orthogonality);
+    EXPECT_EQ(a.max_skewness, b.max_skewness);
+    EXPECT_EQ(a.negative_volumes, b.negative_volumes);
+    EXPECT_EQ(a.bad_pyramids, b.bad_pyramids);
+    EXPECT_EQ(a.inverted_cells, b.inverted_cells);
+    EXPECT_EQ(a.min_volume, b.min_volume);
+    EXPECT_EQ(a.total_volume, b.total_volume);
+    EXPECT_EQ(a.min_determinant, b.min_determinant);
+    EXPECT_EQ(a.mean_determinant, b.mean_determinant);
+  };
+  const std::vector<Vec3>& own = c.mesh.points;
+  std::mt19937 rng(31);
+  std::uniform_real_distribution<double> jitter(-0.02, 0.02);
+  const auto moved = [&](double within, double scale) {  // points within a distance of the origin
+    std::vector<Vec3> p = own;
+    for (Vec3& x : p)
+      if (x.norm() < within) x += scale * Vec3(jitter(rng), jitter(rng), jitter(rng));
+    return p;
+  };
+  std::vector<Vec3> inverted = own;
+  const std::size_t inner =
+      std::size_t(std::min_element(own.begin(), own.end(),
+                                   [](const Vec3& a, const Vec3& b) {
+                                     return (a - Vec3(0.5, 0.5, 0.5)).norm() < (b - Vec3(0.5, 0.5, 0.5)).norm();
+                                   }) -
+                  own.begin());
+  inverted[inner] += Vec3(0.4, 0.0, 0.0);  // through its neighbours' cells
+  const std::vector<std::vector<Vec3>> sets{own, moved(0.3, 1.0), moved(0.8, 2.0), inverted, moved(0.2, 0.5), own};
+  QualityMeter meter(c.mesh);
+  for (std::size_t k = 0; k < sets.size(); ++k) {
+    SCOPED_TRACE("point set " + std::to_string(k));
+    const MeshQuality later = meter.measure(sets[k]);
+    ASSERT_TRUE(later.poly);
+    same(*later.poly, poly_quality(c.mesh.poly, sets[k]));
+  }
+  EXPECT_GT(meter.measure(inverted).inverted_cells(), 0u);
 }
 
 // Issue 31, point 7: the smallest cell volume ratio, after / before. Under an affine map x -> Ax
