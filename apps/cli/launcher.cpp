@@ -1,8 +1,8 @@
 // `csrbf`: the command users run. It answers --version itself and runs the program that does the
 // work: csrbf-cli, or under mpirun with more than one rank csrbf-cli-mpi, the same program built
-// with MPI and PETSc. Those two libraries cost every command about 0.1 s to load (measured: 70-106
-// ms to dlopen them, of a 0.14 s start-up), so only a distributed run loads them. The programs
-// live in LIBEXEC/csrbf beside BIN (build/libexec/csrbf in the build tree), found from this
+// with MPI and PETSc; `csrbf morph` on one process runs csrbf-morph (morph_main.cpp). Those two libraries cost every
+// command about 0.1 s to load (measured: 70-106 ms to dlopen them, of a 0.14 s start-up), so only a distributed run
+// loads them. The programs live in LIBEXEC/csrbf beside BIN (build/libexec/csrbf in the build tree), found from this
 // program's own path; the same argv goes over, argv[0] included, so every message and --help
 // names `csrbf`.
 #include "csrbf/version.hpp"
@@ -81,6 +81,8 @@ int main(int argc, char** argv) {
   std::string program = libexec + "csrbf-cli";
   if (launched_ranks() > 1 && ::access((libexec + "csrbf-cli-mpi").c_str(), X_OK) == 0)
     program = libexec + "csrbf-cli-mpi";
+  else if (argc > 1 && std::strcmp(argv[1], "morph") == 0)
+    program = libexec + "csrbf-morph";  // OpenFOAM cases; it runs csrbf-cli for the other formats
   single_threads_under_limits();
   large_pages();
   ::execv(program.c_str(), argv);

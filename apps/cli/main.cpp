@@ -3,7 +3,7 @@
 #include "export.hpp"
 #include "bench.hpp"
 #include "commands.hpp"
-#include "standard_streams.hpp"
+#include "program.hpp"
 #include "morph.hpp"
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/controls.hpp"
@@ -64,14 +64,6 @@ std::vector<std::filesystem::path> deform_inputs(const FitArgs& a, const std::st
 CLI::Validator positive_finite(const char* what) {
   // The radius is limited as SpaceMap::fit limits it, so that a bad value is a usage error (2).
   return finite_in(1e-150, 1e150, what);
-}
-
-/// --time-limit SECONDS: a command still running then ends with exit 1 and writes nothing.
-void add_time_limit(CLI::App* cmd, double& seconds) {
-  cmd->add_option("--time-limit", seconds,
-                  "End with exit 1, writing nothing, if the command has not finished after this many seconds of "
-                  "wall time (e.g. for a radius whose fit is too slow)")
-      ->check(finite_in(1e-3, 1e6, "--time-limit"));
 }
 
 /// --memory-limit of the commands that read a scene: its meshes, deformation files and fits.
@@ -296,34 +288,10 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
 }
 #endif
 
-/// OpenBLAS (under CHOLMOD) starts its threads as it is loaded, each taking a 128 MiB buffer. Under
-/// an address-space limit (ulimit -v) or a tight process limit they cannot get it and spin, and the
-/// exit then waits for them for ever. OPENBLAS_NUM_THREADS is read only at load: under such a limit
-/// csrbf runs itself again with it set to 1 (CHOLMOD's factorisations then use one thread).
-void single_blas_thread_under_limits(char** argv) {
-  rlimit as{}, procs{};
-  const bool limited =
-      (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) ||
-      (::getrlimit(RLIMIT_NPROC, &procs) == 0 && procs.rlim_cur != RLIM_INFINITY && procs.rlim_cur < 4096);
-  if (!limited) return;
-  // libgomp (OpenMP, under CHOLMOD's supernodal factorisation) likewise ended the process with only
-  // "Thread creation failed" under ulimit -v 300000.
-  bool changed = false;
-  for (const char* v : {"OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"})
-    if (!std::getenv(v)) changed = ::setenv(v, "1", 1) == 0 || changed;
-  if (changed) ::execv("/proc/self/exe", argv);  // on failure, go on as we are
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
-  csrbf::cli::hold_standard_streams();
-  single_blas_thread_under_limits(argv);
-  // A file size limit (ulimit -f, or a quota) must fail the write, so that the temporary file is
-  // removed and the target kept, rather than kill the process with SIGXFSZ half-way.
-  std::signal(SIGXFSZ, SIG_IGN);
-  // A signal during a write removes the partial file instead of leaving it.
-  csrbf::io::remove_partials_on_signals();
+  csrbf::cli::start_program(argv);
   CLI::App app{"csrbf: real-time 3D deformation by compactly supported radial basis functions (Wendland CSRBF)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("csrbf ") + csrbf::kVersion);
@@ -427,7 +395,7 @@ int main(int argc, char** argv) {
   csrbf::cli::MorphArgs morph_args;
   auto* morph = csrbf::cli::add_morph_command(app, morph_args);
   double time_limit = 0;
-  for (CLI::App* cmd : {deform, info, morph, exporter, animate}) add_time_limit(cmd, time_limit);
+  for (CLI::App* cmd : {deform, info, morph, exporter, animate}) csrbf::cli::add_time_limit(cmd, time_limit);
 
 #ifdef CSRBF_WITH_MPI
   // Under mpirun with more than one rank: MPI starts first; every rank parses, rank 0 alone speaks,
@@ -443,32 +411,11 @@ int main(int argc, char** argv) {
   const bool quiet = false;
   const auto leave = [](int code) { return code; };
 #endif
-  // OpenFOAM's spellings, which CLI11 would read as bundled short flags: -time T and -latestTime.
-  static char time_option[] = "--time", latest_time[] = "--time=latest";
-  for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "-time") == 0) argv[i] = time_option;
-    if (std::strcmp(argv[i], "-latestTime") == 0) argv[i] = latest_time;
-  }
+  csrbf::cli::openfoam_spellings(argc, argv);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    // CLI11 quotes the values it refuses: printed with their control characters escaped.
-    std::ostringstream out, err;
-    const int code = app.exit(e, out, err);
-    if (!quiet) {
-      std::cout << csrbf::printable(out.str(), true);
-      if (code == 0) {
-        std::cerr << csrbf::printable(err.str(), true);
-      } else {
-        // As every other error: "csrbf: error: ...", the option named once (CLI11 puts "--x: " before a
-        // validator's own "--x must be ...").
-        std::string what = e.what();
-        const auto colon = what.find(": ");
-        if (colon != std::string::npos && what.compare(colon + 2, colon, what, 0, colon) == 0) what.erase(0, colon + 2);
-        std::cerr << "csrbf: error: " << csrbf::printable(what, true) << "\nRun with --help for more information.\n";
-      }
-    }
-    return leave(code == 0 ? 0 : 2);
+    return leave(csrbf::cli::parse_failed(app, e, quiet));
   }
   csrbf::io::limit_time(time_limit, !quiet);
 #ifdef CSRBF_WITH_MPI
@@ -485,7 +432,7 @@ int main(int argc, char** argv) {
   }
 #endif
 
-  try {
+  return csrbf::cli::run_command([&]() -> int {
     if (*deform) {
       csrbf::io::check_output_path(csrbf::io::resolve_output(mesh_out));
       csrbf::cli::check_not_an_input("-o", mesh_out, deform_inputs(deform_args, mesh_in));
@@ -578,16 +525,6 @@ int main(int argc, char** argv) {
         if (folds) std::cout << csrbf::cli::folds_text(*folds);
       }
     }
-  } catch (const csrbf::cli::UsageError& e) {
-    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
-    return 2;
-  } catch (const std::bad_alloc&) {
-    std::cerr
-        << "csrbf: error: out of memory (a limit such as ulimit -v, or --memory-limit too high for this machine)\n";
-    return 1;
-  } catch (const std::exception& e) {
-    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
-    return 1;
-  }
-  return 0;
+    return 0;
+  });
 }

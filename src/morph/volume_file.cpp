@@ -74,9 +74,16 @@ std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions&
                         "' picks an OpenFOAM case's time folder; this is a mesh file, which has no times");
   if (fs::exists(path, ec) && !fs::is_regular_file(path, ec))
     throw io::FileError(path.string() + ": not a regular file (a mesh file is read whole, not from a pipe or device)");
-  if (ext == ".vtu" || ext == ".vtk") return detail::open_vtk(path, options);
-  if (ext == ".msh") return detail::open_gmsh(path, options);
-  if (ext == ".cgns") return detail::open_cgns(path, options);
+  const detail::StandardFormats& formats = detail::standard_formats();
+  const auto opened = [&](auto* open, const char* library) {
+    if (!open)
+      throw FormatNotLinked(path.string() + ": " + ext + " files are read through " + library +
+                            ", which this program is linked without");
+    return open(path, options);
+  };
+  if (ext == ".vtu" || ext == ".vtk") return opened(formats.open_vtk, "VTK");
+  if (ext == ".msh") return opened(formats.open_gmsh, "Gmsh");
+  if (ext == ".cgns") return opened(formats.open_cgns, "CGNS");
   if (ext == ".pvtu" && fs::exists(path, ec))
     throw io::FileError(path.string() +
                         ": a parallel VTK file: its pieces are morphed by as many MPI ranks (mpirun -np PIECES "

@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # What each program loads at start-up (ldd): the launcher `csrbf` only the C and C++ runtimes; the
 # serial program csrbf-cli no MPI, PETSc, HYPRE, Trilinos or MUMPS; and --version answered by the
-# launcher alone, as the serial program would answer it.
-#   test_startup_libraries.sh LAUNCHER SERIAL_PROGRAM
+# launcher alone, as the serial program would answer it; `csrbf morph` of an OpenFOAM case runs
+# csrbf-morph, which loads none of VTK, CGNS, HDF5, Gmsh, assimp or the renderer's libraries, and a
+# morph of any other format is handed to csrbf-cli with the same arguments.
+#   test_startup_libraries.sh LAUNCHER SERIAL_PROGRAM MORPH_PROGRAM SOURCE_DIR
 set -euo pipefail
-launcher=$1 serial=$2
+launcher=$1 serial=$2 morph=$3 source=$4
 heavy='libmpi|libpetsc|libHYPRE|libtrilinos|libdmumps|libvtk|libtbb|libcholmod|libassimp'
 if ldd "$launcher" | grep -E "$heavy"; then echo "the launcher loads the libraries above"; exit 1; fi
 n=$(ldd "$launcher" | wc -l)
@@ -19,4 +21,23 @@ got="$("$launcher" --version)"
 # Every other command goes to the program, with argv[0] as given (its messages name csrbf).
 out=$("$launcher" no-such-command 2>&1 || true)
 grep -q "csrbf" <<< "$out" || { echo "$out"; exit 1; }
-echo "launcher: $n libraries; serial program: $(ldd "$serial" | wc -l), no MPI or PETSc; --version: $got"
+if ldd "$morph" | grep -E 'libmpi|libpetsc|libvtk|libcgns|libhdf5|libgmsh|libassimp|libGL|libX11|libQt'; then
+  echo "the morph program loads the libraries above"; exit 1
+fi
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+# An OpenFOAM case: the morph program's work (its ldd above); a .vtu: csrbf-cli's, the same report.
+"$launcher" morph "$source/examples/airfoil/case" --motion "$source/examples/airfoil/motion.json" -o "$tmp/foam" \
+  --json --quiet > "$tmp/foam.json"
+grep -q '"format": "openfoam"' "$tmp/foam.json" || { cat "$tmp/foam.json"; exit 1; }
+# The bundled airfoil as a Gmsh file: csrbf-cli's work, handed over with the same arguments.
+msh="$source/examples/airfoil/airfoil.msh"
+"$launcher" morph "$msh" --motion "$source/examples/airfoil/motion.json" -o "$tmp/out.msh" --json --quiet > "$tmp/msh.json"
+grep -q '"format": "msh"' "$tmp/msh.json" || { cat "$tmp/msh.json"; exit 1; }
+# Usage errors read the same from either program.
+a=$("$launcher" morph "$msh" --radius -1 2>&1 || true)
+b=$("$launcher" morph "$source/examples/airfoil/case" --radius -1 2>&1 || true)
+[ -n "$a" ] && [ "$a" = "$b" ] || { echo "$a"; echo "$b"; exit 1; }
+[ "$("$morph" morph --help | sed "s|$morph|P|")" = "$("$serial" morph --help | sed "s|$serial|P|")" ] ||
+  { echo "morph --help differs"; exit 1; }
+echo "launcher: $n libraries; morph program: $(ldd "$morph" | wc -l); serial program: $(ldd "$serial" | wc -l), no MPI or PETSc; --version: $got"
