@@ -218,10 +218,15 @@ def moved_points(case, time="1"):
 
 
 def iterations(log):
-    """PCG's iterations per component of the displacement: {component: n}."""
-    return {m.group(1): int(m.group(2)) for m in
-            re.finditer(r"Solving for cellDisplacement(\w), Initial residual = \S+, Final residual = \S+, "
-                        r"No Iterations (\d+)", log)}
+    """PCG's iterations per component of the displacement: {component: n}; a solve that reached a
+    residual of exactly 0 (OpenFOAM then stops and prints "solution singularity", without its
+    count, even under minIter) is reported as that."""
+    found = {m.group(1): int(m.group(2)) for m in
+             re.finditer(r"Solving for cellDisplacement(\w), Initial residual = \S+, Final residual = \S+, "
+                         r"No Iterations (\d+)", log)}
+    for m in re.finditer(r"Solving for cellDisplacement(\w):  solution singularity", log):
+        found[m.group(1)] = "stopped at a residual of exactly 0 (OpenFOAM: solution singularity)"
+    return found
 
 
 def main():

@@ -573,7 +573,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
              << "), greedy had spent " << spent << " s of its budget of " << budget << " s (" << options.greedy_budget
              << " x the plain fit and evaluation, predicted " << fit_all_seconds << " + "
              << rep.predicted.seconds_evaluate << " s): every control is fitted instead"
-             << (correcting ? "" : (any_slip ? ", in this fit and the slip correction's" : ""));
+             << (correcting ? "" : (any_slip ? " (and in a slip correction's fit, if one follows)" : ""));
           rep.greedy_stopped = os.str();
           fit_all = true;
           break;
