@@ -8,6 +8,7 @@
 #include "csrbf/io/error.hpp"
 
 #include <vtkCellData.h>
+#include <SMP/Common/vtkSMPToolsAPI.h>  // vtkSMPTools.h does not compile as C++20 (VTK 9.1)
 #include <vtkCellType.h>
 #include <vtkCellTypes.h>
 #include <vtkCommand.h>
@@ -41,6 +42,12 @@ namespace fs = std::filesystem;
 namespace csrbf::morph::detail {
 
 namespace {
+
+/// In a reader's child process (forked from a parent whose TBB threads the child does not have),
+/// VTK's SMP tools must not use TBB: the pool copied from the parent waits for workers that do not
+/// exist. vtkUnstructuredGrid::GetCellTypes hung so in Hostile.VtkFilesThatCrashOrLoseCellsAreErrors
+/// (one full-suite run in three, when a write in the parent had started VTK's TBB workers).
+void sequential_in_child() { vtk::detail::smp::vtkSMPToolsAPI::GetInstance().SetBackend("Sequential"); }
 
 using io::FileError;
 
@@ -289,6 +296,7 @@ class VtkFile final : public VolumeFile {
     const long long points_stated = stated_legacy("POINTS "), cells_line = stated_legacy("CELLS "),
                     cells_stated = cells_line - (offsets && cells_line > 0 ? 1 : 0);
     grid_ = parse_grid(detail::read_in_child(path, "VTK", o.max_file_bytes, [&] {
+      sequential_in_child();
       auto g = read_grid(path, xml);
       check_cells(g);
       if (g && ((points_stated >= 0 && g->GetNumberOfPoints() != points_stated) ||
@@ -656,6 +664,7 @@ class VtkFile final : public VolumeFile {
       // would otherwise go unnoticed).
       const bool xml = xml_;
       const std::string counts = detail::read_in_child(path, "VTK", memory_limit_, [&] {
+        sequential_in_child();
         auto g = read_grid(path, xml);
         return std::to_string(g && g->GetPoints() ? g->GetNumberOfPoints() : 0) + " " +
                std::to_string(g ? g->GetNumberOfCells() : 0);
