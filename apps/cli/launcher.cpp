@@ -37,12 +37,14 @@ int launched_ranks() {
 /// libgomp likewise: under an address-space limit (ulimit -v) or a tight process limit they cannot,
 /// and spin or end the process. Both read their thread counts only at load, so they are set here,
 /// before the program that loads them starts.
-void single_threads_under_limits() {
+bool under_limits() {
   rlimit as{}, procs{};
-  const bool limited =
-      (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) ||
-      (::getrlimit(RLIMIT_NPROC, &procs) == 0 && procs.rlim_cur != RLIM_INFINITY && procs.rlim_cur < 4096);
-  if (!limited) return;
+  return (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) ||
+         (::getrlimit(RLIMIT_NPROC, &procs) == 0 && procs.rlim_cur != RLIM_INFINITY && procs.rlim_cur < 4096);
+}
+
+void single_threads_under_limits() {
+  if (!under_limits()) return;
   for (const char* v : {"OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"})
     if (!std::getenv(v)) ::setenv(v, "1", 1);
 }
@@ -53,7 +55,10 @@ void single_threads_under_limits() {
 /// against 0.50 s with it (docs/PERFORMANCE.md). A morph also grows its heap 64 MiB ahead and keeps
 /// blocks below 32 MiB in it, so that the buffers it frees (the files' text once parsed) are used
 /// again without new page faults: airFoil2D's morph 0.047 s -> 0.037 s, 3000 -> 700 page faults,
-/// for 4 MiB more resident (20 MiB on pitzDaily x 4). A tunable the caller set is kept.
+/// for 4 MiB more resident (20 MiB on pitzDaily x 4). Not under an address-space limit: there the
+/// padding could not be reserved while the libraries load, and libgfortran's start-up then
+/// recursed until the stack overflowed (ulimit -v 100000: exit 139). A tunable the caller set is
+/// kept.
 void large_pages(bool morph) {
   const char* had = std::getenv("GLIBC_TUNABLES");
   std::string v = had ? had : "";
@@ -94,7 +99,7 @@ int main(int argc, char** argv) {
   else if (argc > 1 && std::strcmp(argv[1], "morph") == 0)
     program = libexec + "csrbf-morph";  // OpenFOAM cases; it runs csrbf-cli for the other formats
   single_threads_under_limits();
-  large_pages(argc > 1 && std::strcmp(argv[1], "morph") == 0);
+  large_pages(argc > 1 && std::strcmp(argv[1], "morph") == 0 && !under_limits());
   ::execv(program.c_str(), argv);
   std::fprintf(stderr, "csrbf: error: cannot run %s: %s (csrbf is not installed whole: install it again)\n",
                program.c_str(), std::strerror(errno));

@@ -4,7 +4,7 @@
 #include "csrbf/io/error.hpp"
 
 #include <tbb/parallel_for.h>
-#include <tbb/task_group.h>
+#include <tbb/parallel_invoke.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -644,59 +644,73 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::s
     if (has_file(target_dir, "faces")) c.poly_mesh = target_dir;  // the topology changed at that time
   }
 
-  // The four files are read and parsed at once (a task each; the faces, the largest, start first).
-  // A face's point labels are checked against the points' count when both are read: where one is
-  // out of range, the faces are parsed again with the bound, which names the face and its line.
-  Loaded faces_file;
+  // The four files are read and parsed at once (a task each; the faces, the largest, first). Each
+  // task keeps its own error, and the errors are told in the order a serial read meets them:
+  // points, faces, owner, neighbour, whatever the threads' timing. A face's point labels are
+  // checked against the points' count when both are read: where one is out of range (or the faces
+  // failed), the faces are parsed again with the bound, which names the face and its line as the
+  // serial read did.
+  Loaded faces_file, owner_file, neighbour_file;
   std::uint32_t largest_label = 0;
-  std::exception_ptr faces_failed;
-  Loaded owner_file, neighbour_file;
-  {
-    tbb::task_group tasks;
-    tasks.run([&] {
-      faces_file = load(c.poly_mesh, "faces", max_file_bytes);
-      Parser p(faces_file.text, faces_file.path.string());
+  std::exception_ptr points_failed, faces_failed, owner_failed, neighbour_failed;
+  bool faces_file_error = false;  // a FileError (not out of memory): parsed again to name it
+  const auto kept = [](std::exception_ptr& failed, auto&& work) {
+    return [&failed, &work] {
       try {
-        read_faces(p, read_header(p), m.poly, kNoBound);
-      } catch (const FileError&) {
-        faces_failed = std::current_exception();  // told after the points are counted
-        return;
+        work();
+      } catch (...) {
+        failed = std::current_exception();
       }
-      for (const std::uint32_t v : m.poly.face_points) largest_label = std::max(largest_label, v);
-    });
-    tasks.run([&] {
-      Loaded l = load(points_dir, "points", max_file_bytes);
-      Parser p(l.text, l.path.string());
-      const Header h = read_header(p);
-      c.points_file.path = l.path;
-      c.points_file.target = target_dir / l.path.filename();
-      c.points_file.gzip = l.gz;
-      c.points_file.binary = h.binary;
-      c.points_file.scalar_bytes = h.scalar_bytes;
-      read_points(p, h, c.points_file, m.points);
-      c.points_file.text = std::move(l.text);
-    });
-    tasks.run([&] {
-      owner_file = load(c.poly_mesh, "owner", max_file_bytes);
-      Parser p(owner_file.text, owner_file.path.string());
-      m.poly.owner = read_labels(p, read_header(p), "owner cells", kNoBound);
-      owner_file.text = std::string();
-    });
-    tasks.run([&] {
-      neighbour_file = load(c.poly_mesh, "neighbour", max_file_bytes);
-      Parser p(neighbour_file.text, neighbour_file.path.string());
-      m.poly.neighbour = read_labels(p, read_header(p), "neighbour cells", kNoBound);
-      neighbour_file.text = std::string();
-    });
-    tasks.wait();  // the first file's error, if any, is thrown here
-  }
+    };
+  };
+  const auto read_faces_file = [&] {
+    faces_file = load(c.poly_mesh, "faces", max_file_bytes);
+    Parser p(faces_file.text, faces_file.path.string());
+    try {
+      read_faces(p, read_header(p), m.poly, kNoBound);
+    } catch (const FileError&) {
+      faces_file_error = true;
+      throw;
+    }
+    for (const std::uint32_t v : m.poly.face_points) largest_label = std::max(largest_label, v);
+  };
+  const auto read_points_file = [&] {
+    Loaded l = load(points_dir, "points", max_file_bytes);
+    Parser p(l.text, l.path.string());
+    const Header h = read_header(p);
+    c.points_file.path = l.path;
+    c.points_file.target = target_dir / l.path.filename();
+    c.points_file.gzip = l.gz;
+    c.points_file.binary = h.binary;
+    c.points_file.scalar_bytes = h.scalar_bytes;
+    read_points(p, h, c.points_file, m.points);
+    c.points_file.text = std::move(l.text);
+  };
+  const auto read_owner_file = [&] {
+    owner_file = load(c.poly_mesh, "owner", max_file_bytes);
+    Parser p(owner_file.text, owner_file.path.string());
+    m.poly.owner = read_labels(p, read_header(p), "owner cells", kNoBound);
+    owner_file.text = std::string();
+  };
+  const auto read_neighbour_file = [&] {
+    neighbour_file = load(c.poly_mesh, "neighbour", max_file_bytes);
+    Parser p(neighbour_file.text, neighbour_file.path.string());
+    m.poly.neighbour = read_labels(p, read_header(p), "neighbour cells", kNoBound);
+    neighbour_file.text = std::string();
+  };
+  tbb::parallel_invoke(kept(faces_failed, read_faces_file), kept(points_failed, read_points_file),
+                       kept(owner_failed, read_owner_file), kept(neighbour_failed, read_neighbour_file));
+  if (points_failed) std::rethrow_exception(points_failed);
   const std::size_t np = m.points.size();
+  if (faces_failed && !faces_file_error) std::rethrow_exception(faces_failed);
   if (faces_failed || (!m.poly.face_points.empty() && largest_label >= np)) {
     Parser p(faces_file.text, faces_file.path.string());
     PolyTopology again;
     read_faces(p, read_header(p), again, np);  // throws, naming the face
     if (faces_failed) std::rethrow_exception(faces_failed);
   }
+  if (owner_failed) std::rethrow_exception(owner_failed);
+  if (neighbour_failed) std::rethrow_exception(neighbour_failed);
   faces_file.text = std::string();
   const std::size_t nf = m.poly.face_start.size() - 1;
   if (nf >= kMaxFaces)

@@ -178,6 +178,19 @@ TEST(OpenFoam, BadFilesAreClearErrorsNamingTheFile) {
   edit("faces", "4(1 6 26 21)", "4(1 6 26 600)");  // a label past the points
   EXPECT_NE(read_error().find("uses point 600, but there are 60 points"), std::string::npos) << read_error();
 
+  // The four files are parsed at once; with several broken, the error is the one a serial read
+  // meets first (points, faces, owner, neighbour), whatever the threads' timing: it named owner or
+  // points by chance before.
+  fresh();
+  edit("points", "60\n(", "59\n(");
+  edit("faces", "4(1 6 26 21)", "4(1 6 26 600)");
+  edit("owner", "(", "(x");
+  for (int i = 0; i < 10; ++i) EXPECT_NE(read_error().find("more points than the count"), std::string::npos);
+  fresh();
+  edit("faces", "4(1 6 26 21)", "4(1 6 26 600)");
+  edit("owner", "(", "(x");
+  for (int i = 0; i < 10; ++i) EXPECT_NE(read_error().find("uses point 600"), std::string::npos) << read_error();
+
   fresh();
   edit("points", "(0 0 0)", "(0 nan 0)");
   EXPECT_NE(read_error().find("is not finite"), std::string::npos) << read_error();
@@ -512,6 +525,8 @@ TEST_F(BoxMorph, GreedyUsesFewerControlsWithinItsTolerance) {
   MorphOptions o;
   o.fit.radius = 0.8;
   o.greedy = 0.05;
+  // Unbounded: a loaded machine (the sanitizer pass) must not stop greedy by its time budget.
+  o.greedy_budget = std::numeric_limits<double>::infinity();
   const MorphResult r = morph(c.mesh, m, o);
   const Prescribed p = prescribe(c.mesh, m);
   EXPECT_LT(r.report.controls, p.points.size());
@@ -836,6 +851,7 @@ TEST_F(BoxMorph, AGreedyToleranceBelowTheSolvesAccuracyStillEnds) {
   MorphOptions o;
   o.fit.radius = 0.5;
   o.greedy = 1e-300;
+  o.greedy_budget = std::numeric_limits<double>::infinity();  // it must end by itself
   const MorphResult r = morph(c.mesh, m, o);
   EXPECT_LE(r.report.controls, 98u);
   EXPECT_LT(r.report.max_boundary_error, 1e-10);
