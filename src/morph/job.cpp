@@ -598,10 +598,7 @@ SeriesOutcome run_series(const MorphJob& job) {
         } else {
           if (!partial) {
             partial.emplace(job.out, io::Partial::Kind::Folder);
-            fs::copy(foam->root, partial->path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
-            if (ec)
-              throw io::FileError("cannot copy '" + foam->root.string() + "' to '" + job.out.string() +
-                                  "': " + ec.message());
+            copy_openfoam_case(*foam, partial->path(), job.out);
           }
           write_openfoam_points_into(*foam, o.result.points, partial->path(), o.time);
         }

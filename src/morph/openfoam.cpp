@@ -925,13 +925,21 @@ void check_openfoam_copy_target(const FoamCase& c, const fs::path& out) {
                     "' being copied");
 }
 
+void copy_openfoam_case(const FoamCase& c, const fs::path& into, const fs::path& out) {
+  std::error_code ec;
+  // The case named through a link (csrbf morph caselink -o out): copy_symlinks would copy the link
+  // itself onto the new folder (EINVAL); the folder it links to is copied.
+  fs::path from = c.root;
+  if (fs::is_symlink(fs::symlink_status(from, ec))) from = fs::canonical(c.root, ec);
+  if (!ec) fs::copy(from, into, fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
+  if (ec) throw FileError("cannot copy '" + c.root.string() + "' to '" + out.string() + "': " + ec.message());
+}
+
 void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const fs::path& out) {
   check_openfoam_copy_target(c, out);
-  std::error_code ec;
   const std::string bytes = encoded_points(c, points);
   io::Partial partial(out, io::Partial::Kind::Folder);
-  fs::copy(c.root, partial.path(), fs::copy_options::recursive | fs::copy_options::copy_symlinks, ec);
-  if (ec) throw FileError("cannot copy '" + c.root.string() + "' to '" + out.string() + "': " + ec.message());
+  copy_openfoam_case(c, partial.path(), out);
   place_points(c, bytes, partial.path(), c.points_file.target);
   partial.commit_new(out);
 }

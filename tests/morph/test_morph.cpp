@@ -139,6 +139,16 @@ TEST(OpenFoam, RefusesOutputsThatExistOrLieInsideTheCase) {
       std::string::npos);
   EXPECT_FALSE(fs::exists(dir.path / "case" / "copy"));
   EXPECT_NE(error_of([&] { write_openfoam_copy(c, c.mesh.points, dir.path / "no" / "such"); }), "");
+  // A case named through a link is copied from the folder it links to (the link itself was copied
+  // onto the new folder: "Invalid argument"); the case is left as it was.
+  fs::create_directory_symlink("case", dir.path / "link");
+  const FoamCase linked = read_openfoam(dir.path / "link");
+  std::vector<Vec3> moved = c.mesh.points;
+  moved[1] = Vec3(0.5, 0.25, 0.125);
+  write_openfoam_copy(linked, moved, dir.path / "from-link");
+  EXPECT_EQ(read_openfoam(dir.path / "from-link").mesh.points, moved);
+  EXPECT_FALSE(fs::is_symlink(dir.path / "from-link"));
+  EXPECT_EQ(read_openfoam(dir.path / "case").mesh.points, c.mesh.points);
 }
 
 TEST(OpenFoam, BadFilesAreClearErrorsNamingTheFile) {

@@ -66,6 +66,11 @@ void write_openfoam_copy(const FoamCase& c, std::span<const Vec3> points, const 
 /// followed). Throws io::FileError.
 void check_openfoam_copy_target(const FoamCase& c, const std::filesystem::path& out);
 
+/// Copies c's case folder into the folder into (a partial of out, which messages name), links in
+/// it kept as links; a case named through a link is copied from the folder it links to. Throws
+/// io::FileError.
+void copy_openfoam_case(const FoamCase& c, const std::filesystem::path& into, const std::filesystem::path& out);
+
 /// Rewrites the points file alone, atomically (other files untouched).
 void write_openfoam_in_place(const FoamCase& c, std::span<const Vec3> points);
 
