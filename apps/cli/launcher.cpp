@@ -1,15 +1,15 @@
 // `csrbf`: the command users run. It answers --version itself and runs the program that does the
 // work: csrbf-cli, or under mpirun with more than one rank csrbf-cli-mpi, the same program built
-// with MPI and PETSc; `csrbf morph` on one process runs csrbf-morph (morph_main.cpp). Those two libraries cost every
-// command about 0.1 s to load (measured: 70-106 ms to dlopen them, of a 0.14 s start-up), so only a distributed run
-// loads them. The programs live in LIBEXEC/csrbf beside BIN (build/libexec/csrbf in the build tree), found from this
-// program's own path; the same argv goes over, argv[0] included, so every message and --help
-// names `csrbf`.
+// with MPI and PETSc; `csrbf morph` on one process runs csrbf-morph (morph_main.cpp). Those two
+// libraries cost every command about 0.1 s to load (measured: 70-106 ms to dlopen them, of a 0.14 s
+// start-up), so only a distributed run loads them. The programs live in LIBEXEC/csrbf beside BIN
+// (build/libexec/csrbf in the build tree), found from this program's own path; the same argv goes over, argv[0]
+// included, so every message and --help names `csrbf`.
 #include "csrbf/version.hpp"
+#include "process_limits.hpp"
 #include "standard_streams.hpp"
 
 #include <fcntl.h>
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -37,14 +37,8 @@ int launched_ranks() {
 /// libgomp likewise: under an address-space limit (ulimit -v) or a tight process limit they cannot,
 /// and spin or end the process. Both read their thread counts only at load, so they are set here,
 /// before the program that loads them starts.
-bool under_limits() {
-  rlimit as{}, procs{};
-  return (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) ||
-         (::getrlimit(RLIMIT_NPROC, &procs) == 0 && procs.rlim_cur != RLIM_INFINITY && procs.rlim_cur < 4096);
-}
-
 void single_threads_under_limits() {
-  if (!under_limits()) return;
+  if (!csrbf::cli::under_process_limits()) return;
   for (const char* v : {"OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"})
     if (!std::getenv(v)) ::setenv(v, "1", 1);
 }
@@ -64,7 +58,11 @@ void large_pages(bool morph) {
   std::string v = had ? had : "";
   const auto add = [&](const char* name, const char* value) {
     if (v.find(name) != std::string::npos) return;
-    v += (v.empty() ? "" : ":") + std::string(name) + "=" + value;
+    // By appends: GCC 12 warns falsely on '"x" + string' (-Wrestrict, PR 105329).
+    if (!v.empty()) v += ':';
+    v += name;
+    v += '=';
+    v += value;
   };
   add("glibc.malloc.hugetlb", "1");
   if (morph) {
@@ -99,7 +97,7 @@ int main(int argc, char** argv) {
   else if (argc > 1 && std::strcmp(argv[1], "morph") == 0)
     program = libexec + "csrbf-morph";  // OpenFOAM cases; it runs csrbf-cli for the other formats
   single_threads_under_limits();
-  large_pages(argc > 1 && std::strcmp(argv[1], "morph") == 0 && !under_limits());
+  large_pages(argc > 1 && std::strcmp(argv[1], "morph") == 0 && !csrbf::cli::under_process_limits());
   ::execv(program.c_str(), argv);
   std::fprintf(stderr, "csrbf: error: cannot run %s: %s (csrbf is not installed whole: install it again)\n",
                program.c_str(), std::strerror(errno));

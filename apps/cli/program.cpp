@@ -2,11 +2,11 @@
 
 #include "animate.hpp"
 #include "commands.hpp"
+#include "process_limits.hpp"
 #include "standard_streams.hpp"
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/names.hpp"
 
-#include <sys/resource.h>
 #include <unistd.h>
 
 #include <csignal>
@@ -26,11 +26,7 @@ namespace {
 /// libgomp (OpenMP, under CHOLMOD's supernodal factorisation) likewise ended the process with only
 /// "Thread creation failed" under ulimit -v 300000.
 void single_blas_thread_under_limits(char** argv) {
-  rlimit as{}, procs{};
-  const bool limited =
-      (::getrlimit(RLIMIT_AS, &as) == 0 && as.rlim_cur != RLIM_INFINITY) ||
-      (::getrlimit(RLIMIT_NPROC, &procs) == 0 && procs.rlim_cur != RLIM_INFINITY && procs.rlim_cur < 4096);
-  if (!limited) return;
+  if (!under_process_limits()) return;
   bool changed = false;
   for (const char* v : {"OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"})
     if (!std::getenv(v)) changed = ::setenv(v, "1", 1) == 0 || changed;

@@ -1,6 +1,7 @@
 #include "csrbf/morph/quality.hpp"
 
 #include "quality_buffers.hpp"
+#include "csrbf/io/error.hpp"
 #include "csrbf/morph/volume_file.hpp"
 
 #include <Eigen/Geometry>
@@ -294,15 +295,17 @@ MeshQuality QualityMeter::measure(std::span<const Vec3> points) {
     // the faces and cells of points that differ from the mesh's, now or at the last measure: a
     // local morph's far cells keep their figures (exact locality), and a 4e5-point morph's second
     // measure takes a fraction of the first's. The result equals a whole measure's bit for bit
-    // (QualityMeter.ALaterMeasureEqualsAWholeOne).
+    // (BoxMorph.ALaterMeasureEqualsAWholeOne).
     detail::PolyBuffers& b = *buffers_;
     const PolyTopology& t = mesh_->poly;
     const std::span<const Vec3> own = mesh_->points;
-    if (!b.whole || points.size() != own.size()) {
+    // b.touched holds a flag a point once a whole measure of as many points as the mesh's filled
+    // the figures.
+    if (b.touched.empty() || points.size() != own.size()) {
       q.poly = detail::poly_quality(t, points, b);
-      b.whole = points.size() == own.size();
-      b.touched.assign(b.whole ? own.size() : 0, 0);
-      if (b.whole)
+      const bool whole = points.size() == own.size();
+      b.touched.assign(whole ? own.size() : 0, 0);
+      if (whole)
         tbb::parallel_for(std::size_t(0), own.size(), [&](std::size_t i) { b.touched[i] = points[i] != own[i]; });
     } else {
       detail::Dirty d;
@@ -349,7 +352,7 @@ MeshQuality QualityMeter::measure(std::span<const Vec3> points) {
   if (mesh_->cells.size()) {
     const auto measure_cells = detail::standard_formats().cell_quality;
     if (!measure_cells)
-      throw FormatNotLinked("standard cells are measured through VTK, which this program is linked without");
+      throw io::FileError("standard cells are measured through VTK, which this program is linked without");
     q.cells = measure_cells(mesh_->cells, points, mesh_->points);
   }
   return q;

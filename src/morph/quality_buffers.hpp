@@ -21,8 +21,8 @@ struct PolyBuffers {
   std::vector<std::uint32_t> bad;
   /// QualityMeter: the points that differed from the mesh's at the last measure, whose faces and
   /// cells hold figures of those points (recomputed at the next measure whether or not they move).
+  /// Empty until a whole measure of the mesh's number of points has filled the arrays above.
   std::vector<char> touched;
-  bool whole = false;                ///< a whole measure has filled the arrays above
   std::vector<std::uint64_t> first;  ///< the cell-to-face index: the topology's, built once
   std::vector<std::uint32_t> faces_of;
   /// The cell determinant's faces besides internal ones: coupled patches' [begin, end) (cyclic,

@@ -77,8 +77,8 @@ std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions&
   const detail::StandardFormats& formats = detail::standard_formats();
   const auto opened = [&](auto* open, const char* library) {
     if (!open)
-      throw FormatNotLinked(path.string() + ": " + ext + " files are read through " + library +
-                            ", which this program is linked without");
+      throw io::FileError(path.string() + ": " + ext + " files are read through " + library +
+                          ", which this program is linked without");
     return open(path, options);
   };
   if (ext == ".vtu" || ext == ".vtk") return opened(formats.open_vtk, "VTK");

@@ -6,7 +6,6 @@
 //   .cgns (unstructured zones)        the CGNS library: a copy whose coordinates are overwritten
 #pragma once
 
-#include "csrbf/io/error.hpp"
 #include "csrbf/morph/quality.hpp"
 #include "csrbf/morph/volume_mesh.hpp"
 
@@ -52,20 +51,14 @@ class VolumeFile {
 /// io::FileError naming the file.
 std::unique_ptr<VolumeFile> open_volume(const std::filesystem::path& path, const OpenOptions& options = {});
 
-/// open_volume's error in a program linked without the standard formats (detail::StandardFormats):
-/// the file is another program's to read (csrbf's launcher hands it over).
-class FormatNotLinked : public io::FileError {
- public:
-  using io::FileError::FileError;
-};
-
 namespace detail {
 /// The readers that need VTK's, CGNS's or Gmsh's libraries, and the standard cells' measure
 /// (VTK's Verdict), reached through this table, which csrbf::morph's standard_formats.cpp fills:
 /// every program and library that links csrbf::morph has them. A program that defines its own
 /// standard_formats() is linked without that file and without those libraries: csrbf's morph
 /// program for OpenFOAM cases, which starts in a fraction of the time (docs/PERFORMANCE.md), leaves
-/// them null, and open_volume then throws FormatNotLinked.
+/// them null (it hands mesh files to csrbf-cli before reading them), and open_volume then throws
+/// io::FileError.
 struct StandardFormats {
   std::unique_ptr<VolumeFile> (*open_vtk)(const std::filesystem::path&, const OpenOptions&) = nullptr;
   std::unique_ptr<VolumeFile> (*open_gmsh)(const std::filesystem::path&, const OpenOptions&) = nullptr;
