@@ -518,7 +518,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
          bool in_place, const py::object& radius, std::optional<std::string> kernel,
          std::optional<std::string> polynomial, std::optional<double> greedy, double phase, const std::string& solver,
          bool force, double memory_limit, const std::optional<py::dict>& patches, const py::object& greedy_budget,
-         const py::object& time) {
+         const py::object& time, const py::object& levels) {
         namespace mo = csrbf::morph;
         const auto is_path = [](const py::object& o) {
           return py::isinstance<py::str>(o) || py::isinstance<py::bytes>(o) || py::hasattr(o, "__fspath__");
@@ -565,6 +565,14 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
                                  py::repr(time).cast<std::string>().substr(0, 80));
           if (job.time.empty()) throw py::value_error("time: '' names no time (\"latest\" or a time such as 0.5)");
         }
+        if (py::isinstance<py::str>(levels) && levels.cast<std::string>() == "auto")
+          job.levels = 0;
+        else if (py::isinstance<py::int_>(levels) && !py::isinstance<py::bool_>(levels) &&
+                 (levels.cast<long long>() == 1 || levels.cast<long long>() == 2))
+          job.levels = levels.cast<int>();
+        else
+          throw py::value_error("levels must be \"auto\", 1 or 2, got " +
+                                py::repr(levels).cast<std::string>().substr(0, 80));
         job.solver = named<csrbf::Solver>(solver, "solver");
         job.phase = phase;
         job.force = force;
@@ -708,7 +716,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       py::arg("radius") = py::none(), py::arg("kernel") = py::none(), py::arg("polynomial") = py::none(),
       py::arg("greedy") = py::none(), py::arg("phase") = 1.0, py::arg("solver") = "auto", py::arg("force") = false,
       py::arg("memory_limit") = 4.0, py::arg("patches") = py::none(), py::arg("greedy_budget") = py::none(),
-      py::arg("time") = py::none(),
+      py::arg("time") = py::none(), py::arg("levels") = "auto",
       R"doc(Morphs a volume mesh, or a cloud of points, as `csrbf morph` does (docs/morphing.md).
 
 Parameters
@@ -735,6 +743,11 @@ greedy : float, optional
 greedy_budget : float, optional
     With greedy: its rounds' budget, a share of the plain fit and evaluation (default 0.2); past
     it every control is fitted (``report["greedy_stopped"]``).
+levels : "auto" or int
+    The fit's levels, as ``--levels``: 1, every control at R; 2, a coarse fit at R of controls R/4
+    apart, then what it leaves at every control at about 1.75 x the boundary's spacing
+    (``report["two_levels"]``); "auto", two where the one-level fit is predicted to take 1 s or
+    more and 4 times as long.
 time : str or float, optional
     OpenFOAM: the time whose mesh is morphed, ``"latest"`` or a time such as ``0.5``, as
     ``-time``; the moved points are written into that time's folder.

@@ -65,6 +65,13 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
           ->check(finite_in(0.0, 1e6, "--greedy-budget"))
           ->capture_default_str();
   greedy_budget->needs(cmd->get_option("--greedy"));
+  cmd->add_option("--levels", a.levels,
+                  "The fit's levels: 1, every control at R; 2, a coarse fit at R of controls R/4 apart, then every "
+                  "control's remainder at about 1.75 x the boundary's spacing (a fraction of the time at a large R; "
+                  "polynomial none, one process); auto, two where the one-level fit is predicted to take 1 s or "
+                  "more and 4 x the two levels' time")
+      ->check(CLI::IsMember({"auto", "1", "2"}))
+      ->capture_default_str();
   cmd->add_option("--phase,-t", a.phase, "Fraction of the motion applied, in [0, 1]")
       ->check(finite_in(0.0, 1.0, "--phase"))
       ->capture_default_str();
@@ -116,6 +123,11 @@ morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
   if (!a.polynomial.empty()) job.polynomial = *parse_name<Polynomial>(a.polynomial);
   job.greedy = a.greedy;
   job.greedy_budget = a.greedy_budget;
+  job.levels = a.levels == "auto" ? 0 : std::stoi(a.levels);
+  if (distributed && job.levels == 2)
+    throw UsageError(
+        "morph: --levels 2 runs in one process (under mpirun a later fit replaces the ranks' mapping): "
+        "run it without mpirun");
   job.solver = distributed && a.solver == "mumps" ? Solver::Auto : serial_solver(a.solver);
   job.phase = a.phase;
   job.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);

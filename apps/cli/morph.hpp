@@ -13,6 +13,7 @@ struct MorphArgs {
   std::string radius;         ///< R, "auto", or empty (the motion file's, else auto)
   std::optional<double> greedy;
   double greedy_budget = 0.2;
+  std::string levels = "auto";
   std::string kernel, polynomial, solver = "auto";
   std::string time;  ///< OpenFOAM's -time: latest or a time
   double phase = 1.0;

@@ -206,6 +206,10 @@ void check_job(const MorphJob& job) {
     throw JobError("the greedy tolerance must be in (0, 1], got " + io::format_number(*job.greedy));
   if (!(job.greedy_budget >= 0 && job.greedy_budget <= 1e6))
     throw JobError("the greedy budget must be in [0, 1e6], got " + io::format_number(job.greedy_budget));
+  if (job.levels < 0 || job.levels > 2)
+    throw JobError("levels must be auto (0), 1 or 2, got " + std::to_string(job.levels));
+  if (job.levels == 2 && job.greedy)
+    throw JobError("two levels and greedy exclude each other (greedy chooses its own controls): give one");
   if (!(job.memory_limit_bytes > 0)) throw JobError("the memory limit must be > 0");
   if (job.write && !job.out.empty()) {
     std::error_code ec;
@@ -241,6 +245,10 @@ MorphOptions morph_options(const MorphJob& job, const Motion& motion) {
   opt.phase = job.phase;
   opt.greedy = job.greedy.value_or(0.0);
   opt.greedy_budget = job.greedy_budget;
+  opt.levels = job.levels;
+  if (opt.levels == 2 && opt.fit.polynomial != Polynomial::None)
+    throw JobError("two levels need polynomial none (a polynomial moves the whole space; its fit is one level), got " +
+                   std::string(polynomial_name(opt.fit.polynomial)));
   return opt;
 }
 
@@ -378,6 +386,7 @@ std::string outcome_json(const MorphOutcome& o) {
       {"max_boundary_error", rep.max_boundary_error},
       {"radius", rep.radius},
       {"radius_why", rep.radius_why},
+      {"levels", rep.levels},
       {"predicted",
        {{"neighbours_per_control", rep.predicted.neighbours_per_control},
         {"neighbours_per_point", rep.predicted.neighbours_per_point},
@@ -401,6 +410,16 @@ std::string outcome_json(const MorphOutcome& o) {
   // a polynomial moves the whole space); staying controls farther than R from every moving one.
   j["reach"] = std::isfinite(rep.reach) ? nlohmann::json(rep.reach) : nlohmann::json(nullptr);
   j["far_fixed"] = rep.far_fixed;
+  // Two levels: the coarse level's controls and spacing, the fine level's R; with levels auto, the
+  // two predicted fit times it weighed.
+  if (rep.levels == 2)
+    j["two_levels"] = {{"coarse_controls", rep.coarse_controls},
+                       {"coarse_spacing", rep.coarse_spacing},
+                       {"fine_radius", rep.fine_radius}};
+  if (rep.seconds_plain_predicted > 0) {
+    j["predicted"]["seconds_fit_one_level"] = rep.seconds_plain_predicted;
+    j["predicted"]["seconds_fit_two_levels"] = rep.seconds_two_levels_predicted;
+  }
   j["time"] = o.time.empty() ? nlohmann::json("constant") : nlohmann::json(o.time);
   // Every patch: what it did (moving, fixed, slip or free) and why (listed, group, type, planar...).
   j["patches"] = nlohmann::json::array();
@@ -423,6 +442,9 @@ std::string outcome_text(const MorphOutcome& o) {
     << "  R = " << rep.radius << (o.options.radius_auto ? " (auto: " + rep.radius_why + ")" : std::string())
     << ", kernel " << kernel_name(o.options.fit.kernel) << ", polynomial " << polynomial_name(o.options.fit.polynomial)
     << ", phase " << o.options.phase << "\n";
+  if (rep.levels == 2)
+    s << "  two levels: " << rep.coarse_controls << " coarse controls spaced " << rep.coarse_spacing
+      << " at R = " << rep.radius << ", then every control at R = " << rep.fine_radius << "\n";
   // The patches the motion left unlisted, and what each did (the listed ones are in the motion line).
   std::string unlisted;
   for (const auto& p : rep.patches)

@@ -41,6 +41,30 @@ class LocalMapping final : public FittedMapping {
   SpaceMap map_;
 };
 
+/// A two-level fit's mapping: the coarse level's displacement plus the fine one's. A point that
+/// neither reaches keeps its coordinates bit for bit.
+class TwoLevelMapping final : public FittedMapping {
+ public:
+  TwoLevelMapping(std::unique_ptr<FittedMapping> coarse, std::unique_ptr<FittedMapping> fine)
+      : coarse_(std::move(coarse)), fine_(std::move(fine)) {}
+  void apply(std::span<const Vec3> in, std::span<Vec3> out, double phase) override {
+    std::vector<Vec3> d(in.size());
+    displacements(in, d);
+    for (std::size_t i = 0; i < in.size(); ++i) out[i] = d[i] == Vec3::Zero() ? in[i] : Vec3(in[i] + phase * d[i]);
+  }
+  void displacements(std::span<const Vec3> in, std::span<Vec3> out) override {
+    std::vector<Vec3> fine(in.size());
+    coarse_->displacements(in, out);
+    fine_->displacements(in, fine);
+    for (std::size_t i = 0; i < in.size(); ++i) out[i] += fine[i];
+  }
+  /// The fine level's: it fits every control.
+  FitStats stats() const override { return fine_->stats(); }
+
+ private:
+  std::unique_ptr<FittedMapping> coarse_, fine_;
+};
+
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
 std::string show(const Vec3& v) {
@@ -163,7 +187,7 @@ std::unique_ptr<FittedMapping> SeriesBackend::fit(std::span<const Vec3> sources,
       Entry{{sources.begin(), sources.end()}, options, SpaceMap::fit(sources, targets, options)});
   ++factorisations_;
   last_.insert(last_.begin(), e);
-  if (last_.size() > 2) last_.pop_back();
+  if (last_.size() > 4) last_.pop_back();
   return std::make_unique<LocalMapping>(e->map);
 }
 
@@ -310,6 +334,16 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   if (!std::isfinite(options.phase)) throw InvalidInput("the phase must be finite");
   if (!(options.greedy >= 0) || !std::isfinite(options.greedy))
     throw InvalidInput("the greedy tolerance must be a finite number >= 0, got " + io::format_number(options.greedy));
+  if (options.levels < 0 || options.levels > 2)
+    throw InvalidInput("levels must be 0 (auto), 1 or 2, got " + std::to_string(options.levels));
+  if (options.levels == 2 && options.fit.polynomial != Polynomial::None)
+    throw InvalidInput("two levels need polynomial none (a polynomial moves the whole space; its fit is one level)");
+  if (options.levels == 2 && options.greedy > 0)
+    throw InvalidInput("two levels and greedy exclude each other (greedy chooses its own controls): give one");
+  if (options.levels == 2 && !b.keeps_mappings())
+    throw InvalidInput(
+        "two levels need one process (under mpirun a later fit replaces the ranks' mapping): "
+        "run without mpirun, or with levels 1");
   // Every patch's kind: the motion's entries matched by name, group or expression, and defaults
   // for the boundaries it leaves unlisted (slip where planar, fixed otherwise).
   const auto flat = flat_axis(mesh);
@@ -596,8 +630,54 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
     }
     if (fit_all) {
       map.reset();
-      ProgressPhase fitting(options.progress, "fit", 0, rep.predicted.seconds_fit);
-      map = b.fit(sources, targets, fit, ids);
+      // Two levels: asked for, or where auto finds them worth it (radius.hpp). Greedy chose its own
+      // controls, and a polynomial moves the whole space: one level for those.
+      std::optional<detail::TwoLevelPlan> plan;
+      if (options.levels != 1 && fit.polynomial == Polynomial::None && options.greedy == 0 && b.keeps_mappings() &&
+          nc > 0) {
+        plan = detail::plan_two_levels(sources, targets, fit.radius);
+        if (!correcting) {
+          rep.seconds_plain_predicted = plan->seconds_plain;
+          rep.seconds_two_levels_predicted = plan->seconds_two;
+        }
+        if (options.levels == 0 && !plan->worth_it) plan.reset();
+      }
+      ProgressPhase fitting(options.progress, "fit", 0, plan ? plan->seconds_two : rep.predicted.seconds_fit);
+      if (plan) {
+        std::vector<Vec3> cs(plan->coarse.size()), ct(cs.size());
+        std::vector<std::uint64_t> ci(cs.size());
+        for (std::size_t k = 0; k < cs.size(); ++k) {
+          cs[k] = sources[plan->coarse[k]];
+          ct[k] = targets[plan->coarse[k]];
+          ci[k] = ids[plan->coarse[k]];
+        }
+        std::unique_ptr<FittedMapping> coarse = b.fit(cs, ct, fit, ci);
+        // What the coarse level leaves at every control: the fine level's targets.
+        std::vector<Vec3> d(nc), fine_targets(nc);
+        coarse->displacements(sources, d);
+        for (std::size_t i = 0; i < nc; ++i) fine_targets[i] = targets[i] - d[i];
+        FitOptions fine = fit;
+        fine.radius = plan->fine_radius;
+        std::unique_ptr<FittedMapping> f = b.fit(sources, fine_targets, fine, ids);
+        map = std::make_unique<TwoLevelMapping>(std::move(coarse), std::move(f));
+        if (!correcting) {
+          rep.levels = 2;
+          rep.coarse_controls = cs.size();
+          rep.coarse_spacing = plan->spacing;
+          rep.fine_radius = plan->fine_radius;
+        }
+        std::ostringstream os;
+        os.precision(3);
+        os << (correcting ? "the slip correction's fit" : "the fit") << " in two levels: " << cs.size() << " of " << nc
+           << " controls, no two closer than " << plan->spacing << ", at R = " << fit.radius
+           << ", then what they leave at every control at R = " << plan->fine_radius
+           << " (1.75 x the boundary's spacing " << plan->boundary_spacing << ")";
+        if (options.levels == 0)
+          os << ": predicted " << plan->seconds_two << " s against " << plan->seconds_plain << " s in one level";
+        note(os.str());
+      } else {
+        map = b.fit(sources, targets, fit, ids);
+      }
       rep.max_boundary_error = worst(*map, err);
       rep.controls = nc;
     }
@@ -718,7 +798,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   // In this process the points are evaluated in slices, which the progress counts; a backend that
   // spreads them over processes takes them whole (its calls are collective).
   ProgressPhase evaluating(options.progress, "evaluate", double(mesh.points.size()), rep.predicted.seconds_evaluate);
-  const auto here = [](FittedMapping* m) { return dynamic_cast<LocalMapping*>(m) != nullptr; };
+  const auto here = [](FittedMapping* m) {
+    return dynamic_cast<LocalMapping*>(m) != nullptr || dynamic_cast<TwoLevelMapping*>(m) != nullptr;
+  };
   const auto displacements_of = [&](FittedMapping& m, std::span<const Vec3> in, std::span<Vec3> out) {
     const std::size_t step = here(&m) ? std::max<std::size_t>(std::size_t(1) << 16, in.size() / 50) : in.size();
     for (std::size_t s = 0; s < in.size(); s += step) {

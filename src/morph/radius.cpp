@@ -12,6 +12,7 @@
 #include <limits>
 #include <random>
 #include <sstream>
+#include <unordered_map>
 
 namespace csrbf::morph::detail {
 
@@ -127,6 +128,72 @@ RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> s
     if (lo < by_motion) c.why += "; below the displacement rule, cells near moving walls may shear: check the quality";
   }
   return c;
+}
+
+TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius) {
+  TwoLevelPlan plan;
+  const std::size_t n = sources.size();
+  plan.spacing = kCoarseSpacing * radius;
+  if (n == 0) return plan;
+  // The boundary's spacing: the median distance from a sampled moving control to its nearest other
+  // control, looked for within the coarse spacing (the controls' grid at that size: a few
+  // candidates each, where boundary_spacing's brute force costs N a sample).
+  std::vector<std::size_t> moving;
+  for (std::size_t i = 0; i < n; ++i)
+    if (targets[i] != sources[i]) moving.push_back(i);
+  const NeighborIndex near(sources, plan.spacing);
+  std::vector<double> nearest;
+  for (const std::size_t k : sample(moving.size(), 512)) {
+    const Vec3& p = sources[moving[k]];
+    double best = plan.spacing * plan.spacing;
+    near.for_each_slot_within(p, [&](std::size_t, double d2) {
+      if (d2 > 0 && d2 < best) best = d2;
+    });
+    nearest.push_back(std::sqrt(best));
+  }
+  if (!nearest.empty()) {
+    std::nth_element(nearest.begin(), nearest.begin() + std::ptrdiff_t(nearest.size() / 2), nearest.end());
+    plan.boundary_spacing = nearest[nearest.size() / 2];
+  }
+  plan.fine_radius = std::min(kFineRadius * plan.boundary_spacing, plan.spacing);
+  if (!(plan.fine_radius > 0)) plan.fine_radius = plan.spacing;
+  // The coarse controls: each one farther than the spacing from those taken before it, in order.
+  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells;
+  const double inv = 1.0 / plan.spacing;
+  const auto cell = [&](const Vec3& p, int a) { return std::int64_t(std::floor(p[a] * inv)); };
+  const auto key = [](std::int64_t x, std::int64_t y, std::int64_t z) {
+    return (std::uint64_t(x) * 73856093ull) ^ (std::uint64_t(y) * 19349663ull) ^ (std::uint64_t(z) * 83492791ull);
+  };
+  const double s2 = plan.spacing * plan.spacing;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3& p = sources[i];
+    const std::int64_t cx = cell(p, 0), cy = cell(p, 1), cz = cell(p, 2);
+    bool free = true;
+    for (std::int64_t dz = -1; dz <= 1 && free; ++dz)
+      for (std::int64_t dy = -1; dy <= 1 && free; ++dy)
+        for (std::int64_t dx = -1; dx <= 1 && free; ++dx) {
+          const auto it = cells.find(key(cx + dx, cy + dy, cz + dz));
+          if (it == cells.end()) continue;
+          for (const std::uint32_t j : it->second)
+            if ((sources[j] - p).squaredNorm() < s2) {
+              free = false;
+              break;
+            }
+        }
+    if (!free) continue;
+    cells[key(cx, cy, cz)].push_back(std::uint32_t(i));
+    plan.coarse.push_back(std::uint32_t(i));
+  }
+  std::vector<Vec3> coarse(plan.coarse.size());
+  for (std::size_t k = 0; k < coarse.size(); ++k) coarse[k] = sources[plan.coarse[k]];
+  const double nb_plain = estimate_fit_memory(sources, radius).mean_neighbors;
+  const double nb_coarse = estimate_fit_memory(coarse, radius).mean_neighbors;
+  const double nb_fine = estimate_fit_memory(sources, plan.fine_radius).mean_neighbors;
+  plan.seconds_plain = kSecondsPerEntry * double(n) * (1 + nb_plain);
+  plan.seconds_two = kSecondsPerEntry * (double(coarse.size()) * (1 + nb_coarse) + double(n) * (1 + nb_fine));
+  plan.worth_it = plan.seconds_plain >= kTwoLevelSeconds && plan.seconds_plain >= kTwoLevelGain * plan.seconds_two &&
+                  plan.spacing >= 2 * plan.boundary_spacing;
+  return plan;
 }
 
 MorphPrediction predict(std::span<const Vec3> controls, std::span<const Vec3> points, int flat_axis, double mid,

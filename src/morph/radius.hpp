@@ -49,6 +49,23 @@ inline constexpr double kSecondsPerEntry =
     2.2e-7;  ///< a fit, per non-zero of A (its factorisation or CG, three right-hand sides)
 inline constexpr double kSecondsPerTerm = 5e-10;    ///< an evaluation, per kernel term of a point
 inline constexpr double kSecondsPerPoint = 1.5e-7;  ///< an evaluation, per point (its grid cell, its copy)
+/// The two-level fit (MorphOptions::levels): the coarse level fits the controls no two of which are
+/// closer than kCoarseSpacing x R, at R; the fine level fits what the coarse one leaves at every
+/// control, at kFineRadius x the boundary's spacing (at most the coarse spacing). Levels auto takes
+/// two where the plain fit is predicted to take kTwoLevelSeconds or more and kTwoLevelGain times the
+/// two levels' predicted time, and the coarse spacing is at least twice the boundary's spacing.
+inline constexpr double kCoarseSpacing = 0.25;
+inline constexpr double kFineRadius = 1.75;
+inline constexpr double kTwoLevelSeconds = 1.0;
+inline constexpr double kTwoLevelGain = 4.0;
+struct TwoLevelPlan {
+  std::vector<std::uint32_t> coarse;  ///< the coarse level's controls (indices, ascending)
+  double spacing = 0, fine_radius = 0, boundary_spacing = 0;
+  double seconds_plain = 0, seconds_two = 0;  ///< predicted fits (kSecondsPerEntry)
+  bool worth_it = false;                      ///< what levels auto takes
+};
+/// The plan for controls `sources` (moving: target != source) at radius R.
+TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius);
 /// flat_axis >= 0: a 2-D mesh, whose points are evaluated at `mid` along that axis.
 MorphPrediction predict(std::span<const Vec3> controls, std::span<const Vec3> points, int flat_axis, double mid,
                         double radius, double total_points, MorphBackend& b);

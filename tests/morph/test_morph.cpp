@@ -479,17 +479,22 @@ TEST_F(BoxMorph, InteriorPointsFollowTheDenseInterpolantAndBoundariesLandExactly
     EXPECT_NEAR((half.points[q] - c.mesh.points[q] - 0.5 * (r.points[q] - c.mesh.points[q])).norm(), 0.0, 1e-14);
 }
 
+/// A 12^3 box case of side 1, written into dir and read back.
+static FoamCase box12(const TempDir& dir) {
+  BoxSpec spec;
+  spec.nx = spec.ny = spec.nz = 12;
+  spec.h = 1.0 / 12;
+  csrbf::test::write_box_case(dir.path / "case", spec);
+  return read_openfoam(dir.path / "case");
+}
+
 // Issue 31, point 1: exact locality as a contract. With polynomial none, a point 2R or farther from
 // every moving control keeps its coordinates bit for bit, for every kernel, with or without greedy:
 // staying controls carried coefficients of 1e-16 and moved the whole connected mesh (a flow
 // solver's residuals jumped 63x on such a mesh). Measured on a 12^3 box, zmin moving, R = 0.3.
 TEST(ExactLocality, PointsTwoRadiiFromEveryMovingOneKeepTheirBits) {
   TempDir dir;
-  BoxSpec spec;
-  spec.nx = spec.ny = spec.nz = 12;
-  spec.h = 1.0 / 12;
-  csrbf::test::write_box_case(dir.path / "case", spec);
-  const FoamCase c = read_openfoam(dir.path / "case");
+  const FoamCase c = box12(dir);
   const Motion m =
       motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 4, "origin": [0.5, 0.5, 0]}},
                              "zmax": "fixed", "xmin": "fixed", "xmax": "fixed", "ymin": "fixed", "ymax": "fixed"}})");
@@ -499,13 +504,18 @@ TEST(ExactLocality, PointsTwoRadiiFromEveryMovingOneKeepTheirBits) {
     if (p.displacements[i] != Vec3::Zero()) moving.push_back(c.mesh.points[p.points[i]]);
   const double radius = 0.3;
   for (const auto kernel : {csrbf::Kernel::C0, csrbf::Kernel::C2, csrbf::Kernel::C4, csrbf::Kernel::C6})
-    for (const double greedy : {0.0, 1e-3}) {
-      SCOPED_TRACE(std::string(csrbf::kernel_name(kernel)) + (greedy > 0 ? " greedy" : ""));
+    for (const int variant : {0, 1, 2}) {  // plain, greedy, two levels
+      const double greedy = variant == 1 ? 1e-3 : 0.0;
+      SCOPED_TRACE(std::string(csrbf::kernel_name(kernel)) + (variant == 1   ? " greedy"
+                                                              : variant == 2 ? " two levels"
+                                                                             : ""));
       MorphOptions o;
       o.fit.radius = radius;
       o.fit.kernel = kernel;
       o.greedy = greedy;
+      o.levels = variant == 2 ? 2 : 1;
       const MorphResult r = morph(c.mesh, m, o);
+      EXPECT_EQ(r.report.levels, o.levels);
       EXPECT_EQ(r.report.reach, 2 * radius);
       std::size_t far = 0, near_moved = 0;
       for (std::size_t q = 0; q < c.mesh.points.size(); ++q) {
@@ -526,6 +536,103 @@ TEST(ExactLocality, PointsTwoRadiiFromEveryMovingOneKeepTheirBits) {
   linear.fit.radius = radius;
   linear.fit.polynomial = csrbf::Polynomial::Linear;
   EXPECT_TRUE(std::isinf(morph(c.mesh, m, linear).report.reach));
+}
+
+// Two levels (MorphOptions::levels): a coarse fit at R of the controls no two of which are closer
+// than R / 4 (taken in the controls' order), then a fit at the fine radius of what it leaves at
+// every control. Checked against the two dense solves, done here by brute force, on a 12^3 box.
+TEST(TwoLevels, AreTheSumOfTwoDenseSolvesAndExactAtTheControls) {
+  TempDir dir;
+  const FoamCase c = box12(dir);
+  const Motion m =
+      motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 4, "origin": [0.5, 0.5, 0]}},
+                             "zmax": "fixed", "xmin": "fixed", "xmax": "free", "ymin": "free", "ymax": "free"}})");
+  const double R = 0.6;
+  MorphOptions o;
+  o.fit.radius = R;
+  o.levels = 2;
+  const MorphResult r = morph(c.mesh, m, o);
+  const Prescribed p = prescribe(c.mesh, m);
+  // The controls: moving, and staying within R of a moving one, in the prescribed points' order.
+  std::vector<Vec3> x, d;
+  for (std::size_t i = 0; i < p.points.size(); ++i) {
+    bool keep = p.displacements[i] != Vec3::Zero();
+    for (std::size_t j = 0; j < p.points.size() && !keep; ++j)
+      keep = p.displacements[j] != Vec3::Zero() && (c.mesh.points[p.points[i]] - c.mesh.points[p.points[j]]).norm() < R;
+    if (!keep) continue;
+    x.push_back(c.mesh.points[p.points[i]]);
+    d.push_back(p.displacements[i]);
+  }
+  // The coarse controls, first come first taken, by brute force.
+  EXPECT_DOUBLE_EQ(r.report.coarse_spacing, R / 4);
+  std::vector<std::size_t> coarse;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    bool free = true;
+    for (const std::size_t j : coarse) free = free && (x[i] - x[j]).norm() >= R / 4;
+    if (free) coarse.push_back(i);
+  }
+  EXPECT_EQ(r.report.levels, 2);
+  EXPECT_EQ(r.report.coarse_controls, coarse.size());
+  EXPECT_GT(coarse.size(), 20u);
+  EXPECT_LT(coarse.size(), x.size() / 3);  // 70 of 261
+  // The fine radius: 1.75 x the boundary's spacing, here the grid's 1/12.
+  const double Rf = r.report.fine_radius;
+  EXPECT_NEAR(Rf, 1.75 / 12, 1e-12);
+  EXPECT_EQ(r.report.reach, 2 * R);
+  const auto dense = [](const std::vector<Vec3>& at, const Eigen::MatrixXd& rhs, double radius) {
+    const auto n = Eigen::Index(at.size());
+    Eigen::MatrixXd A(n, n);
+    for (Eigen::Index i = 0; i < n; ++i)
+      for (Eigen::Index j = 0; j < n; ++j)
+        A(i, j) = csrbf::wendland(csrbf::Kernel::C2, (at[std::size_t(i)] - at[std::size_t(j)]).norm() / radius);
+    return Eigen::MatrixXd(A.llt().solve(rhs));
+  };
+  const auto sum = [](const std::vector<Vec3>& at, const Eigen::MatrixXd& alpha, double radius, const Vec3& q) {
+    Vec3 v = Vec3::Zero();
+    for (std::size_t j = 0; j < at.size(); ++j)
+      v += alpha.row(Eigen::Index(j)).transpose() * csrbf::wendland(csrbf::Kernel::C2, (q - at[j]).norm() / radius);
+    return v;
+  };
+  std::vector<Vec3> xc;
+  Eigen::MatrixXd dc(Eigen::Index(coarse.size()), 3);
+  for (std::size_t k = 0; k < coarse.size(); ++k) {
+    xc.push_back(x[coarse[k]]);
+    dc.row(Eigen::Index(k)) = d[coarse[k]].transpose();
+  }
+  const Eigen::MatrixXd ac = dense(xc, dc, R);
+  Eigen::MatrixXd left(Eigen::Index(x.size()), 3);
+  for (std::size_t i = 0; i < x.size(); ++i) left.row(Eigen::Index(i)) = (d[i] - sum(xc, ac, R, x[i])).transpose();
+  EXPECT_GT(left.cwiseAbs().maxCoeff(), 1e-4);  // the coarse level alone misses the controls
+  const Eigen::MatrixXd af = dense(x, left, Rf);
+  std::vector<char> prescribed(c.mesh.points.size(), 0);
+  for (const auto q : p.points) prescribed[q] = 1;
+  const double scale = r.report.max_displacement;
+  std::size_t compared = 0;
+  for (std::size_t q = 0; q < c.mesh.points.size(); ++q) {
+    if (prescribed[q]) continue;
+    const Vec3 want = c.mesh.points[q] + sum(xc, ac, R, c.mesh.points[q]) + sum(x, af, Rf, c.mesh.points[q]);
+    EXPECT_NEAR((r.points[q] - want).norm(), 0.0, 1e-10 * scale) << q;
+    ++compared;
+  }
+  EXPECT_GT(compared, 1000u);
+  // Exact at the controls before their exact placement, as one level is.
+  EXPECT_LT(r.report.max_boundary_error, 1e-12 * scale);
+  EXPECT_EQ(r.report.controls, x.size());
+  // Auto: this fit is far below a second, one level.
+  o.levels = 0;
+  const MorphResult a = morph(c.mesh, m, o);
+  EXPECT_EQ(a.report.levels, 1);
+  EXPECT_GT(a.report.seconds_plain_predicted, 0.0);
+  EXPECT_LT(a.report.seconds_plain_predicted, 1.0);
+  // Two levels and what excludes them.
+  o.levels = 3;
+  EXPECT_THROW(morph(c.mesh, m, o), csrbf::InvalidInput);
+  o.levels = 2;
+  o.greedy = 1e-3;
+  EXPECT_THROW(morph(c.mesh, m, o), csrbf::InvalidInput);
+  o.greedy = 0;
+  o.fit.polynomial = csrbf::Polynomial::Linear;
+  EXPECT_THROW(morph(c.mesh, m, o), csrbf::InvalidInput);
 }
 
 TEST_F(BoxMorph, GreedyUsesFewerControlsWithinItsTolerance) {

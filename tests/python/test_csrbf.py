@@ -541,6 +541,18 @@ class Morph(unittest.TestCase):
         self.assertLessEqual(report["max_boundary_error"], 1e-4 * report["max_displacement"])
         with self.assertRaisesRegex(ValueError, "give greedy= too"):
             csrbf.morph(case, motion, greedy_budget=0.5)
+        # levels: two, exact at the boundary as one is, and the report says how they were made.
+        moved, two = csrbf.morph(case, motion, levels=2)
+        self.assertEqual(two["levels"], 2)
+        self.assertEqual(plain["levels"], 1)
+        self.assertLess(two["two_levels"]["coarse_controls"], two["controls"])
+        self.assertEqual(two["two_levels"]["coarse_spacing"], two["radius"] / 4)
+        self.assertLessEqual(two["max_boundary_error"], 1e-12 * two["max_displacement"])
+        self.assertEqual(two["quality"]["after"]["inverted_cells"], 0)
+        with self.assertRaisesRegex(ValueError, 'levels must be "auto", 1 or 2, got 3'):
+            csrbf.morph(case, motion, levels=3)
+        with self.assertRaisesRegex(ValueError, "two levels and greedy exclude each other"):
+            csrbf.morph(case, motion, levels=2, greedy=1e-3)
         with self.assertRaisesRegex(ValueError, r"the greedy budget must be in \[0, 1e6\], got -1"):
             csrbf.morph(case, motion, greedy=1e-3, greedy_budget=-1)
 

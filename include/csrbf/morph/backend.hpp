@@ -43,6 +43,9 @@ class MorphBackend {
   /// True where this process holds a part of the mesh and other processes the rest: a patch may be
   /// empty here, and a displacements file name points of other parts.
   virtual bool part() const { return false; }
+  /// True where the mappings of several fits stay usable together (a two-level fit sums two); a
+  /// backend whose later fit replaces its earlier mapping says false.
+  virtual bool keeps_mappings() const { return true; }
   /// The largest and the sum of a value over the processes that morph the mesh (the value itself
   /// where alone).
   virtual double max(double local) { return local; }

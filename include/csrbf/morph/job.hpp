@@ -37,6 +37,7 @@ struct MorphJob {
   std::optional<Polynomial> polynomial;
   std::optional<double> greedy;
   double greedy_budget = 0.2;  ///< MorphOptions::greedy_budget
+  int levels = 0;              ///< MorphOptions::levels: 0 auto, 1 or 2
   Solver solver = Solver::Auto;
   double phase = 1.0;
   double memory_limit_bytes = 4.0 * (1ull << 30);

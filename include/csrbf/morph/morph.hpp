@@ -56,6 +56,15 @@ struct MorphOptions {
   double greedy_budget = 0.2;
   /// ... and at least this many seconds (a morph of a few milliseconds is not worth stopping).
   double greedy_budget_floor = 0.1;
+  /// The fit's levels: 1, the plain fit of every control at R; 2, two levels (multilevel
+  /// interpolation after Floater & Iske 1996): a coarse fit at R of the controls no two of which are
+  /// closer than R / 4, then a fine fit at about 1.75 x the boundary's spacing of what the coarse one
+  /// leaves at every control. Both are exact at the controls and sum no term farther than R from a
+  /// control (the reach stays 2R); two levels cost a fraction of a plain fit at a large R, and the
+  /// cells beside the boundary take the fine level's shorter wavelength. 0 (auto): two levels where
+  /// the plain fit is predicted to take 1 s or more and 4 times the two levels' time. Two levels
+  /// need polynomial none, no greedy, and a backend that keeps two mappings (one process).
+  int levels = 0;
   /// `--radius auto`: fit.radius is ignored, and R is chosen from the motion's largest displacement
   /// (as applied), the boundary's spacing and fit.memory_limit_bytes (MorphReport::radius_why).
   bool radius_auto = false;
@@ -104,7 +113,12 @@ struct MorphReport {
   std::size_t far_fixed = 0;
   FitStats fit;
   double seconds_fit = 0, seconds_evaluate = 0;
-  double radius = 0;       ///< the R fitted (chosen, with radius_auto)
+  double radius = 0;  ///< the R fitted (chosen, with radius_auto)
+  /// The motion's fit: 1 level, or 2 (MorphOptions::levels) with its coarse controls, their spacing
+  /// and the fine level's radius; and the two predictions that auto weighed (0 where none was made).
+  int levels = 1;
+  std::size_t coarse_controls = 0;
+  double coarse_spacing = 0, fine_radius = 0, seconds_plain_predicted = 0, seconds_two_levels_predicted = 0;
   std::string radius_why;  ///< radius_auto: how R was chosen; else "given"
   MorphPrediction predicted;
 };
@@ -125,9 +139,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion, const MorphOptio
 double largest_displacement(const VolumeMesh& mesh, const Motion& motion);
 
 /// A backend for a series of morphs of one mesh in this process (a motion a time step): a fit
-/// whose sources, radius, kernel, polynomial and solver equal one of the last two fits' (a morph
-/// with slip fits twice) takes that fit's matrix and factorisation and solves for the new
-/// displacements alone (SpaceMap::with_destinations): one factorisation, many right-hand sides.
+/// whose sources, radius, kernel, polynomial and solver equal one of the last four fits' (a morph
+/// with slip fits twice, and each fit may have two levels) takes that fit's matrix and factorisation and solves for the
+/// new displacements alone (SpaceMap::with_destinations): one factorisation, many right-hand sides.
 class SeriesBackend final : public MorphBackend {
  public:
   std::unique_ptr<FittedMapping> fit(std::span<const Vec3> sources, std::span<const Vec3> targets,
@@ -137,7 +151,7 @@ class SeriesBackend final : public MorphBackend {
 
  private:
   struct Entry;
-  std::vector<std::shared_ptr<Entry>> last_;  // the last two, newest first
+  std::vector<std::shared_ptr<Entry>> last_;  // the last four, newest first
   std::size_t factorisations_ = 0, reused_ = 0;
 };
 

@@ -30,6 +30,7 @@ class ScatterBackend final : public morph::MorphBackend {
   ScatterBackend(MPI_Comm comm, DistributedSolver solver, std::span<const Vec3> balance = {});
   /// Ends the workers' service (finish(1) if not finished).
   ~ScatterBackend() override;
+  bool keeps_mappings() const override { return false; }  // a later fit replaces the ranks' mapping
   ScatterBackend(const ScatterBackend&) = delete;
   ScatterBackend& operator=(const ScatterBackend&) = delete;
 
@@ -76,6 +77,7 @@ class DecomposedBackend final : public morph::MorphBackend {
   std::unique_ptr<morph::FittedMapping> fit(std::span<const Vec3> sources, std::span<const Vec3> targets,
                                             const FitOptions& options, std::span<const std::uint64_t> ids) override;
   bool part() const override { return true; }
+  bool keeps_mappings() const override { return false; }  // a later fit replaces the ranks' mapping
   double max(double local) override;
   double sum(double local) override;
   std::vector<Vec3> gather(std::span<const Vec3> local) override;
