@@ -635,7 +635,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       std::optional<detail::TwoLevelPlan> plan;
       if (options.levels != 1 && fit.polynomial == Polynomial::None && options.greedy == 0 && b.keeps_mappings() &&
           nc > 0) {
-        plan = detail::plan_two_levels(sources, targets, fit.radius);
+        // The motion's fit was predicted for these very controls; a correction's are others.
+        plan = detail::plan_two_levels(sources, targets, fit.radius,
+                                       correcting ? -1.0 : rep.predicted.neighbours_per_control);
         if (!correcting) {
           rep.seconds_plain_predicted = plan->seconds_plain;
           rep.seconds_two_levels_predicted = plan->seconds_two;

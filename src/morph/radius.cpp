@@ -130,7 +130,8 @@ RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> s
   return c;
 }
 
-TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius) {
+TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius,
+                             double neighbours) {
   TwoLevelPlan plan;
   const std::size_t n = sources.size();
   plan.spacing = kCoarseSpacing * radius;
@@ -157,6 +158,13 @@ TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3
   }
   plan.fine_radius = std::min(kFineRadius * plan.boundary_spacing, plan.spacing);
   if (!(plan.fine_radius > 0)) plan.fine_radius = plan.spacing;
+  // The fine level's neighbours per control, from the same sample and index (R_f <= the spacing).
+  double fine_neighbours = 0;
+  for (const std::size_t k : sample(moving.size(), 512))
+    near.for_each_slot_within(sources[moving[k]], [&](std::size_t, double d2) {
+      fine_neighbours += d2 > 0 && d2 < plan.fine_radius * plan.fine_radius;
+    });
+  if (!moving.empty()) fine_neighbours /= double(std::min<std::size_t>(moving.size(), 512));
   // The coarse controls: each one farther than the spacing from those taken before it, in order.
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells;
   const double inv = 1.0 / plan.spacing;
@@ -186,11 +194,10 @@ TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3
   }
   std::vector<Vec3> coarse(plan.coarse.size());
   for (std::size_t k = 0; k < coarse.size(); ++k) coarse[k] = sources[plan.coarse[k]];
-  const double nb_plain = estimate_fit_memory(sources, radius).mean_neighbors;
+  const double nb_plain = neighbours >= 0 ? neighbours : estimate_fit_memory(sources, radius).mean_neighbors;
   const double nb_coarse = estimate_fit_memory(coarse, radius).mean_neighbors;
-  const double nb_fine = estimate_fit_memory(sources, plan.fine_radius).mean_neighbors;
   plan.seconds_plain = kSecondsPerEntry * double(n) * (1 + nb_plain);
-  plan.seconds_two = kSecondsPerEntry * (double(coarse.size()) * (1 + nb_coarse) + double(n) * (1 + nb_fine));
+  plan.seconds_two = kSecondsPerEntry * (double(coarse.size()) * (1 + nb_coarse) + double(n) * (1 + fine_neighbours));
   plan.worth_it = plan.seconds_plain >= kTwoLevelSeconds && plan.seconds_plain >= kTwoLevelGain * plan.seconds_two &&
                   plan.spacing >= 2 * plan.boundary_spacing;
   return plan;

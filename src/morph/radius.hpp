@@ -64,8 +64,11 @@ struct TwoLevelPlan {
   double seconds_plain = 0, seconds_two = 0;  ///< predicted fits (kSecondsPerEntry)
   bool worth_it = false;                      ///< what levels auto takes
 };
-/// The plan for controls `sources` (moving: target != source) at radius R.
-TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius);
+/// The plan for controls `sources` (moving: target != source) at radius R; neighbours: the plain
+/// fit's mean neighbours per control where already predicted (< 0: estimated here). The fine
+/// level's are counted around the moving controls of the boundary's spacing's sample.
+TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius,
+                             double neighbours = -1);
 /// flat_axis >= 0: a 2-D mesh, whose points are evaluated at `mid` along that axis.
 MorphPrediction predict(std::span<const Vec3> controls, std::span<const Vec3> points, int flat_axis, double mid,
                         double radius, double total_points, MorphBackend& b);
