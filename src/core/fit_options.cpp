@@ -13,6 +13,10 @@
 #include <random>
 #include <sstream>
 
+#ifdef CSRBF_HAVE_CHOLMOD
+#include "cholmod_loader.hpp"
+#endif
+
 namespace csrbf {
 
 std::string_view polynomial_name(Polynomial p) noexcept { return name_of(p); }
@@ -22,7 +26,7 @@ std::optional<Solver> parse_solver(std::string_view name) noexcept { return pars
 
 bool cholmod_available() noexcept {
 #ifdef CSRBF_HAVE_CHOLMOD
-  return true;
+  return detail::cholmod_loaded();  // opened on this first question (cholmod_loader.cpp)
 #else
   return false;
 #endif

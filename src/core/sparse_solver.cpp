@@ -677,6 +677,9 @@ std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<
         lower_matrix(a), "Eigen SimplicialLLT", memory_limit_bytes, std::vector<std::uint32_t>{}, held));
 #ifdef CSRBF_HAVE_CHOLMOD
   if (which == Solver::Cholmod) {
+    if (!cholmod_available())
+      throw InvalidInput(std::string("solver 'cholmod': CHOLMOD (") + CSRBF_CHOLMOD_SONAME +
+                         ") could not be loaded; use 'envelope' or 'eigen'");
     std::vector<std::uint32_t> order = nested_dissection_order(a.pattern(), sources, a.radius());
     Sparse lower = lower_matrix(a, order);
     return std::make_unique<EigenAnalysis<Supernodal>>(std::make_unique<EigenFactor<Supernodal>>(

@@ -3,7 +3,8 @@
 # serial program csrbf-cli no MPI, PETSc, HYPRE, Trilinos or MUMPS; and --version answered by the
 # launcher alone, as the serial program would answer it; `csrbf morph` of an OpenFOAM case runs
 # csrbf-morph, which loads none of VTK, CGNS, HDF5, Gmsh, assimp or the renderer's libraries, and a
-# morph of any other format is handed to csrbf-cli with the same arguments.
+# morph of any other format is handed to csrbf-cli with the same arguments. Neither loads CHOLMOD
+# or its BLAS before a fit asks for them.
 #   test_startup_libraries.sh LAUNCHER SERIAL_PROGRAM MORPH_PROGRAM SOURCE_DIR
 set -euo pipefail
 launcher=$1 serial=$2 morph=$3 source=$4
@@ -24,6 +25,12 @@ grep -q "csrbf" <<< "$out" || { echo "$out"; exit 1; }
 if ldd "$morph" | grep -E 'libmpi|libpetsc|libvtk|libcgns|libhdf5|libgmsh|libassimp|libGL|libX11|libQt'; then
   echo "the morph program loads the libraries above"; exit 1
 fi
+# CHOLMOD and its BLAS are opened by the first fit that uses them (cholmod_loader.cpp), not at start.
+for p in "$serial" "$morph"; do
+  if ldd "$p" | grep -E 'libcholmod|libopenblas|libblas|liblapack|libgfortran|libmetis'; then
+    echo "$p loads CHOLMOD or its BLAS at start"; exit 1
+  fi
+done
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 # An OpenFOAM case: the morph program's work (its ldd above); a .vtu: csrbf-cli's, the same report.
@@ -34,6 +41,9 @@ grep -q '"format": "openfoam"' "$tmp/foam.json" || { cat "$tmp/foam.json"; exit 
 msh="$source/examples/airfoil/airfoil.msh"
 "$launcher" morph "$msh" --motion "$source/examples/airfoil/motion.json" -o "$tmp/out.msh" --json --quiet > "$tmp/msh.json"
 grep -q '"format": "msh"' "$tmp/msh.json" || { cat "$tmp/msh.json"; exit 1; }
+# ... and a fit that asks for CHOLMOD gets it.
+"$launcher" info --controls "$source/examples/fish.controls" --radius 0.3 --solver cholmod --json > "$tmp/info.json"
+grep -q '"solver": "cholmod"' "$tmp/info.json" || { cat "$tmp/info.json"; exit 1; }
 # Usage errors read the same from either program.
 a=$("$launcher" morph "$msh" --radius -1 2>&1 || true)
 b=$("$launcher" morph "$source/examples/airfoil/case" --radius -1 2>&1 || true)
