@@ -746,8 +746,8 @@ greedy_budget : float, optional
 levels : "auto" or int
     The fit's levels, as ``--levels``: 1, every control at R; 2, a coarse fit at R of controls R/4
     apart, then what it leaves at every control at about 1.75 x the boundary's spacing
-    (``report["two_levels"]``); "auto", two where the one-level fit is predicted to take 1 s or
-    more and 4 times as long.
+    (``report["two_levels"]``); "auto", two where one level would pass its memory budget, or is
+    predicted to take 10 s or more and 4 times as long (``report["levels_why"]``).
 time : str or float, optional
     OpenFOAM: the time whose mesh is morphed, ``"latest"`` or a time such as ``0.5``, as
     ``-time``; the moved points are written into that time's folder.

@@ -68,8 +68,8 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
   cmd->add_option("--levels", a.levels,
                   "The fit's levels: 1, every control at R; 2, a coarse fit at R of controls R/4 apart, then every "
                   "control's remainder at about 1.75 x the boundary's spacing (a fraction of the time at a large R; "
-                  "polynomial none, one process); auto, two where the one-level fit is predicted to take 1 s or "
-                  "more and 4 x the two levels' time")
+                  "polynomial none, one process); auto, two where one level would pass its memory budget, or is "
+                  "predicted to take 10 s or more and 4 x the two levels' time (the report says why)")
       ->check(CLI::IsMember({"auto", "1", "2"}))
       ->capture_default_str();
   cmd->add_option("--phase,-t", a.phase, "Fraction of the motion applied, in [0, 1]")
@@ -86,7 +86,8 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
       ->capture_default_str();
   cmd->add_option("--time", a.time,
                   "OpenFOAM: morph the mesh of this time folder, latest or a time (0.5), and write the moved "
-                  "points there; a time without its own polyMesh is constant's, as OpenFOAM reads it. Also "
+                  "points there; a time without its own polyMesh has the latest earlier time's, else constant's, as "
+                  "OpenFOAM reads it. Also "
                   "spelled -time T and -latestTime, as OpenFOAM's utilities take them")
       ->check(CLI::Validator(
           [](std::string& v) {

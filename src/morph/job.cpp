@@ -421,6 +421,7 @@ std::string outcome_json(const MorphOutcome& o) {
       {"radius", rep.radius},
       {"radius_why", rep.radius_why},
       {"levels", rep.levels},
+      {"levels_why", rep.levels_why},
       {"predicted",
        {{"neighbours_per_control", rep.predicted.neighbours_per_control},
         {"neighbours_per_point", rep.predicted.neighbours_per_point},
@@ -450,10 +451,13 @@ std::string outcome_json(const MorphOutcome& o) {
     j["two_levels"] = {{"coarse_controls", rep.coarse_controls},
                        {"coarse_spacing", rep.coarse_spacing},
                        {"fine_radius", rep.fine_radius}};
-  if (rep.seconds_plain_predicted > 0) {
-    j["predicted"]["seconds_fit_one_level"] = rep.seconds_plain_predicted;
-    j["predicted"]["seconds_fit_two_levels"] = rep.seconds_two_levels_predicted;
-  }
+  // The two fits levels auto weighed (null where no two-level plan was made: one level asked for,
+  // a polynomial, greedy, mpirun). With two levels, "predicted"'s other figures are one level's.
+  const bool weighed = rep.seconds_plain_predicted > 0;
+  j["predicted"]["seconds_fit_one_level"] =
+      weighed ? nlohmann::json(rep.seconds_plain_predicted) : nlohmann::json(nullptr);
+  j["predicted"]["seconds_fit_two_levels"] =
+      weighed ? nlohmann::json(rep.seconds_two_levels_predicted) : nlohmann::json(nullptr);
   j["time"] = o.time.empty() ? nlohmann::json("constant") : nlohmann::json(o.time);
   // Every patch: what it did (moving, fixed, slip or free) and why (listed, group, type, planar...).
   j["patches"] = nlohmann::json::array();
@@ -477,8 +481,9 @@ std::string outcome_text(const MorphOutcome& o) {
     << ", kernel " << kernel_name(o.options.fit.kernel) << ", polynomial " << polynomial_name(o.options.fit.polynomial)
     << ", phase " << o.options.phase << "\n";
   if (rep.levels == 2)
-    s << "  two levels: " << rep.coarse_controls << " coarse controls spaced " << rep.coarse_spacing
-      << " at R = " << rep.radius << ", then every control at R = " << rep.fine_radius << "\n";
+    s << "  two levels: " << rep.coarse_controls << (rep.coarse_controls == 1 ? " coarse control" : " coarse controls")
+      << " spaced " << rep.coarse_spacing << " at R = " << rep.radius
+      << ", then every control at R = " << rep.fine_radius << " (" << rep.levels_why << ")\n";
   // The patches the motion left unlisted, and what each did (the listed ones are in the motion line).
   std::string unlisted;
   for (const auto& p : rep.patches)

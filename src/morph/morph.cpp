@@ -380,6 +380,10 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   rep.slip = std::size_t(std::count_if(pres.slip.begin(), pres.slip.end(), [](std::int32_t s) { return s >= 0; }));
   r.points = mesh.points;
   FitOptions fit = options.fit;  // its radius chosen here with radius_auto
+  // Two levels may be taken (MorphOptions::levels): not with a polynomial (it moves the whole space),
+  // greedy (it chooses its own controls), or a backend that holds one mapping (mpirun).
+  const bool two_levels_possible =
+      options.levels != 1 && fit.polynomial == Polynomial::None && options.greedy == 0 && b.keeps_mappings();
   rep.radius = options.radius_auto ? 0.0 : fit.radius;
   rep.radius_why = options.radius_auto ? "nothing moves" : "given";
   const auto note = [&](const std::string& line) {
@@ -470,7 +474,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       const detail::RadiusChoice c = detail::choose_radius(
           moving_c, staying_c,
           std::abs(options.phase) * (options.auto_displacement > 0 ? options.auto_displacement : largest), size,
-          detail::kAutoMemoryShare * fit.memory_limit_bytes, fit.polynomial == Polynomial::None);
+          detail::kAutoMemoryShare * fit.memory_limit_bytes, fit.polynomial == Polynomial::None, two_levels_possible);
       fit.radius = rep.radius = c.radius;
       rep.radius_why = c.why;
       std::ostringstream os;
@@ -633,17 +637,47 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       // Two levels: asked for, or where auto finds them worth it (radius.hpp). Greedy chose its own
       // controls, and a polynomial moves the whole space: one level for those.
       std::optional<detail::TwoLevelPlan> plan;
-      if (options.levels != 1 && fit.polynomial == Polynomial::None && options.greedy == 0 && b.keeps_mappings() &&
-          nc > 0) {
+      std::string why;
+      if (two_levels_possible && nc > 0) {
         // The motion's fit was predicted for these very controls; a correction's are others.
-        plan = detail::plan_two_levels(sources, targets, fit.radius,
-                                       correcting ? -1.0 : rep.predicted.neighbours_per_control);
+        plan = detail::plan_two_levels(sources, targets, fit.radius, detail::kAutoMemoryShare * fit.memory_limit_bytes,
+                                       correcting ? -1.0 : rep.predicted.neighbours_per_control,
+                                       correcting ? 0.0 : rep.predicted.bytes);
         if (!correcting) {
           rep.seconds_plain_predicted = plan->seconds_plain;
           rep.seconds_two_levels_predicted = plan->seconds_two;
         }
-        if (options.levels == 0 && !plan->worth_it) plan.reset();
+        std::ostringstream os;
+        os.precision(3);
+        if (options.levels == 2) {
+          os << "asked for";
+          if (plan->coarse.size() < 2 || plan->coarse.size() == nc)
+            os << "; its coarse level has " << plan->coarse.size() << " of the " << nc
+               << " controls, so one level would do as well (R / 4 = " << plan->spacing
+               << " against the boundary's spacing " << plan->boundary_spacing << ")";
+        } else if (plan->worth_it && plan->plain_too_large) {
+          os << "auto: one level would pass its memory budget (half of what --memory-limit leaves the fit)";
+        } else if (plan->worth_it) {
+          os << "auto: predicted " << plan->seconds_two << " s against " << plan->seconds_plain << " s in one level";
+        } else {
+          os << "auto: one level, predicted " << plan->seconds_plain
+             << " s (two where one would pass its memory budget, or take " << detail::kTwoLevelSeconds
+             << " s or more and " << detail::kTwoLevelGain << " x as long as two";
+          if (plan->spacing < 2 * plan->boundary_spacing)
+            os << "; and R / 4 = " << plan->spacing << " is under twice the boundary's spacing "
+               << plan->boundary_spacing;
+          os << ")";
+          plan.reset();
+        }
+        why = os.str();
+      } else {
+        why = options.levels == 1                  ? "asked for"
+              : fit.polynomial != Polynomial::None ? "one level: a polynomial moves the whole space"
+              : options.greedy > 0                 ? "one level: greedy chooses its own controls"
+              : !b.keeps_mappings()                ? "one level: under mpirun"
+                                                   : "one level";
       }
+      if (!correcting) rep.levels_why = why;
       ProgressPhase fitting(options.progress, "fit", 0, plan ? plan->seconds_two : rep.predicted.seconds_fit);
       if (plan) {
         std::vector<Vec3> cs(plan->coarse.size()), ct(cs.size());
@@ -671,11 +705,10 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
         std::ostringstream os;
         os.precision(3);
         os << (correcting ? "the slip correction's fit" : "the fit") << " in two levels: " << cs.size() << " of " << nc
-           << " controls, no two closer than " << plan->spacing << ", at R = " << fit.radius
-           << ", then what they leave at every control at R = " << plan->fine_radius
+           << (nc == 1 ? " control" : " controls") << ", no two closer than " << plan->spacing
+           << ", at R = " << fit.radius << ", then what they leave at every control at R = " << plan->fine_radius
            << " (1.75 x the boundary's spacing " << plan->boundary_spacing << ")";
-        if (options.levels == 0)
-          os << ": predicted " << plan->seconds_two << " s against " << plan->seconds_plain << " s in one level";
+        os << " (" << why << ")";
         note(os.str());
       } else {
         map = b.fit(sources, targets, fit, ids);

@@ -640,8 +640,17 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::s
                       "not a polyMesh folder");
     c.time = find_time(path, time);
     target_dir = path / c.time / "polyMesh";
-    if (has_file(target_dir, "points")) points_dir = target_dir;
-    if (has_file(target_dir, "faces")) c.poly_mesh = target_dir;  // the topology changed at that time
+    // As OpenFOAM's findInstance: the points of the latest time up to this one whose polyMesh holds
+    // them (a solver writes times without a mesh after a morph wrote one), else constant's; the
+    // faces (and their owner, neighbour and boundary) likewise, where the topology changed.
+    const std::vector<std::string> times = foam_times(path);
+    bool points_found = false, faces_found = false;
+    for (auto it = std::find(times.rbegin(), times.rend(), c.time); it != times.rend(); ++it) {
+      const fs::path dir = path / *it / "polyMesh";
+      if (!points_found && has_file(dir, "points")) points_dir = dir, points_found = true;
+      if (!faces_found && has_file(dir, "faces")) c.poly_mesh = dir, faces_found = true;
+      if (points_found && faces_found) break;
+    }
   }
 
   // The four files are read and parsed at once (a task each; the faces, the largest, first). Each

@@ -87,8 +87,40 @@ std::vector<Vec3> fitted_controls(std::span<const Vec3> moving, std::span<const 
   return out;
 }
 
+/// The controls no two of which are closer than `spacing`, each taken where it is farther than that
+/// from those taken before it, in order: indices, ascending.
+std::vector<std::uint32_t> spaced_subset(std::span<const Vec3> sources, double spacing) {
+  std::vector<std::uint32_t> out;
+  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells;
+  const double inv = 1.0 / spacing, s2 = spacing * spacing;
+  const auto cell = [&](const Vec3& p, int a) { return std::int64_t(std::floor(p[a] * inv)); };
+  const auto key = [](std::int64_t x, std::int64_t y, std::int64_t z) {
+    return (std::uint64_t(x) * 73856093ull) ^ (std::uint64_t(y) * 19349663ull) ^ (std::uint64_t(z) * 83492791ull);
+  };
+  for (std::size_t i = 0; i < sources.size(); ++i) {
+    const Vec3& p = sources[i];
+    const std::int64_t cx = cell(p, 0), cy = cell(p, 1), cz = cell(p, 2);
+    bool free = true;
+    for (std::int64_t dz = -1; dz <= 1 && free; ++dz)
+      for (std::int64_t dy = -1; dy <= 1 && free; ++dy)
+        for (std::int64_t dx = -1; dx <= 1 && free; ++dx) {
+          const auto it = cells.find(key(cx + dx, cy + dy, cz + dz));
+          if (it == cells.end()) continue;
+          for (const std::uint32_t j : it->second)
+            if ((sources[j] - p).squaredNorm() < s2) {
+              free = false;
+              break;
+            }
+        }
+    if (!free) continue;
+    cells[key(cx, cy, cz)].push_back(std::uint32_t(i));
+    out.push_back(std::uint32_t(i));
+  }
+  return out;
+}
+
 RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> staying, double displacement,
-                           double size, double budget, bool local) {
+                           double size, double budget, bool local, bool two_levels) {
   std::vector<Vec3> all(moving.begin(), moving.end());
   all.insert(all.end(), staying.begin(), staying.end());
   const double h = boundary_spacing(all, moving);
@@ -104,15 +136,28 @@ RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> s
     c.radius = size;
     c.why += ", capped at the mesh's size";
   }
-  // The largest R within the budget: memory, and neighbours per control (the time of the fit).
+  // The largest R within the budget: memory, and neighbours per control (the time of the fit), of
+  // one level, or where two levels may be taken (MorphOptions::levels) of theirs: a coarse level at
+  // R of the controls R/4 apart and a fine one at kFineRadius x the boundary's spacing.
   const auto fits = [&](double r, FitMemoryEstimate* out = nullptr) {
     const std::vector<Vec3> s = fitted_controls(moving, staying, r, local);
     const FitMemoryEstimate e = estimate_fit_memory(s, r);
     if (out) *out = e;
-    return e.bytes <= budget && e.mean_neighbors <= kMostNeighbours;
+    if (e.bytes <= budget && e.mean_neighbors <= kMostNeighbours) return true;
+    if (!two_levels || kCoarseSpacing * r < 2 * h) return false;
+    std::vector<Vec3> coarse;
+    for (const std::uint32_t i : spaced_subset(s, kCoarseSpacing * r)) coarse.push_back(s[i]);
+    const FitMemoryEstimate ec = estimate_fit_memory(coarse, r);
+    const FitMemoryEstimate ef = estimate_fit_memory(s, std::min(kFineRadius * h, kCoarseSpacing * r));
+    return ec.bytes + ef.bytes <= budget && ec.mean_neighbors <= kMostNeighbours &&
+           ef.mean_neighbors <= kMostNeighbours;
   };
   FitMemoryEstimate at;
-  if (!fits(c.radius, &at)) {
+  const bool ok = fits(c.radius, &at);
+  if (ok && (at.bytes > budget || at.mean_neighbors > kMostNeighbours)) {
+    c.why += ", in two levels (one would need about " + num(at.bytes / double(1ull << 30)) + " GiB and " +
+             num(at.mean_neighbors) + " neighbours a control)";
+  } else if (!ok) {
     const bool memory = at.bytes > budget;
     double lo = std::min(c.radius, std::max(h, 1e-9 * size)), hi = c.radius;
     for (int k = 0; k < 24 && hi - lo > 1e-3 * hi; ++k) {
@@ -130,8 +175,8 @@ RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> s
   return c;
 }
 
-TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius,
-                             double neighbours) {
+TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius, double budget,
+                             double neighbours, double bytes) {
   TwoLevelPlan plan;
   const std::size_t n = sources.size();
   plan.spacing = kCoarseSpacing * radius;
@@ -166,40 +211,22 @@ TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3
     });
   if (!moving.empty()) fine_neighbours /= double(std::min<std::size_t>(moving.size(), 512));
   // The coarse controls: each one farther than the spacing from those taken before it, in order.
-  std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells;
-  const double inv = 1.0 / plan.spacing;
-  const auto cell = [&](const Vec3& p, int a) { return std::int64_t(std::floor(p[a] * inv)); };
-  const auto key = [](std::int64_t x, std::int64_t y, std::int64_t z) {
-    return (std::uint64_t(x) * 73856093ull) ^ (std::uint64_t(y) * 19349663ull) ^ (std::uint64_t(z) * 83492791ull);
-  };
-  const double s2 = plan.spacing * plan.spacing;
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec3& p = sources[i];
-    const std::int64_t cx = cell(p, 0), cy = cell(p, 1), cz = cell(p, 2);
-    bool free = true;
-    for (std::int64_t dz = -1; dz <= 1 && free; ++dz)
-      for (std::int64_t dy = -1; dy <= 1 && free; ++dy)
-        for (std::int64_t dx = -1; dx <= 1 && free; ++dx) {
-          const auto it = cells.find(key(cx + dx, cy + dy, cz + dz));
-          if (it == cells.end()) continue;
-          for (const std::uint32_t j : it->second)
-            if ((sources[j] - p).squaredNorm() < s2) {
-              free = false;
-              break;
-            }
-        }
-    if (!free) continue;
-    cells[key(cx, cy, cz)].push_back(std::uint32_t(i));
-    plan.coarse.push_back(std::uint32_t(i));
-  }
+  plan.coarse = spaced_subset(sources, plan.spacing);
   std::vector<Vec3> coarse(plan.coarse.size());
   for (std::size_t k = 0; k < coarse.size(); ++k) coarse[k] = sources[plan.coarse[k]];
-  const double nb_plain = neighbours >= 0 ? neighbours : estimate_fit_memory(sources, radius).mean_neighbors;
+  if (neighbours < 0) {
+    const FitMemoryEstimate e = estimate_fit_memory(sources, radius);
+    neighbours = e.mean_neighbors;
+    bytes = e.bytes;
+  }
+  const double nb_plain = neighbours;
   const double nb_coarse = estimate_fit_memory(coarse, radius).mean_neighbors;
   plan.seconds_plain = kSecondsPerEntry * double(n) * (1 + nb_plain);
   plan.seconds_two = kSecondsPerEntry * (double(coarse.size()) * (1 + nb_coarse) + double(n) * (1 + fine_neighbours));
-  plan.worth_it = plan.seconds_plain >= kTwoLevelSeconds && plan.seconds_plain >= kTwoLevelGain * plan.seconds_two &&
-                  plan.spacing >= 2 * plan.boundary_spacing;
+  plan.plain_too_large = bytes > budget;
+  plan.worth_it = plan.spacing >= 2 * plan.boundary_spacing &&
+                  (plan.plain_too_large ||
+                   (plan.seconds_plain >= kTwoLevelSeconds && plan.seconds_plain >= kTwoLevelGain * plan.seconds_two));
   return plan;
 }
 

@@ -37,8 +37,14 @@ inline constexpr double kMostNeighbours = 400.0;
 /// The share of the memory left to the fit that auto's R may predict (the evaluation's grid and
 /// the solver's work space take the rest).
 inline constexpr double kAutoMemoryShare = 0.5;
+/// two_levels: the fit may take two levels (MorphOptions::levels, radius.hpp's plan): R is then
+/// reduced only where the two levels' memory or neighbours pass those limits too.
 RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> staying, double displacement,
-                           double size, double budget, bool local);
+                           double size, double budget, bool local, bool two_levels = false);
+
+/// The controls no two of which are closer than `spacing`, each taken where it is farther than that
+/// from those taken before it, in order: indices, ascending.
+std::vector<std::uint32_t> spaced_subset(std::span<const Vec3> sources, double spacing);
 
 /// What a fit of `controls` (sorted_unique, every process's) at radius R and the evaluation of
 /// `points` (this process's) will need: neighbours per control (a sample) and per point (a seeded
@@ -52,23 +58,27 @@ inline constexpr double kSecondsPerPoint = 1.5e-7;  ///< an evaluation, per poin
 /// The two-level fit (MorphOptions::levels): the coarse level fits the controls no two of which are
 /// closer than kCoarseSpacing x R, at R; the fine level fits what the coarse one leaves at every
 /// control, at kFineRadius x the boundary's spacing (at most the coarse spacing). Levels auto takes
-/// two where the plain fit is predicted to take kTwoLevelSeconds or more and kTwoLevelGain times the
-/// two levels' predicted time, and the coarse spacing is at least twice the boundary's spacing.
+/// two where the coarse spacing is at least twice the boundary's spacing and the plain fit would
+/// pass its memory budget, or is predicted to take kTwoLevelSeconds or more and kTwoLevelGain times
+/// the two levels' predicted time. At one R one level gives the better cells (windAroundBuildings
+/// at R = 15: 47.91 degrees against 49.03), so auto keeps it wherever it is affordable.
 inline constexpr double kCoarseSpacing = 0.25;
 inline constexpr double kFineRadius = 1.75;
-inline constexpr double kTwoLevelSeconds = 1.0;
+inline constexpr double kTwoLevelSeconds = 10.0;
 inline constexpr double kTwoLevelGain = 4.0;
 struct TwoLevelPlan {
   std::vector<std::uint32_t> coarse;  ///< the coarse level's controls (indices, ascending)
   double spacing = 0, fine_radius = 0, boundary_spacing = 0;
   double seconds_plain = 0, seconds_two = 0;  ///< predicted fits (kSecondsPerEntry)
+  bool plain_too_large = false;               ///< one level's predicted memory passes the budget
   bool worth_it = false;                      ///< what levels auto takes
 };
-/// The plan for controls `sources` (moving: target != source) at radius R; neighbours: the plain
-/// fit's mean neighbours per control where already predicted (< 0: estimated here). The fine
-/// level's are counted around the moving controls of the boundary's spacing's sample.
-TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius,
-                             double neighbours = -1);
+/// The plan for controls `sources` (moving: target != source) at radius R, within `budget` bytes;
+/// neighbours, bytes: the plain fit's mean neighbours per control and memory where already
+/// predicted (neighbours < 0: estimated here). The fine level's neighbours are counted around the
+/// moving controls of the boundary's spacing's sample.
+TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3> targets, double radius, double budget,
+                             double neighbours = -1, double bytes = 0);
 /// flat_axis >= 0: a 2-D mesh, whose points are evaluated at `mid` along that axis.
 MorphPrediction predict(std::span<const Vec3> controls, std::span<const Vec3> points, int flat_axis, double mid,
                         double radius, double total_points, MorphBackend& b);

@@ -635,6 +635,40 @@ TEST(TwoLevels, AreTheSumOfTwoDenseSolvesAndExactAtTheControls) {
   EXPECT_THROW(morph(c.mesh, m, o), csrbf::InvalidInput);
 }
 
+// Auto's R with two levels (issue 31, a new user's finding): where one level would pass the memory
+// budget and two levels fit it, R is kept and two levels are taken, where before R was cut to what
+// one level could hold (and the smaller R inverted cells on windAroundBuildings).
+TEST(TwoLevels, AutoRadiusIsKeptWhereTwoLevelsFitTheMemory) {
+  TempDir dir;
+  const FoamCase c = box12(dir);
+  const Motion m = motion_from(dir, R"({"patches": {"zmin": {"translate": [0, 0, 0.05]}, "zmax": "fixed",
+                                          "xmin": "fixed", "xmax": "fixed", "ymin": "fixed", "ymax": "fixed"}})");
+  const auto run = [&](double limit_bytes, int levels) {
+    MorphOptions o;
+    o.radius_auto = true;
+    o.fit.memory_limit_bytes = limit_bytes;
+    o.levels = levels;
+    return morph(c.mesh, m, o);
+  };
+  const MorphResult free = run(4e9, 0);
+  EXPECT_NEAR(free.report.radius, 1.0, 1e-12);  // 20 x 0.05
+  EXPECT_EQ(free.report.levels, 1);
+  EXPECT_NE(free.report.levels_why.find("auto: one level"), std::string::npos) << free.report.levels_why;
+  // Half of one level's predicted memory: one level cannot hold R = 1, two levels can.
+  const double one = free.report.predicted.bytes;
+  const MorphResult two = run(one, 0);
+  EXPECT_NEAR(two.report.radius, 1.0, 1e-12);
+  EXPECT_NE(two.report.radius_why.find("in two levels"), std::string::npos) << two.report.radius_why;
+  EXPECT_EQ(two.report.levels, 2);
+  EXPECT_NE(two.report.levels_why.find("memory budget"), std::string::npos) << two.report.levels_why;
+  EXPECT_LT(two.report.max_boundary_error, 1e-12);
+  // Asked for one level: R shrinks to what one level holds, as before.
+  const MorphResult cut = run(one, 1);
+  EXPECT_LT(cut.report.radius, 1.0);
+  EXPECT_EQ(cut.report.levels, 1);
+  EXPECT_EQ(cut.report.levels_why, "asked for");
+}
+
 TEST_F(BoxMorph, GreedyUsesFewerControlsWithinItsTolerance) {
   const Motion m =
       motion_from(dir, R"({"patches": {"zmin": {"rotate": {"axis": [1, 0, 0], "degrees": 3, "origin": [0.5, 0.5, 0]}},

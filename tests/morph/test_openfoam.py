@@ -289,6 +289,16 @@ class OpenFoamCases(MorphCase):
         self.assertEqual(moved_twice, moved_once)
         cm = run(["checkMesh", "-time", "0.1"], cwd=out)
         self.assertIn("Mesh OK.", cm.stdout, cm.stdout[-2000:])
+        # A later time without a mesh of its own (a solver wrote it) reads the latest earlier time's
+        # points, as OpenFOAM's findInstance does, not constant's: the wall moves from 0.1's mesh.
+        os.mkdir(os.path.join(case, "0.2"))
+        later = os.path.join(self.tmp, "later")
+        r = run([CLI, "morph", case, "-o", later, "-time", "0.2", "--motion", motion, "--json"])
+        self.assertEqual(r.returncode, 0, r.stderr)
+        self.assertEqual(json.loads(r.stdout)["time"], "0.2")
+        self.assertEqual(lower_wall_y(os.path.join(later, "0.2", "polyMesh", "points")), second)
+        cm = run(["checkMesh", "-time", "0.2"], cwd=later)
+        self.assertIn("Mesh OK.", cm.stdout, cm.stdout[-2000:])
         # A mesh file has no times.
         vtu = os.path.join(SOURCE, "examples", "vtk")
         files = [f for f in os.listdir(vtu) if f.endswith(".vtu")]

@@ -62,7 +62,8 @@ struct MorphOptions {
   /// leaves at every control. Both are exact at the controls and sum no term farther than R from a
   /// control (the reach stays 2R); two levels cost a fraction of a plain fit at a large R, and the
   /// cells beside the boundary take the fine level's shorter wavelength. 0 (auto): two levels where
-  /// the plain fit is predicted to take 1 s or more and 4 times the two levels' time. Two levels
+  /// one level would pass its memory budget, or is predicted to take 10 s or more and 4 times the
+  /// two levels' time (radius.hpp; MorphReport::levels_why says which). Two levels
   /// need polynomial none, no greedy, and a backend that keeps two mappings (one process).
   int levels = 0;
   /// `--radius auto`: fit.radius is ignored, and R is chosen from the motion's largest displacement
@@ -117,6 +118,7 @@ struct MorphReport {
   /// The motion's fit: 1 level, or 2 (MorphOptions::levels) with its coarse controls, their spacing
   /// and the fine level's radius; and the two predictions that auto weighed (0 where none was made).
   int levels = 1;
+  std::string levels_why;  ///< asked for, or what auto weighed
   std::size_t coarse_controls = 0;
   double coarse_spacing = 0, fine_radius = 0, seconds_plain_predicted = 0, seconds_two_levels_predicted = 0;
   std::string radius_why;  ///< radius_auto: how R was chosen; else "given"
