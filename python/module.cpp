@@ -565,14 +565,20 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
                                  py::repr(time).cast<std::string>().substr(0, 80));
           if (job.time.empty()) throw py::value_error("time: '' names no time (\"latest\" or a time such as 0.5)");
         }
-        if (py::isinstance<py::str>(levels) && levels.cast<std::string>() == "auto")
+        // "auto", or an integer 1 or 2 of any integer type (numpy's too, through operator.index).
+        const std::string levels_text = py::repr(levels).cast<std::string>().substr(0, 80);
+        if (py::isinstance<py::str>(levels)) {
+          if (levels.cast<std::string>() != "auto")
+            throw py::value_error("levels must be \"auto\", 1 or 2, got " + levels_text);
           job.levels = 0;
-        else if (py::isinstance<py::int_>(levels) && !py::isinstance<py::bool_>(levels) &&
-                 (levels.cast<long long>() == 1 || levels.cast<long long>() == 2))
-          job.levels = levels.cast<int>();
-        else
-          throw py::value_error("levels must be \"auto\", 1 or 2, got " +
-                                py::repr(levels).cast<std::string>().substr(0, 80));
+        } else {
+          if (py::isinstance<py::bool_>(levels) || !py::hasattr(levels, "__index__"))
+            throw py::type_error("levels must be \"auto\", 1 or 2, got " + levels_text);
+          const py::object v = py::module_::import("operator").attr("index")(levels);
+          if (!v.equal(py::int_(1)) && !v.equal(py::int_(2)))
+            throw py::value_error("levels must be \"auto\", 1 or 2, got " + levels_text);
+          job.levels = v.cast<int>();
+        }
         job.solver = named<csrbf::Solver>(solver, "solver");
         job.phase = phase;
         job.force = force;

@@ -154,7 +154,11 @@ int report_inversion(const MorphArgs& a, const morph::MorphOutcome& o, bool spea
       std::cerr << "csrbf: error: the morph inverts " << o.after.inverted_cells() - o.before.inverted_cells()
                 << " cells (" << o.after.inverted_cells() << " inverted, " << o.before.inverted_cells()
                 << " before); the largest phase <= " << a.phase << " that inverts none is " << o.safe_phase
-                << "; nothing written (--force writes anyway)\n";
+                << "; nothing written (--force writes anyway"
+                << (o.result.report.levels == 2 ? "; the fit took two levels, whose cells beside the walls are poorer: "
+                                                  "--levels 1 may invert none"
+                                                : "")
+                << ")\n";
     return 1;
   }
   return 0;

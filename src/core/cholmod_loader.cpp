@@ -15,6 +15,7 @@
 #include <dlfcn.h>
 
 #include <cstdlib>
+#include <string>
 
 namespace csrbf::detail {
 namespace {
@@ -29,26 +30,34 @@ struct Cholmod {
   int (*free_dense)(cholmod_dense**, cholmod_common*) = nullptr;
   int (*free_factor)(cholmod_factor**, cholmod_common*) = nullptr;
   bool ok = false;
+  std::string error;  // why not ok
 };
 
 template <class F>
-void find(void* handle, F& f, const char* name) {
+void find(void* handle, F& f, const char* name, std::string& missing) {
   f = reinterpret_cast<F>(dlsym(handle, name));
+  if (!f) missing += (missing.empty() ? "" : ", ") + std::string(name);
 }
 
 const Cholmod& cholmod() {
   static const Cholmod c = [] {
     Cholmod l;
     l.handle = dlopen(CSRBF_CHOLMOD_SONAME, RTLD_NOW | RTLD_LOCAL);
-    if (!l.handle) return l;
-    find(l.handle, l.start, "cholmod_start");
-    find(l.handle, l.finish, "cholmod_finish");
-    find(l.handle, l.analyze, "cholmod_analyze");
-    find(l.handle, l.factorize_p, "cholmod_factorize_p");
-    find(l.handle, l.solve, "cholmod_solve");
-    find(l.handle, l.free_dense, "cholmod_free_dense");
-    find(l.handle, l.free_factor, "cholmod_free_factor");
-    l.ok = l.start && l.finish && l.analyze && l.factorize_p && l.solve && l.free_dense && l.free_factor;
+    if (!l.handle) {
+      const char* why = dlerror();
+      l.error = std::string("CHOLMOD could not be loaded (") + (why ? why : CSRBF_CHOLMOD_SONAME) + ")";
+      return l;
+    }
+    std::string missing;
+    find(l.handle, l.start, "cholmod_start", missing);
+    find(l.handle, l.finish, "cholmod_finish", missing);
+    find(l.handle, l.analyze, "cholmod_analyze", missing);
+    find(l.handle, l.factorize_p, "cholmod_factorize_p", missing);
+    find(l.handle, l.solve, "cholmod_solve", missing);
+    find(l.handle, l.free_dense, "cholmod_free_dense", missing);
+    find(l.handle, l.free_factor, "cholmod_free_factor", missing);
+    l.ok = missing.empty();
+    if (!l.ok) l.error = std::string("the CHOLMOD that was loaded (") + CSRBF_CHOLMOD_SONAME + ") lacks " + missing;
     return l;
   }();
   return c;
@@ -61,6 +70,7 @@ const Cholmod& cholmod() {
 }  // namespace
 
 bool cholmod_loaded() noexcept { return cholmod().ok; }
+std::string cholmod_load_error() { return cholmod().ok ? std::string() : cholmod().error; }
 
 }  // namespace csrbf::detail
 

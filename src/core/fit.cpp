@@ -2,6 +2,7 @@
 //   validate -> polynomial frame -> neighbour graph -> the matrix A -> ordering and solver
 //   -> factorisation -> polynomial block -> solve -> residual check.
 // with_destinations() reruns only the last two.
+#include "cholmod_loader.hpp"
 #include "fit_state.hpp"
 
 #include <Eigen/SVD>
@@ -187,8 +188,7 @@ struct FitPhases {
     const auto t0 = Clock::now();
     Solver solver = options.solver;
     if (solver == Solver::Cholmod && !cholmod_available())
-      throw InvalidInput(
-          "solver 'cholmod': this build of csrbf has no CHOLMOD (SuiteSparse); use 'envelope' or 'eigen'");
+      throw InvalidInput("solver 'cholmod': " + detail::cholmod_load_error() + "; use 'envelope' or 'eigen'");
     std::vector<std::size_t> first;
     if (solver == Solver::Auto || solver == Solver::Cg ||
         (solver == Solver::Envelope && options.ordering != Ordering::Auto)) {

@@ -13,9 +13,7 @@
 #include <random>
 #include <sstream>
 
-#ifdef CSRBF_HAVE_CHOLMOD
 #include "cholmod_loader.hpp"
-#endif
 
 namespace csrbf {
 
@@ -23,6 +21,10 @@ std::string_view polynomial_name(Polynomial p) noexcept { return name_of(p); }
 std::optional<Polynomial> parse_polynomial(std::string_view name) noexcept { return parse_name<Polynomial>(name); }
 std::string_view solver_name(Solver s) noexcept { return name_of(s); }
 std::optional<Solver> parse_solver(std::string_view name) noexcept { return parse_name<Solver>(name); }
+
+#ifndef CSRBF_HAVE_CHOLMOD
+std::string detail::cholmod_load_error() { return "this build of csrbf has no CHOLMOD (SuiteSparse)"; }
+#endif
 
 bool cholmod_available() noexcept {
 #ifdef CSRBF_HAVE_CHOLMOD

@@ -7,6 +7,7 @@
 #include <Eigen/SparseCholesky>
 #include <Eigen/SparseCore>
 #ifdef CSRBF_HAVE_CHOLMOD
+#include "cholmod_loader.hpp"
 #include <Eigen/CholmodSupport>
 #endif
 
@@ -166,6 +167,21 @@ class EigenFactor final : public SparseFactor {
       what.precision(3);
       what << "the " << predicted_entries() << " entries its analysis predicts in the factor, with A and its copies";
       refuse(bytes, what.str());
+    }
+    // Under an address-space limit (ulimit -v), the factor and CHOLMOD's copies are mapped before
+    // OpenBLAS's first call maps its buffers, which then retries for ever where the limit refuses
+    // them (windAroundBuildings, R = 10, under ulimit -v 600000): the factor is counted here too.
+    if constexpr (std::is_same_v<Decomposition, Supernodal>) {
+      const double room = address_space_room(), need = kBlasAddressSpace + predicted_bytes() + own;
+      if (room < need) {
+        std::ostringstream os;
+        os.precision(3);
+        os << "CHOLMOD needs about " << need / double(1ull << 30)
+           << " GiB of address space for its factor, its copies of A and OpenBLAS's buffers, and the address-space "
+              "limit (ulimit -v) leaves "
+           << std::max(room, 0.0) / double(1ull << 30) << " GiB of it: raise that limit, or use a smaller radius";
+        throw ResourceLimit(os.str());
+      }
     }
   }
   /// Flops of the numeric factorisation, from the analysis (the sum of L's column counts squared).
@@ -657,6 +673,12 @@ std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<
     refuse_memory(name, held + copies, "A and its copies (" + std::to_string(lower) + " entries each)",
                   memory_limit_bytes);
   if (which == Solver::Cholmod) {
+#ifdef CSRBF_HAVE_CHOLMOD
+    // Opened first (cholmod_loader.cpp): the library and its BLAS take address space of their own,
+    // which the room below must not count as free.
+    if (!cholmod_available())
+      throw InvalidInput("solver 'cholmod': " + cholmod_load_error() + "; use 'envelope' or 'eigen'");
+#endif
     // CHOLMOD's supernodal factorisation runs OpenBLAS, whose first call maps its buffers; where an
     // address-space limit (ulimit -v) refuses them, OpenBLAS retries for ever (measured: fish, R = 5,
     // under ulimit -v 300000). Refused here instead, so that Auto turns to another solver.
@@ -677,9 +699,6 @@ std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<
         lower_matrix(a), "Eigen SimplicialLLT", memory_limit_bytes, std::vector<std::uint32_t>{}, held));
 #ifdef CSRBF_HAVE_CHOLMOD
   if (which == Solver::Cholmod) {
-    if (!cholmod_available())
-      throw InvalidInput(std::string("solver 'cholmod': CHOLMOD (") + CSRBF_CHOLMOD_SONAME +
-                         ") could not be loaded; use 'envelope' or 'eigen'");
     std::vector<std::uint32_t> order = nested_dissection_order(a.pattern(), sources, a.radius());
     Sparse lower = lower_matrix(a, order);
     return std::make_unique<EigenAnalysis<Supernodal>>(std::make_unique<EigenFactor<Supernodal>>(

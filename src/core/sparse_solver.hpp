@@ -49,8 +49,10 @@ double kernel_matrix_bytes(const KernelMatrix& a);
 /// What the address-space limit (RLIMIT_AS, ulimit -v) leaves beyond what the process maps now, in
 /// bytes; infinity without a limit.
 double address_space_room() noexcept;
-/// The address space OpenBLAS maps for its buffers on its first call (under CHOLMOD), with margin.
-inline constexpr double kBlasAddressSpace = 128.0 * (1 << 20);
+/// The address space OpenBLAS maps for its buffers on its first call (under CHOLMOD), with margin:
+/// measured after CHOLMOD is opened (cholmod_loader.cpp), the fish at R = 5 ran with 187 MB of
+/// room and spun in OpenBLAS's allocation with 158 MB (ulimit -v 340000 and 310000).
+inline constexpr double kBlasAddressSpace = 192.0 * (1 << 20);
 /// Bytes of the envelope solver's factor with `off_diagonal` entries in its envelope below the
 /// diagonal, for N rows.
 double envelope_factor_bytes(double off_diagonal, std::size_t n);

@@ -249,7 +249,8 @@ MorphOptions morph_options(const MorphJob& job, const Motion& motion) {
   opt.levels = job.levels;
   if (opt.levels == 2 && opt.fit.polynomial != Polynomial::None)
     throw JobError("two levels need polynomial none (a polynomial moves the whole space; its fit is one level), got " +
-                   std::string(polynomial_name(opt.fit.polynomial)));
+                   std::string(polynomial_name(opt.fit.polynomial)) +
+                   (job.polynomial ? std::string(" (--polynomial)") : " (\"polynomial\" in " + motion.file + ")"));
   return opt;
 }
 
@@ -620,6 +621,9 @@ SeriesOutcome run_series(const MorphJob& job) {
       o.motion_summary = motion_summary(motions[k]);
       o.options = morph_options(job, motions[k]);
       o.options.auto_displacement = largest;
+      // --memory-limit bounds the whole process: each step's fit gets what the program, the mesh and
+      // the factorisations the series keeps for the next steps leave of it.
+      o.options.fit.memory_limit_bytes = io::memory_left(job.memory_limit_bytes);
       const auto t_step = Clock::now();
       const std::size_t factorised = backend.factorisations();
       try {

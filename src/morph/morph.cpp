@@ -3,6 +3,7 @@
 #include "csrbf/errors.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/memory.hpp"
 #include "csrbf/morph/volume_file.hpp"
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/space_map.hpp"
@@ -651,10 +652,15 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
         os.precision(3);
         if (options.levels == 2) {
           os << "asked for";
-          if (plan->coarse.size() < 2 || plan->coarse.size() == nc)
-            os << "; its coarse level has " << plan->coarse.size() << " of the " << nc
-               << " controls, so one level would do as well (R / 4 = " << plan->spacing
-               << " against the boundary's spacing " << plan->boundary_spacing << ")";
+          if (plan->spacing < 2 * plan->boundary_spacing || plan->coarse.size() < 3) {
+            os << "; R / 4 = " << plan->spacing;
+            if (plan->boundary_spacing < plan->spacing)
+              os << " is under twice the boundary's spacing " << plan->boundary_spacing;
+            else
+              os << " is under the boundary's spacing";
+            os << " and the coarse level has " << plan->coarse.size() << " of the " << nc
+               << " controls: the fine level carries the motion, and one level (--levels 1) gives better cells";
+          }
         } else if (plan->worth_it && plan->plain_too_large) {
           os << "auto: one level would pass its memory budget (half of what --memory-limit leaves the fit)";
         } else if (plan->worth_it) {
@@ -664,8 +670,10 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
              << " s (two where one would pass its memory budget, or take " << detail::kTwoLevelSeconds
              << " s or more and " << detail::kTwoLevelGain << " x as long as two";
           if (plan->spacing < 2 * plan->boundary_spacing)
-            os << "; and R / 4 = " << plan->spacing << " is under twice the boundary's spacing "
-               << plan->boundary_spacing;
+            os << "; and R / 4 = " << plan->spacing
+               << (plan->boundary_spacing < plan->spacing ? " is under twice the boundary's spacing "
+                                                          : " is under the boundary's spacing")
+               << (plan->boundary_spacing < plan->spacing ? io::format_number(plan->boundary_spacing) : "");
           os << ")";
           plan.reset();
         }
@@ -687,6 +695,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
           ct[k] = targets[plan->coarse[k]];
           ci[k] = ids[plan->coarse[k]];
         }
+        // The coarse level is held while the fine one is fitted: the fine fit gets what the coarse
+        // one (its matrix, factor and evaluation lists, as resident memory shows them) leaves.
+        const double held_before = io::resident_bytes();
         std::unique_ptr<FittedMapping> coarse = b.fit(cs, ct, fit, ci);
         // What the coarse level leaves at every control: the fine level's targets.
         std::vector<Vec3> d(nc), fine_targets(nc);
@@ -694,7 +705,19 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
         for (std::size_t i = 0; i < nc; ++i) fine_targets[i] = targets[i] - d[i];
         FitOptions fine = fit;
         fine.radius = plan->fine_radius;
-        std::unique_ptr<FittedMapping> f = b.fit(sources, fine_targets, fine, ids);
+        fine.memory_limit_bytes =
+            std::max(fit.memory_limit_bytes - std::max(io::resident_bytes() - held_before, 0.0), 1.0);
+        std::unique_ptr<FittedMapping> f;
+        try {
+          f = b.fit(sources, fine_targets, fine, ids);
+        } catch (const InvalidInput& e) {
+          // Its messages name its own R, which the user never gave.
+          std::ostringstream os;
+          os.precision(6);
+          os << "two levels: the fine level's fit at R = " << plan->fine_radius << " (1.75 x the boundary's spacing, "
+             << "at most R / 4): " << e.what() << " (--levels 1 fits one level at R = " << fit.radius << ")";
+          throw InvalidInput(os.str());
+        }
         map = std::make_unique<TwoLevelMapping>(std::move(coarse), std::move(f));
         if (!correcting) {
           rep.levels = 2;
@@ -849,7 +872,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
     std::vector<Vec3> c(mesh.points.size());
     displacements_of(*correction, evaluated_at(), c);
     for (std::size_t i = 0; i < c.size(); ++i) {
-      r.points[i] = mesh.points[i] + options.phase * (first_d[i] + c[i]);
+      const Vec3 d = first_d[i] + c[i];
+      if (d == Vec3::Zero()) continue;  // r.points is the mesh's: kept bit for bit (-0 stays -0)
+      r.points[i] = mesh.points[i] + options.phase * d;
       if (flat) r.points[i][flat->axis] = mesh.points[i][flat->axis];
     }
   } else if (flat) {
@@ -858,6 +883,7 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
     std::vector<Vec3> d(mesh.points.size());
     displacements_of(*map, evaluated_at(), d);
     for (std::size_t i = 0; i < d.size(); ++i) {
+      if (d[i] == Vec3::Zero()) continue;  // kept bit for bit (-0 stays -0)
       r.points[i] = mesh.points[i] + options.phase * d[i];
       r.points[i][flat->axis] = mesh.points[i][flat->axis];
     }
@@ -875,7 +901,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
   }
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t p = pres.points[i];
-    r.points[p] = pres.fixed[i] ? mesh.points[p] : Vec3(mesh.points[p] + options.phase * pres.displacements[i]);
+    r.points[p] = pres.fixed[i] || pres.displacements[i] == Vec3::Zero()
+                      ? mesh.points[p]
+                      : Vec3(mesh.points[p] + options.phase * pres.displacements[i]);
     if (pres.slip[i] >= 0 && pres.displacements[i] != Vec3::Zero()) {
       const auto& surface = surfaces[std::size_t(pres.slip[i])];
       if (surface) r.points[p] = surface->project(r.points[p]);

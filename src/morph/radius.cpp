@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <unordered_map>
@@ -91,9 +92,20 @@ std::vector<Vec3> fitted_controls(std::span<const Vec3> moving, std::span<const 
 /// from those taken before it, in order: indices, ascending.
 std::vector<std::uint32_t> spaced_subset(std::span<const Vec3> sources, double spacing) {
   std::vector<std::uint32_t> out;
+  if (sources.empty()) return out;
+  // Cells counted from the sources' lower corner; where the box is more than 2^40 spacings across
+  // (coordinates of 1e13 at a spacing of 1e-6) the cell numbers would overflow: every control
+  // is taken (a coarse level that is the whole, which the plan then finds not worth it).
+  Vec3 lo = sources[0], hi = sources[0];
+  for (const Vec3& p : sources) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  if (!(spacing > 0) || !((hi - lo).maxCoeff() / spacing < 1099511627776.0)) {
+    out.resize(sources.size());
+    for (std::size_t i = 0; i < out.size(); ++i) out[i] = std::uint32_t(i);
+    return out;
+  }
   std::unordered_map<std::uint64_t, std::vector<std::uint32_t>> cells;
   const double inv = 1.0 / spacing, s2 = spacing * spacing;
-  const auto cell = [&](const Vec3& p, int a) { return std::int64_t(std::floor(p[a] * inv)); };
+  const auto cell = [&](const Vec3& p, int a) { return std::int64_t(std::floor((p[a] - lo[a]) * inv)); };
   const auto key = [](std::int64_t x, std::int64_t y, std::int64_t z) {
     return (std::uint64_t(x) * 73856093ull) ^ (std::uint64_t(y) * 19349663ull) ^ (std::uint64_t(z) * 83492791ull);
   };
@@ -187,14 +199,21 @@ TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3
   std::vector<std::size_t> moving;
   for (std::size_t i = 0; i < n; ++i)
     if (targets[i] != sources[i]) moving.push_back(i);
-  const NeighborIndex near(sources, plan.spacing);
+  // A spacing too small for the controls' extent (an index of more than 1e8 cells a side) plans
+  // nothing: the boundary's spacing is taken as the coarse spacing, and a fit asked for anyway
+  // meets the limit in its own index, which names it.
+  Vec3 lo = sources[0], hi = sources[0];
+  for (const Vec3& p : sources) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+  std::optional<NeighborIndex> near;
+  if ((hi - lo).maxCoeff() / plan.spacing <= 1e8) near.emplace(sources, plan.spacing);
   std::vector<double> nearest;
   for (const std::size_t k : sample(moving.size(), 512)) {
     const Vec3& p = sources[moving[k]];
     double best = plan.spacing * plan.spacing;
-    near.for_each_slot_within(p, [&](std::size_t, double d2) {
-      if (d2 > 0 && d2 < best) best = d2;
-    });
+    if (near)
+      near->for_each_slot_within(p, [&](std::size_t, double d2) {
+        if (d2 > 0 && d2 < best) best = d2;
+      });
     nearest.push_back(std::sqrt(best));
   }
   if (!nearest.empty()) {
@@ -206,9 +225,10 @@ TwoLevelPlan plan_two_levels(std::span<const Vec3> sources, std::span<const Vec3
   // The fine level's neighbours per control, from the same sample and index (R_f <= the spacing).
   double fine_neighbours = 0;
   for (const std::size_t k : sample(moving.size(), 512))
-    near.for_each_slot_within(sources[moving[k]], [&](std::size_t, double d2) {
-      fine_neighbours += d2 > 0 && d2 < plan.fine_radius * plan.fine_radius;
-    });
+    if (near)
+      near->for_each_slot_within(sources[moving[k]], [&](std::size_t, double d2) {
+        fine_neighbours += d2 > 0 && d2 < plan.fine_radius * plan.fine_radius;
+      });
   if (!moving.empty()) fine_neighbours /= double(std::min<std::size_t>(moving.size(), 512));
   // The coarse controls: each one farther than the spacing from those taken before it, in order.
   plan.coarse = spaced_subset(sources, plan.spacing);

@@ -538,6 +538,29 @@ TEST(ExactLocality, PointsTwoRadiiFromEveryMovingOneKeepTheirBits) {
   EXPECT_TRUE(std::isinf(morph(c.mesh, m, linear).report.reach));
 }
 
+// A far point's -0 stays -0 (bit for bit, as the reach promises) where a slip patch brings the
+// correction's branch and the placement of slip points in (the attacker's finding: -0 came back 0).
+TEST(ExactLocality, NegativeZeroStaysNegativeZeroWithSlipPatches) {
+  TempDir dir;
+  FoamCase c = box12(dir);
+  std::vector<std::uint32_t> signed_zero;
+  for (const auto p : c.mesh.patch("ymin")->points)
+    if (c.mesh.points[p].z() >= 0.75 && c.mesh.points[p].x() > 0 && c.mesh.points[p].x() < 1) {
+      c.mesh.points[p].y() = -0.0;
+      signed_zero.push_back(p);
+    }
+  ASSERT_GT(signed_zero.size(), 10u);
+  const Motion m = motion_from(dir, R"({"patches": {"zmin": {"translate": [0.02, 0.01, 0.03]}, "zmax": "fixed",
+                                          "xmin": "fixed", "xmax": "fixed", "ymin": "slip", "ymax": "slip"}})");
+  for (const int levels : {1, 2}) {
+    MorphOptions o;
+    o.fit.radius = 0.3;
+    o.levels = levels;
+    const MorphResult r = morph(c.mesh, m, o);
+    for (const auto p : signed_zero) EXPECT_TRUE(std::signbit(r.points[p].y())) << p << " levels " << levels;
+  }
+}
+
 // Two levels (MorphOptions::levels): a coarse fit at R of the controls no two of which are closer
 // than R / 4 (taken in the controls' order), then a fit at the fine radius of what it leaves at
 // every control. Checked against the two dense solves, done here by brute force, on a 12^3 box.

@@ -551,6 +551,11 @@ class Morph(unittest.TestCase):
         self.assertEqual(two["quality"]["after"]["inverted_cells"], 0)
         with self.assertRaisesRegex(ValueError, 'levels must be "auto", 1 or 2, got 3'):
             csrbf.morph(case, motion, levels=3)
+        with self.assertRaisesRegex(ValueError, "levels must be"):
+            csrbf.morph(case, motion, levels=1 << 70)
+        with self.assertRaisesRegex(TypeError, "levels must be"):
+            csrbf.morph(case, motion, levels=True)
+        self.assertEqual(csrbf.morph(case, motion, levels=np.int64(2))[1]["levels"], 2)
         with self.assertRaisesRegex(ValueError, "two levels and greedy exclude each other"):
             csrbf.morph(case, motion, levels=2, greedy=1e-3)
         with self.assertRaisesRegex(ValueError, r"the greedy budget must be in \[0, 1e6\], got -1"):
