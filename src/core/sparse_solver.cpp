@@ -50,6 +50,17 @@ double address_space_room() noexcept {
   return double(limit.rlim_cur) - double(pages) * double(::sysconf(_SC_PAGESIZE));
 }
 
+void check_address_space(double need, const char* what, const char* instead) {
+  const double room = address_space_room();
+  if (room >= need) return;
+  std::ostringstream os;
+  os.precision(3);
+  os << "CHOLMOD needs about " << need / double(1ull << 30) << " GiB of address space for " << what
+     << ", and the address-space limit (ulimit -v) leaves " << std::max(room, 0.0) / double(1ull << 30)
+     << " GiB of it: raise that limit, or " << instead;
+  throw ResourceLimit(os.str());
+}
+
 double envelope_factor_bytes(double off_diagonal, std::size_t n) {
   return 8.0 * (off_diagonal + double(n)) + 16.0 * double(n);  // 8-byte values, two 8-byte indices a row
 }
@@ -172,16 +183,8 @@ class EigenFactor final : public SparseFactor {
     // OpenBLAS's first call maps its buffers, which then retries for ever where the limit refuses
     // them (windAroundBuildings, R = 10, under ulimit -v 600000): the factor is counted here too.
     if constexpr (std::is_same_v<Decomposition, Supernodal>) {
-      const double room = address_space_room(), need = kBlasAddressSpace + predicted_bytes() + own;
-      if (room < need) {
-        std::ostringstream os;
-        os.precision(3);
-        os << "CHOLMOD needs about " << need / double(1ull << 30)
-           << " GiB of address space for its factor, its copies of A and OpenBLAS's buffers, and the address-space "
-              "limit (ulimit -v) leaves "
-           << std::max(room, 0.0) / double(1ull << 30) << " GiB of it: raise that limit, or use a smaller radius";
-        throw ResourceLimit(os.str());
-      }
+      check_address_space(kBlasAddressSpace + predicted_bytes() + own,
+                          "its factor, its copies of A and OpenBLAS's buffers", "use a smaller radius");
     }
   }
   /// Flops of the numeric factorisation, from the analysis (the sum of L's column counts squared).
@@ -682,17 +685,8 @@ std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<
     // CHOLMOD's supernodal factorisation runs OpenBLAS, whose first call maps its buffers; where an
     // address-space limit (ulimit -v) refuses them, OpenBLAS retries for ever (measured: fish, R = 5,
     // under ulimit -v 300000). Refused here instead, so that Auto turns to another solver.
-    const double room = address_space_room(), need = kBlasAddressSpace + 2 * 12.0 * double(lower);
-    if (room < need) {
-      std::ostringstream os;
-      os.precision(3);
-      os << "CHOLMOD needs about " << need / double(1ull << 30)
-         << " GiB of address space for OpenBLAS's buffers and A's copies, and the address-space limit (ulimit -v) "
-            "leaves "
-         << std::max(room, 0.0) / double(1ull << 30)
-         << " GiB of it: raise that limit, or use --solver envelope or eigen";
-      throw ResourceLimit(os.str());
-    }
+    check_address_space(kBlasAddressSpace + 2 * 12.0 * double(lower), "OpenBLAS's buffers and A's copies",
+                        "use --solver envelope or eigen");
   }
   if (which == Solver::Eigen)
     return std::make_unique<EigenAnalysis<Simplicial>>(std::make_unique<EigenFactor<Simplicial>>(

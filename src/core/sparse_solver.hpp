@@ -49,6 +49,8 @@ double kernel_matrix_bytes(const KernelMatrix& a);
 /// What the address-space limit (RLIMIT_AS, ulimit -v) leaves beyond what the process maps now, in
 /// bytes; infinity without a limit.
 double address_space_room() noexcept;
+/// Throws ResourceLimit naming `what` and `instead` where address_space_room() is under `need` bytes.
+void check_address_space(double need, const char* what, const char* instead);
 /// The address space OpenBLAS maps for its buffers on its first call (under CHOLMOD), with margin:
 /// measured after CHOLMOD is opened (cholmod_loader.cpp), the fish at R = 5 ran with 187 MB of
 /// room and spun in OpenBLAS's allocation with 158 MB (ulimit -v 340000 and 310000).
