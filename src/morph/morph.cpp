@@ -330,6 +330,10 @@ Prescribed prescribe(const VolumeMesh& mesh, const Motion& motion, bool part) {
 
 MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOptions& options, MorphBackend* backend) {
   MorphBackend& b = backend ? *backend : local_backend();
+  // What this process may hold in all while the fits run: their share and what it holds now. Two
+  // levels give each level what is left of it when that level starts (the morph's own arrays and a
+  // quality measure running beside it grow meanwhile).
+  const double process_bytes = options.fit.memory_limit_bytes + io::resident_bytes();
   if (!options.radius_auto && (!(options.fit.radius > 0) || !std::isfinite(options.fit.radius)))
     throw InvalidInput("the radius must be a finite number > 0, got " + io::format_number(options.fit.radius));
   if (!std::isfinite(options.phase)) throw InvalidInput("the phase must be finite");
@@ -698,15 +702,18 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
         // The coarse level is held while the fine one is fitted: the fine fit gets what the coarse
         // one (its matrix, factor and evaluation lists, as resident memory shows them) leaves.
         const double held_before = io::resident_bytes();
-        std::unique_ptr<FittedMapping> coarse = b.fit(cs, ct, fit, ci);
+        FitOptions coarse_options = fit;
+        coarse_options.memory_limit_bytes = std::clamp(process_bytes - held_before, 1.0, fit.memory_limit_bytes);
+        std::unique_ptr<FittedMapping> coarse = b.fit(cs, ct, coarse_options, ci);
         // What the coarse level leaves at every control: the fine level's targets.
         std::vector<Vec3> d(nc), fine_targets(nc);
         coarse->displacements(sources, d);
         for (std::size_t i = 0; i < nc; ++i) fine_targets[i] = targets[i] - d[i];
         FitOptions fine = fit;
         fine.radius = plan->fine_radius;
+        const double held = io::resident_bytes();
         fine.memory_limit_bytes =
-            std::max(fit.memory_limit_bytes - std::max(io::resident_bytes() - held_before, 0.0), 1.0);
+            std::max(std::min(fit.memory_limit_bytes - std::max(held - held_before, 0.0), process_bytes - held), 1.0);
         std::unique_ptr<FittedMapping> f;
         try {
           f = b.fit(sources, fine_targets, fine, ids);
