@@ -654,14 +654,19 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
         }
         std::ostringstream os;
         os.precision(3);
+        // R / 4 against the boundary's spacing (which the plan finds only below R / 4).
+        const auto under_spacing = [&] {
+          os << "R / 4 = " << plan->spacing;
+          if (plan->boundary_spacing < plan->spacing)
+            os << " is under twice the boundary's spacing " << plan->boundary_spacing;
+          else
+            os << " is under the boundary's spacing";
+        };
         if (options.levels == 2) {
           os << "asked for";
           if (plan->spacing < 2 * plan->boundary_spacing || plan->coarse.size() < 3) {
-            os << "; R / 4 = " << plan->spacing;
-            if (plan->boundary_spacing < plan->spacing)
-              os << " is under twice the boundary's spacing " << plan->boundary_spacing;
-            else
-              os << " is under the boundary's spacing";
+            os << "; ";
+            under_spacing();
             os << " and the coarse level has " << plan->coarse.size() << " of the " << nc
                << " controls: the fine level carries the motion, and one level (--levels 1) gives better cells";
           }
@@ -673,11 +678,10 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
           os << "auto: one level, predicted " << plan->seconds_plain
              << " s (two where one would pass its memory budget, or take " << detail::kTwoLevelSeconds
              << " s or more and " << detail::kTwoLevelGain << " x as long as two";
-          if (plan->spacing < 2 * plan->boundary_spacing)
-            os << "; and R / 4 = " << plan->spacing
-               << (plan->boundary_spacing < plan->spacing ? " is under twice the boundary's spacing "
-                                                          : " is under the boundary's spacing")
-               << (plan->boundary_spacing < plan->spacing ? io::format_number(plan->boundary_spacing) : "");
+          if (plan->spacing < 2 * plan->boundary_spacing) {
+            os << "; and ";
+            under_spacing();
+          }
           os << ")";
           plan.reset();
         }
