@@ -6,6 +6,7 @@
 #include "csrbf/space_map.hpp"
 
 #include "../../src/core/evaluator.hpp"
+#include "../../src/core/incomplete_cholesky.hpp"
 #include "../../src/core/sparse_solver.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -688,14 +689,15 @@ TEST(FastPaths, EvaluationLoopSelection) {
 }
 
 TEST(FastPaths, ConjugateGradientsStopWhenTheirResidualStopsFalling) {
-  // A matrix too ill-conditioned for CG (C6, each source with a twin 1e-7 R away): its residual
+  // A matrix too ill-conditioned for CG (C6, each source with a twin 1e-9 R away; at 1e-7 the
+  // incomplete Cholesky preconditioner converges, in 3105 steps): its residual
   // falls ever more slowly. CG stops once it has not fallen 10x in kCgStagnationWindow steps, far
   // before its step limit, and says what was reached and what to do (it ran to the limit, 245 s in
   // one user's fit, silent).
   std::mt19937 rng(110);
   auto cloud = random_points(1500, rng);
   const std::size_t n = cloud.size();
-  for (std::size_t i = 0; i < n; ++i) cloud.push_back(cloud[i] + Vec3(1e-7 * 0.2, 0, 0));
+  for (std::size_t i = 0; i < n; ++i) cloud.push_back(cloud[i] + Vec3(1e-9 * 0.2, 0, 0));
   const KernelMatrix a(AdjacencyGraph::from_index(NeighborIndex(cloud, 0.2), cloud), Kernel::C6, 0.2);
   const auto cg = detail::conjugate_gradients(a, identity_order(cloud.size()), 1e-10, 1000000);
   RowMatrix b = RowMatrix::Random(Eigen::Index(cloud.size()), 3);
@@ -728,11 +730,11 @@ std::pair<std::vector<Vec3>, KernelMatrix> c2_matrix_of_a_cloud(unsigned seed) {
 // one within kCgGoodEnough.
 TEST(FastPaths, ConjugateGradientsKeepAGoodSolutionAtTheirStepLimit) {
   const auto [cloud, a] = c2_matrix_of_a_cloud(111);
-  const auto cg = detail::conjugate_gradients(a, identity_order(cloud.size()), 1e-30, 300);  // tolerance unreachable
+  const auto cg = detail::conjugate_gradients(a, identity_order(cloud.size()), 1e-30, 20);  // tolerance unreachable
   const RowMatrix b = RowMatrix::Random(Eigen::Index(cloud.size()), 3);
   RowMatrix x = b;
   ASSERT_NO_THROW(cg->solve_in_place(x));
-  EXPECT_EQ(cg->iterations(), 300u);
+  EXPECT_EQ(cg->iterations(), 20u);
   EXPECT_LE(cg->residual(), detail::kCgGoodEnough);
   // The residual it reports is the true one, against a product with A.
   const RowMatrix r = a * x - b;
@@ -758,4 +760,89 @@ TEST(FastPaths, ConjugateGradientsReleasedHoldNothingAndSolveNothing) {
   EXPECT_EQ(y, b);  // untouched
   // The solution of the solve before stays described.
   EXPECT_GT(cg->iterations(), 0u);
+}
+
+// Issue 32: CG's preconditioner. Where L's pattern holds every pair (R beyond the points' extent, one
+// block), incomplete Cholesky is complete: M^-1 r is A^-1 r, against a dense solve.
+TEST(IncompleteCholesky, IsTheDenseCholeskyWhereThePatternIsFull) {
+  std::mt19937 rng(321);
+  const auto cloud = random_points(60, rng);
+  const KernelMatrix a(AdjacencyGraph::from_index(NeighborIndex(cloud, 2.0), cloud), Kernel::C2, 2.0);
+  const std::size_t n = cloud.size();
+  std::vector<std::size_t> row(n + 1, 0);
+  std::vector<std::uint32_t> col;
+  std::vector<double> val;
+  for (std::size_t i = 0; i < n; ++i) {
+    const auto nb = a.pattern().neighbors_of(i);
+    ASSERT_EQ(nb.size(), n - 1);
+    col.insert(col.end(), nb.begin(), nb.end());
+    const auto v = a.values_of(i);
+    val.insert(val.end(), v.begin(), v.end());
+    row[i + 1] = col.size();
+  }
+  const detail::IncompleteCholesky ic(row, col, val, a.diagonal(), n);
+  EXPECT_EQ(ic.blocks(), 1u);
+  EXPECT_EQ(ic.shift(), 0.0);
+  const RowMatrix r = RowMatrix::Random(Eigen::Index(n), 3);
+  RowMatrix z(Eigen::Index(n), 3);
+  ic.apply(r.data(), z.data(), 3);
+  Eigen::MatrixXd dense = Eigen::MatrixXd::Identity(Eigen::Index(n), Eigen::Index(n)) * a.diagonal();
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t e = 0; e < col.size() / n; ++e)
+      dense(Eigen::Index(i), Eigen::Index(col[row[i] + e])) = val[row[i] + e];
+  const Eigen::MatrixXd exact = dense.llt().solve(Eigen::MatrixXd(r));
+  // L is kept in float: M^-1 r agrees to float's precision times A's condition.
+  EXPECT_LT((Eigen::MatrixXd(z) - exact).cwiseAbs().maxCoeff() / exact.cwiseAbs().maxCoeff(), 1e-3);
+  // and the whole fit through CG then converges in a handful of steps.
+  const RowMatrix az = a * RowMatrix(z);
+  EXPECT_LT((az - r).norm() / r.norm(), 1e-3);
+}
+
+// Issue 32: 2-D point sets (z = 0) with ~25 neighbours, where plain CG does not converge in 3000
+// steps: preconditioned CG does, and its coefficients equal a dense solve's, in double.
+TEST(IncompleteCholesky, PreconditionedCgSolvesPlanarPointsAsADenseSolve) {
+  std::mt19937_64 rng(322);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  const std::size_t n = 3000;
+  std::vector<Vec3> s(n), d(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    s[i] = Vec3(u(rng), u(rng), 0.0);
+    d[i] = s[i] + 0.02 * Vec3(std::sin(5 * s[i].y()), std::cos(4 * s[i].x()), 0.0);
+  }
+  FitOptions o{std::sqrt(25.0 / (M_PI * double(n))), Kernel::C2};
+  o.solver = Solver::Cg;
+  const SpaceMap m = SpaceMap::fit(s, d, o);
+  ASSERT_EQ(m.stats().solver, Solver::Cg);
+  EXPECT_FALSE(m.stats().fell_back);
+  EXPECT_GT(m.stats().iterations, detail::kIcProbeSteps);  // it turned to the preconditioner
+  EXPECT_LT(m.stats().iterations, 3000u);
+  Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(Eigen::Index(n), Eigen::Index(n));
+  Eigen::MatrixXd g(Eigen::Index(n), 3);
+  for (std::size_t i = 0; i < n; ++i) {
+    g.row(Eigen::Index(i)) = (d[i] - s[i]).transpose();
+    for (std::size_t j = 0; j < n; ++j)
+      dense(Eigen::Index(i), Eigen::Index(j)) = wendland(Kernel::C2, (s[i] - s[j]).norm() / o.radius);
+  }
+  const Eigen::MatrixXd exact = dense.llt().solve(g);
+  const double scale = exact.cwiseAbs().maxCoeff();
+  EXPECT_LT((m.coefficients() - exact).cwiseAbs().maxCoeff(), 1e-9 * scale);
+  // Plain conjugate gradients on the same matrix (the textbook recurrence, one column) need several
+  // times the steps to the same tolerance.
+  const KernelMatrix& a = m.matrix();
+  RowMatrix x = RowMatrix::Zero(Eigen::Index(n), 1), r(Eigen::Index(n), 1);
+  for (std::size_t i = 0; i < n; ++i) r(Eigen::Index(i), 0) = d[i].x() - s[i].x();
+  RowMatrix p = r;
+  const double rr0 = r.squaredNorm();
+  double rr = rr0;
+  std::size_t plain_steps = 0;
+  for (; plain_steps < 20000 && rr > kCgTolerance * kCgTolerance * rr0; ++plain_steps) {
+    const RowMatrix q = a * p;
+    const double alpha = rr / p.col(0).dot(q.col(0));
+    x += alpha * p;
+    r -= alpha * q;
+    const double rr2 = r.squaredNorm();
+    p = r + (rr2 / rr) * p;
+    rr = rr2;
+  }
+  EXPECT_GT(plain_steps, 3 * m.stats().iterations) << m.stats().iterations;
 }
