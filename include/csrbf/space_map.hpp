@@ -82,6 +82,12 @@ class SpaceMap {
   void apply(const double* in, double* out, std::size_t n, double phase = 1.0) const;
   void apply(const float* in, float* out, std::size_t n, double phase = 1.0) const;
   void apply(std::span<const Vec3> in, std::span<Vec3> out, double phase = 1.0) const;
+  /// out = in + phase * d(in) for n interleaved points, with the map's Jacobian J = dT/dx at each:
+  /// normals_in (n x 3, may be null) go to normals_out as J^-T n (the normal of the deformed
+  /// surface, exact, not a blend), scaled to the length of n; jacobians (n x 9, row-major, may be
+  /// null) receives J. Any output may be its input's buffer. In double, in parallel over points.
+  void apply_with_normals(const double* in, double* out, std::size_t n, double phase, const double* normals_in,
+                          double* normals_out, double* jacobians = nullptr) const;
   /// d(in) for n interleaved points into out (n x 3).
   void displacements(const double* in, double* out, std::size_t n) const;
   void displacements(const float* in, float* out, std::size_t n) const;

@@ -34,6 +34,22 @@ inline __attribute__((always_inline)) V phi(V r) {
     return (s2 * s2) * (s2 * s2) * (((r + S(25.0 / 32.0)) * r + S(0.25)) * r + S(1.0 / 32.0));
 }
 
+/// phi'(r) / (r phi_lead(K)) for r in [0, 1]: the gradient of phi(|t - s|) in t is this times
+/// (t - s), in units of R. Smooth at r = 0 for C2-C6 (C2: -5 (1-r)^3); the C0 cone has no gradient
+/// at its tip, where this gives 0 (as SpaceMap::jacobian does).
+template <Kernel K, class T>
+inline __attribute__((always_inline)) T dphi_over_r(T r) {
+  const T s = T(1) - r;
+  if constexpr (K == Kernel::C0)
+    return r > T(0) ? T(-2) * s / r : T(0);
+  else if constexpr (K == Kernel::C2)
+    return T(-5) * (s * s * s);
+  else if constexpr (K == Kernel::C4)
+    return -(s * s) * (s * s) * s * (T(8) * r + T(1.6));
+  else
+    return T(-22.0 / 32.0) * ((s * s) * (s * s) * (s * s) * s) * ((T(16) * r + T(7)) * r + T(1));
+}
+
 /// Runs sum a cell's run [b, e) (a multiple of kLanes long) for kGroup points at once: the
 /// points share each load of the run, and their independent chains keep the pipelines full. (One
 /// point at a time, the loop is bound by the latency of its chain and by the mispredicted exit of
@@ -199,6 +215,62 @@ inline __attribute__((always_inline)) void evaluate_block(const EvalGrid& g, con
         Run::template one<K, Run>(blk, 0, 0, c0 + k);
       ++k;
     }
+  }
+}
+
+/// Points [begin, end) of in: out = in + phase d(in), and jac (9 a point, row-major) = dT/dx =
+/// I + phase dd/dx, through the cell lists, in double. One point at a time, the run in lanes.
+template <Kernel K>
+inline __attribute__((always_inline)) void jacobian_block(const EvalGrid& g, const EvalData<double>& a,
+                                                          const PolynomialPart* poly, const double* in, double* out,
+                                                          double* jac, std::size_t begin, std::size_t end,
+                                                          double phase) {
+  const Block<double> blk{g, a, poly, in, out, phase, true};
+  const std::uint32_t* cb = g.begin.data();
+  const double* __restrict sx = a.x.data();
+  const double* __restrict sy = a.y.data();
+  const double* __restrict sz = a.z.data();
+  const double* __restrict ax = a.ax.data();
+  const double* __restrict ay = a.ay.data();
+  const double* __restrict az = a.az.data();
+  constexpr std::size_t L = EvalGrid::kLanes;
+  for (std::size_t i = begin; i < end; ++i) {
+    float limit;
+    const std::size_t cell = blk.cell_of(i, limit);
+    double d[3] = {}, j[3][3] = {};
+    if (cell != Block<double>::none) {
+      const std::uint32_t b = cb[cell], e = a.trim(cb[cell], cb[cell + 1], limit);
+      double t[3];
+      blk.local(i, t);
+      double acc[3][L] = {}, gj[3][3][L] = {};
+      for (std::uint32_t q = b; q < e; q += L) {
+#pragma omp simd
+        for (std::size_t l = 0; l < L; ++l) {
+          const double dx = t[0] - sx[q + l], dy = t[1] - sy[q + l], dz = t[2] - sz[q + l];
+          const double rr = std::sqrt(dx * dx + dy * dy + dz * dz);
+          const double r = rr < 1.0 ? rr : 1.0;
+          const double f = phi<K, double>(r), h = dphi_over_r<K, double>(r);
+          const double c[3] = {ax[q + l], ay[q + l], az[q + l]}, u[3] = {h * dx, h * dy, h * dz};
+          for (std::size_t m = 0; m < 3; ++m) {
+            acc[m][l] += f * c[m];
+            for (std::size_t n = 0; n < 3; ++n) gj[m][n][l] += c[m] * u[n];
+          }
+        }
+      }
+      for (std::size_t m = 0; m < 3; ++m)
+        for (std::size_t l = 0; l < L; ++l) {
+          d[m] += acc[m][l];
+          for (std::size_t n = 0; n < 3; ++n) j[m][n] += gj[m][n][l];
+        }
+    }
+    blk.finish(i, d);
+    // t is x / R: dd/dx is the sum over t divided by R; the polynomial's linear part is B^T / scale.
+    for (std::size_t m = 0; m < 3; ++m)
+      for (std::size_t n = 0; n < 3; ++n) {
+        double v = j[m][n] * blk.inv_r;
+        if (poly) v += poly->b[1 + n][m] * poly->inv_scale;
+        jac[9 * i + 3 * m + n] = double(m == n) + phase * v;
+      }
   }
 }
 

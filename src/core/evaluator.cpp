@@ -340,6 +340,33 @@ CSRBF_EVAL_CLONE(C6, float)
 }  // namespace
 
 namespace {
+#define CSRBF_JAC_CLONE(K)                                                                                            \
+  CSRBF_CLONES void jac_##K(const EvalGrid& g, const EvalData<double>& a, const PolynomialPart* poly,                 \
+                            const double* in, double* out, double* jac, std::size_t b, std::size_t e, double phase) { \
+    jacobian_block<Kernel::K>(g, a, poly, in, out, jac, b, e, phase);                                                 \
+  }
+CSRBF_JAC_CLONE(C0)
+CSRBF_JAC_CLONE(C2)
+CSRBF_JAC_CLONE(C4)
+CSRBF_JAC_CLONE(C6)
+#undef CSRBF_JAC_CLONE
+}  // namespace
+
+void evaluate_jacobians(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
+                        const double* in, double* out, double* jac, std::size_t begin, std::size_t end, double phase) {
+  switch (kernel) {
+    case Kernel::C0:
+      return jac_C0(g, a, poly, in, out, jac, begin, end, phase);
+    case Kernel::C2:
+      return jac_C2(g, a, poly, in, out, jac, begin, end, phase);
+    case Kernel::C4:
+      return jac_C4(g, a, poly, in, out, jac, begin, end, phase);
+    case Kernel::C6:
+      return jac_C6(g, a, poly, in, out, jac, begin, end, phase);
+  }
+}
+
+namespace {
 std::atomic<bool> g_use_avx512{avx512_available()};
 }  // namespace
 

@@ -136,6 +136,11 @@ void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const
 void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly, const float* in,
               float* out, std::size_t begin, std::size_t end, double phase, bool add_point);
 
+/// out = in + phase d(in) and jac[9i..9i+8] = dT/dx (row-major) for the points [begin, end), in
+/// double (the portable loop, with its AVX2 clone): the engine API's and VTK's normals.
+void evaluate_jacobians(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
+                        const double* in, double* out, double* jac, std::size_t begin, std::size_t end, double phase);
+
 /// Points that arrive in an order unrelated to space (a point cloud, a mesh renumbered by another
 /// tool) make every point a new cell: the group path never runs and each run is fetched from memory
 /// anew. Such batches are gathered by cell first (a counting sort, linear), evaluated, and written

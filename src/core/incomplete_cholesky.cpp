@@ -55,8 +55,9 @@ IncompleteCholesky::IncompleteCholesky(std::span<const std::size_t> row, std::sp
         lrow.assign(end - begin, 0.0);
         for (std::size_t e = row[k]; e < row[k + 1]; ++e)
           if (col[e] >= first && col[e] < k) {
-            const auto at = std::lower_bound(col_.begin() + std::ptrdiff_t(begin), col_.begin() + std::ptrdiff_t(end),
-                                             col[e]) - col_.begin();
+            const auto at =
+                std::lower_bound(col_.begin() + std::ptrdiff_t(begin), col_.begin() + std::ptrdiff_t(end), col[e]) -
+                col_.begin();
             lrow[std::size_t(at) - begin] = val[e];
           }
         for (std::size_t e = begin; e < end; ++e) position[col_[e] - first] = std::int64_t(e - begin);

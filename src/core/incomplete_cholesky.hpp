@@ -29,8 +29,8 @@ class IncompleteCholesky {
  public:
   /// A's rows in CG's order: row k's off-diagonal columns col[row[k] .. row[k+1]) (any order within
   /// a row, both triangles) and values, and the constant diagonal.
-  IncompleteCholesky(std::span<const std::size_t> row, std::span<const std::uint32_t> col,
-                     std::span<const double> val, double diagonal, std::size_t n);
+  IncompleteCholesky(std::span<const std::size_t> row, std::span<const std::uint32_t> col, std::span<const double> val,
+                     double diagonal, std::size_t n);
 
   /// z = M^-1 r for n x m values (row-major, m <= 8), blocks in parallel.
   void apply(const double* r, double* z, std::size_t m) const;
@@ -41,9 +41,7 @@ class IncompleteCholesky {
   double shift() const noexcept { return shift_; }
   double bytes() const noexcept { return bytes(col_.size(), inv_diagonal_.size()); }
   /// Bytes of a factor with `lower` entries below the diagonal for N rows.
-  static double bytes(std::size_t lower, std::size_t n) noexcept {
-    return 8.0 * double(lower) + 16.0 * double(n + 1);
-  }
+  static double bytes(std::size_t lower, std::size_t n) noexcept { return 8.0 * double(lower) + 16.0 * double(n + 1); }
 
  private:
   std::vector<std::size_t> block_start_;  // block b holds rows [block_start_[b], block_start_[b + 1])

@@ -3,6 +3,7 @@
 // float evaluation where it can be trusted.
 #include "fit_state.hpp"
 
+#include <Eigen/Geometry>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
@@ -199,6 +200,58 @@ void SpaceMap::apply(std::span<const Vec3> in, std::span<Vec3> out, double phase
   static_assert(sizeof(Vec3) == 3 * sizeof(double), "Vec3 must be three packed doubles");
   apply_impl(in.data()->data(), out.data()->data(), in.size(), phase, true);
 }
+namespace {
+/// n' = J^-T n, scaled to |n|: the cofactor matrix of J (det J times J^-T) times n, its sign
+/// det J's, so that a normal keeps its side of the surface where the map folds it over.
+void transform_normal(const double* j, const double* n, double* out) {
+  const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> jm(j);
+  Eigen::Matrix3d cof;
+  cof.col(0) = jm.col(1).cross(jm.col(2));
+  cof.col(1) = jm.col(2).cross(jm.col(0));
+  cof.col(2) = jm.col(0).cross(jm.col(1));
+  // J^-1's rows are (j1 x j2, j2 x j0, j0 x j1) / det for J's columns j0, j1, j2: cof = det(J) J^-T.
+  const double det = jm.col(0).dot(cof.col(0));
+  const Vec3 v(n[0], n[1], n[2]);
+  Vec3 w = cof * v;
+  const double len = w.norm(), want = v.norm();
+  if (len > 0 && std::isfinite(len)) w *= (det < 0 ? -want : want) / len;
+  out[0] = w.x();
+  out[1] = w.y();
+  out[2] = w.z();
+}
+}  // namespace
+
+void SpaceMap::apply_with_normals(const double* in, double* out, std::size_t n, double phase, const double* normals_in,
+                                  double* normals_out, double* jacobians) const {
+  check_phase(phase);
+  if ((normals_in == nullptr) != (normals_out == nullptr))
+    throw InvalidInput("apply_with_normals: normals_in and normals_out must both be given or both be null");
+  const Structure& st = *s_->st;
+  const detail::EvalGrid& grid = st.grid();
+  const detail::PolynomialPart* poly = st.terms > 0 ? &s_->poly : nullptr;
+  const detail::EvalData<double>* data = grid.usable ? &s_->template eval_data<double>() : nullptr;
+  constexpr std::size_t grain = 1024;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
+    const std::size_t b = r.begin(), m = r.end() - r.begin();
+    double local[9 * grain];
+    double* jac = jacobians ? jacobians + 9 * b : local;
+    if (data) {
+      detail::evaluate_jacobians(grid, *data, st.options.kernel, poly, in + 3 * b, out + 3 * b, jac, 0, m, phase);
+    } else {
+      for (std::size_t i = 0; i < m; ++i) {
+        const Vec3 x(in[3 * (b + i)], in[3 * (b + i) + 1], in[3 * (b + i) + 2]);
+        const Eigen::Matrix3d j = jacobian(x, phase);
+        const Vec3 y = x + phase * displacement(x);
+        for (int c = 0; c < 3; ++c) out[3 * (b + i) + std::size_t(c)] = y[c];
+        Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(jac + 9 * i) = j;
+      }
+    }
+    if (normals_in)
+      for (std::size_t i = 0; i < m; ++i)
+        transform_normal(jac + 9 * i, normals_in + 3 * (b + i), normals_out + 3 * (b + i));
+  });
+}
+
 void SpaceMap::displacements(const double* in, double* out, std::size_t n) const { apply_impl(in, out, n, 1.0, false); }
 void SpaceMap::displacements(const float* in, float* out, std::size_t n) const { apply_impl(in, out, n, 1.0, false); }
 

@@ -7,7 +7,13 @@
 #include <vtkDoubleArray.h>
 #include <vtkFloatArray.h>
 #include <vtkObjectFactory.h>
+#include <vtkMath.h>
 #include <vtkPoints.h>
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
 
 #include <vector>
 
@@ -147,6 +153,73 @@ void vtkCSRBFTransform::TransformPoints(vtkPoints* in, vtkPoints* out) {
     for (vtkIdType i = 0; i < n; ++i) out->SetPoint(start + i, buf.data() + 3 * i);
   }
   out->Modified();
+}
+
+void vtkCSRBFTransform::TransformPointsNormalsVectors(vtkPoints* inPts, vtkPoints* outPts, vtkDataArray* inNms,
+                                                      vtkDataArray* outNms, vtkDataArray* inVrs, vtkDataArray* outVrs,
+                                                      int nOptionalVectors, vtkDataArray** inVrsArr,
+                                                      vtkDataArray** outVrsArr) {
+  this->Update();
+  if (this->InverseFlag || !this->Map) {
+    this->vtkWarpTransform::TransformPointsNormalsVectors(inPts, outPts, inNms, outNms, inVrs, outVrs, nOptionalVectors,
+                                                          inVrsArr, outVrsArr);
+    return;
+  }
+  const vtkIdType n = inPts->GetNumberOfPoints();
+  const vtkIdType start = outPts->GetNumberOfPoints();
+  outPts->SetNumberOfPoints(start + n);
+  // Each output grows by n tuples as VTK's per-point path appends them, sized here once so that the
+  // blocks below set their own tuples in parallel.
+  const auto grow = [n](vtkDataArray* a) {
+    const vtkIdType at = a->GetNumberOfTuples();
+    a->SetNumberOfComponents(3);
+    a->SetNumberOfTuples(at + n);
+    return at;
+  };
+  const vtkIdType normals_at = inNms ? grow(outNms) : 0, vectors_at = inVrs ? grow(outVrs) : 0;
+  std::vector<vtkIdType> optional_at;
+  for (int k = 0; inVrsArr && k < nOptionalVectors; ++k) optional_at.push_back(grow(outVrsArr[k]));
+  // Gathered into doubles (VTK's own path computes in double too), a block at a time in parallel.
+  const bool vectors = inVrs || (nOptionalVectors > 0 && inVrsArr);
+  const auto& map = this->Map->map;
+  const double phase = this->Phase;
+  constexpr vtkIdType block = 4096;
+  tbb::parallel_for(tbb::blocked_range<vtkIdType>(0, (n + block - 1) / block),
+                    [&](const tbb::blocked_range<vtkIdType>& r) {
+                      std::vector<double> p, nm, jac;
+                      for (vtkIdType b = r.begin(); b < r.end(); ++b) {
+                        const vtkIdType first = b * block, m = std::min(block, n - first);
+                        p.resize(3 * std::size_t(m));
+                        nm.resize(inNms ? 3 * std::size_t(m) : 0);
+                        jac.resize(vectors ? 9 * std::size_t(m) : 0);
+                        for (vtkIdType i = 0; i < m; ++i) {
+                          inPts->GetPoint(first + i, p.data() + 3 * i);
+                          if (inNms) inNms->GetTuple(first + i, nm.data() + 3 * i);
+                        }
+                        map.apply_with_normals(p.data(), p.data(), std::size_t(m), phase, inNms ? nm.data() : nullptr,
+                                               inNms ? nm.data() : nullptr, vectors ? jac.data() : nullptr);
+                        for (vtkIdType i = 0; i < m; ++i) {
+                          outPts->SetPoint(start + first + i, p.data() + 3 * i);
+                          if (inNms) {
+                            double* v = nm.data() + 3 * i;
+                            vtkMath::Normalize(v);
+                            outNms->SetTuple(normals_at + first + i, v);
+                          }
+                          const auto vector = [&](vtkDataArray* from, vtkDataArray* to, vtkIdType at) {
+                            double v[3], w[3];
+                            from->GetTuple(first + i, v);
+                            const double* j = jac.data() + 9 * i;
+                            for (int a = 0; a < 3; ++a)
+                              w[a] = j[3 * a] * v[0] + j[3 * a + 1] * v[1] + j[3 * a + 2] * v[2];
+                            to->SetTuple(at + first + i, w);
+                          };
+                          if (inVrs) vector(inVrs, outVrs, vectors_at);
+                          for (std::size_t k = 0; k < optional_at.size(); ++k)
+                            vector(inVrsArr[k], outVrsArr[k], optional_at[k]);
+                        }
+                      }
+                    });
+  outPts->Modified();
 }
 
 vtkAbstractTransform* vtkCSRBFTransform::MakeTransform() { return vtkCSRBFTransform::New(); }

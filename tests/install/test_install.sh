@@ -43,9 +43,9 @@ echo "installed: programs, headers, libraries, CMake config and version, Python 
 if grep -qi 'cholmod' "$tmp/prefix/lib/cmake/csrbf/csrbf-core-targets.cmake"; then
   echo "csrbf-core-targets.cmake names CHOLMOD"; exit 1
 fi
-for c in core anim io morph mpi render vtk; do
+for c in core engine anim io morph mpi render vtk; do
   extra=()
-  if [ "$c" = core ]; then
+  if [ "$c" = core ] || [ "$c" = engine ]; then
     extra=(-DCMAKE_DISABLE_FIND_PACKAGE_VTK=ON -DCMAKE_DISABLE_FIND_PACKAGE_MPI=ON -DCMAKE_DISABLE_FIND_PACKAGE_assimp=ON)
   fi
   cmake -S "$src/tests/install/consumers" -B "$tmp/consumer-$c" -G Ninja -DCMAKE_BUILD_TYPE=Release \

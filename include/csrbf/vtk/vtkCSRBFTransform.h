@@ -58,6 +58,12 @@ class vtkCSRBFTransform : public vtkWarpTransform {
   vtkAbstractTransform* MakeTransform() override;
   /// Forward transforms go through csrbf's parallel, vectorised evaluation in one call.
   void TransformPoints(vtkPoints* in, vtkPoints* out) override;
+  /// Points, normals and vectors together (vtkTransformPolyDataFilter with point normals), in
+  /// parallel: normals exactly through the Jacobian, J^-T n normalised (as VTK's own per-point path
+  /// defines them), vectors J v. The inverse goes VTK's per-point way.
+  void TransformPointsNormalsVectors(vtkPoints* inPts, vtkPoints* outPts, vtkDataArray* inNms, vtkDataArray* outNms,
+                                     vtkDataArray* inVrs, vtkDataArray* outVrs, int nOptionalVectors = 0,
+                                     vtkDataArray** inVrsArr = nullptr, vtkDataArray** outVrsArr = nullptr) override;
 
  protected:
   vtkCSRBFTransform();

@@ -1,0 +1,98 @@
+// csrbf for game engines and other code built without exceptions (-fno-exceptions): a deformer that
+// is fitted once and then deforms vertex buffers as engines keep them, positions and normals
+// interleaved in one buffer at any stride, float or double. Nothing here throws: every call returns a
+// Result (a status and a message), and this header includes the standard library only.
+//
+//   csrbf::engine::Deformer d;
+//   csrbf::engine::Settings s;
+//   s.radius = 0.3;
+//   if (auto r = csrbf::engine::Deformer::fit(sources, destinations, n, s, d); !r) log(r.message);
+//   csrbf::engine::VertexBuffer vb{vertices, count, sizeof(Vertex), offsetof(Vertex, pos),
+//                                  offsetof(Vertex, normal), csrbf::engine::Scalar::Float32};
+//   d.deform(rest, vb, phase);   // rest and vb may be the same buffer
+//
+// Normals are taken through the map exactly, n' = J^-T n with J = dT/dx at the vertex (scaled to
+// the length n had), not blended.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+
+namespace csrbf {
+class SpaceMap;
+}
+
+namespace csrbf::engine {
+
+/// What a call did: Ok, or what kind of failure (the message says which argument or control, and
+/// the value).
+enum class Status : int {
+  Ok = 0,
+  InvalidInput = 1,          ///< an argument, a layout or a control is not valid
+  DuplicateSource = 2,       ///< two controls share a source
+  DegeneratePolynomial = 3,  ///< the sources do not determine the polynomial asked for
+  IllConditioned = 4,        ///< the controls are too close together for the radius
+  NotPositiveDefinite = 5,   ///< the solver failed
+  ResourceLimit = 6,         ///< the fit would pass its memory limit (said before allocating)
+  OutOfMemory = 7,           ///< an allocation failed
+  Internal = 8,              ///< anything else (the message says what)
+};
+
+struct Result {
+  Status status = Status::Ok;
+  char message[480] = {};  ///< empty on success; otherwise NUL-terminated, in English
+  explicit operator bool() const noexcept { return status == Status::Ok; }
+};
+
+enum class Kernel : int { C0 = 0, C2 = 2, C4 = 4, C6 = 6 };
+enum class Polynomial : int { None = 0, Constant = 1, Linear = 2 };
+enum class Scalar : int { Float32 = 0, Float64 = 1 };
+
+struct Settings {
+  double radius = 0.0;  ///< radius of support R, in the sources' units (> 0)
+  Kernel kernel = Kernel::C2;
+  Polynomial polynomial = Polynomial::None;  ///< None: strictly local (far vertices keep their bits)
+  double memory_limit_gib = 4.0;             ///< the fit refuses (ResourceLimit) beyond it
+};
+
+/// `count` vertices at `base`, each `stride` bytes after the one before; a vertex's position (3
+/// scalars) at `position_offset` bytes from its start, its normal at `normal_offset` (kNoNormal: the
+/// buffer has none). Scalars in native byte order.
+inline constexpr std::size_t kNoNormal = ~std::size_t(0);
+struct VertexBuffer {
+  void* base = nullptr;
+  std::size_t count = 0;
+  std::size_t stride = 0;
+  std::size_t position_offset = 0;
+  std::size_t normal_offset = kNoNormal;
+  Scalar scalar = Scalar::Float32;
+};
+
+/// A fitted deformation T(x) = x + phase d(x). Cheap to copy (copies share the fit); every const
+/// member may be called from several threads at once.
+class Deformer {
+ public:
+  Deformer() noexcept = default;
+
+  /// Fits n controls: sources and destinations as n x 3 doubles (x y z, one control after another).
+  static Result fit(const double* sources, const double* destinations, std::size_t n, const Settings& settings,
+                    Deformer& out) noexcept;
+  /// The same sources and settings with new destinations (n x 3, n as fitted): only the solve is
+  /// redone (an animation's frame).
+  Result refit(const double* destinations, Deformer& out) const noexcept;
+
+  /// Deforms the vertices of `in` into `out` at `phase` (normally in [0, 1]): positions T(x), normals
+  /// J^-T n. in and out have the same count and scalar; they may be the same buffer (in place) or
+  /// differ in stride and offsets. Where in has normals, out must have them too. An unfitted
+  /// Deformer is the identity.
+  Result deform(const VertexBuffer& in, const VertexBuffer& out, double phase = 1.0) const noexcept;
+
+  std::size_t size() const noexcept;  ///< the number of controls (0 before a fit)
+  bool fitted() const noexcept { return map_ != nullptr; }
+
+ private:
+  std::shared_ptr<const SpaceMap> map_;
+};
+
+}  // namespace csrbf::engine

@@ -1,0 +1,209 @@
+// Issue 32: the engine API (csrbf/engine.hpp) and SpaceMap::apply_with_normals: strided, interleaved
+// vertex buffers in float and double, normals exact through the Jacobian (against finite differences
+// of the map itself), and failures as status codes naming what was wrong.
+#include "csrbf/engine.hpp"
+#include "csrbf/space_map.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstddef>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "test_points.hpp"
+
+using namespace csrbf;
+using csrbf::test::random_points;
+
+namespace {
+
+struct Controls {
+  std::vector<Vec3> s, d;
+  std::vector<double> s_flat, d_flat;
+};
+
+/// n controls in the unit cube moved by a smooth field up to 0.1.
+Controls controls(std::size_t n, unsigned seed) {
+  std::mt19937 rng(seed);
+  Controls c;
+  c.s = random_points(n, rng);
+  for (const Vec3& p : c.s) {
+    c.d.push_back(p + 0.1 * Vec3(std::sin(3 * p.y()), std::cos(2 * p.z()), std::sin(4 * p.x())));
+    for (int k = 0; k < 3; ++k) {
+      c.s_flat.push_back(p[k]);
+      c.d_flat.push_back(c.d.back()[k]);
+    }
+  }
+  return c;
+}
+
+/// The deformed normal by finite differences of T itself: two tangents t1, t2 of n at x, each
+/// mapped by central differences, and their cross product.
+Vec3 finite_difference_normal(const SpaceMap& m, const Vec3& x, const Vec3& n, double phase) {
+  const Vec3 a = std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY();
+  const Vec3 t1 = n.cross(a).normalized(), t2 = n.cross(t1).normalized();
+  const double h = 1e-6;
+  const Vec3 u = m.map(x + h * t1, phase) - m.map(x - h * t1, phase);
+  const Vec3 v = m.map(x + h * t2, phase) - m.map(x - h * t2, phase);
+  Vec3 w = u.cross(v);  // t1 x t2 = n x (n x a)... oriented as n: check below
+  if (w.dot(m.jacobian(x, phase).inverse().transpose() * n) < 0) w = -w;
+  return w.normalized();
+}
+
+double angle(const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
+
+}  // namespace
+
+TEST(Engine, FastJacobiansEqualTheSimplePathForEveryKernelAndPolynomial) {
+  const Controls c = controls(400, 501);
+  std::mt19937 rng(502);
+  const auto pts = random_points(3000, rng, -0.2, 1.2);
+  std::vector<double> in, out(3 * pts.size()), jac(9 * pts.size());
+  for (const Vec3& p : pts) in.insert(in.end(), {p.x(), p.y(), p.z()});
+  for (Kernel k : {Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6})
+    for (Polynomial poly : {Polynomial::None, Polynomial::Linear}) {
+      FitOptions o{0.25, k, poly};
+      const SpaceMap m = SpaceMap::fit(c.s, c.d, o);
+      m.apply_with_normals(in.data(), out.data(), pts.size(), 0.7, nullptr, nullptr, jac.data());
+      double worst_pos = 0, worst_jac = 0;
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        worst_pos = std::max(worst_pos, (Vec3(out[3 * i], out[3 * i + 1], out[3 * i + 2]) - m.map(pts[i], 0.7)).norm());
+        const Eigen::Matrix3d j = m.jacobian(pts[i], 0.7);
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b) worst_jac = std::max(worst_jac, std::abs(jac[9 * i + 3 * a + b] - j(a, b)));
+      }
+      EXPECT_LT(worst_pos, 1e-12) << kernel_name(k);
+      EXPECT_LT(worst_jac, 1e-9) << kernel_name(k) << " " << polynomial_name(poly);
+    }
+}
+
+TEST(Engine, InterleavedFloatAndDoubleBuffersDeformPositionsAndExactNormals) {
+  const Controls c = controls(300, 503);
+  engine::Settings settings;
+  settings.radius = 0.3;
+  engine::Deformer d;
+  const engine::Result fit = engine::Deformer::fit(c.s_flat.data(), c.d_flat.data(), c.s.size(), settings, d);
+  ASSERT_TRUE(fit) << fit.message;
+  EXPECT_EQ(d.size(), 300u);
+  const SpaceMap m = SpaceMap::fit(c.s, c.d, FitOptions{0.3});
+  std::mt19937 rng(504);
+  const auto pts = random_points(20000, rng, -0.1, 1.1);
+  std::normal_distribution<double> g;
+  // A game vertex: position, a colour, a normal, texture coordinates (48 bytes, float).
+  struct VertexF {
+    float pos[3];
+    std::uint32_t rgba;
+    float normal[3];
+    float uv[2];
+    float pad[3];
+  };
+  struct VertexD {
+    double uv[2];
+    double pos[3];
+    double normal[3];
+  };
+  std::vector<VertexF> vf(pts.size());
+  std::vector<VertexD> vd(pts.size());
+  std::vector<Vec3> normals(pts.size());
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    normals[i] = Vec3(g(rng), g(rng), g(rng)).normalized();
+    for (int k = 0; k < 3; ++k) {
+      vf[i].pos[k] = float(pts[i][k]);
+      vf[i].normal[k] = float(normals[i][k]);
+      vd[i].pos[k] = pts[i][k];
+      vd[i].normal[k] = normals[i][k];
+    }
+    vf[i].rgba = 0xdeadbeef;
+    vf[i].uv[0] = vf[i].uv[1] = 0.5f;
+  }
+  const engine::VertexBuffer bf{vf.data(), vf.size(), sizeof(VertexF), offsetof(VertexF, pos),
+                                offsetof(VertexF, normal), engine::Scalar::Float32};
+  const engine::VertexBuffer bd{vd.data(), vd.size(), sizeof(VertexD), offsetof(VertexD, pos),
+                                offsetof(VertexD, normal), engine::Scalar::Float64};
+  const double phase = 0.8;
+  ASSERT_TRUE(d.deform(bf, bf, phase));  // in place
+  std::vector<VertexD> rest = vd;
+  const engine::VertexBuffer br{rest.data(), rest.size(), sizeof(VertexD), offsetof(VertexD, pos),
+                                offsetof(VertexD, normal), engine::Scalar::Float64};
+  ASSERT_TRUE(d.deform(br, bd, phase));  // from the rest pose into another buffer
+  double worst_angle = 0, worst_pos_d = 0, worst_pos_f = 0, worst_angle_f = 0;
+  std::size_t moved = 0;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    const Vec3 want = m.map(pts[i], phase);
+    const Vec3 got_d(vd[i].pos[0], vd[i].pos[1], vd[i].pos[2]), got_f(vf[i].pos[0], vf[i].pos[1], vf[i].pos[2]);
+    worst_pos_d = std::max(worst_pos_d, (got_d - want).norm());
+    worst_pos_f = std::max(worst_pos_f, (got_f - want).norm());
+    EXPECT_EQ(vf[i].rgba, 0xdeadbeefu);  // the rest of the vertex is untouched
+    EXPECT_EQ(vf[i].uv[0], 0.5f);
+    const Vec3 nd(vd[i].normal[0], vd[i].normal[1], vd[i].normal[2]);
+    const Vec3 nf(vf[i].normal[0], vf[i].normal[1], vf[i].normal[2]);
+    EXPECT_NEAR(nd.norm(), 1.0, 1e-12);
+    if (i % 10 == 0) {
+      const Vec3 ref = finite_difference_normal(m, pts[i], normals[i], phase);
+      worst_angle = std::max(worst_angle, angle(nd, ref));
+      worst_angle_f = std::max(worst_angle_f, angle(nf, ref));
+      moved += angle(normals[i], ref) > 1e-3;
+    }
+  }
+  EXPECT_LT(worst_pos_d, 1e-12);
+  EXPECT_LT(worst_pos_f, 1e-6);
+  EXPECT_LT(worst_angle, 1e-5);   // the issue's bound, in double
+  EXPECT_LT(worst_angle_f, 1e-5); // and in float
+  EXPECT_GT(moved, 500u);         // the normals did turn: the test is not vacuous
+}
+
+TEST(Engine, FailuresAreStatusCodesNamingTheFieldAndValue) {
+  const Controls c = controls(50, 505);
+  engine::Settings settings;
+  engine::Deformer d;
+  settings.radius = -1;
+  engine::Result r = engine::Deformer::fit(c.s_flat.data(), c.d_flat.data(), 50, settings, d);
+  EXPECT_EQ(r.status, engine::Status::InvalidInput);
+  EXPECT_NE(std::string(r.message).find("radius"), std::string::npos) << r.message;
+  EXPECT_FALSE(d.fitted());
+  settings.radius = 0.5;
+  std::vector<double> dup = c.s_flat;
+  for (int k = 0; k < 3; ++k) dup[3 + std::size_t(k)] = dup[std::size_t(k)];
+  r = engine::Deformer::fit(dup.data(), c.d_flat.data(), 50, settings, d);
+  EXPECT_EQ(r.status, engine::Status::DuplicateSource) << r.message;
+  settings.memory_limit_gib = 1e-9;
+  r = engine::Deformer::fit(c.s_flat.data(), c.d_flat.data(), 50, settings, d);
+  EXPECT_EQ(r.status, engine::Status::ResourceLimit) << r.message;
+  settings.memory_limit_gib = 4;
+  ASSERT_TRUE(engine::Deformer::fit(c.s_flat.data(), c.d_flat.data(), 50, settings, d));
+
+  float v[6] = {0.1f, 0.2f, 0.3f, 0, 0, 1};
+  engine::VertexBuffer b{v, 1, 8, 0, engine::kNoNormal, engine::Scalar::Float32};  // stride too short
+  r = d.deform(b, b);
+  EXPECT_EQ(r.status, engine::Status::InvalidInput);
+  EXPECT_NE(std::string(r.message).find("in.position_offset is 0: three scalars there do not fit in a stride of 8"),
+            std::string::npos)
+      << r.message;
+  b.stride = 24;
+  engine::VertexBuffer o = b;
+  o.normal_offset = 12;
+  r = d.deform(b, o);
+  EXPECT_NE(std::string(r.message).find("out has normals but in has none"), std::string::npos) << r.message;
+  r = d.deform(b, b, std::nan(""));
+  EXPECT_NE(std::string(r.message).find("phase"), std::string::npos) << r.message;
+  // An unfitted deformer is the identity; a refit needs a fit.
+  engine::Deformer none;
+  b.normal_offset = 12;
+  ASSERT_TRUE(none.deform(b, b));
+  EXPECT_EQ(v[0], 0.1f);
+  EXPECT_EQ(v[5], 1.0f);
+  engine::Deformer again;
+  EXPECT_EQ(none.refit(c.d_flat.data(), again).status, engine::Status::InvalidInput);
+  // A refit equals a fit to the new destinations.
+  std::vector<double> d2 = c.s_flat;
+  for (double& x : d2) x += 0.01;
+  ASSERT_TRUE(d.refit(d2.data(), again));
+  double p[3] = {c.s_flat[0], c.s_flat[1], c.s_flat[2]};
+  engine::VertexBuffer one{p, 1, 24, 0, engine::kNoNormal, engine::Scalar::Float64};
+  ASSERT_TRUE(again.deform(one, one));
+  EXPECT_NEAR(p[0], c.s_flat[0] + 0.01, 1e-9);
+}
