@@ -5,6 +5,7 @@
 #include "csrbf/anim/scene.hpp"
 #include "csrbf/displacement_field.hpp"
 #include "csrbf/errors.hpp"
+#include "csrbf/estimate.hpp"
 #include "csrbf/names.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/deformation.hpp"
@@ -458,6 +459,50 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       },
       py::arg("template"), py::arg("positions"), py::arg("path"),
       "Writes the mesh of `template` with new positions to `path` (format by extension, atomically)");
+  m.def(
+      "estimate",
+      [](const py::object& sources, double radius, const std::string& solver, double memory_limit) {
+        const auto s = to_vec3(sources, "sources");
+        csrbf::FitOptions o;
+        o.solver = named<csrbf::Solver>(solver, "solver");
+        if (!(memory_limit > 0 && memory_limit <= 1e6))
+          throw py::value_error("memory_limit is in GiB: a number in (0, 1e6], got " +
+                                csrbf::io::format_number(memory_limit));
+        o.memory_limit_bytes = memory_limit * double(1ull << 30);
+        csrbf::FitEstimate e;
+        {
+          py::gil_scoped_release release;
+          e = csrbf::estimate(s, radius, o);
+        }
+        py::list solvers;
+        for (const auto& x : e.solvers)
+          solvers.append(py::dict(py::arg("solver") = std::string(csrbf::solver_name(x.solver)),
+                                  py::arg("bytes") = x.bytes,
+                                  py::arg("seconds") = std::isfinite(x.seconds) ? py::object(py::float_(x.seconds))
+                                                                                : py::object(py::none()),
+                                  py::arg("factor_entries") = x.factor_entries, py::arg("work") = x.work,
+                                  py::arg("within_limit") = x.within_limit, py::arg("note") = x.note));
+        return py::dict(py::arg("controls") = e.controls, py::arg("radius") = e.radius,
+                        py::arg("mean_neighbors") = e.mean_neighbors, py::arg("max_neighbors") = e.max_neighbors,
+                        py::arg("nonzeros") = e.nonzeros, py::arg("exact") = e.exact,
+                        py::arg("auto_starts_with") = std::string(csrbf::solver_name(e.chosen)),
+                        py::arg("solvers") = solvers);
+      },
+      py::arg("sources"), py::arg("radius"), py::kw_only(), py::arg("solver") = "auto", py::arg("memory_limit") = 4.0,
+      R"doc(What a fit of these sources ((n, 3)) at `radius` would cost, without fitting: a dict with the
+neighbours per control (mean, max), the matrix's non-zeros, and per solver ('envelope', 'cholmod' or
+'eigen', 'cg') its predicted peak memory (bytes), time (seconds on 2 cores; None where unknown) and
+whether it is within memory_limit (GiB). Example: csrbf.estimate(points, 0.05)["mean_neighbors"].)doc");
+  m.def(
+      "suggest_radius",
+      [](const py::object& sources, double neighbours) {
+        const auto s = to_vec3(sources, "sources");
+        py::gil_scoped_release release;
+        return csrbf::suggest_radius(s, neighbours);
+      },
+      py::arg("sources"), py::arg("neighbours"),
+      R"doc(The radius R at which each of the sources ((n, 3)) has `neighbours` other sources within R on
+average (from a seeded sample of 256). Example: csrbf.SpaceMap(s, d, csrbf.suggest_radius(s, 25)).)doc");
   m.def(
       "read_controls",
       [](const std::filesystem::path& path) {

@@ -153,6 +153,60 @@ nlohmann::json stats_json(const SpaceMap& map) {
   return j;
 }
 
+nlohmann::json estimate_json(const FitEstimate& e) {
+  nlohmann::json solvers = nlohmann::json::array();
+  for (const SolverEstimate& s : e.solvers) {
+    nlohmann::json r{{"solver", std::string(solver_name(s.solver))},
+                     {"bytes", s.bytes},
+                     {"within_limit", s.within_limit},
+                     {"note", s.note}};
+    const auto number = [](double v) {
+      return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json();
+    };  // null: unknown
+    r["seconds"] = number(s.seconds);
+    r["factor_entries"] = number(s.factor_entries);
+    r["work"] = number(s.work);
+    solvers.push_back(r);
+  }
+  return {{"mean_neighbors", e.mean_neighbors},
+          {"max_neighbors", e.max_neighbors},
+          {"nonzeros", e.nonzeros},
+          {"exact", e.exact},
+          {"auto_starts_with", std::string(solver_name(e.chosen))},
+          {"solvers", solvers}};
+}
+
+std::string estimate_text(const nlohmann::json& j) {
+  std::ostringstream o;
+  char buf[512];
+  auto line = [&](const std::string& name, const std::string& value) {
+    o << name << std::string(name.size() < 19 ? 19 - name.size() : 1, ' ') << value << '\n';
+  };
+  line("controls", std::to_string(j["controls"].get<std::size_t>()));
+  std::snprintf(buf, sizeof buf, "%.6g%s", j["radius"].get<double>(),
+                j.contains("neighbours_asked") ? "  (for the neighbours asked)" : "");
+  line("radius", buf);
+  if (!j.contains("estimate")) return o.str();
+  const auto& e = j["estimate"];
+  std::snprintf(buf, sizeof buf, "%.2f per control, at most %.0f%s", e["mean_neighbors"].get<double>(),
+                e["max_neighbors"].get<double>(), e["exact"].get<bool>() ? "" : " (of a sample of 256 controls)");
+  line("neighbours", buf);
+  std::snprintf(buf, sizeof buf, "%.4g", e["nonzeros"].get<double>());
+  line("non-zeros of A", buf);
+  line("auto starts with", e["auto_starts_with"].get<std::string>());
+  for (const auto& s : e["solvers"]) {
+    const std::string secs = s["seconds"].is_null() ? std::string("unknown") : [&] {
+      std::snprintf(buf, sizeof buf, "%.3g s", s["seconds"].get<double>());
+      return std::string(buf);
+    }();
+    std::snprintf(buf, sizeof buf, "%.3g GiB, %s%s; %s", s["bytes"].get<double>() / double(1ull << 30), secs.c_str(),
+                  s["within_limit"].get<bool>() ? "" : " (beyond --memory-limit)",
+                  s["note"].get<std::string>().c_str());
+    line(s["solver"].get<std::string>(), buf);
+  }
+  return o.str();
+}
+
 std::string stats_text(const SpaceMap& map) {
   const FitStats s = report_stats(map);
   std::ostringstream o;

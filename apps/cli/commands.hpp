@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "csrbf/estimate.hpp"
 #include "csrbf/folds.hpp"
 #include "csrbf/space_map.hpp"
 
@@ -41,6 +42,10 @@ CLI::Validator finite_in(double lo, double hi, const std::string& what);
 nlohmann::json stats_json(const SpaceMap& map);
 /// The stats as aligned "name  value" lines.
 std::string stats_text(const SpaceMap& map);
+/// A fit's estimate (`csrbf info --estimate`) as JSON, and `csrbf info`'s answer without a fit
+/// (radius, controls, neighbours asked for, the estimate) as aligned lines.
+nlohmann::json estimate_json(const FitEstimate& e);
+std::string estimate_text(const nlohmann::json& j);
 /// A fold report (`csrbf info --check-folds`) as JSON and as text.
 nlohmann::json folds_json(const FoldReport& r);
 std::string folds_text(const FoldReport& r);

@@ -12,6 +12,7 @@
 #include "csrbf/io/memory.hpp"
 #include "csrbf/io/mesh.hpp"
 #include "csrbf/errors.hpp"
+#include "csrbf/estimate.hpp"
 #include "csrbf/folds.hpp"
 #include "csrbf/names.hpp"
 #include "csrbf/space_map.hpp"
@@ -389,6 +390,21 @@ int main(int argc, char** argv) {
                                     "the minimum, where it is <= 0, and the largest fold-free phase");
   info->add_option("--phase", info_phase, "Phase at which folds are counted (default 1)")
       ->check(finite_in(-1e6, 1e6, "--phase"));
+  bool info_estimate = false;
+  double info_neighbours = 0;
+  auto* estimate_flag = info->add_flag(
+      "--estimate", info_estimate,
+      "Do not fit: print what the fit would cost (neighbours, non-zeros, each solver's memory and time)");
+  auto* neighbours_opt =
+      info->add_option("--neighbours", info_neighbours,
+                       "Instead of --radius: the R that gives each control this many neighbours on average (with "
+                       "--estimate, what a fit at that R would cost)")
+          ->check(positive_finite("--neighbours"));
+  info->get_option("--controls")->remove_needs(info->get_option("--radius"));
+  info->get_option("--radius")->remove_needs(info->get_option("--controls"));
+  neighbours_opt->excludes(info->get_option("--radius"))->excludes(info->get_option("--deformation"));
+  estimate_flag->excludes(folds_flag);
+  neighbours_opt->excludes(folds_flag);
   folds_flag->needs(info->get_option("--mesh"));
   info->get_option("--mesh")->needs(folds_flag);  // a mesh is read only to check it for folds
 
@@ -504,6 +520,28 @@ int main(int argc, char** argv) {
     } else if (*bench) {
       csrbf::cli::run_bench(bench_opts);
     } else if (*info) {
+      if (info_args.deformation.empty() && (info_args.radius > 0) == (info_neighbours > 0))
+        throw csrbf::cli::UsageError("info: give --controls with --radius or with --neighbours");
+      if (info_neighbours > 0 || info_estimate) {
+        if (info_neighbours > 0) info_args.radius = 1.0;  // replaced below
+        auto input = read_fit_input(info_args, nullptr, {});
+        const std::span<const csrbf::Vec3> s = input.controls.sources;
+        if (info_neighbours > 0) {
+          if (!(info_neighbours < double(s.size()) - 1))
+            throw csrbf::cli::UsageError("--neighbours: " + csrbf::io::format_number(info_neighbours) +
+                                         " is not below " + std::to_string(s.size()) + " controls less one");
+          input.options.radius = csrbf::suggest_radius(s, info_neighbours);
+        }
+        nlohmann::json j{{"radius", input.options.radius}, {"controls", s.size()}};
+        if (info_neighbours > 0) j["neighbours_asked"] = info_neighbours;
+        if (info_estimate)
+          j["estimate"] = csrbf::cli::estimate_json(csrbf::estimate(s, input.options.radius, input.options));
+        if (json)
+          std::cout << j.dump(2) << '\n';
+        else
+          std::cout << csrbf::cli::estimate_text(j);
+        return 0;
+      }
       std::optional<csrbf::io::MeshDocument> mesh;
       if (check_folds)
         mesh.emplace(csrbf::io::MeshDocument::load(info_mesh, info_args.memory_limit_gib * double(1ull << 30)));

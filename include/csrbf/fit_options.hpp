@@ -95,6 +95,7 @@ struct FitOptions {
 struct FitMemoryEstimate {
   double bytes = 0;
   double mean_neighbors = 0;
+  double max_neighbors = 0;  ///< the most of a sampled source (scaled as the mean is)
 };
 FitMemoryEstimate estimate_fit_memory(std::span<const Vec3> sources, double radius);
 

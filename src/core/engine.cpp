@@ -100,7 +100,9 @@ void deform_as(const SpaceMap* map, const VertexBuffer& in, const VertexBuffer& 
         for (int c = 0; c < 3; ++c) nm[3 * i + std::size_t(c)] = double(v[c]);
       }
     }
-    if (map) map->apply_with_normals(p.data(), p.data(), m, phase, normals ? nm.data() : nullptr, normals ? nm.data() : nullptr);
+    if (map)
+      map->apply_with_normals(p.data(), p.data(), m, phase, normals ? nm.data() : nullptr,
+                              normals ? nm.data() : nullptr);
     for (std::size_t i = 0; i < m; ++i) {
       T* x = at<T>(out, b + i, out.position_offset);
       for (int c = 0; c < 3; ++c) x[c] = T(p[3 * i + std::size_t(c)]);
@@ -122,22 +124,38 @@ Result Deformer::fit(const double* sources, const double* destinations, std::siz
     FitOptions o;
     o.radius = settings.radius;
     switch (settings.kernel) {
-      case engine::Kernel::C0: o.kernel = csrbf::Kernel::C0; break;
-      case engine::Kernel::C2: o.kernel = csrbf::Kernel::C2; break;
-      case engine::Kernel::C4: o.kernel = csrbf::Kernel::C4; break;
-      case engine::Kernel::C6: o.kernel = csrbf::Kernel::C6; break;
-      default: throw InvalidInput("settings.kernel is " + std::to_string(int(settings.kernel)) + ", not C0, C2, C4 or C6");
+      case engine::Kernel::C0:
+        o.kernel = csrbf::Kernel::C0;
+        break;
+      case engine::Kernel::C2:
+        o.kernel = csrbf::Kernel::C2;
+        break;
+      case engine::Kernel::C4:
+        o.kernel = csrbf::Kernel::C4;
+        break;
+      case engine::Kernel::C6:
+        o.kernel = csrbf::Kernel::C6;
+        break;
+      default:
+        throw InvalidInput("settings.kernel is " + std::to_string(int(settings.kernel)) + ", not C0, C2, C4 or C6");
     }
     switch (settings.polynomial) {
-      case engine::Polynomial::None: o.polynomial = csrbf::Polynomial::None; break;
-      case engine::Polynomial::Constant: o.polynomial = csrbf::Polynomial::Constant; break;
-      case engine::Polynomial::Linear: o.polynomial = csrbf::Polynomial::Linear; break;
+      case engine::Polynomial::None:
+        o.polynomial = csrbf::Polynomial::None;
+        break;
+      case engine::Polynomial::Constant:
+        o.polynomial = csrbf::Polynomial::Constant;
+        break;
+      case engine::Polynomial::Linear:
+        o.polynomial = csrbf::Polynomial::Linear;
+        break;
       default:
         throw InvalidInput("settings.polynomial is " + std::to_string(int(settings.polynomial)) +
                            ", not None, Constant or Linear");
     }
     if (!(settings.memory_limit_gib > 0) || !(settings.memory_limit_gib <= 1e6))
-      throw InvalidInput("settings.memory_limit_gib must be in (0, 1e6], got " + std::to_string(settings.memory_limit_gib));
+      throw InvalidInput("settings.memory_limit_gib must be in (0, 1e6], got " +
+                         std::to_string(settings.memory_limit_gib));
     o.memory_limit_bytes = settings.memory_limit_gib * double(1ull << 30);
     out.map_ = std::make_shared<const SpaceMap>(SpaceMap::fit(s, d, o));
   });

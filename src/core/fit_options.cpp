@@ -71,6 +71,7 @@ FitMemoryEstimate estimate_fit_memory(std::span<const Vec3> sources, double radi
   }
   const double r2 = radius * radius;
   const double scale = others.empty() ? 1.0 : double(n) / double(kOthers);
+  std::vector<double> counts(samples);
   const double count = tbb::parallel_reduce(
       tbb::blocked_range<std::size_t>(0, samples, 8), 0.0,
       [&](const tbb::blocked_range<std::size_t>& r, double c) {
@@ -82,12 +83,14 @@ FitMemoryEstimate estimate_fit_memory(std::span<const Vec3> sources, double radi
             for (std::size_t j = 0; j < n; ++j) hits += j != i && (sources[j] - p).squaredNorm() < r2;
           else
             for (std::size_t j : others) hits += j != i && (sources[j] - p).squaredNorm() < r2;
-          c += double(hits) * scale;
+          counts[k] = double(hits) * scale;
+          c += counts[k];
         }
         return c;
       },
       std::plus<double>());
   e.mean_neighbors = count / double(samples);
+  e.max_neighbors = *std::max_element(counts.begin(), counts.end());
   const double nd = double(n), pairs = nd * e.mean_neighbors / 2;
   // Graph: both directions, a 4-byte index and an 8-byte squared distance each. The sparse solvers'
   // lower triangle (an 8-byte value and a 4-byte index an entry), held beside the graph. Factor: at

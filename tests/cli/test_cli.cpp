@@ -110,6 +110,29 @@ TEST(Cli, InfoPrintsStatsAndJson) {
   EXPECT_NE(r.out.find("\"breadth_first\""), std::string::npos) << r.out;
 }
 
+// Issue 32, point 2: cost before work, without a fit.
+TEST(Cli, InfoEstimatesAndSuggestsARadius) {
+  CliRun r = run("info --controls " + kExamples + "fish.controls --radius 0.3 --estimate");
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NE(r.out.find("neighbours         34.30 per control, at most 51"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("auto starts with   envelope"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("bandwidth"), std::string::npos) << r.out;  // no fit ran
+  r = run("info --controls " + kExamples + "fish.controls --neighbours 10 --estimate --json");
+  ASSERT_EQ(r.code, 0) << r.out;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_NEAR(j["estimate"]["mean_neighbors"].get<double>(), 10.0, 1.0) << r.out;
+  EXPECT_EQ(j["estimate"]["solvers"].size(), 3u);
+  // The radius it names gives those neighbours in the fit itself.
+  r = run("info --controls " + kExamples + "fish.controls --json --radius " +
+          std::to_string(j["radius"].get<double>()));
+  ASSERT_EQ(r.code, 0) << r.out;
+  EXPECT_NEAR(nlohmann::json::parse(r.out)["mean_neighbors"].get<double>(), 10.0, 1.0);
+  EXPECT_EQ(run("info --controls " + kExamples + "fish.controls").code, 2);
+  EXPECT_EQ(run("info --controls " + kExamples + "fish.controls --neighbours 500").code, 2);
+  EXPECT_EQ(run("info --controls " + kExamples + "fish.controls --neighbours 5 --radius 0.3").code, 2);
+  EXPECT_EQ(run("info --controls " + kExamples + "fish.controls --neighbours -5").code, 2);
+}
+
 TEST(Cli, HelpAndUsageErrors) {
   for (const char* cmd : {"--help", "deform --help", "info --help"}) {
     const CliRun r = run(cmd);

@@ -120,15 +120,27 @@ TEST(Engine, InterleavedFloatAndDoubleBuffersDeformPositionsAndExactNormals) {
     vf[i].rgba = 0xdeadbeef;
     vf[i].uv[0] = vf[i].uv[1] = 0.5f;
   }
-  const engine::VertexBuffer bf{vf.data(), vf.size(), sizeof(VertexF), offsetof(VertexF, pos),
-                                offsetof(VertexF, normal), engine::Scalar::Float32};
-  const engine::VertexBuffer bd{vd.data(), vd.size(), sizeof(VertexD), offsetof(VertexD, pos),
-                                offsetof(VertexD, normal), engine::Scalar::Float64};
+  const engine::VertexBuffer bf{vf.data(),
+                                vf.size(),
+                                sizeof(VertexF),
+                                offsetof(VertexF, pos),
+                                offsetof(VertexF, normal),
+                                engine::Scalar::Float32};
+  const engine::VertexBuffer bd{vd.data(),
+                                vd.size(),
+                                sizeof(VertexD),
+                                offsetof(VertexD, pos),
+                                offsetof(VertexD, normal),
+                                engine::Scalar::Float64};
   const double phase = 0.8;
   ASSERT_TRUE(d.deform(bf, bf, phase));  // in place
   std::vector<VertexD> rest = vd;
-  const engine::VertexBuffer br{rest.data(), rest.size(), sizeof(VertexD), offsetof(VertexD, pos),
-                                offsetof(VertexD, normal), engine::Scalar::Float64};
+  const engine::VertexBuffer br{rest.data(),
+                                rest.size(),
+                                sizeof(VertexD),
+                                offsetof(VertexD, pos),
+                                offsetof(VertexD, normal),
+                                engine::Scalar::Float64};
   ASSERT_TRUE(d.deform(br, bd, phase));  // from the rest pose into another buffer
   double worst_angle = 0, worst_pos_d = 0, worst_pos_f = 0, worst_angle_f = 0;
   std::size_t moved = 0;
@@ -151,9 +163,9 @@ TEST(Engine, InterleavedFloatAndDoubleBuffersDeformPositionsAndExactNormals) {
   }
   EXPECT_LT(worst_pos_d, 1e-12);
   EXPECT_LT(worst_pos_f, 1e-6);
-  EXPECT_LT(worst_angle, 1e-5);   // the bound, in double
-  EXPECT_LT(worst_angle_f, 1e-5); // and in float
-  EXPECT_GT(moved, 500u);         // the normals did turn: the test is not vacuous
+  EXPECT_LT(worst_angle, 1e-5);    // the bound, in double
+  EXPECT_LT(worst_angle_f, 1e-5);  // and in float
+  EXPECT_GT(moved, 500u);          // the normals did turn: the test is not vacuous
 }
 
 TEST(Engine, FailuresAreStatusCodesNamingTheFieldAndValue) {

@@ -112,6 +112,21 @@ class SameAsTheCommandLine(unittest.TestCase):
 
 
 class AgainstScipy(unittest.TestCase):
+    def test_estimate_and_suggest_radius_before_a_fit(self):
+        # Issue 32: cost before work. The neighbours the estimate counts are the fit's.
+        rng = np.random.default_rng(7)
+        s = rng.random((3000, 3))
+        r = csrbf.suggest_radius(s, 20)
+        e = csrbf.estimate(s, r)
+        self.assertTrue(e["exact"])
+        self.assertAlmostEqual(e["mean_neighbors"], 20, delta=2)
+        self.assertEqual([x["solver"] for x in e["solvers"]][0], "envelope")
+        m = csrbf.SpaceMap(s, s + 0.01, r)
+        self.assertEqual(m.stats["mean_neighbors"], e["mean_neighbors"])
+        self.assertTrue(all(x["seconds"] > 0 and x["bytes"] > 0 for x in e["solvers"]))
+        with self.assertRaisesRegex(ValueError, "neighbours must be within"):
+            csrbf.suggest_radius(s, 5000)
+
     def test_same_interpolation_problem_solved_by_scipy(self):
         # SciPy's RBFInterpolator has no compactly supported kernel, so the same problem (Wendland
         # C2, no polynomial) is built with cKDTree neighbours and solved by scipy.sparse's spsolve.

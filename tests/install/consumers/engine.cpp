@@ -53,8 +53,11 @@ int main(int argc, char** argv) {
   }
   const std::vector<Vertex> rest = sphere(vertices);
   std::vector<Vertex> frame = rest;
-  const csrbf::engine::VertexBuffer in{const_cast<Vertex*>(rest.data()), rest.size(), sizeof(Vertex),
-                                       offsetof(Vertex, position), offsetof(Vertex, normal),
+  const csrbf::engine::VertexBuffer in{const_cast<Vertex*>(rest.data()),
+                                       rest.size(),
+                                       sizeof(Vertex),
+                                       offsetof(Vertex, position),
+                                       offsetof(Vertex, normal),
                                        csrbf::engine::Scalar::Float32};
   csrbf::engine::VertexBuffer out = in;
   out.base = frame.data();
@@ -73,7 +76,8 @@ int main(int argc, char** argv) {
     const float* p = frame[i].position;
     const float* n = frame[i].normal;
     const double want = 1.0 + 0.5 * 0.05 * std::sin(5.0 * rest[i].position[0]);
-    worst = std::max(worst, std::abs(std::sqrt(double(p[0]) * p[0] + double(p[1]) * p[1] + double(p[2]) * p[2]) - want));
+    worst =
+        std::max(worst, std::abs(std::sqrt(double(p[0]) * p[0] + double(p[1]) * p[1] + double(p[2]) * p[2]) - want));
     if (std::abs(std::sqrt(double(n[0]) * n[0] + double(n[1]) * n[1] + double(n[2]) * n[2]) - 1.0) > 1e-5 ||
         frame[i].uv[0] != 0.25f) {
       std::printf("vertex %zu: normal not unit or uv changed\n", i);
