@@ -35,7 +35,8 @@ std::string format(double v) {
 }  // namespace
 
 FitEstimate estimate(std::span<const Vec3> sources, double radius, const FitOptions& options) {
-  if (!(radius > 0) || !std::isfinite(radius)) throw InvalidInput("estimate: radius must be positive and finite, got " + format(radius));
+  if (!(radius > 0) || !std::isfinite(radius))
+    throw InvalidInput("estimate: radius must be positive and finite, got " + format(radius));
   check_sources(sources);
   FitEstimate e;
   const std::size_t n = sources.size();
@@ -86,8 +87,9 @@ FitEstimate estimate(std::span<const Vec3> sources, double radius, const FitOpti
   } else {
     env.bytes = a_bytes + detail::envelope_factor_bytes(nd * e.mean_neighbors, n);  // at least its band
     env.seconds = env.factor_entries = env.work = std::numeric_limits<double>::quiet_NaN();
-    env.note = "neighbour graph not built (beyond the memory limit or 1e8 entries): its envelope is unknown, at least "
-               "this";
+    env.note =
+        "neighbour graph not built (beyond the memory limit or 1e7 entries): its envelope is unknown, at least "
+        "this";
   }
   SolverEstimate direct{cholmod_available() ? Solver::Cholmod : Solver::Eigen};
   if (e.exact) {
@@ -95,7 +97,8 @@ FitEstimate estimate(std::span<const Vec3> sources, double radius, const FitOpti
     direct.seconds = shared_seconds + kDirectFlopCost * direct_flops * kSecondsPerCgMultiplyAdd;
     direct.factor_entries = direct_entries;
     direct.work = direct_flops;
-    direct.note = "nested dissection: " + format(direct_entries) + " factor entries, " + format(direct_flops) + " flops";
+    direct.note =
+        "nested dissection: " + format(direct_entries) + " factor entries, " + format(direct_flops) + " flops";
     if (!std::isfinite(direct_flops) || direct_entries * 12.0 > limit) direct.note += " (stopped at the memory limit)";
   } else {
     direct.bytes = a_bytes + 2 * 12.0 * (pairs + nd);

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <type_traits>
 
 namespace csrbf::detail {
 
@@ -101,30 +102,55 @@ IncompleteCholesky::IncompleteCholesky(std::span<const std::size_t> row, std::sp
   shift_ = *std::max_element(shifts.begin(), shifts.end());
 }
 
+namespace {
+/// The two triangular solves of one block for M right-hand sides (M = 0: m of them, known at run
+/// time; 1, 3 and 4 are compiled for: the condition estimate, the displacements, the polynomial).
+template <std::size_t M>
+void solve_block(std::size_t first, std::size_t last, const std::size_t* row, const std::uint32_t* col,
+                 const float* val, const double* inv_diagonal, const double* r, double* z, std::size_t m_run) {
+  const std::size_t m = M ? M : m_run;
+  // L y = r, row by row.
+  for (std::size_t k = first; k < last; ++k) {
+    double t[8];
+    for (std::size_t c = 0; c < m; ++c) t[c] = r[k * m + c];
+    for (std::size_t e = row[k]; e < row[k + 1]; ++e) {
+      const double l = double(val[e]);
+      const double* y = z + std::size_t(col[e]) * m;
+      for (std::size_t c = 0; c < m; ++c) t[c] -= l * y[c];
+    }
+    for (std::size_t c = 0; c < m; ++c) z[k * m + c] = t[c] * inv_diagonal[k];
+  }
+  // L^T z = y in place, last row first: row k's x_k is final once the rows after it have given
+  // their parts, and it then gives its own to its columns.
+  for (std::size_t k = last; k-- > first;) {
+    double x[8];
+    for (std::size_t c = 0; c < m; ++c) x[c] = z[k * m + c] * inv_diagonal[k];
+    for (std::size_t c = 0; c < m; ++c) z[k * m + c] = x[c];
+    for (std::size_t e = row[k]; e < row[k + 1]; ++e) {
+      const double l = double(val[e]);
+      double* y = z + std::size_t(col[e]) * m;
+      for (std::size_t c = 0; c < m; ++c) y[c] -= l * x[c];
+    }
+  }
+}
+}  // namespace
+
 void IncompleteCholesky::apply(const double* r, double* z, std::size_t m) const {
   tbb::parallel_for(std::size_t(0), blocks(), [&](std::size_t b) {
     const std::size_t first = block_start_[b], last = block_start_[b + 1];
-    // L y = r, row by row.
-    for (std::size_t k = first; k < last; ++k) {
-      double t[8];
-      for (std::size_t c = 0; c < m; ++c) t[c] = r[k * m + c];
-      for (std::size_t e = row_[k]; e < row_[k + 1]; ++e) {
-        const double l = double(val_[e]);
-        const double* y = z + std::size_t(col_[e]) * m;
-        for (std::size_t c = 0; c < m; ++c) t[c] -= l * y[c];
-      }
-      for (std::size_t c = 0; c < m; ++c) z[k * m + c] = t[c] * inv_diagonal_[k];
-    }
-    // L^T z = y in place, last row first: row k's x_k is final once the rows after it have given
-    // their parts, and it then gives its own to its columns.
-    for (std::size_t k = last; k-- > first;) {
-      double* x = z + k * m;
-      for (std::size_t c = 0; c < m; ++c) x[c] *= inv_diagonal_[k];
-      for (std::size_t e = row_[k]; e < row_[k + 1]; ++e) {
-        const double l = double(val_[e]);
-        double* y = z + std::size_t(col_[e]) * m;
-        for (std::size_t c = 0; c < m; ++c) y[c] -= l * x[c];
-      }
+    const auto run = [&](auto fixed) {
+      solve_block<decltype(fixed)::value>(first, last, row_.data(), col_.data(), val_.data(), inv_diagonal_.data(), r,
+                                          z, m);
+    };
+    switch (m) {
+      case 1:
+        return run(std::integral_constant<std::size_t, 1>{});
+      case 3:
+        return run(std::integral_constant<std::size_t, 3>{});
+      case 4:
+        return run(std::integral_constant<std::size_t, 4>{});
+      default:
+        return run(std::integral_constant<std::size_t, 0>{});
     }
   });
 }

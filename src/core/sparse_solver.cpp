@@ -384,6 +384,22 @@ class BatchedCg final : public SparseFactor {
   /// q = A p (n x m, solver order), and p . q per column, in one parallel pass.
   template <class Reduce>
   Sums times_a(const FillVector<double>& p, FillVector<double>& q, std::size_t m, const Reduce& reduce) const {
+    // The column count fixed at compile time for the usual 1, 3 and 4: the inner loops unroll.
+    switch (m) {
+      case 1:
+        return times_a_fixed<1>(p, q, m, reduce);
+      case 3:
+        return times_a_fixed<3>(p, q, m, reduce);
+      case 4:
+        return times_a_fixed<4>(p, q, m, reduce);
+      default:
+        return times_a_fixed<0>(p, q, m, reduce);
+    }
+  }
+  template <std::size_t M, class Reduce>
+  Sums times_a_fixed(const FillVector<double>& p, FillVector<double>& q, std::size_t m_run,
+                     const Reduce& reduce) const {
+    const std::size_t m = M ? M : m_run;
     return reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
       for (std::size_t k = range.begin(); k < range.end(); ++k) {
         double acc[8];
