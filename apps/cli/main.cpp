@@ -397,8 +397,8 @@ int main(int argc, char** argv) {
       "Do not fit: print what the fit would cost (neighbours, non-zeros, each solver's memory and time)");
   auto* neighbours_opt =
       info->add_option("--neighbours", info_neighbours,
-                       "Instead of --radius: the R that gives each control this many neighbours on average (with "
-                       "--estimate, what a fit at that R would cost)")
+                       "Instead of --radius: print the R that gives each control this many neighbours on average, "
+                       "without fitting (with --estimate, also what a fit at that R would cost)")
           ->check(positive_finite("--neighbours"));
   info->get_option("--controls")->remove_needs(info->get_option("--radius"));
   info->get_option("--radius")->remove_needs(info->get_option("--controls"));

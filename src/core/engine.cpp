@@ -42,7 +42,8 @@ Result guarded(F&& f) noexcept {
   } catch (const NotPositiveDefinite& e) {
     return failure(Status::NotPositiveDefinite, e.what());
   } catch (const ResourceLimit& e) {
-    return failure(Status::ResourceLimit, e.what());
+    // The core names its own option; the engine's is Settings::memory_limit_gib.
+    return failure(Status::ResourceLimit, std::string(e.what()) + " [here: Settings::memory_limit_gib]");
   } catch (const std::bad_alloc&) {
     return failure(Status::OutOfMemory, "out of memory");
   } catch (const std::exception& e) {
@@ -50,6 +51,13 @@ Result guarded(F&& f) noexcept {
   } catch (...) {
     return failure(Status::Internal, "unknown error");
   }
+}
+
+/// A number as a message shows it (6 significant digits, not std::to_string's 300-digit %f).
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
 }
 
 std::vector<Vec3> points(const double* xyz, std::size_t n, const char* what) {
@@ -74,7 +82,15 @@ void check_layout(const VertexBuffer& b, const char* name) {
                          std::to_string(scalar) + "-byte scalars");
   };
   fits(b.position_offset, "position_offset");
-  if (b.normal_offset != kNoNormal) fits(b.normal_offset, "normal_offset");
+  if (b.normal_offset != kNoNormal) {
+    fits(b.normal_offset, "normal_offset");
+    const std::size_t gap =
+        b.position_offset > b.normal_offset ? b.position_offset - b.normal_offset : b.normal_offset - b.position_offset;
+    if (gap < 3 * scalar)
+      throw InvalidInput(std::string(name) + ".position_offset " + std::to_string(b.position_offset) + " and " + name +
+                         ".normal_offset " + std::to_string(b.normal_offset) + " overlap (three " +
+                         std::to_string(scalar) + "-byte scalars each)");
+  }
 }
 
 template <class T>
@@ -154,8 +170,7 @@ Result Deformer::fit(const double* sources, const double* destinations, std::siz
                            ", not None, Constant or Linear");
     }
     if (!(settings.memory_limit_gib > 0) || !(settings.memory_limit_gib <= 1e6))
-      throw InvalidInput("settings.memory_limit_gib must be in (0, 1e6], got " +
-                         std::to_string(settings.memory_limit_gib));
+      throw InvalidInput("settings.memory_limit_gib must be in (0, 1e6], got " + num(settings.memory_limit_gib));
     o.memory_limit_bytes = settings.memory_limit_gib * double(1ull << 30);
     out.map_ = std::make_shared<const SpaceMap>(SpaceMap::fit(s, d, o));
   });
@@ -180,7 +195,7 @@ Result Deformer::deform(const VertexBuffer& in, const VertexBuffer& out, double 
       throw InvalidInput(in.normal_offset == kNoNormal ? "out has normals but in has none"
                                                        : "in has normals but out has none");
     if (!std::isfinite(phase) || std::abs(phase) > 1e6)
-      throw InvalidInput("phase must be a finite number within [-1e6, 1e6], got " + std::to_string(phase));
+      throw InvalidInput("phase must be a finite number within [-1e6, 1e6], got " + num(phase));
     if (in.scalar == Scalar::Float64)
       deform_as<double>(map_.get(), in, out, phase);
     else

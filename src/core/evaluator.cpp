@@ -18,7 +18,15 @@
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__has_attribute)
 #if __has_attribute(target_clones)
 #define CSRBF_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+// The Jacobian loop keeps 12 sums of 8 lanes: 12 AVX-512 registers, but 24 of AVX2's 16, which
+// spill. Where the build has the AVX-512 loop, the Jacobian loop gets an AVX-512 clone too.
+#ifdef CSRBF_HAVE_AVX512_EVAL
+#define CSRBF_JAC_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #endif
+#endif
+#endif
+#ifndef CSRBF_JAC_CLONES
+#define CSRBF_JAC_CLONES CSRBF_CLONES
 #endif
 #ifndef CSRBF_CLONES
 #define CSRBF_CLONES
@@ -340,10 +348,11 @@ CSRBF_EVAL_CLONE(C6, float)
 }  // namespace
 
 namespace {
-#define CSRBF_JAC_CLONE(K)                                                                                            \
-  CSRBF_CLONES void jac_##K(const EvalGrid& g, const EvalData<double>& a, const PolynomialPart* poly,                 \
-                            const double* in, double* out, double* jac, std::size_t b, std::size_t e, double phase) { \
-    jacobian_block<Kernel::K>(g, a, poly, in, out, jac, b, e, phase);                                                 \
+#define CSRBF_JAC_CLONE(K)                                                                                \
+  CSRBF_JAC_CLONES void jac_##K(const EvalGrid& g, const EvalData<double>& a, const PolynomialPart* poly, \
+                                const double* in, double* out, double* jac, std::size_t b, std::size_t e, \
+                                double phase) {                                                           \
+    jacobian_block<Kernel::K>(g, a, poly, in, out, jac, b, e, phase);                                     \
   }
 CSRBF_JAC_CLONE(C0)
 CSRBF_JAC_CLONE(C2)

@@ -219,3 +219,41 @@ TEST(Engine, FailuresAreStatusCodesNamingTheFieldAndValue) {
   ASSERT_TRUE(again.deform(one, one));
   EXPECT_NEAR(p[0], c.s_flat[0] + 0.01, 1e-9);
 }
+
+// Found by a new user: TBB hands apply_with_normals chunks far above its grain (7813 of 1e6 points
+// on 2 threads), which overflowed the Jacobians' buffer on the stack. 1e6 points, no Jacobians asked.
+TEST(Engine, ApplyWithNormalsTakesAnyChunkSize) {
+  const Controls c = controls(500, 507);
+  const SpaceMap m = SpaceMap::fit(c.s, c.d, FitOptions{0.2});
+  std::mt19937 rng(508);
+  const auto pts = random_points(1000000, rng);
+  std::vector<double> p, nm(3 * pts.size(), 0.0);
+  for (const Vec3& x : pts) p.insert(p.end(), {x.x(), x.y(), x.z()});
+  for (std::size_t i = 0; i < pts.size(); ++i) nm[3 * i + 2] = 1.0;
+  m.apply_with_normals(p.data(), p.data(), pts.size(), 1.0, nm.data(), nm.data());
+  for (std::size_t i = 0; i < pts.size(); i += 4999) {
+    EXPECT_LT((Vec3(p[3 * i], p[3 * i + 1], p[3 * i + 2]) - m.map(pts[i])).norm(), 1e-12);
+    const Vec3 want = (m.jacobian(pts[i]).inverse().transpose() * Vec3::UnitZ()).normalized();
+    EXPECT_LT((Vec3(nm[3 * i], nm[3 * i + 1], nm[3 * i + 2]) - want).norm(), 1e-9);
+  }
+}
+
+// Found by a new user: a normal placed over the position returned Ok and overwrote it.
+TEST(Engine, OverlappingPositionAndNormalAreRefused) {
+  const Controls c = controls(50, 509);
+  engine::Settings settings;
+  settings.radius = 0.5;
+  engine::Deformer d;
+  ASSERT_TRUE(engine::Deformer::fit(c.s_flat.data(), c.d_flat.data(), 50, settings, d));
+  float v[8] = {};
+  const engine::VertexBuffer b{v, 1, 32, 0, 4, engine::Scalar::Float32};
+  const engine::Result r = d.deform(b, b);
+  EXPECT_EQ(r.status, engine::Status::InvalidInput);
+  EXPECT_NE(std::string(r.message).find("in.position_offset 0 and in.normal_offset 4 overlap"), std::string::npos)
+      << r.message;
+  engine::VertexBuffer ok = b;
+  ok.stride = 24;
+  ok.normal_offset = 12;
+  EXPECT_TRUE(d.deform(ok, ok));
+  EXPECT_NE(std::string(d.deform(ok, ok, 1e300).message).find("got 1e+300"), std::string::npos);
+}
