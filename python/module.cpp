@@ -484,7 +484,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
                                   py::arg("within_limit") = x.within_limit, py::arg("note") = x.note));
         return py::dict(py::arg("controls") = e.controls, py::arg("radius") = e.radius,
                         py::arg("mean_neighbors") = e.mean_neighbors, py::arg("max_neighbors") = e.max_neighbors,
-                        py::arg("nonzeros") = e.nonzeros, py::arg("exact") = e.exact,
+                        py::arg("nonzeros") = e.nonzeros, py::arg("exact") = e.exact, py::arg("counted") = e.counted,
                         py::arg("auto_starts_with") = std::string(csrbf::solver_name(e.chosen)),
                         py::arg("solvers") = solvers);
       },

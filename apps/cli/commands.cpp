@@ -189,7 +189,8 @@ std::string estimate_text(const nlohmann::json& j) {
   if (!j.contains("estimate")) return o.str();
   const auto& e = j["estimate"];
   std::snprintf(buf, sizeof buf, "%.2f per control, at most %.0f%s", e["mean_neighbors"].get<double>(),
-                e["max_neighbors"].get<double>(), e["exact"].get<bool>() ? "" : " (of a sample of 256 controls)");
+                e["max_neighbors"].get<double>(),
+                e["exact"].get<bool>() || e["counted"].get<bool>() ? "" : " (of a sample of 256 controls)");
   line("neighbours", buf);
   std::snprintf(buf, sizeof buf, "%.4g", e["nonzeros"].get<double>());
   line("non-zeros of A", buf);

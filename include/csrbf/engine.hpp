@@ -83,9 +83,10 @@ class Deformer {
   Result refit(const double* destinations, Deformer& out) const noexcept;
 
   /// Deforms the vertices of `in` into `out` at `phase` (normally in [0, 1]): positions T(x), normals
-  /// J^-T n. in and out have the same count and scalar; they may be the same buffer (in place) or
-  /// differ in stride and offsets. Where in has normals, out must have them too. An unfitted
-  /// Deformer is the identity.
+  /// J^-T n. in and out have the same count and scalar; they may be the same buffer with one base
+  /// and stride (in place; the offsets may differ), or separate buffers of any layout. Buffers that
+  /// overlap otherwise are refused (InvalidInput), as is a layout past the end of the address space. Where in has
+  /// normals, out must have them too. An unfitted Deformer is the identity.
   Result deform(const VertexBuffer& in, const VertexBuffer& out, double phase = 1.0) const noexcept;
 
   std::size_t size() const noexcept;  ///< the number of controls (0 before a fit)

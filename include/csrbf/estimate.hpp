@@ -31,10 +31,11 @@ struct SolverEstimate {
 struct FitEstimate {
   std::size_t controls = 0;
   double radius = 0;
-  double mean_neighbors = 0;            ///< other controls within R of a control
-  double max_neighbors = 0;             ///< of the controls counted (every one where `exact`)
-  double nonzeros = 0;                  ///< of the N x N matrix A: N + N * mean_neighbors
-  bool exact = false;                   ///< the neighbour graph was built (else: a seeded sample of 256 controls)
+  double mean_neighbors = 0;  ///< other controls within R of a control
+  double max_neighbors = 0;   ///< of the controls counted (every one where `exact`)
+  double nonzeros = 0;        ///< of the N x N matrix A: N + N * mean_neighbors
+  bool exact = false;         ///< the neighbour graph was built (else: a seeded sample of 256 controls)
+  bool counted = false;       ///< mean and max counted over every control (where the graph was too large to build, too)
   std::vector<SolverEstimate> solvers;  ///< envelope, the general direct solver, CG (incomplete Cholesky)
   Solver chosen = Solver::Cg;           ///< what Solver::Auto starts with
 };

@@ -34,7 +34,10 @@ struct AdjacencyGraph {
   std::span<const double> dist2_of(std::size_t i) const noexcept { return {dist2.data() + offsets[i], degree(i)}; }
 
   /// Builds the graph of points through the index (which must have been built over the same points).
-  static AdjacencyGraph from_index(const NeighborIndex& index, std::span<const Vec3> points);
+  /// max_entries: ResourceLimit (before the rows are allocated) where the graph, counted, holds more
+  /// entries (both directions) than this.
+  static AdjacencyGraph from_index(const NeighborIndex& index, std::span<const Vec3> points,
+                                   double max_entries = std::numeric_limits<double>::infinity());
   /// The same graph by testing every pair: O(N^2), the fastest way for a few hundred points.
   static AdjacencyGraph brute_force(std::span<const Vec3> points, double radius);
 };

@@ -8,10 +8,13 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <limits>
 #include <new>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -81,6 +84,14 @@ void check_layout(const VertexBuffer& b, const char* name) {
       throw InvalidInput(std::string(name) + "." + field + ", its stride or base is not aligned to " +
                          std::to_string(scalar) + "-byte scalars");
   };
+  // The last vertex's last scalar must be addressable: (count - 1) * stride + offset + 3 scalars
+  // within the address space (a stride near SIZE_MAX wrapped around before the buffer).
+  const std::size_t last_offset = std::max(b.position_offset, b.normal_offset == kNoNormal ? 0 : b.normal_offset);
+  if (b.stride != 0 && (b.count - 1 > (std::numeric_limits<std::uintptr_t>::max() - last_offset - 3 * scalar -
+                                       reinterpret_cast<std::uintptr_t>(b.base)) /
+                                          b.stride))
+    throw InvalidInput(std::string(name) + ": " + std::to_string(b.count) + " vertices of " + std::to_string(b.stride) +
+                       " bytes from " + name + ".base pass the end of the address space");
   fits(b.position_offset, "position_offset");
   if (b.normal_offset != kNoNormal) {
     fits(b.normal_offset, "normal_offset");
@@ -191,6 +202,18 @@ Result Deformer::deform(const VertexBuffer& in, const VertexBuffer& out, double 
     if (in.count != out.count)
       throw InvalidInput("in.count is " + std::to_string(in.count) + " but out.count is " + std::to_string(out.count));
     if (in.scalar != out.scalar) throw InvalidInput("in.scalar and out.scalar differ");
+    // One buffer read and written in parallel blocks: only where each vertex stays in its own
+    // bytes (the same base and stride), else a block would overwrite vertices another still reads.
+    const auto span_of = [](const VertexBuffer& b) {
+      const auto lo = reinterpret_cast<std::uintptr_t>(b.base);
+      return std::pair{lo, b.count == 0 ? lo : lo + (b.count - 1) * b.stride + b.stride};
+    };
+    const auto [in_lo, in_hi] = span_of(in);
+    const auto [out_lo, out_hi] = span_of(out);
+    if (in.count > 0 && in_lo < out_hi && out_lo < in_hi && (in.base != out.base || in.stride != out.stride))
+      throw InvalidInput("in and out overlap in memory with another base or stride (in.stride " +
+                         std::to_string(in.stride) + ", out.stride " + std::to_string(out.stride) +
+                         "): deform in place with one layout, or into a separate buffer");
     if ((in.normal_offset == kNoNormal) != (out.normal_offset == kNoNormal))
       throw InvalidInput(in.normal_offset == kNoNormal ? "out has normals but in has none"
                                                        : "in has normals but out has none");

@@ -2,6 +2,8 @@
 
 #include "eval_kernel.hpp"
 
+#include "csrbf/errors.hpp"
+
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -10,6 +12,7 @@
 #include <atomic>
 #include <bit>
 #include <cmath>
+#include <sstream>
 #include <utility>
 #include <type_traits>
 
@@ -120,8 +123,21 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
   return EvalGrid{};
 }
 
+void check_graph_entries(double entries, double max_entries, std::size_t n) {
+  if (entries <= max_entries) return;
+  std::ostringstream os;
+  os.precision(3);
+  os << "the neighbour graph of the " << n << " sources has " << entries << " entries ("
+     << entries / double(std::max<std::size_t>(n, 1)) << " neighbours a source), "
+     << entries * 12.0 / double(1ull << 30)
+     << " GiB, above what the memory limit leaves it (FitOptions::memory_limit_bytes, `--memory-limit`): some "
+        "sources are far denser than the rest; use a smaller radius";
+  throw ResourceLimit(os.str());
+}
+
 void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::size_t>& offsets,
-                              FillVector<std::uint32_t>& neighbors, FillVector<double>& dist2) const {
+                              FillVector<std::uint32_t>& neighbors, FillVector<double>& dist2,
+                              double max_entries) const {
   const std::size_t n = sources.size();
   const double R2 = radius * radius;
   // The sources grouped by cell (a counting sort): each cell's run is gathered once into contiguous
@@ -175,6 +191,7 @@ void EvalGrid::neighbor_graph(std::span<const Vec3> sources, std::vector<std::si
     offsets[i + 1] = c;
   });
   for (std::size_t i = 0; i < n; ++i) offsets[i + 1] += offsets[i];
+  check_graph_entries(double(offsets[n]), max_entries, n);
   neighbors.resize(offsets[n]);
   dist2.resize(offsets[n]);
   for_each_group([&](std::uint32_t i, const Run& run) {

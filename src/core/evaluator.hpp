@@ -19,6 +19,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -51,9 +52,15 @@ struct EvalGrid {
   /// The neighbour graph of the sources (every pair closer than R), from the cell lists: the
   /// candidates of a source are its own cell's run. Requires usable.
   void neighbor_graph(std::span<const Vec3> sources, std::vector<std::size_t>& offsets,
-                      FillVector<std::uint32_t>& neighbors, FillVector<double>& dist2) const;
+                      FillVector<std::uint32_t>& neighbors, FillVector<double>& dist2,
+                      double max_entries = std::numeric_limits<double>::infinity()) const;
   std::size_t bytes() const noexcept { return source.size() * 4 + begin.size() * 4; }
 };
+
+/// ResourceLimit where a neighbour graph, counted, has more entries than max_entries (checked before
+/// its rows are allocated: the fit's memory check predicts from a sample, which a dense cluster can
+/// escape).
+void check_graph_entries(double entries, double max_entries, std::size_t n);
 
 /// The leading coefficient of the polynomial factor of phi (4 for C2's 4r + 1), which the evaluation
 /// loops fold into the coefficients.

@@ -149,13 +149,16 @@ struct FitPhases {
     stats.seconds_index = seconds_since(t0);
 
     t0 = Clock::now();
+    // The graph's rows (a 4-byte index and an 8-byte squared distance an entry), counted before they
+    // are allocated: within the limit (the sample above can miss a dense cluster).
+    const double graph_entries = options.memory_limit_bytes / 12.0;
     AdjacencyGraph g;
     if (brute)
       g = AdjacencyGraph::brute_force(sources, options.radius);
     else if (st.grid().usable)
-      st.grid().neighbor_graph(sources, g.offsets, g.neighbors, g.dist2);
+      st.grid().neighbor_graph(sources, g.offsets, g.neighbors, g.dist2, graph_entries);
     else
-      g = AdjacencyGraph::from_index(st.index(), sources);
+      g = AdjacencyGraph::from_index(st.index(), sources, graph_entries);
     stats.neighbor_pairs = g.neighbors.size() / 2;
     stats.mean_neighbors = double(g.neighbors.size()) / double(n);
     for (std::size_t i = 0; i < n; ++i) {

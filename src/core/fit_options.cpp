@@ -90,7 +90,7 @@ FitMemoryEstimate estimate_fit_memory(std::span<const Vec3> sources, double radi
       },
       std::plus<double>());
   e.mean_neighbors = count / double(samples);
-  e.max_neighbors = *std::max_element(counts.begin(), counts.end());
+  e.max_neighbors = std::min(*std::max_element(counts.begin(), counts.end()), double(n - 1));
   const double nd = double(n), pairs = nd * e.mean_neighbors / 2;
   // Graph: both directions, a 4-byte index and an 8-byte squared distance each. The sparse solvers'
   // lower triangle (an 8-byte value and a 4-byte index an entry), held beside the graph. Factor: at

@@ -1,6 +1,7 @@
 #include "csrbf/ordering.hpp"
 
 #include "csrbf/names.hpp"
+#include "evaluator.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -16,7 +17,8 @@
 
 namespace csrbf {
 
-AdjacencyGraph AdjacencyGraph::from_index(const NeighborIndex& index, std::span<const Vec3> points) {
+AdjacencyGraph AdjacencyGraph::from_index(const NeighborIndex& index, std::span<const Vec3> points,
+                                          double max_entries) {
   // Two parallel passes (the index's queries are const and thread-safe): count each point's
   // neighbours, then write each row, sorted by neighbour, into arrays allocated once at their size.
   // Both passes go through the points in the index's order (cell by cell), so that consecutive
@@ -35,6 +37,7 @@ AdjacencyGraph AdjacencyGraph::from_index(const NeighborIndex& index, std::span<
     }
   });
   for (std::size_t i = 0; i < n; ++i) g.offsets[i + 1] += g.offsets[i];
+  detail::check_graph_entries(double(g.offsets[n]), max_entries, n);
   g.neighbors.resize(g.offsets[n]);
   g.dist2.resize(g.offsets[n]);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 2048), [&](const tbb::blocked_range<std::size_t>& r) {

@@ -214,6 +214,9 @@ void transform_normal(const double* j, const double* n, double* out) {
   const double det = jm.col(0).dot(cof.col(0));
   const Vec3 v(n[0], n[1], n[2]);
   Vec3 w = cof * v;
+  // Scaled first: a huge Jacobian's cofactors overflow the squared norm (1e157 a component).
+  const double big = w.cwiseAbs().maxCoeff();
+  if (big > 0 && std::isfinite(big)) w /= big;
   const double len = w.norm(), want = v.norm();
   if (len > 0 && std::isfinite(len)) w *= (det < 0 ? -want : want) / len;
   out[0] = w.x();

@@ -127,6 +127,19 @@ void vtkCSRBFTransform::ForwardTransformDerivative(const double in[3], double ou
   forward<double>(this->Map ? &this->Map->map : nullptr, this->Phase, in, out, derivative);
 }
 
+namespace {
+/// Grows `a` (3 components) by n tuples, keeping what it holds, as VTK's per-point path appends;
+/// returns where the new tuples start. SetNumberOfTuples alone reallocates without copying, so
+/// Resize first (an output that already held points lost them, and in == out read garbage).
+vtkIdType grow_by(vtkDataArray* a, vtkIdType n) {
+  const vtkIdType at = a->GetNumberOfTuples();
+  if (at == 0) a->SetNumberOfComponents(3);
+  a->Resize(at + n);
+  a->SetNumberOfTuples(at + n);
+  return at;
+}
+}  // namespace
+
 void vtkCSRBFTransform::TransformPoints(vtkPoints* in, vtkPoints* out) {
   this->Update();
   if (this->InverseFlag || !this->Map) {  // the inverse is Newton's, point by point
@@ -134,16 +147,17 @@ void vtkCSRBFTransform::TransformPoints(vtkPoints* in, vtkPoints* out) {
     return;
   }
   const vtkIdType n = in->GetNumberOfPoints();
-  const vtkIdType start = out->GetNumberOfPoints();
-  out->SetNumberOfPoints(start + n);
-  // Contiguous float or double arrays go through the batch path without a copy.
+  const vtkIdType start = grow_by(out->GetData(), n);
+  // Contiguous float or double arrays go through the batch path without a copy (an array of another
+  // layout, vtkSOADataArrayTemplate, gives a copy from GetVoidPointer: the generic path).
   vtkDataArray* src = in->GetData();
   vtkDataArray* dst = out->GetData();
   const auto& map = this->Map->map;
-  if (src->GetDataType() == VTK_DOUBLE && dst->GetDataType() == VTK_DOUBLE) {
+  const bool raw = src->HasStandardMemoryLayout() && dst->HasStandardMemoryLayout();
+  if (raw && src->GetDataType() == VTK_DOUBLE && dst->GetDataType() == VTK_DOUBLE) {
     map.apply(static_cast<double*>(src->GetVoidPointer(0)), static_cast<double*>(dst->GetVoidPointer(3 * start)),
               std::size_t(n), this->Phase);
-  } else if (src->GetDataType() == VTK_FLOAT && dst->GetDataType() == VTK_FLOAT) {
+  } else if (raw && src->GetDataType() == VTK_FLOAT && dst->GetDataType() == VTK_FLOAT) {
     map.apply(static_cast<float*>(src->GetVoidPointer(0)), static_cast<float*>(dst->GetVoidPointer(3 * start)),
               std::size_t(n), this->Phase);
   } else {
@@ -160,22 +174,20 @@ void vtkCSRBFTransform::TransformPointsNormalsVectors(vtkPoints* inPts, vtkPoint
                                                       int nOptionalVectors, vtkDataArray** inVrsArr,
                                                       vtkDataArray** outVrsArr) {
   this->Update();
-  if (this->InverseFlag || !this->Map) {
+  // Outputs of another shape than 3 components that already hold tuples: VTK's own way with them.
+  const auto odd = [](vtkDataArray* a) { return a && a->GetNumberOfTuples() > 0 && a->GetNumberOfComponents() != 3; };
+  bool odd_output = (inNms && odd(outNms)) || (inVrs && odd(outVrs));
+  for (int k = 0; inVrsArr && outVrsArr && k < nOptionalVectors; ++k) odd_output = odd_output || odd(outVrsArr[k]);
+  if (this->InverseFlag || !this->Map || odd_output) {
     this->vtkWarpTransform::TransformPointsNormalsVectors(inPts, outPts, inNms, outNms, inVrs, outVrs, nOptionalVectors,
                                                           inVrsArr, outVrsArr);
     return;
   }
   const vtkIdType n = inPts->GetNumberOfPoints();
-  const vtkIdType start = outPts->GetNumberOfPoints();
-  outPts->SetNumberOfPoints(start + n);
   // Each output grows by n tuples as VTK's per-point path appends them, sized here once so that the
   // blocks below set their own tuples in parallel.
-  const auto grow = [n](vtkDataArray* a) {
-    const vtkIdType at = a->GetNumberOfTuples();
-    a->SetNumberOfComponents(3);
-    a->SetNumberOfTuples(at + n);
-    return at;
-  };
+  const vtkIdType start = grow_by(outPts->GetData(), n);
+  const auto grow = [n](vtkDataArray* a) { return grow_by(a, n); };
   const vtkIdType normals_at = inNms ? grow(outNms) : 0, vectors_at = inVrs ? grow(outVrs) : 0;
   std::vector<vtkIdType> optional_at;
   for (int k = 0; inVrsArr && k < nOptionalVectors; ++k) optional_at.push_back(grow(outVrsArr[k]));

@@ -256,4 +256,14 @@ TEST(Engine, OverlappingPositionAndNormalAreRefused) {
   ok.normal_offset = 12;
   EXPECT_TRUE(d.deform(ok, ok));
   EXPECT_NE(std::string(d.deform(ok, ok, 1e300).message).find("got 1e+300"), std::string::npos);
+  // Found by the attacker: one buffer read with one stride and written with another raced; a stride
+  // near SIZE_MAX wrapped around before the buffer.
+  std::vector<float> big(3 * 1000);
+  engine::VertexBuffer wide{big.data(), 500, 24, 0, engine::kNoNormal, engine::Scalar::Float32};
+  engine::VertexBuffer narrow = wide;
+  narrow.stride = 12;
+  EXPECT_NE(std::string(d.deform(wide, narrow).message).find("in and out overlap"), std::string::npos);
+  engine::VertexBuffer wrap{big.data(), 4, ~std::size_t(0) - 11, 0, engine::kNoNormal, engine::Scalar::Float32};
+  EXPECT_NE(std::string(d.deform(wrap, wrap).message).find("pass the end of the address space"), std::string::npos)
+      << d.deform(wrap, wrap).message;
 }

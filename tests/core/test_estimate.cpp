@@ -75,3 +75,46 @@ TEST(Estimate, SuggestedRadiusGivesTheNeighboursAskedFor) {
   EXPECT_THROW(estimate(cube, -1.0), InvalidInput);
   EXPECT_THROW(estimate(cube, std::nan("")), InvalidInput);
 }
+
+// Found by the attacker: a dense cluster the seeded sample misses made estimate() build a graph 10x
+// its cap (and allocate gigabytes). Every source is now counted before anything per pair is allocated.
+namespace {
+/// 60000 points in the unit cube, 4000 of them in a cluster 1.6e-3 across, placed where the memory
+/// check's seeded sample (mt19937_64(12345), 256 indices modulo n) does not look.
+std::vector<Vec3> hidden_cluster(std::size_t n, std::size_t cluster) {
+  std::vector<char> picked(n, 0);
+  std::mt19937_64 pick(12345);
+  for (int k = 0; k < 256; ++k) picked[pick() % n] = 1;
+  std::mt19937 rng(603);
+  std::vector<Vec3> s = random_points(n, rng);
+  std::size_t placed = 0;
+  for (std::size_t i = 0; i < n && placed < cluster; ++i)
+    if (!picked[i]) {
+      s[i] = Vec3(0.5, 0.5, 0.5) + 1e-4 * Vec3(double(placed % 16), double(placed / 16 % 16), double(placed / 256));
+      ++placed;
+    }
+  return s;
+}
+}  // namespace
+
+TEST(Estimate, AClusterTheSampleMissesIsCountedNotBuilt) {
+  const std::size_t cluster = 4000;
+  const std::vector<Vec3> s = hidden_cluster(60000, cluster);
+  const double radius = 0.03;
+  const FitEstimate e = estimate(s, radius);
+  EXPECT_TRUE(e.counted);
+  EXPECT_FALSE(e.exact);  // 4000^2 entries pass 1e7: the graph is not built
+  EXPECT_GE(e.max_neighbors, double(cluster - 1));
+  EXPECT_GT(e.nonzeros, double(cluster) * double(cluster));
+  EXPECT_FALSE(std::isfinite(e.solvers[0].seconds));
+  // The fit's own memory check predicts from the same sample: the graph, counted, is refused before
+  // its 190 MB of rows are allocated, under a limit of 100 MB that the sample says it fits.
+  FitOptions o{radius};
+  o.memory_limit_bytes = 100e6;
+  try {
+    SpaceMap::fit(s, s, o);
+    FAIL() << "the clustered fit passed a 100 MB limit";
+  } catch (const ResourceLimit& x) {
+    EXPECT_NE(std::string(x.what()).find("far denser than the rest"), std::string::npos) << x.what();
+  }
+}

@@ -26,6 +26,14 @@ namespace {
 
 struct Landmarks {
   vtkNew<vtkPoints> source, target;
+  /// A transform between these landmarks at radius R.
+  vtkSmartPointer<vtkCSRBFTransform> transform(double radius) const {
+    auto t = vtkSmartPointer<vtkCSRBFTransform>::New();
+    t->SetSourceLandmarks(source);
+    t->SetTargetLandmarks(target);
+    t->SetRadius(radius);
+    return t;
+  }
   std::vector<Vec3> s, d;
   Landmarks() {
     source->SetDataTypeToDouble();  // vtkPoints are float by default
@@ -203,10 +211,7 @@ TEST(VtkCSRBFTransform, BadLandmarksReportAnErrorAndGiveTheIdentity) {
 // double arrays.
 TEST(VtkCSRBFTransform, NormalsAndVectorsGoThroughTheJacobianAsVtksOwnPath) {
   Landmarks l;
-  vtkNew<vtkCSRBFTransform> t;
-  t->SetSourceLandmarks(l.source);
-  t->SetTargetLandmarks(l.target);
-  t->SetRadius(0.6);
+  const auto t = l.transform(0.6);
   t->SetPhase(0.9);
   vtkNew<vtkSphereSource> sphere;
   sphere->SetThetaResolution(120);
@@ -266,4 +271,62 @@ TEST(VtkCSRBFTransform, NormalsAndVectorsGoThroughTheJacobianAsVtksOwnPath) {
   filter->Update();
   ASSERT_NE(filter->GetOutput()->GetPointData()->GetNormals(), nullptr);
   EXPECT_EQ(filter->GetOutput()->GetPointData()->GetNormals()->GetNumberOfTuples(), n);
+}
+
+// Found by the attacker: outputs that already held tuples lost them (SetNumberOfTuples reallocates
+// without copying), and a vtkPoints transformed into itself read garbage. VTK appends: the old
+// tuples stay, the new ones follow, equal to VTK's own per-point path.
+TEST(VtkCSRBFTransform, AppendsToOutputsThatHoldTuplesAndToItsOwnInput) {
+  Landmarks l;
+  const auto t = l.transform(0.6);
+  vtkNew<vtkSphereSource> sphere;
+  sphere->SetThetaResolution(40);
+  sphere->SetPhiResolution(40);
+  sphere->SetRadius(1.0);
+  sphere->Update();
+  vtkPolyData* pd = sphere->GetOutput();
+  const vtkIdType n = pd->GetNumberOfPoints();
+  vtkNew<vtkPoints> ref;
+  vtkNew<vtkFloatArray> ref_normals;
+  ref_normals->SetNumberOfComponents(3);
+  t->vtkAbstractTransform::TransformPointsNormalsVectors(pd->GetPoints(), ref, pd->GetPointData()->GetNormals(),
+                                                         ref_normals, nullptr, nullptr);
+  vtkNew<vtkPoints> out;
+  out->InsertNextPoint(9, 9, 9);
+  vtkNew<vtkFloatArray> normals;
+  normals->SetNumberOfComponents(3);
+  normals->InsertNextTuple3(7, 7, 7);
+  t->TransformPointsNormalsVectors(pd->GetPoints(), out, pd->GetPointData()->GetNormals(), normals, nullptr, nullptr);
+  ASSERT_EQ(out->GetNumberOfPoints(), n + 1);
+  ASSERT_EQ(normals->GetNumberOfTuples(), n + 1);
+  double p[3], q[3];
+  out->GetPoint(0, p);
+  EXPECT_EQ(p[0], 9.0);
+  normals->GetTuple(0, p);
+  EXPECT_EQ(p[2], 7.0);
+  double worst = 0;
+  for (vtkIdType i = 0; i < n; ++i) {
+    out->GetPoint(i + 1, p);
+    ref->GetPoint(i, q);
+    for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(p[c] - q[c]));
+    normals->GetTuple(i + 1, p);
+    ref_normals->GetTuple(i, q);
+    for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(p[c] - q[c]));
+  }
+  EXPECT_LT(worst, 1e-5);
+  // Points transformed into their own vtkPoints: the originals, then their images.
+  vtkNew<vtkPoints> self;
+  self->DeepCopy(pd->GetPoints());
+  t->TransformPoints(self, self);
+  ASSERT_EQ(self->GetNumberOfPoints(), 2 * n);
+  worst = 0;
+  for (vtkIdType i = 0; i < n; ++i) {
+    self->GetPoint(i, p);
+    pd->GetPoints()->GetPoint(i, q);
+    for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(p[c] - q[c]));
+    self->GetPoint(n + i, p);
+    ref->GetPoint(i, q);
+    for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(p[c] - q[c]));
+  }
+  EXPECT_LT(worst, 1e-5);
 }
