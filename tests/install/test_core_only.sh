@@ -33,7 +33,10 @@ echo -n "add_subdirectory consumer: "
 echo -n "add_subdirectory engine consumer (-fno-exceptions): "
 "$tmp/sub/engine"
 # csrbf's own objects compiled -O3 -DNDEBUG, the parent's own without.
-(cd "$tmp/sub" && ninja -t commands csrbf/src/core/libcsrbf_core.a) | grep 'space_map.cpp' | grep -q -- '-O3.*-DNDEBUG\|-DNDEBUG.*-O3' ||
+# (Listed into files first: `grep -q` leaves a pipe early, and under pipefail the writer's SIGPIPE
+# failed the test by chance.)
+(cd "$tmp/sub" && ninja -t commands csrbf/src/core/libcsrbf_core.a) > "$tmp/sub-commands.txt"
+grep 'space_map.cpp' "$tmp/sub-commands.txt" | grep -- '-O3.*-DNDEBUG\|-DNDEBUG.*-O3' > /dev/null ||
   { echo "csrbf's core was not compiled optimised under a parent without a build type"; exit 1; }
 # A frame, best of 7, each build's program run alternately three times (the machine is shared).
 sub_ms=() rel_ms=()
@@ -52,6 +55,7 @@ if git -C "$src" rev-parse --git-dir > /dev/null 2>&1; then
   cmake -S "$src/tests/install/subdirectory" -B "$tmp/fetch" -G Ninja -DCSRBF_FETCH=ON \
     -DCSRBF_SOURCE_ARCHIVE="$tmp/csrbf.tar.gz" -DCMAKE_DISABLE_FIND_PACKAGE_VTK=ON -DCMAKE_DISABLE_FIND_PACKAGE_MPI=ON \
     -DCMAKE_DISABLE_FIND_PACKAGE_assimp=ON > "$tmp/fetch.log" 2>&1 || { cat "$tmp/fetch.log"; exit 1; }
-  (cd "$tmp/fetch" && ninja -t targets all) | grep -q '^consumer:' || { echo "FetchContent(csrbf) defines no consumer"; exit 1; }
+  (cd "$tmp/fetch" && ninja -t targets all) > "$tmp/fetch-targets.txt"
+  grep '^consumer:' "$tmp/fetch-targets.txt" > /dev/null || { echo "FetchContent(csrbf) defines no consumer"; exit 1; }
   echo "FetchContent consumer: configured"
 fi
