@@ -26,7 +26,6 @@
 #include <limits>
 #include <mutex>
 #include <optional>
-#include <cstdlib>
 #include <random>
 #include <sstream>
 #include <span>
@@ -476,7 +475,7 @@ class BatchedCg final : public SparseFactor {
     // CG begins plain (a step is then half the work) and turns to the preconditioner when, after
     // kIcProbeSteps steps, the rate its residual falls at predicts more than kIcSwitchSteps steps in
     // all: the sphere's 1e6 controls converge in 40 plain steps (28 preconditioned, each twice the
-    // work); the cube's take 1805 plain and 159 preconditioned. The recurrence restarts from x.
+    // work); the cube's take 1805 plain and 166 preconditioned. The recurrence restarts from x.
     const auto turn_to_preconditioner = [&] {
       ic_.emplace(row_, col_, val_, diagonal_, n);
       z.resize(n * m);
