@@ -5,6 +5,7 @@
 #include "csrbf/kernel_matrix.hpp"
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/ordering.hpp"
+#include "fit_state.hpp"
 #include "incomplete_cholesky.hpp"
 #include "sparse_solver.hpp"
 
@@ -21,15 +22,6 @@
 namespace csrbf {
 namespace {
 
-void check_sources(std::span<const Vec3> sources) {
-  for (std::size_t i = 0; i < sources.size(); ++i)
-    if (!sources[i].allFinite()) {
-      std::ostringstream os;
-      os << "source " << i << " is not finite (" << sources[i].transpose() << ")";
-      throw InvalidInput(os.str());
-    }
-}
-
 std::string format(double v) {
   std::ostringstream os;
   os.precision(3);
@@ -42,7 +34,7 @@ std::string format(double v) {
 FitEstimate estimate(std::span<const Vec3> sources, double radius, const FitOptions& options) {
   if (!(radius > 0) || !std::isfinite(radius))
     throw InvalidInput("estimate: radius must be positive and finite, got " + format(radius));
-  check_sources(sources);
+  detail::check_points(sources, "source");
   FitEstimate e;
   const std::size_t n = sources.size();
   e.controls = n;
@@ -107,7 +99,8 @@ FitEstimate estimate(std::span<const Vec3> sources, double radius, const FitOpti
   const double shared_seconds = kSecondsPerEntry * e.nonzeros;
   const double step = 3.0 * (2.0 * pairs + nd);  // a CG step's multiply-adds, three right-hand sides
 
-  SolverEstimate env{Solver::Envelope};
+  SolverEstimate env;
+  env.solver = Solver::Envelope;
   if (e.exact) {
     env.bytes = a_bytes + detail::envelope_factor_bytes(envelope_entries, n);
     env.seconds = shared_seconds + kEnvelopeCostRatio * envelope_work * kSecondsPerCgMultiplyAdd;
@@ -122,7 +115,8 @@ FitEstimate estimate(std::span<const Vec3> sources, double radius, const FitOpti
         "neighbour graph not built (beyond the memory limit or 1e7 entries): its envelope is unknown, at least "
         "this";
   }
-  SolverEstimate direct{cholmod_available() ? Solver::Cholmod : Solver::Eigen};
+  SolverEstimate direct;
+  direct.solver = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
   if (e.exact) {
     direct.bytes = a_bytes + 12.0 * direct_entries + 2 * 12.0 * (pairs + nd);
     direct.seconds = shared_seconds + kDirectFlopCost * direct_flops * kSecondsPerCgMultiplyAdd;
@@ -136,7 +130,8 @@ FitEstimate estimate(std::span<const Vec3> sources, double radius, const FitOpti
     direct.seconds = direct.factor_entries = direct.work = std::numeric_limits<double>::quiet_NaN();
     direct.note = "neighbour graph not built: the factor is unknown, at least this";
   }
-  SolverEstimate cg{Solver::Cg};
+  SolverEstimate cg;
+  cg.solver = Solver::Cg;
   cg.bytes = a_bytes + detail::cg_bytes(entries, n);
   cg.factor_entries = 2 * pairs;
   cg.work = kCgStepsEstimate * step;
@@ -159,7 +154,7 @@ double suggest_radius(std::span<const Vec3> sources, double neighbours) {
   if (!(neighbours > 0) || !(neighbours < double(n - 1)))
     throw InvalidInput("suggest_radius: neighbours must be within (0, " + std::to_string(n - 1) + "), got " +
                        format(neighbours));
-  check_sources(sources);
+  detail::check_points(sources, "source");
   Vec3 lo = sources[0], hi = sources[0];
   for (const Vec3& p : sources) {
     lo = lo.cwiseMin(p);

@@ -21,22 +21,10 @@ namespace {
 using Clock = std::chrono::steady_clock;
 /// Up to this many sources the fit tests every pair for the neighbour graph (cheaper than the grid).
 constexpr std::size_t kBruteForceGraph = 256;
-/// Coordinates (and so distances) stay below this, so that their squares are finite.
-constexpr double kMaxCoordinate = 1e150;
 
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 int polynomial_terms(Polynomial p) { return p == Polynomial::None ? 0 : p == Polynomial::Constant ? 1 : 4; }
-
-void check_points(std::span<const Vec3> pts, const char* what) {
-  for (std::size_t i = 0; i < pts.size(); ++i)
-    if (!pts[i].allFinite() || pts[i].cwiseAbs().maxCoeff() > kMaxCoordinate) {
-      std::ostringstream os;
-      os << what << " " << i << (pts[i].allFinite() ? " is out of range (a coordinate beyond 1e150)" : " is not finite")
-         << ": (" << pts[i].x() << ", " << pts[i].y() << ", " << pts[i].z() << ")";
-      throw InvalidInput(os.str());
-    }
-}
 
 std::string gib(double bytes) {
   std::ostringstream os;
@@ -46,6 +34,19 @@ std::string gib(double bytes) {
 }
 
 }  // namespace
+
+namespace detail {
+void check_points(std::span<const Vec3> pts, const char* what) {
+  for (std::size_t i = 0; i < pts.size(); ++i)
+    if (!pts[i].allFinite() || pts[i].cwiseAbs().maxCoeff() > kMaxCoordinate) {
+      std::ostringstream os;
+      os << what << " " << i << (pts[i].allFinite() ? " is out of range (a coordinate beyond 1e150)" : " is not finite")
+         << ": (" << pts[i].x() << ", " << pts[i].y() << ", " << pts[i].z() << ")";
+      throw InvalidInput(os.str());
+    }
+}
+}  // namespace detail
+using detail::check_points;
 
 /// The phases, with access to SpaceMap's state.
 struct FitPhases {

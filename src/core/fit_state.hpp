@@ -29,6 +29,14 @@ namespace csrbf {
 // goes through NeighborIndex.
 inline constexpr std::size_t kEvalListBytes = std::size_t(512) << 20;
 
+namespace detail {
+/// Coordinates (and so distances) stay below this, so that their squares are finite.
+inline constexpr double kMaxCoordinate = 1e150;
+/// InvalidInput naming `what` and its index where a point is not finite or beyond kMaxCoordinate:
+/// the fit's check of its sources and destinations, and estimate()'s of the sources.
+void check_points(std::span<const Vec3> pts, const char* what);
+}  // namespace detail
+
 // Everything that depends on the sources only: shared by every map made with with_destinations().
 struct SpaceMap::Structure {
   FitOptions options;
