@@ -19,16 +19,15 @@ IncompleteCholesky::IncompleteCholesky(std::span<const std::size_t> row, std::sp
   const std::size_t nb = n == 0 ? 1 : ic_blocks(n);
   block_start_.resize(nb + 1);
   for (std::size_t b = 0; b <= nb; ++b) block_start_[b] = n * b / nb;
-  const auto block_of = [&](std::size_t k) {
-    return std::size_t(std::upper_bound(block_start_.begin(), block_start_.end(), k) - block_start_.begin()) - 1;
-  };
   // L's pattern: the entries of A's row k with columns in [start of k's block, k).
   row_.assign(n + 1, 0);
-  for (std::size_t k = 0; k < n; ++k) {
-    const std::size_t first = block_start_[block_of(k)];
-    std::size_t count = 0;
-    for (std::size_t e = row[k]; e < row[k + 1]; ++e) count += col[e] >= first && col[e] < k;
-    row_[k + 1] = row_[k] + count;
+  for (std::size_t b = 0; b < nb; ++b) {
+    const std::size_t first = block_start_[b];
+    for (std::size_t k = first; k < block_start_[b + 1]; ++k) {
+      std::size_t count = 0;
+      for (std::size_t e = row[k]; e < row[k + 1]; ++e) count += col[e] >= first && col[e] < k;
+      row_[k + 1] = row_[k] + count;
+    }
   }
   col_.resize(row_[n]);
   val_.resize(row_[n]);
