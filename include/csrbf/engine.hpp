@@ -12,7 +12,8 @@
 //   d.deform(rest, vb, phase);   // rest and vb may be the same buffer
 //
 // Normals are taken through the map exactly, n' = J^-T n with J = dT/dx at the vertex (scaled to
-// the length n had), not blended.
+// the length n had), not blended. Float buffers are deformed in float where the map's float check
+// passes (normals within 1e-5 rad of double's for the smooth kernels C2-C6), else in double.
 #pragma once
 
 #include <cstddef>

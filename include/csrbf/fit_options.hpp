@@ -42,6 +42,9 @@ inline constexpr double kResidualLimit = 1e-6;
 /// measured once per map on (up to 4096 of) its sources and as many points between them, where it
 /// must agree to a quarter of this; otherwise float inputs are evaluated in double and rounded once.
 inline constexpr double kFloatTolerance = 1e-4;
+/// The angle (radians) within which normals deformed in float (SpaceMap::apply_with_normals on
+/// float arrays) follow the exact ones; the map falls back to double where a sample says otherwise.
+inline constexpr double kFloatNormalRadians = 1e-5;
 /// Solver::Cg stops at this relative residual ||b - A x|| / ||b|| for each right-hand side, and
 /// gives up (a direct solver takes over) after kCgMaxIterations steps.
 inline constexpr double kCgTolerance = 1e-12;

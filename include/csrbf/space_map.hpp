@@ -84,10 +84,14 @@ class SpaceMap {
   void apply(std::span<const Vec3> in, std::span<Vec3> out, double phase = 1.0) const;
   /// out = in + phase * d(in) for n interleaved points, with the map's Jacobian J = dT/dx at each:
   /// normals_in (n x 3, may be null) go to normals_out as J^-T n (the normal of the deformed
-  /// surface, exact, not a blend), scaled to the length of n; jacobians (n x 9, row-major, may be
-  /// null) receives J. Any output may be its input's buffer. In double, in parallel over points.
+  /// surface, exact, not a blend; of det J's sign, so a folded surface keeps its side), scaled to
+  /// the length of n, or to 1 where unit_normals; jacobians (n x 9, row-major, may be null)
+  /// receives J. Any output may be its input's buffer. In parallel over points; float arrays are
+  /// evaluated in float where the map's float check passes (as apply), else in double.
   void apply_with_normals(const double* in, double* out, std::size_t n, double phase, const double* normals_in,
-                          double* normals_out, double* jacobians = nullptr) const;
+                          double* normals_out, double* jacobians = nullptr, bool unit_normals = false) const;
+  void apply_with_normals(const float* in, float* out, std::size_t n, double phase, const float* normals_in,
+                          float* normals_out, float* jacobians = nullptr, bool unit_normals = false) const;
   /// d(in) for n interleaved points into out (n x 3).
   void displacements(const double* in, double* out, std::size_t n) const;
   void displacements(const float* in, float* out, std::size_t n) const;
@@ -110,6 +114,10 @@ class SpaceMap {
   /// points between them (measured once, on first use); false sends float inputs through double
   /// evaluation. Thread-safe.
   bool float_trusted() const;
+  /// Whether float normals (apply_with_normals on float arrays) agree with double ones within
+  /// kFloatNormalRadians / 4 on the same sample as float_trusted (where float_trusted holds too).
+  /// Where not, float arrays are evaluated in double.
+  bool float_normals_trusted() const;
   /// An estimate of the 2-norm condition number of the N x N CSRBF matrix A, lambda_max / lambda_min
   /// (power iteration and inverse iteration through the factorisation, 30 steps each). Computed on
   /// first call and kept; thread-safe.
@@ -128,6 +136,9 @@ class SpaceMap {
   void apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
   template <class T>
   void apply_direct(const T* in, T* out, std::size_t n, double phase, bool add_point) const;
+  template <class T>
+  void normals_impl(const T* in, T* out, std::size_t n, double phase, const T* normals_in, T* normals_out, T* jacobians,
+                    bool unit) const;
   std::shared_ptr<const State> s_;
 };
 

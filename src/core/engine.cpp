@@ -1,5 +1,6 @@
 // The engine API (csrbf/engine.hpp): csrbf's exceptions turned into status codes at this boundary,
-// strided vertex buffers gathered into packed doubles, deformed with their Jacobians, and scattered.
+// strided vertex buffers gathered into packed scalars of their type, deformed with their Jacobians,
+// and scattered.
 #include "csrbf/engine.hpp"
 
 #include "csrbf/errors.hpp"
@@ -114,17 +115,18 @@ void deform_as(const SpaceMap* map, const VertexBuffer& in, const VertexBuffer& 
   const bool normals = in.normal_offset != kNoNormal;
   const std::size_t n = in.count;
   constexpr std::size_t block = 4096;
-  // Block by block: each gathered into packed doubles, deformed, and written out, so that in and out
-  // may be one buffer and the scratch stays in cache.
+  // Block by block: each gathered into packed scalars (float in float where the map's float check
+  // passes), deformed, and written out, so that in and out may be one buffer and the scratch stays
+  // in cache.
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, block), [&](const tbb::blocked_range<std::size_t>& r) {
     const std::size_t b = r.begin(), m = r.end() - r.begin();
-    std::vector<double> p(3 * m), nm(normals ? 3 * m : 0);
+    std::vector<T> p(3 * m), nm(normals ? 3 * m : 0);
     for (std::size_t i = 0; i < m; ++i) {
       const T* x = at<T>(in, b + i, in.position_offset);
-      for (int c = 0; c < 3; ++c) p[3 * i + std::size_t(c)] = double(x[c]);
+      for (int c = 0; c < 3; ++c) p[3 * i + std::size_t(c)] = x[c];
       if (normals) {
         const T* v = at<T>(in, b + i, in.normal_offset);
-        for (int c = 0; c < 3; ++c) nm[3 * i + std::size_t(c)] = double(v[c]);
+        for (int c = 0; c < 3; ++c) nm[3 * i + std::size_t(c)] = v[c];
       }
     }
     if (map)
@@ -132,10 +134,10 @@ void deform_as(const SpaceMap* map, const VertexBuffer& in, const VertexBuffer& 
                               normals ? nm.data() : nullptr);
     for (std::size_t i = 0; i < m; ++i) {
       T* x = at<T>(out, b + i, out.position_offset);
-      for (int c = 0; c < 3; ++c) x[c] = T(p[3 * i + std::size_t(c)]);
+      for (int c = 0; c < 3; ++c) x[c] = p[3 * i + std::size_t(c)];
       if (normals) {
         T* v = at<T>(out, b + i, out.normal_offset);
-        for (int c = 0; c < 3; ++c) v[c] = T(nm[3 * i + std::size_t(c)]);
+        for (int c = 0; c < 3; ++c) v[c] = nm[3 * i + std::size_t(c)];
       }
     }
   });

@@ -21,15 +21,7 @@
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__has_attribute)
 #if __has_attribute(target_clones)
 #define CSRBF_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-// The Jacobian loop keeps 12 sums of 8 lanes: 12 AVX-512 registers, but 24 of AVX2's 16, which
-// spill. Where the build has the AVX-512 loop, the Jacobian loop gets an AVX-512 clone too.
-#ifdef CSRBF_HAVE_AVX512_EVAL
-#define CSRBF_JAC_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #endif
-#endif
-#endif
-#ifndef CSRBF_JAC_CLONES
-#define CSRBF_JAC_CLONES CSRBF_CLONES
 #endif
 #ifndef CSRBF_CLONES
 #define CSRBF_CLONES
@@ -365,32 +357,23 @@ CSRBF_EVAL_CLONE(C6, float)
 }  // namespace
 
 namespace {
-#define CSRBF_JAC_CLONE(K)                                                                                \
-  CSRBF_JAC_CLONES void jac_##K(const EvalGrid& g, const EvalData<double>& a, const PolynomialPart* poly, \
-                                const double* in, double* out, double* jac, std::size_t b, std::size_t e, \
-                                double phase) {                                                           \
-    jacobian_block<Kernel::K>(g, a, poly, in, out, jac, b, e, phase);                                     \
+/// The portable one-point-a-lane loop: 8 lanes (AVX2's ymm of float; four xmm of double).
+constexpr std::size_t kNormalLanes = 8;
+#define CSRBF_NORMALS_CLONE(K, T)                                                                          \
+  CSRBF_CLONES void normals_##K##_##T(const EvalGrid& g, const EvalData<T>& a, const PolynomialPart* poly, \
+                                      const NormalsJob<T>& job, std::size_t b, std::size_t e) {            \
+    normals_block<Kernel::K, T, kNormalLanes, PortableRun, PortableRoot>(g, a, poly, job, b, e);           \
   }
-CSRBF_JAC_CLONE(C0)
-CSRBF_JAC_CLONE(C2)
-CSRBF_JAC_CLONE(C4)
-CSRBF_JAC_CLONE(C6)
-#undef CSRBF_JAC_CLONE
+CSRBF_NORMALS_CLONE(C0, double)
+CSRBF_NORMALS_CLONE(C2, double)
+CSRBF_NORMALS_CLONE(C4, double)
+CSRBF_NORMALS_CLONE(C6, double)
+CSRBF_NORMALS_CLONE(C0, float)
+CSRBF_NORMALS_CLONE(C2, float)
+CSRBF_NORMALS_CLONE(C4, float)
+CSRBF_NORMALS_CLONE(C6, float)
+#undef CSRBF_NORMALS_CLONE
 }  // namespace
-
-void evaluate_jacobians(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
-                        const double* in, double* out, double* jac, std::size_t begin, std::size_t end, double phase) {
-  switch (kernel) {
-    case Kernel::C0:
-      return jac_C0(g, a, poly, in, out, jac, begin, end, phase);
-    case Kernel::C2:
-      return jac_C2(g, a, poly, in, out, jac, begin, end, phase);
-    case Kernel::C4:
-      return jac_C4(g, a, poly, in, out, jac, begin, end, phase);
-    case Kernel::C6:
-      return jac_C6(g, a, poly, in, out, jac, begin, end, phase);
-  }
-}
 
 namespace {
 std::atomic<bool> g_use_avx512{avx512_available()};
@@ -413,6 +396,33 @@ bool avx512_available() noexcept {
 
 void set_eval_isa(EvalIsa isa) noexcept { g_use_avx512 = isa == EvalIsa::Avx512 && avx512_available(); }
 EvalIsa eval_isa() noexcept { return g_use_avx512 ? EvalIsa::Avx512 : EvalIsa::Portable; }
+
+// stmt where this build has the AVX-512 loops and they run (the CPU has them, set_eval_isa allows).
+#ifdef CSRBF_HAVE_AVX512_EVAL
+#define CSRBF_IF_AVX512(stmt) \
+  if (g_use_avx512.load(std::memory_order_relaxed)) stmt
+#else
+#define CSRBF_IF_AVX512(stmt)
+#endif
+#define CSRBF_NORMALS_DISPATCH(T)                                                                           \
+  void evaluate_normals(const EvalGrid& g, const EvalData<T>& a, Kernel kernel, const PolynomialPart* poly, \
+                        const NormalsJob<T>& job, std::size_t begin, std::size_t end) {                     \
+    CSRBF_IF_AVX512(return evaluate_normals_avx512(g, a, kernel, poly, job, begin, end));                   \
+    switch (kernel) {                                                                                       \
+      case Kernel::C0:                                                                                      \
+        return normals_C0_##T(g, a, poly, job, begin, end);                                                 \
+      case Kernel::C2:                                                                                      \
+        return normals_C2_##T(g, a, poly, job, begin, end);                                                 \
+      case Kernel::C4:                                                                                      \
+        return normals_C4_##T(g, a, poly, job, begin, end);                                                 \
+      case Kernel::C6:                                                                                      \
+        return normals_C6_##T(g, a, poly, job, begin, end);                                                 \
+    }                                                                                                       \
+  }
+CSRBF_NORMALS_DISPATCH(double)
+CSRBF_NORMALS_DISPATCH(float)
+#undef CSRBF_NORMALS_DISPATCH
+#undef CSRBF_IF_AVX512
 
 void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly, const double* in,
               double* out, std::size_t begin, std::size_t end, double phase, bool add_point) {

@@ -143,10 +143,24 @@ void evaluate(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const
 void evaluate(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly, const float* in,
               float* out, std::size_t begin, std::size_t end, double phase, bool add_point);
 
-/// out = in + phase d(in) and jac[9i..9i+8] = dT/dx (row-major) for the points [begin, end), in
-/// double (the portable loop, with its AVX2 clone): the engine API's and VTK's normals.
-void evaluate_jacobians(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
-                        const double* in, double* out, double* jac, std::size_t begin, std::size_t end, double phase);
+/// What evaluate_normals() reads and writes for its points (n x 3 interleaved, n x 9 for jac).
+template <class T>
+struct NormalsJob {
+  const T* in;
+  T* out;                         ///< in + phase d(in); may be in
+  const T* normals_in = nullptr;  ///< may be null
+  T* normals_out = nullptr;       ///< J^-T n, of det J's sign, scaled to |n| (to 1 where unit)
+  T* jac = nullptr;               ///< J = dT/dx = I + phase dd/dx, row-major; may be null
+  double phase = 1.0;
+  bool unit = false;
+};
+/// The points [begin, end) of job through the cell lists with their Jacobians: the engine API's
+/// and VTK's normals (the one-point-a-lane loop of eval_kernel.hpp, in AVX-512 where the CPU has
+/// it, else the portable loop with its AVX2 clone).
+void evaluate_normals(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
+                      const NormalsJob<double>& job, std::size_t begin, std::size_t end);
+void evaluate_normals(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
+                      const NormalsJob<float>& job, std::size_t begin, std::size_t end);
 
 /// Points that arrive in an order unrelated to space (a point cloud, a mesh renumbered by another
 /// tool) make every point a new cell: the group path never runs and each run is fetched from memory
@@ -183,6 +197,10 @@ void evaluate_avx512(const EvalGrid& g, const EvalData<double>& a, Kernel kernel
                      const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point);
 void evaluate_avx512(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
                      const float* in, float* out, std::size_t begin, std::size_t end, double phase, bool add_point);
+void evaluate_normals_avx512(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
+                             const NormalsJob<double>& job, std::size_t begin, std::size_t end);
+void evaluate_normals_avx512(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
+                             const NormalsJob<float>& job, std::size_t begin, std::size_t end);
 #endif
 
 }  // namespace csrbf::detail

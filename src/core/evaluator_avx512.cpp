@@ -35,6 +35,43 @@ inline __attribute__((always_inline)) __m256 root(__m256 r2) {
   return _mm256_fmadd_ps(r0, _mm256_mul_ps(e, _mm256_set1_ps(0.5f)), r0);
 }
 
+// 16 floats: as the 8 above.
+inline __attribute__((always_inline)) __m512 root(__m512 r2) {
+  const __m512 y = _mm512_rsqrt14_ps(r2);
+  const __m512 r0 = _mm512_mul_ps(r2, y);
+  const __m512 e = _mm512_fnmadd_ps(r0, y, _mm512_set1_ps(1.0f));
+  return _mm512_fmadd_ps(r0, _mm512_mul_ps(e, _mm512_set1_ps(0.5f)), r0);
+}
+/// root() for the one-point-a-lane loop of normals_block: a full vector of float or double.
+struct Avx512Root {
+  template <class V>
+  static inline __attribute__((always_inline)) V clipped_root(V r2) {
+    if constexpr (sizeof(r2[0]) == sizeof(float))
+      return V(detail::root(_mm512_min_ps(__m512(r2), _mm512_set1_ps(1.0f))));
+    else
+      return V(detail::root(_mm512_min_pd(__m512d(r2), _mm512_set1_pd(1.0))));
+  }
+  /// 1 / sqrt(b): in float the reciprocal root estimate (2^-14) after one Newton step (2^-27); in
+  /// double correctly rounded.
+  template <class V>
+  static inline __attribute__((always_inline)) V inv_root(V b) {
+    if constexpr (sizeof(b[0]) == sizeof(float)) {
+      const __m512 y = _mm512_rsqrt14_ps(__m512(b));
+      const __m512 e = _mm512_fnmadd_ps(_mm512_mul_ps(__m512(b), y), y, _mm512_set1_ps(1.0f));
+      return V(_mm512_fmadd_ps(_mm512_mul_ps(y, e), _mm512_set1_ps(0.5f), y));
+    } else {
+      return V(_mm512_div_pd(_mm512_set1_pd(1.0), _mm512_sqrt_pd(__m512d(b))));
+    }
+  }
+  template <class V>
+  static inline __attribute__((always_inline)) V root(V a) {
+    if constexpr (sizeof(a[0]) == sizeof(float))
+      return V(_mm512_sqrt_ps(__m512(a)));
+    else
+      return V(_mm512_sqrt_pd(__m512d(a)));
+  }
+};
+
 // The vector of 8 lanes for T, and its operations.
 template <class T>
 struct V8;
@@ -69,6 +106,68 @@ struct V8<float> {
     s = _mm_add_ps(s, _mm_movehl_ps(s, s));
     s = _mm_add_ss(s, _mm_movehdup_ps(s));
     return _mm_cvtss_f32(s);
+  }
+};
+
+/// The AVX-512 vector of T.
+template <class T>
+struct Zmm {
+  using type = __m512d;
+};
+template <>
+struct Zmm<float> {
+  using type = __m512;
+};
+
+/// The permutes of Avx512Run::load3 and store3 for a full vector of T: index vectors for
+/// permutex2var, whose indices 0 .. W-1 take the first operand and W .. 2W-1 the second.
+template <class T>
+struct Perm {
+  static constexpr int W = 64 / sizeof(T);
+  using v = typename Zmm<T>::type;
+  struct Vec {
+    static v load(const T* p) {
+      if constexpr (std::is_same_v<T, float>)
+        return _mm512_loadu_ps(p);
+      else
+        return _mm512_loadu_pd(p);
+    }
+    static void store(T* p, v a) {
+      if constexpr (std::is_same_v<T, float>)
+        _mm512_storeu_ps(p, a);
+      else
+        _mm512_storeu_pd(p, a);
+    }
+    static v permute2(v a, __m512i idx, v b) {
+      if constexpr (std::is_same_v<T, float>)
+        return _mm512_permutex2var_ps(a, idx, b);
+      else
+        return _mm512_permutex2var_pd(a, idx, b);
+    }
+  } vec;
+  __m512i gather_ab[3], gather_c[3], scatter_xy[3], scatter_z[3];
+  Perm() {
+    for (int c = 0; c < 3; ++c) {
+      alignas(64) std::int64_t i64[4][8];
+      alignas(64) std::int32_t i32[4][16];
+      for (int l = 0; l < W; ++l) {
+        // Load: lane l of component c is element e = 3 l + c of the 3 W triples' values.
+        const int e = 3 * l + c;
+        const int ab = e < 2 * W ? e : l, cc = e < 2 * W ? l : W + (e - 2 * W);
+        // Store: element e = k W + l of output vector k is lane e / 3 of component e % 3.
+        const int f = c * W + l, lane = f / 3, comp = f % 3;
+        const int xy = comp == 0 ? lane : comp == 1 ? W + lane : l, z = comp == 2 ? W + lane : l;
+        const int idx[4] = {ab, cc, xy, z};
+        for (int q = 0; q < 4; ++q) {
+          if constexpr (W == 8)
+            i64[q][l] = idx[q];
+          else
+            i32[q][l] = idx[q];
+        }
+      }
+      __m512i* out[4] = {&gather_ab[c], &gather_c[c], &scatter_xy[c], &scatter_z[c]};
+      for (int q = 0; q < 4; ++q) *out[q] = W == 8 ? _mm512_load_si512(i64[q]) : _mm512_load_si512(i32[q]);
+    }
   }
 };
 
@@ -173,6 +272,42 @@ struct Avx512Run : PortableRun {
     for (; i < n; ++i) cell[i] = k.cell_of(first + i, limit[i]);
   }
 
+  /// Interleaved triples to and from component-major lanes: a full vector of float or double (W
+  /// = 16 or 8) as three loads or stores and two permutes a vector; partial groups as PortableRun.
+  /// Lane l's component c is element 3 l + c of the triples, in vector (3 l + c) / W.
+  template <class T, std::size_t W>
+  static inline __attribute__((always_inline)) void load3(const T* p, std::size_t m, T (&o)[3][W]) {
+    if constexpr (W * sizeof(T) != 64) {
+      PortableRun::load3(p, m, o);
+    } else {
+      if (m != W) return PortableRun::load3(p, m, o);
+      static const Perm<T> perm;
+      const auto v = perm.vec;
+      const typename Perm<T>::v in[3] = {v.load(p), v.load(p + W), v.load(p + 2 * W)};
+      for (int c = 0; c < 3; ++c) {
+        // Elements of the first two vectors, then those of the third over them.
+        const auto t = v.permute2(in[0], perm.gather_ab[c], in[1]);
+        v.store(o[c], v.permute2(t, perm.gather_c[c], in[2]));
+      }
+    }
+  }
+  template <class T, std::size_t W>
+  static inline __attribute__((always_inline)) void store3(T* p, std::size_t m, const T (&o)[3][W]) {
+    if constexpr (W * sizeof(T) != 64) {
+      PortableRun::store3(p, m, o);
+    } else {
+      if (m != W) return PortableRun::store3(p, m, o);
+      static const Perm<T> perm;
+      const auto v = perm.vec;
+      const typename Perm<T>::v x = v.load(o[0]), y = v.load(o[1]), z = v.load(o[2]);
+      for (int k = 0; k < 3; ++k) {
+        // x and y's elements first, then z's over them.
+        const auto t = v.permute2(x, perm.scatter_xy[k], y);
+        v.store(p + k * W, v.permute2(t, perm.scatter_z[k], z));
+      }
+    }
+  }
+
   /// Double precision: the 12 sums of a group are reduced together (a transposed tree of shuffles,
   /// about a third of 12 separate reductions) into the layout of the output, x0 y0 z0 x1 ... z3,
   /// and finished as two vectors. Float takes the generic path.
@@ -258,7 +393,33 @@ void dispatch(const EvalGrid& g, const EvalData<T>& a, Kernel kernel, const Poly
   }
 }
 
+/// A full AVX-512 vector a group: 16 points in float, 8 in double.
+template <class T>
+void normals_dispatch(const EvalGrid& g, const EvalData<T>& a, Kernel kernel, const PolynomialPart* poly,
+                      const NormalsJob<T>& job, std::size_t begin, std::size_t end) {
+  constexpr std::size_t W = 64 / sizeof(T);
+  switch (kernel) {
+    case Kernel::C0:
+      return normals_block<Kernel::C0, T, W, Avx512Run, Avx512Root>(g, a, poly, job, begin, end);
+    case Kernel::C2:
+      return normals_block<Kernel::C2, T, W, Avx512Run, Avx512Root>(g, a, poly, job, begin, end);
+    case Kernel::C4:
+      return normals_block<Kernel::C4, T, W, Avx512Run, Avx512Root>(g, a, poly, job, begin, end);
+    case Kernel::C6:
+      return normals_block<Kernel::C6, T, W, Avx512Run, Avx512Root>(g, a, poly, job, begin, end);
+  }
+}
+
 }  // namespace
+
+void evaluate_normals_avx512(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
+                             const NormalsJob<double>& job, std::size_t begin, std::size_t end) {
+  normals_dispatch(g, a, kernel, poly, job, begin, end);
+}
+void evaluate_normals_avx512(const EvalGrid& g, const EvalData<float>& a, Kernel kernel, const PolynomialPart* poly,
+                             const NormalsJob<float>& job, std::size_t begin, std::size_t end) {
+  normals_dispatch(g, a, kernel, poly, job, begin, end);
+}
 
 void evaluate_avx512(const EvalGrid& g, const EvalData<double>& a, Kernel kernel, const PolynomialPart* poly,
                      const double* in, double* out, std::size_t begin, std::size_t end, double phase, bool add_point) {

@@ -291,9 +291,10 @@ struct SpaceMap::State {
     return alpha_by_slot_;
   }
   // The evaluation grid's runs with coordinates and alpha, made on first use of each precision.
-  mutable std::once_flag once_double, once_float, once_float_trust;
-  mutable bool float_ok = true;    // float evaluation agrees with double (float_trusted())
-  mutable double float_error = 0;  // the largest difference measured
+  mutable std::once_flag once_double, once_float, once_float_trust, once_normals_trust;
+  mutable bool float_ok = true;          // float evaluation agrees with double (float_trusted())
+  mutable bool float_normals_ok = true;  // and its normals too (float_normals_trusted())
+  mutable double float_error = 0;        // the largest difference measured
   mutable detail::EvalData<double> data_double;
   mutable detail::EvalData<float> data_float;
   template <class T>

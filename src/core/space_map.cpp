@@ -107,6 +107,50 @@ bool SpaceMap::float_trusted() const {
   return s_->float_ok;
 }
 
+bool SpaceMap::float_normals_trusted() const {
+  if (!float_trusted()) return false;
+  std::call_once(s_->once_normals_trust, [this] {
+    // The Jacobian's float sums lose more than the displacement's where the coefficients are large
+    // (C6, ill-conditioned fits: 3e-5 rad where double is exact). The sample of float_trusted
+    // (sources, and sources moved up to 0.9 R), each with a normal of its own, in both precisions.
+    const Structure& st = *s_->st;
+    const detail::EvalGrid& grid = st.grid();
+    if (!grid.usable) return;  // point by point, in double anyway
+    const std::size_t n = st.sources.size(), ms = std::min<std::size_t>(n, 4096), m = 2 * ms;
+    std::mt19937_64 rng(20261204);
+    std::uniform_real_distribution<double> unit(-1.0, 1.0);
+    std::vector<float> pf(3 * m), nf(3 * m);
+    std::vector<double> pd(3 * m), nd(3 * m);
+    for (std::size_t k = 0; k < m; ++k) {
+      const std::size_t i = ms == n ? k % n : std::size_t(rng() % n);
+      Vec3 p = st.sources[i], u;
+      do u = Vec3(unit(rng), unit(rng), unit(rng));
+      while (u.squaredNorm() > 1.0 || u.squaredNorm() < 1e-6);
+      if (k >= ms) p += 0.9 * st.options.radius * u;
+      u.normalize();
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t at = 3 * k + std::size_t(c);
+        pf[at] = float(p[c]), nf[at] = float(u[c]);
+        pd[at] = double(pf[at]), nd[at] = double(nf[at]);
+      }
+    }
+    const detail::PolynomialPart* poly = st.terms > 0 ? &s_->poly : nullptr;
+    const Kernel k = st.options.kernel;
+    detail::evaluate_normals(grid, s_->template eval_data<float>(), k, poly,
+                             detail::NormalsJob<float>{pf.data(), pf.data(), nf.data(), nf.data()}, 0, m);
+    detail::evaluate_normals(grid, s_->template eval_data<double>(), k, poly,
+                             detail::NormalsJob<double>{pd.data(), pd.data(), nd.data(), nd.data()}, 0, m);
+    double worst = 0;
+    for (std::size_t i = 0; i < m; ++i) {
+      const Vec3 a(nf[3 * i], nf[3 * i + 1], nf[3 * i + 2]), b(nd[3 * i], nd[3 * i + 1], nd[3 * i + 2]);
+      const double angle = std::atan2(a.cross(b).norm(), a.dot(b));
+      worst = std::isnan(angle) ? std::numeric_limits<double>::infinity() : std::max(worst, angle);
+    }
+    s_->float_normals_ok = worst <= 0.25 * kFloatNormalRadians;
+  });
+  return s_->float_normals_ok;
+}
+
 template <class T>
 void SpaceMap::apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const {
   check_phase(phase);
@@ -204,7 +248,7 @@ void SpaceMap::apply(std::span<const Vec3> in, std::span<Vec3> out, double phase
 namespace {
 /// n' = J^-T n, scaled to |n|: the cofactor matrix of J (det J times J^-T) times n, its sign
 /// det J's, so that a normal keeps its side of the surface where the map folds it over.
-void transform_normal(const double* j, const double* n, double* out) {
+void transform_normal(const double* j, const double* n, bool unit, double* out) {
   const Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>> jm(j);
   Eigen::Matrix3d cof;
   cof.col(0) = jm.col(1).cross(jm.col(2));
@@ -217,7 +261,7 @@ void transform_normal(const double* j, const double* n, double* out) {
   // Scaled first: a huge Jacobian's cofactors overflow the squared norm (1e157 a component).
   const double big = w.cwiseAbs().maxCoeff();
   if (big > 0 && std::isfinite(big)) w /= big;
-  const double len = w.norm(), want = v.norm();
+  const double len = w.norm(), want = unit ? 1.0 : v.norm();
   if (len > 0 && std::isfinite(len)) w *= (det < 0 ? -want : want) / len;
   out[0] = w.x();
   out[1] = w.y();
@@ -225,39 +269,112 @@ void transform_normal(const double* j, const double* n, double* out) {
 }
 }  // namespace
 
-void SpaceMap::apply_with_normals(const double* in, double* out, std::size_t n, double phase, const double* normals_in,
-                                  double* normals_out, double* jacobians) const {
+template <class T>
+void SpaceMap::normals_impl(const T* in, T* out, std::size_t n, double phase, const T* normals_in, T* normals_out,
+                            T* jacobians, bool unit) const {
   check_phase(phase);
   if ((normals_in == nullptr) != (normals_out == nullptr))
     throw InvalidInput("apply_with_normals: normals_in and normals_out must both be given or both be null");
+  if constexpr (std::is_same_v<T, float>) {
+    if (!float_normals_trusted()) {
+      // As apply: evaluated in double, in blocks, and rounded once at the end.
+      constexpr std::size_t block = 1 << 16;
+      const std::size_t cap = std::min(n, block);
+      std::vector<double> p(3 * cap), nm(normals_in ? 3 * cap : 0), jac(jacobians ? 9 * cap : 0);
+      for (std::size_t i0 = 0; i0 < n; i0 += block) {
+        const std::size_t m = std::min(block, n - i0);
+        for (std::size_t k = 0; k < 3 * m; ++k) p[k] = double(in[3 * i0 + k]);
+        for (std::size_t k = 0; normals_in && k < 3 * m; ++k) nm[k] = double(normals_in[3 * i0 + k]);
+        normals_impl<double>(p.data(), p.data(), m, phase, normals_in ? nm.data() : nullptr,
+                             normals_in ? nm.data() : nullptr, jacobians ? jac.data() : nullptr, unit);
+        for (std::size_t k = 0; k < 3 * m; ++k) out[3 * i0 + k] = float(p[k]);
+        for (std::size_t k = 0; normals_in && k < 3 * m; ++k) normals_out[3 * i0 + k] = float(nm[k]);
+        for (std::size_t k = 0; jacobians && k < 9 * m; ++k) jacobians[9 * i0 + k] = float(jac[k]);
+      }
+      return;
+    }
+  }
   const Structure& st = *s_->st;
   const detail::EvalGrid& grid = st.grid();
-  const detail::PolynomialPart* poly = st.terms > 0 ? &s_->poly : nullptr;
-  const detail::EvalData<double>* data = grid.usable ? &s_->template eval_data<double>() : nullptr;
-  constexpr std::size_t grain = 1024;
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
-    // TBB hands out chunks of any size above the grain (7813 points of 1e6 on 2 threads): the
-    // Jacobians go through a buffer of `grain` points, a piece of the chunk at a time.
-    double local[9 * grain];
-    for (std::size_t b = r.begin(); b < r.end(); b += grain) {
-      const std::size_t m = std::min(grain, r.end() - b);
-      double* jac = jacobians ? jacobians + 9 * b : local;
-      if (data) {
-        detail::evaluate_jacobians(grid, *data, st.options.kernel, poly, in + 3 * b, out + 3 * b, jac, 0, m, phase);
-      } else {
-        for (std::size_t i = 0; i < m; ++i) {
-          const Vec3 x(in[3 * (b + i)], in[3 * (b + i) + 1], in[3 * (b + i) + 2]);
-          const Eigen::Matrix3d j = jacobian(x, phase);
-          const Vec3 y = x + phase * displacement(x);
-          for (int c = 0; c < 3; ++c) out[3 * (b + i) + std::size_t(c)] = y[c];
-          Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(jac + 9 * i) = j;
+  constexpr std::size_t grain = 4096;
+  if (!grid.usable) {
+    // No dense grid (sources too sparse for their box): point by point through the NeighborIndex.
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t i = r.begin(); i < r.end(); ++i) {
+        const Vec3 x{double(in[3 * i]), double(in[3 * i + 1]), double(in[3 * i + 2])};
+        const Eigen::Matrix3d j = jacobian(x, phase);
+        const Vec3 y = x + phase * displacement(x);
+        for (int c = 0; c < 3; ++c) out[3 * i + std::size_t(c)] = T(y[c]);
+        if (jacobians)
+          for (int a = 0; a < 3; ++a)
+            for (int c = 0; c < 3; ++c) jacobians[9 * i + std::size_t(3 * a + c)] = T(j(a, c));
+        if (normals_in) {
+          const double nv[3] = {double(normals_in[3 * i]), double(normals_in[3 * i + 1]),
+                                double(normals_in[3 * i + 2])};
+          double jr[9], w[3];
+          Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>{jr} = j;
+          transform_normal(jr, nv, unit, w);
+          for (int c = 0; c < 3; ++c) normals_out[3 * i + std::size_t(c)] = T(w[c]);
         }
       }
-      if (normals_in)
-        for (std::size_t i = 0; i < m; ++i)
-          transform_normal(jac + 9 * i, normals_in + 3 * (b + i), normals_out + 3 * (b + i));
-    }
+    });
+    return;
+  }
+  const detail::PolynomialPart* poly = st.terms > 0 ? &s_->poly : nullptr;
+  const detail::EvalData<T>& data = s_->template eval_data<T>();
+  const Kernel k = st.options.kernel;
+  const detail::NormalsJob<T> job{in, out, normals_in, normals_out, jacobians, phase, unit};
+  if (n <= grain) {  // a game mesh's batch: in the calling thread
+    detail::evaluate_normals(grid, data, k, poly, job, 0, n);
+    return;
+  }
+  if (n < (std::size_t(1) << 32) && detail::incoherent(grid, in, n)) {
+    // As apply_direct: gathered by cell (points, normals), evaluated in place, and written back in
+    // the caller's order, so that the points of a group share their cell (one a lane).
+    thread_local detail::CellOrder<T> scratch;
+    thread_local std::vector<T> normals, jac;
+    detail::order_by_cell(grid, in, n, scratch);
+    const std::uint32_t* order = scratch.order.data();
+    scratch.points.resize(3 * n);
+    normals.resize(normals_in ? 3 * n : 0);
+    jac.resize(jacobians ? 9 * n : 0);
+    // Pointers, not the thread_local names: inside the tasks those name each worker's own buffers.
+    T* p = scratch.points.data();
+    T* nm = normals_in ? normals.data() : nullptr;
+    T* jm = jacobians ? jac.data() : nullptr;
+    const detail::NormalsJob<T> gathered{p, p, nm, nm, jm, phase, unit};
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t j = r.begin(); j < r.end(); ++j)
+        for (std::size_t c = 0; c < 3; ++c) {
+          p[3 * j + c] = in[3 * std::size_t(order[j]) + c];
+          if (nm) nm[3 * j + c] = normals_in[3 * std::size_t(order[j]) + c];
+        }
+      detail::evaluate_normals(grid, data, k, poly, gathered, r.begin(), r.end());
+    });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t j = r.begin(); j < r.end(); ++j) {
+        const std::size_t to = order[j];
+        for (std::size_t c = 0; c < 3; ++c) {
+          out[3 * to + c] = p[3 * j + c];
+          if (nm) normals_out[3 * to + c] = nm[3 * j + c];
+        }
+        for (std::size_t c = 0; jm && c < 9; ++c) jacobians[9 * to + c] = jm[9 * j + c];
+      }
+    });
+    return;
+  }
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain), [&](const tbb::blocked_range<std::size_t>& r) {
+    detail::evaluate_normals(grid, data, k, poly, job, r.begin(), r.end());
   });
+}
+
+void SpaceMap::apply_with_normals(const double* in, double* out, std::size_t n, double phase, const double* normals_in,
+                                  double* normals_out, double* jacobians, bool unit_normals) const {
+  normals_impl(in, out, n, phase, normals_in, normals_out, jacobians, unit_normals);
+}
+void SpaceMap::apply_with_normals(const float* in, float* out, std::size_t n, double phase, const float* normals_in,
+                                  float* normals_out, float* jacobians, bool unit_normals) const {
+  normals_impl(in, out, n, phase, normals_in, normals_out, jacobians, unit_normals);
 }
 
 void SpaceMap::displacements(const double* in, double* out, std::size_t n) const { apply_impl(in, out, n, 1.0, false); }

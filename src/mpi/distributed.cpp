@@ -3,7 +3,10 @@
 #include "csrbf/errors.hpp"
 #include "csrbf/kernels.hpp"
 #include "csrbf/mpi/runtime.hpp"
+#include "csrbf/kernel_matrix.hpp"
 #include "csrbf/neighbor_index.hpp"
+#include "csrbf/ordering.hpp"
+#include "sparse_solver.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -223,6 +226,41 @@ struct PetscKsp {
 };
 
 using Columns = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic>;
+
+/// Whether PETSc's options replace csrbf's KSP or PC ("-csrbf_ksp_type", "-csrbf_pc_type").
+bool petsc_options_set() {
+  PetscBool ksp = PETSC_FALSE, pc = PETSC_FALSE;
+  PetscOptionsHasName(nullptr, "csrbf_", "-ksp_type", &ksp);
+  PetscOptionsHasName(nullptr, "csrbf_", "-pc_type", &pc);
+  return ksp == PETSC_TRUE || pc == PETSC_TRUE;
+}
+
+/// One rank's CG: the serial fit's own (the core's conjugate gradients on the same matrix, in the
+/// reverse Cuthill-McKee order, its block incomplete Cholesky where plain CG's first steps predict
+/// a long solve), every column of rhs in one block solve. False where Auto's budget is passed
+/// (predicted steps) or CG stagnates, as PETSc's KSP reports divergence.
+bool core_cg(std::span<const Vec3> sources, const FitOptions& options, const Columns& rhs, double budget, Columns& sol,
+             std::size_t& iterations) {
+  const NeighborIndex index(sources, options.radius);
+  const KernelMatrix a(AdjacencyGraph::from_index(index, sources, options.memory_limit_bytes / 12.0), options.kernel,
+                       options.radius);
+  std::vector<std::uint32_t> order = reverse_cuthill_mckee_order(a.pattern());
+  detail::CgProbe probe;
+  if (budget > 0) {
+    probe.steps = 10;
+    probe.worth_it = [budget](double predicted, double) { return predicted <= budget; };
+  }
+  try {
+    const auto cg = detail::conjugate_gradients(a, std::move(order), kCgTolerance, kCgMaxIterations, std::move(probe));
+    RowMatrix b = rhs;
+    cg->solve_in_place(b);
+    sol = b;
+    iterations = std::max(iterations, cg->iterations());
+    return true;
+  } catch (const detail::CgStagnated&) {
+    return false;
+  }
+}
 
 /// The KSP of one solver over A: MUMPS's Cholesky (PCCHOLESKY, MATSOLVERMUMPS, factorised at the
 /// first solve and reused), or CG with additive Schwarz and a shifted incomplete Cholesky on each block.
@@ -592,6 +630,11 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
       const double budget = solver == DistributedSolver::Auto && s == DistributedSolver::Cg
                                 ? kMumpsCgSteps * std::max(1.0, double(total) / 1e5)
                                 : 0.0;
+      // One rank and csrbf's own CG: the serial fit's solver, not a second implementation.
+      if (size == 1 && s == DistributedSolver::Cg && !petsc_options_set()) {
+        m.stats_.core_cg = true;
+        return core_cg(m.sources_, options, rhs, budget, sol, iterations);
+      }
       collectively(comm, [&] {
         make_ksp(comm, a.m, s, ksp, workspace, budget);
         bool oom = false;

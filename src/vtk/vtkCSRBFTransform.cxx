@@ -14,6 +14,7 @@
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <type_traits>
 
 #include <vector>
 
@@ -191,10 +192,37 @@ void vtkCSRBFTransform::TransformPointsNormalsVectors(vtkPoints* inPts, vtkPoint
   const vtkIdType normals_at = inNms ? grow(outNms) : 0, vectors_at = inVrs ? grow(outVrs) : 0;
   std::vector<vtkIdType> optional_at;
   for (int k = 0; inVrsArr && k < nOptionalVectors; ++k) optional_at.push_back(grow(outVrsArr[k]));
-  // Gathered into doubles (VTK's own path computes in double too), a block at a time in parallel.
   const bool vectors = inVrs || (nOptionalVectors > 0 && inVrsArr);
   const auto& map = this->Map->map;
   const double phase = this->Phase;
+  // Points and normals as contiguous arrays of one type, float or double, and no vectors: the core
+  // evaluates them in place in the arrays (float in float where the map's float check passes),
+  // normals scaled to 1 as VTK's per-point path normalises them.
+  vtkDataArray* const arrays[4] = {inPts->GetData(), outPts->GetData(), inNms, inNms ? outNms : nullptr};
+  const auto all_of_type = [&](int type) {
+    for (vtkDataArray* a : arrays)
+      if (a && (a->GetDataType() != type || !a->HasStandardMemoryLayout())) return false;
+    return true;
+  };
+  if (!vectors && (all_of_type(VTK_FLOAT) || all_of_type(VTK_DOUBLE))) {
+    const auto direct = [&](auto* type) {
+      using T = std::remove_pointer_t<decltype(type)>;
+      const auto at = [](vtkDataArray* a, vtkIdType tuple) {
+        return a ? static_cast<T*>(a->GetVoidPointer(3 * tuple)) : nullptr;
+      };
+      map.apply_with_normals(at(arrays[0], 0), at(arrays[1], start), std::size_t(n), phase, at(arrays[2], 0),
+                             at(arrays[3], normals_at), nullptr, true);
+    };
+    if (inPts->GetData()->GetDataType() == VTK_FLOAT)
+      direct(static_cast<float*>(nullptr));
+    else
+      direct(static_cast<double*>(nullptr));
+    outPts->Modified();
+    if (outNms) outNms->Modified();
+    return;
+  }
+  // Otherwise gathered into doubles (VTK's own path computes in double too), a block at a time in
+  // parallel.
   constexpr vtkIdType block = 4096;
   tbb::parallel_for(tbb::blocked_range<vtkIdType>(0, (n + block - 1) / block),
                     [&](const tbb::blocked_range<vtkIdType>& r) {

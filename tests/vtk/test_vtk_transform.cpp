@@ -273,6 +273,60 @@ TEST(VtkCSRBFTransform, NormalsAndVectorsGoThroughTheJacobianAsVtksOwnPath) {
   EXPECT_EQ(filter->GetOutput()->GetPointData()->GetNormals()->GetNumberOfTuples(), n);
 }
 
+// The filter's case: points and normals in contiguous arrays of one type and no vectors, which the
+// core evaluates in place in VTK's arrays (float in float). Equal to VTK's per-point definition in
+// float and in double, the normals of unit length.
+TEST(VtkCSRBFTransform, PointsAndNormalsOfOneTypeGoStraightThroughTheCore) {
+  Landmarks l;
+  const auto t = l.transform(0.6);
+  t->SetPhase(0.9);
+  vtkNew<vtkSphereSource> sphere;
+  sphere->SetThetaResolution(200);
+  sphere->SetPhiResolution(200);
+  sphere->Update();
+  vtkPolyData* pd = sphere->GetOutput();
+  const vtkIdType n = pd->GetNumberOfPoints();
+  for (const bool dbl : {false, true}) {
+    vtkNew<vtkPoints> in, outFast, outRef;
+    vtkSmartPointer<vtkDataArray> normals, nFast, nRef;
+    if (dbl) {
+      in->SetDataTypeToDouble();
+      outFast->SetDataTypeToDouble();
+      outRef->SetDataTypeToDouble();
+      normals = vtkSmartPointer<vtkDoubleArray>::New();
+      nFast = vtkSmartPointer<vtkDoubleArray>::New();
+      nRef = vtkSmartPointer<vtkDoubleArray>::New();
+    } else {
+      normals = vtkSmartPointer<vtkFloatArray>::New();
+      nFast = vtkSmartPointer<vtkFloatArray>::New();
+      nRef = vtkSmartPointer<vtkFloatArray>::New();
+    }
+    for (vtkDataArray* a : {normals.Get(), nFast.Get(), nRef.Get()}) a->SetNumberOfComponents(3);
+    for (vtkIdType i = 0; i < n; ++i) {
+      in->InsertNextPoint(pd->GetPoint(i));
+      normals->InsertNextTuple(pd->GetPointData()->GetNormals()->GetTuple(i));
+    }
+    t->TransformPointsNormalsVectors(in, outFast, normals, nFast, nullptr, nullptr);
+    t->vtkAbstractTransform::TransformPointsNormalsVectors(in, outRef, normals, nRef, nullptr, nullptr);
+    ASSERT_EQ(outFast->GetNumberOfPoints(), n);
+    ASSERT_EQ(nFast->GetNumberOfTuples(), n);
+    double worst_point = 0, worst_angle = 0, worst_length = 0;
+    for (vtkIdType i = 0; i < n; ++i) {
+      Vec3 a, b, na, nb;
+      outFast->GetPoint(i, a.data());
+      outRef->GetPoint(i, b.data());
+      nFast->GetTuple(i, na.data());
+      nRef->GetTuple(i, nb.data());
+      worst_point = std::max(worst_point, (a - b).norm());
+      worst_angle = std::max(worst_angle, std::atan2(na.cross(nb).norm(), na.dot(nb)));
+      worst_length = std::max(worst_length, std::abs(na.norm() - 1.0));
+    }
+    EXPECT_LT(worst_point, dbl ? 1e-12 : 1e-6) << dbl;
+    EXPECT_LT(worst_angle, dbl ? 1e-9 : 1e-6) << dbl;
+    EXPECT_LT(worst_length, dbl ? 1e-12 : 1e-6) << dbl;
+  }
+}
+
 // Found by the attacker: outputs that already held tuples lost them (SetNumberOfTuples reallocates
 // without copying), and a vtkPoints transformed into itself read garbage. VTK appends: the old
 // tuples stay, the new ones follow, equal to VTK's own per-point path.

@@ -61,6 +61,7 @@ struct DistributedStats {
   std::size_t controls = 0, ranks = 0, iterations = 0;
   DistributedSolver solver = DistributedSolver::Mumps;  ///< the one that solved
   bool fell_back = false;                               ///< CG did not converge, MUMPS took over
+  bool core_cg = false;  ///< one rank: CG was the core's own (the serial fit's), not PETSc's KSP
   double residual_relative = 0;
 };
 
