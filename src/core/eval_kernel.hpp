@@ -398,12 +398,24 @@ inline __attribute__((always_inline)) void normals_block(const EvalGrid& g, cons
         const int c1 = (c + 1) % 3, c2 = (c + 2) % 3;
         return j[c1][a0] * j[c2][a1] - j[c2][a0] * j[c1][a1];
       };
+      // n scaled to its largest component too, and w = cof n to its own before its squared norm:
+      // no length of n (1e-30 or 1e20 in float) overflows or underflows on the way. |n| = nmax |n'|.
+      V nmax = absv(nv[0]);
+      nmax = absv(nv[1]) > nmax ? absv(nv[1]) : nmax;
+      nmax = absv(nv[2]) > nmax ? absv(nv[2]) : nmax;
+      const V ns = fine(nmax) ? one / nmax : one;
+      for (int c = 0; c < 3; ++c) nv[c] *= ns;
       V w[3];
       for (int c = 0; c < 3; ++c) w[c] = nv[0] * cross(1, 2, c) + nv[1] * cross(2, 0, c) + nv[2] * cross(0, 1, c);
       const V det = j[0][0] * cross(1, 2, 0) + j[1][0] * cross(1, 2, 1) + j[2][0] * cross(1, 2, 2);
+      V wmax = absv(w[0]);
+      wmax = absv(w[1]) > wmax ? absv(w[1]) : wmax;
+      wmax = absv(w[2]) > wmax ? absv(w[2]) : wmax;
+      const V ws = fine(wmax) ? one / wmax : one;
+      for (int c = 0; c < 3; ++c) w[c] *= ws;
       const V len2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
       V fv = Root::inv_root(len2);  // to 1, or to |n|
-      if (!job.unit) fv *= Root::root(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
+      if (!job.unit) fv *= (fine(nmax) ? nmax : one) * Root::root(nv[0] * nv[0] + nv[1] * nv[1] + nv[2] * nv[2]);
       fv = det < 0 ? -fv : fv;
       fv = fine(len2) ? fv : one;
       T res_n[3][W];

@@ -163,6 +163,32 @@ TEST(Engine, NormalsLoopEqualsThePointByPointPathInEveryLoopPrecisionAndOrder) {
   EXPECT_NEAR(p[3 * 6 + 2], y.z(), 1e-5);
 }
 
+// Found by the attacker: normals of extreme length (area-weighted normals of tiny or huge triangles)
+// came out unscaled or a few percent off, where the squared length of cof(J) n over- or underflowed.
+// Every length now comes out unit (or its own), in a group of one and of 16, in float and double.
+TEST(Engine, NormalsOfAnyLengthAreScaledExactly) {
+  const Controls c = controls(200, 512);
+  const SpaceMap m = SpaceMap::fit(c.s, c.d, FitOptions{0.3, Kernel::C2, Polynomial::Linear});
+  const Vec3 want = (m.jacobian(Vec3(0.5, 0.5, 0.5)).inverse().transpose() * Vec3(0.6, 0.0, 0.8)).normalized();
+  const auto run = [&](auto len, std::size_t n, bool unit) {
+    using T = decltype(len);
+    std::vector<T> p(3 * n, T(0.5)), nm;
+    for (std::size_t i = 0; i < n; ++i) nm.insert(nm.end(), {T(0.6) * len, T(0), T(0.8) * len});
+    m.apply_with_normals(p.data(), p.data(), n, 1.0, nm.data(), nm.data(), nullptr, unit);
+    const Vec3 got{double(nm[0]), double(nm[1]), double(nm[2])};
+    const double expect_len = unit ? 1.0 : double(len);
+    // (stableNorm: the squares of 1e300 and 1e-300 leave double's range here too.)
+    EXPECT_NEAR(got.stableNorm() / expect_len, 1.0, sizeof(T) == 4 ? 1e-5 : 1e-12)
+        << double(len) << " " << n << " " << unit;
+    EXPECT_LT(angle(got / got.stableNorm(), want), sizeof(T) == 4 ? 1e-5 : 1e-9) << double(len) << " " << n;
+  };
+  for (const std::size_t n : {std::size_t(1), std::size_t(16)})
+    for (const bool unit : {true, false}) {
+      for (const float len : {1e-30f, 1e-22f, 1e-19f, 1.0f, 1e20f, 1e37f}) run(len, n, unit);
+      for (const double len : {1e-300, 1e-170, 1.0, 1e170, 1e300}) run(len, n, unit);
+    }
+}
+
 TEST(Engine, InterleavedFloatAndDoubleBuffersDeformPositionsAndExactNormals) {
   const Controls c = controls(300, 503);
   engine::Settings settings;
