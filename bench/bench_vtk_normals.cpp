@@ -6,6 +6,7 @@
 
 #include <benchmark/benchmark.h>
 
+#include <vtkAlgorithm.h>
 #include <vtkFloatArray.h>
 #include <vtkNew.h>
 #include <vtkPointData.h>
@@ -23,6 +24,8 @@ struct Scene {
   vtkNew<vtkPoints> source, target;
   vtkNew<vtkCSRBFTransform> transform;
   vtkNew<vtkPolyData> with_normals, without_normals;
+  /// The same mesh at double precision (vtkSphereSource's points double, its normals float).
+  vtkNew<vtkPolyData> double_with_normals, double_without_normals;
   Scene() {
     // 1000 landmarks on the unit sphere, pushed along the normal; ~25 a landmark's neighbours.
     std::mt19937 rng(32);
@@ -45,6 +48,11 @@ struct Scene {
     with_normals->DeepCopy(sphere->GetOutput());
     without_normals->DeepCopy(sphere->GetOutput());
     without_normals->GetPointData()->SetNormals(nullptr);
+    sphere->SetOutputPointsPrecision(vtkAlgorithm::DOUBLE_PRECISION);
+    sphere->Update();
+    double_with_normals->DeepCopy(sphere->GetOutput());
+    double_without_normals->DeepCopy(sphere->GetOutput());
+    double_without_normals->GetPointData()->SetNormals(nullptr);
     transform->Update();
   }
 };
@@ -68,6 +76,8 @@ void run(benchmark::State& state, vtkPolyData* input) {
 
 void BM_VtkFilterWithoutNormals(benchmark::State& state) { run(state, scene().without_normals); }
 void BM_VtkFilterWithNormals(benchmark::State& state) { run(state, scene().with_normals); }
+void BM_VtkFilterDoubleWithoutNormals(benchmark::State& state) { run(state, scene().double_without_normals); }
+void BM_VtkFilterDoubleWithNormals(benchmark::State& state) { run(state, scene().double_with_normals); }
 /// VTK's own path for points and normals (vtkAbstractTransform's per-point loop through
 /// ForwardTransformDerivative), what the filter ran before.
 void BM_VtkPerPointPathWithNormals(benchmark::State& state) {
@@ -86,4 +96,6 @@ void BM_VtkPerPointPathWithNormals(benchmark::State& state) {
 
 BENCHMARK(BM_VtkFilterWithoutNormals)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_VtkFilterWithNormals)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_VtkFilterDoubleWithoutNormals)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_VtkFilterDoubleWithNormals)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_VtkPerPointPathWithNormals)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(3);

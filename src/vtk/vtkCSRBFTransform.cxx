@@ -195,30 +195,65 @@ void vtkCSRBFTransform::TransformPointsNormalsVectors(vtkPoints* inPts, vtkPoint
   const bool vectors = inVrs || (nOptionalVectors > 0 && inVrsArr);
   const auto& map = this->Map->map;
   const double phase = this->Phase;
-  // Points and normals as contiguous arrays of one type, float or double, and no vectors: the core
-  // evaluates them in place in the arrays (float in float where the map's float check passes),
-  // normals scaled to 1 as VTK's per-point path normalises them.
-  vtkDataArray* const arrays[4] = {inPts->GetData(), outPts->GetData(), inNms, inNms ? outNms : nullptr};
-  const auto all_of_type = [&](int type) {
-    for (vtkDataArray* a : arrays)
-      if (a && (a->GetDataType() != type || !a->HasStandardMemoryLayout())) return false;
-    return true;
+  // Points as contiguous arrays of one type, float or double, normals as contiguous float or double
+  // arrays, and no vectors: the core evaluates them in place in the points' arrays (float in float
+  // where the map's float check passes), normals scaled to 1 as VTK's per-point path normalises
+  // them. Normals of the other type (double points with float normals: vtkSphereSource's default
+  // at double precision) are converted to the points' type around the call, in parallel.
+  vtkDataArray* const pin = inPts->GetData();
+  vtkDataArray* const pout = outPts->GetData();
+  vtkDataArray *const nin = inNms, *const nout = inNms ? outNms : nullptr;
+  const auto contiguous = [](vtkDataArray* a) {
+    return !a || (a->HasStandardMemoryLayout() && (a->GetDataType() == VTK_FLOAT || a->GetDataType() == VTK_DOUBLE));
   };
-  if (!vectors && (all_of_type(VTK_FLOAT) || all_of_type(VTK_DOUBLE))) {
+  if (!vectors && pin->GetDataType() == pout->GetDataType() && contiguous(pin) && contiguous(pout) && contiguous(nin) &&
+      contiguous(nout)) {
     const auto direct = [&](auto* type) {
       using T = std::remove_pointer_t<decltype(type)>;
-      const auto at = [](vtkDataArray* a, vtkIdType tuple) {
-        return a ? static_cast<T*>(a->GetVoidPointer(3 * tuple)) : nullptr;
+      constexpr int own = std::is_same_v<T, float> ? VTK_FLOAT : VTK_DOUBLE;
+      const auto at = [](vtkDataArray* a, vtkIdType tuple) { return static_cast<T*>(a->GetVoidPointer(3 * tuple)); };
+      if (!nin || (nin->GetDataType() == own && nout->GetDataType() == own)) {
+        map.apply_with_normals(at(pin, 0), at(pout, start), std::size_t(n), phase, nin ? at(nin, 0) : nullptr,
+                               nin ? at(nout, normals_at) : nullptr, nullptr, true);
+        return;
+      }
+      // Normals of the other type: blocks in parallel, each block's normals converted into a
+      // buffer its thread keeps, deformed (a block runs in its thread) and converted back. (One
+      // conversion of the whole array into a fresh buffer cost more than the deformation: page
+      // faults and the buffer's zeroing.)
+      const auto convert = [](vtkDataArray* a, vtkIdType first, vtkIdType count, T* to, bool out) {
+        const auto go = [&](auto* p) {
+          for (vtkIdType k = 0; k < 3 * count; ++k) {
+            if (out)
+              p[3 * first + k] = static_cast<std::remove_pointer_t<decltype(p)>>(to[k]);
+            else
+              to[k] = static_cast<T>(p[3 * first + k]);
+          }
+        };
+        if (a->GetDataType() == VTK_FLOAT)
+          go(static_cast<float*>(a->GetVoidPointer(0)));
+        else
+          go(static_cast<double*>(a->GetVoidPointer(0)));
       };
-      map.apply_with_normals(at(arrays[0], 0), at(arrays[1], start), std::size_t(n), phase, at(arrays[2], 0),
-                             at(arrays[3], normals_at), nullptr, true);
+      constexpr vtkIdType block = 4096;
+      tbb::parallel_for(tbb::blocked_range<vtkIdType>(0, n, block), [&](const tbb::blocked_range<vtkIdType>& r) {
+        thread_local std::vector<T> nm;
+        nm.resize(3 * std::size_t(block));
+        for (vtkIdType b0 = r.begin(); b0 < r.end(); b0 += block) {
+          const vtkIdType m = std::min(block, r.end() - b0);
+          convert(nin, b0, m, nm.data(), false);
+          map.apply_with_normals(at(pin, b0), at(pout, start + b0), std::size_t(m), phase, nm.data(), nm.data(),
+                                 nullptr, true);
+          convert(nout, normals_at + b0, m, nm.data(), true);
+        }
+      });
     };
-    if (inPts->GetData()->GetDataType() == VTK_FLOAT)
+    if (pin->GetDataType() == VTK_FLOAT)
       direct(static_cast<float*>(nullptr));
     else
       direct(static_cast<double*>(nullptr));
     outPts->Modified();
-    if (outNms) outNms->Modified();
+    if (nout) nout->Modified();
     return;
   }
   // Otherwise gathered into doubles (VTK's own path computes in double too), a block at a time in
