@@ -97,6 +97,15 @@ int run_export(const ExportOptions& o) {
     go.bake = render::Bake::Never;
   else
     throw UsageError("--bake: expected auto, always or never, got '" + o.bake + "'");
+  if (o.compact_given) {
+    if (o.compact.empty() || o.compact == "fallback")
+      go.compact = render::Compact::WithFallback;
+    else if (o.compact == "only")
+      go.compact = render::Compact::Only;
+    else
+      throw UsageError("--compact: expected no value (the morph targets kept as fallback) or 'only', got '" +
+                       o.compact + "'");
+  }
   const fs::path out = o.out;
   const std::string ext = out.extension().string();
   if (ext != ".glb" && ext != ".gltf")
@@ -195,6 +204,13 @@ int run_export(const ExportOptions& o) {
                               {"max_active_targets", ob.max_active},
                               {"rotation_deviation_deg", ob.rotation_deviation_deg},
                               {"max_deviation", ob.max_deviation}});
+    if (o.compact_given) {
+      j["compact"] = {{"replaced_target_bytes", r.replaced_target_bytes}, {"compact_bytes", r.compact_bytes}};
+      for (std::size_t k = 0; k < r.objects.size(); ++k)
+        j["objects"][k]["compact"] = {{"deformations", r.objects[k].compact_deformations},
+                                      {"groups", r.objects[k].groups},
+                                      {"max_error", r.objects[k].compact_error}};
+    }
     j["parts"] = nlohmann::json::array();
     for (const auto& p : r.parts)
       j["parts"].push_back(
@@ -223,6 +239,20 @@ int run_export(const ExportOptions& o) {
               << go.max_active << " (three.js 8) — --bake auto keeps within that\n";
   std::cout << "  sizes: glTF " << kib(r.bytes) << "; every frame's vertices " << kib(r.frame_bytes)
             << "; csrbf's deformations " << kib(r.csrbf_bytes) << "\n";
+  if (o.compact_given) {
+    std::cout << "  CSRBF_deformation: " << kib(r.compact_bytes)
+              << " of sources, coefficients and vertex groups in place of " << kib(r.replaced_target_bytes)
+              << " of morph targets"
+              << (go.compact == render::Compact::Only ? " (the targets left empty; the extension is required)\n"
+                                                      : " (kept as fallback)\n");
+    for (const auto& ob : r.objects)
+      if (ob.compact_deformations > 0)
+        std::printf(
+            "    object '%s': %zu deformation%s, %zu vertex group%s, largest error %.3g (float sources and "
+            "coefficients against the exact displacement)\n",
+            printable(ob.name).c_str(), ob.compact_deformations, ob.compact_deformations == 1 ? "" : "s", ob.groups,
+            ob.groups == 1 ? "" : "s", ob.compact_error);
+  }
   if (!page.empty()) std::cout << "  page: " << printable((page / "index.html").string()) << "\n";
   return 0;
 }

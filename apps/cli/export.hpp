@@ -10,7 +10,9 @@ struct ExportOptions {
   double memory_limit_gib = 4.0;  ///< --memory-limit: the scene's meshes and fits, baked frames
   std::optional<double> fps;
   bool json = false;
-  bool html_given = false;  ///< --html was on the command line (an empty name is an error)
+  bool html_given = false;     ///< --html was on the command line (an empty name is an error)
+  std::string compact;         ///< --compact's value: empty (the fallback kept) or "only"
+  bool compact_given = false;  ///< --compact was on the command line
 };
 
 /// `csrbf export`: the scene as glTF 2.0 (and, with --html, a page that plays it). Returns the exit

@@ -354,6 +354,11 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   exporter->add_option("--html", export_opts.html,
                        "Also write a new folder DIR with index.html, the .glb and three.js: a page that plays it");
+  exporter
+      ->add_option("--compact", export_opts.compact,
+                   "Also write each exactly held deformation as CSRBF_deformation (docs/gltf/CSRBF_deformation.md): "
+                   "--compact keeps the morph targets as fallback, --compact=only replaces them")
+      ->expected(0, 1);
   exporter->add_flag("--json", export_opts.json, "Print the report as one JSON object");
   add_scene_memory_limit(exporter, export_opts.memory_limit_gib);
 
@@ -516,6 +521,7 @@ int main(int argc, char** argv) {
       return csrbf::cli::run_animate(anim_opts);
     } else if (*exporter) {
       export_opts.html_given = exporter->count("--html") > 0;
+      export_opts.compact_given = exporter->count("--compact") > 0;
       return csrbf::cli::run_export(export_opts);
     } else if (*bench) {
       csrbf::cli::run_bench(bench_opts);

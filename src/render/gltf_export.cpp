@@ -5,6 +5,8 @@
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/io/scene.hpp"
+#include "csrbf/kernels.hpp"
+#include "csrbf/space_map.hpp"
 #include "texture_coordinates.hpp"
 
 #include <nlohmann/json.hpp>
@@ -571,6 +573,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     return b.doc["materials"].size() - 1;
   };
 
+  bool any_compact = false;
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
     const anim::Object& obj = scene.objects[o];
     const ObjectPlan& plan = plans[o];
@@ -600,24 +603,146 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     // The morph targets: exact ones, then one a frame for the baked parts (frames where nothing
     // moves have none).
     json targets = json::array();
-    std::vector<std::uint32_t> index;
-    std::vector<float> value;
-    const auto add_target = [&](const std::vector<Vec3>& d) {
+    std::vector<std::uint32_t> index, nindex;
+    std::vector<float> value, nvalue;
+    // A target's displacements and its normals' change, as (index, value) lists, and their bytes as
+    // sparse accessors (an index and a float xyz an entry; one explicit zero where none).
+    const auto target_data = [&](const std::vector<Vec3>& d) {
       nonzero(d, 0.0, index, value);
-      const std::size_t pa = b.sparse_vec3(nv, index, value, "a morph target's displacements");
       std::vector<Vec3> moved(nv);
       for (std::size_t v = 0; v < nv; ++v) moved[v] = obj.rest[v] + d[v];
       const std::vector<Vec3> n = vertex_normals(moved, obj.faces);
       std::vector<Vec3> dn(nv);
       for (std::size_t v = 0; v < nv; ++v) dn[v] = n[v] - rest_normals[v];
-      nonzero(dn, 1e-6, index, value);
-      const std::size_t na = b.sparse_vec3(nv, index, value, "a morph target's normals");
+      nonzero(dn, 1e-6, nindex, nvalue);
+      return 16 * (std::max<std::size_t>(index.size(), 1) + std::max<std::size_t>(nindex.size(), 1));
+    };
+    const auto add_target = [&](const std::vector<Vec3>& d) {
+      target_data(d);
+      const std::size_t pa = b.sparse_vec3(nv, index, value, "a morph target's displacements");
+      const std::size_t na = b.sparse_vec3(nv, nindex, nvalue, "a morph target's normals");
       targets.push_back({{"POSITION", pa}, {"NORMAL", na}});
     };
     std::vector<std::string> target_names;
+    const bool compact = options.compact != Compact::Off && !plan.exact.empty();
+    std::size_t zero_target = 0;  // --compact=only: the accessor of the targets the extension replaces
+    if (compact && options.compact == Compact::Only)
+      zero_target = b.accessor({{"componentType", kFloat},
+                                {"count", nv},
+                                {"type", "VEC3"},
+                                {"min", {0.0, 0.0, 0.0}},
+                                {"max", {0.0, 0.0, 0.0}}});
     for (const auto& e : plan.exact) {
-      add_target(e.d);
+      if (compact) report.replaced_target_bytes += target_data(e.d);
+      if (compact && options.compact == Compact::Only)
+        targets.push_back({{"POSITION", zero_target}, {"NORMAL", zero_target}});
+      else
+        add_target(e.d);
       target_names.push_back(obj.parts[e.part].deformations[e.deformation].name);
+    }
+    // CSRBF_deformation (--compact): each exact target's deformation as its sources, coefficients,
+    // radius and polynomial, its term's weight the target's, which it replaces. Where deformations
+    // move only some vertices (their part's, their area's), a vertex group a vertex: the set of
+    // deformations that move it, numbered.
+    json compact_json;
+    std::size_t group_accessor = 0;
+    bool grouped = false;
+    if (compact) {
+      const auto moves = [&](std::size_t j, std::size_t v) {
+        const auto& e = plan.exact[j];
+        const auto& area = obj.parts[e.part].deformations[e.deformation].area;
+        return plan.owner[v] == int(e.part) &&
+               (area.empty() || std::binary_search(area.begin(), area.end(), std::uint32_t(v)));
+      };
+      std::map<std::vector<std::uint32_t>, std::uint32_t> ids;
+      std::vector<std::uint32_t> group(nv), signature;
+      for (std::size_t v = 0; v < nv; ++v) {
+        signature.clear();
+        for (std::size_t j = 0; j < plan.exact.size(); ++j)
+          if (moves(j, v)) signature.push_back(std::uint32_t(j));
+        group[v] = ids.emplace(signature, std::uint32_t(ids.size())).first->second;
+      }
+      grouped = !(ids.size() == 1 && ids.begin()->first.size() == plan.exact.size());
+      if (grouped && ids.size() > 65536)
+        throw InvalidInput("export: " + b.where + " --compact: its deformations split the vertices into " +
+                           std::to_string(ids.size()) +
+                           " groups (each a set of deformations that move a vertex); CSRBF_deformation numbers at "
+                           "most 65536 (_CSRBF_GROUP is UNSIGNED_SHORT)");
+      std::vector<json> groups_of(plan.exact.size(), json::array());
+      for (const auto& [set, id] : ids)
+        for (const std::uint32_t j : set) groups_of[j].push_back(id);
+      if (grouped) {
+        // UNSIGNED_SHORT, one a vertex at a stride of 4 bytes: glTF aligns every vertex attribute's
+        // elements to 4 bytes.
+        std::vector<std::uint16_t> packed(2 * nv, 0);
+        for (std::size_t v = 0; v < nv; ++v) packed[2 * v] = std::uint16_t(group[v]);
+        const std::size_t view = b.view(packed.data(), packed.size() * 2, kArrayBuffer);
+        b.doc["bufferViews"][view]["byteStride"] = 4;
+        group_accessor = b.accessor({{"bufferView", view}, {"componentType", 5123}, {"count", nv}, {"type", "SCALAR"}});
+        report.compact_bytes += packed.size() * 2;
+        orep.groups = ids.size();
+      }
+      json defs = json::array();
+      for (std::size_t j = 0; j < plan.exact.size(); ++j) {
+        const auto& e = plan.exact[j];
+        const anim::Deformation& def = obj.parts[e.part].deformations[e.deformation];
+        const SpaceMap& map = *def.map;
+        const std::size_t n = map.size();
+        // As written (float), and evaluated from that against the exact displacement.
+        std::vector<float> src(3 * n), coef(3 * n);
+        std::vector<Vec3> src_d(n);
+        Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(n), 3);
+        for (std::size_t i = 0; i < n; ++i)
+          for (int c = 0; c < 3; ++c) {
+            src[3 * i + std::size_t(c)] = float(map.sources()[i][c]);
+            coef[3 * i + std::size_t(c)] = float(map.coefficients()(Eigen::Index(i), c));
+            src_d[i][c] = double(src[3 * i + std::size_t(c)]);
+            alpha(Eigen::Index(i), c) = double(coef[3 * i + std::size_t(c)]);
+          }
+        Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
+        json term = {{"weight", j}};
+        if (map.polynomial() != Polynomial::None) {
+          json poly = json::array();
+          const Eigen::Matrix<double, 4, 3> pc = map.polynomial_coefficients();
+          for (int r = 0; r < 4; ++r)
+            for (int c = 0; c < 3; ++c) {
+              beta(r, c) = double(float(pc(r, c)));
+              poly.push_back(float(pc(r, c)));
+            }
+          term["polynomial"] = poly;
+        }
+        FitOptions fo;
+        fo.radius = map.radius();
+        fo.kernel = map.kernel();
+        fo.polynomial = map.polynomial();
+        const SpaceMap written = SpaceMap::from_solution(src_d, alpha, beta, Vec3::Zero(), 1.0, fo);
+        std::vector<Vec3> x;
+        std::vector<std::size_t> which;
+        for (std::size_t v = 0; v < nv; ++v)
+          if (moves(j, v)) {
+            which.push_back(v);
+            x.push_back(obj.rest[v]);
+          }
+        std::vector<Vec3> dw(x.size());
+        if (!x.empty()) written.displacements(x.data()->data(), dw.data()->data(), x.size());
+        for (std::size_t i = 0; i < x.size(); ++i)
+          orep.compact_error = std::max(orep.compact_error, (dw[i] - e.d[which[i]]).norm());
+        const std::size_t sa = b.floats(src, 3, "a deformation's sources");
+        term["coefficients"] = b.floats(coef, 3, "a deformation's coefficients");
+        report.compact_bytes += 24 * n;
+        std::string kernel(kernel_name(map.kernel()));
+        for (char& ch : kernel) ch = char(std::toupper(static_cast<unsigned char>(ch)));
+        json d = {{"kernel", kernel}, {"radius", map.radius()}, {"sources", sa}, {"terms", json::array({term})}};
+        d["extras"] = {{"name", def.name}, {"part", obj.parts[e.part].name}};
+        if (grouped) d["groups"] = groups_of[j];
+        defs.push_back(std::move(d));
+      }
+      compact_json = {{"deformations", defs}};
+      orep.compact_deformations = plan.exact.size();
+      if (!std::isfinite(orep.compact_error))
+        throw InvalidInput("export: " + b.where +
+                           " --compact: a deformation evaluated from its float sources and "
+                           "coefficients is not finite (coefficients beyond single precision?)");
     }
     std::vector<std::size_t> baked_frame;  // the frame of each baked target
     if (plan.any_baked())
@@ -675,6 +800,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       const anim::Material& m = p < 0 ? obj.material : obj.parts[std::size_t(p)].material;
       const std::string mname = obj.name + (p < 0 ? std::string() : " / " + obj.parts[std::size_t(p)].name);
       json attrs = {{"POSITION", pos_acc}, {"NORMAL", nor_acc}};
+      if (grouped) attrs["_CSRBF_GROUP"] = group_accessor;
       if (!m.texture.empty()) {
         std::vector<float> uv;
         try {
@@ -702,6 +828,10 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       weights_at(0.0, w0);
       mesh["weights"] = w0;
       mesh["extras"] = {{"targetNames", target_names}};
+    }
+    if (compact) {
+      mesh["extensions"] = {{"CSRBF_deformation", compact_json}};
+      any_compact = true;
     }
     b.doc["meshes"].push_back(mesh);
     const std::size_t mesh_index = b.doc["meshes"].size() - 1;
@@ -934,6 +1064,10 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
                          "'); rename the object so that animations reach the right node");
   }
   b.doc["extensionsUsed"] = {"KHR_lights_punctual"};
+  if (any_compact) {
+    b.doc["extensionsUsed"].push_back("CSRBF_deformation");
+    if (options.compact == Compact::Only) b.doc["extensionsRequired"] = {"CSRBF_deformation"};
+  }
   b.doc["extensions"] = {{"KHR_lights_punctual", {{"lights", khr}}}};
   if (!animation["channels"].empty()) b.doc["animations"] = json::array({animation});
   for (const char* key : {"materials", "accessors", "bufferViews", "meshes"})

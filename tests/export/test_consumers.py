@@ -25,6 +25,7 @@ SOURCE = os.environ["CSRBF_SOURCE_DIR"]
 NODE_MODULES = os.environ["CSRBF_NODE_MODULES"]
 EXAMPLES = os.path.join(SOURCE, "examples")
 SCENES = ["fish", "face", "ball"]
+COMPACT_SCENES = ["fish", "face"]
 with open(os.path.join(EXAMPLES, "checker.png"), "rb") as _f:
     CHECKER = _f.read()
 
@@ -85,6 +86,13 @@ class Export(unittest.TestCase):
                 p = run(args)
                 assert p.returncode == 0, p.stderr
                 cls.reports[s + ext] = json.loads(p.stdout)
+        # CSRBF_deformation (issue 33): with the morph targets as fallback, and alone.
+        for s in COMPACT_SCENES:
+            for flag, suffix in (("--compact", "-compact"), ("--compact=only", "-only")):
+                out = os.path.join(cls.tmp, s + suffix + ".glb")
+                p = run([CLI, "export", os.path.join(EXAMPLES, s + ".scene.json"), "-o", out, "--json", flag])
+                assert p.returncode == 0, p.stderr
+                cls.reports[s + suffix + ".glb"] = json.loads(p.stdout)
 
     @classmethod
     def tearDownClass(cls):
@@ -93,6 +101,7 @@ class Export(unittest.TestCase):
     def test_khronos_validator_finds_no_errors(self):
         files = [os.path.join(self.tmp, s + ext) for s in SCENES for ext in (".glb", ".gltf")]
         files += [os.path.join(self.tmp, s + "-page", s + ".glb") for s in SCENES]
+        files += [os.path.join(self.tmp, s + suffix + ".glb") for s in COMPACT_SCENES for suffix in ("-compact", "-only")]
         p = run(["node", os.path.join(SOURCE, "tests", "export", "validate.js"), NODE_MODULES] + files)
         print(p.stdout)
         self.assertEqual(p.returncode, 0, p.stdout + p.stderr)
@@ -107,17 +116,31 @@ class Export(unittest.TestCase):
             self.assertGreater(r["csrbf_bytes"], 0)
             self.assertLessEqual(r["max_active_targets"], 8)
         self.assertTrue(any(p["baked"] for p in self.reports["ball.glb"]["parts"]))
+        # CSRBF_deformation: the extension's bytes against the targets' it replaces, and the files.
+        for s in COMPACT_SCENES:
+            c, o = self.reports[s + "-compact.glb"]["compact"], self.reports[s + "-only.glb"]
+            self.assertGreater(c["replaced_target_bytes"], 0)
+            self.assertLess(2 * c["compact_bytes"], c["replaced_target_bytes"], s)
+            self.assertLess(o["bytes"], self.reports[s + ".glb"]["bytes"], s)
+            print(f"{s}: targets {c['replaced_target_bytes']} B -> extension {c['compact_bytes']} B; "
+                  f"glb {self.reports[s + '.glb']['bytes']} -> --compact=only {o['bytes']}")
 
     def test_blender_imports_shape_keys_and_actions(self):
-        for s in SCENES:
+        # --compact files too: Blender does not know CSRBF_deformation and plays the fallback targets.
+        for file in SCENES + [s + "-compact" for s in COMPACT_SCENES]:
+            s = file.split("-")[0]
             p = run(["blender", "-b", "--factory-startup", "--python-expr", BLENDER_SCRIPT, "--",
-                     os.path.join(self.tmp, s + ".glb")])
+                     os.path.join(self.tmp, file + ".glb")])
             lines = [l for l in p.stdout.splitlines() if l.startswith("CSRBF-JSON ")]
             self.assertEqual(len(lines), 1, p.stdout[-3000:] + p.stderr[-3000:])
             got = json.loads(lines[0][len("CSRBF-JSON "):])
             with open(os.path.join(EXAMPLES, s + ".scene.json")) as f:
                 scene = json.load(f)
-            report = self.reports[s + ".glb"]
+            report = self.reports[file + ".glb"]
+            # The same vertices and targets as the export without --compact.
+            plain = self.reports[s + ".glb"]["objects"]
+            self.assertEqual([(o["vertices"], o["targets"]) for o in report["objects"]],
+                             [(o["vertices"], o["targets"]) for o in plain])
             for o, r in zip(scene["objects"], report["objects"]):
                 b = got["objects"].get(o["name"])
                 self.assertIsNotNone(b, f"{s}: Blender has no object {o['name']}: {list(got['objects'])}")
@@ -168,6 +191,7 @@ class Export(unittest.TestCase):
             ([fish, "-o", os.path.join(d, "no", "such", "x.glb")], 1, "no/such"),
             ([fish, "-o", os.path.join(d, "x.obj")], 2, "must end in .glb or .gltf"),
             ([fish, "-o", out, "--bake", "sometimes"], 2, "--bake"),
+            ([fish, "-o", out, "--compact=sometimes"], 2, "--compact: expected no value"),
             ([fish, "-o", out, "--fps", "0"], 2, "--fps"),
             ([fish, "-o", out, "--html", self.tmp], 2, "exists"),
             ([os.path.join(EXAMPLES, "ball.scene.json"), "-o", out, "--bake", "never"], 1, "'walls' needs baking"),

@@ -2,13 +2,17 @@
 // the morph weights at time t, base plus weighted sparse targets) gives every vertex of every object,
 // which must equal the Player's (what `csrbf animate` draws) at every frame time, and between frames
 // within the deviation the export reports.
+#include "csrbf/errors.hpp"
 #include "csrbf/io/scene.hpp"
 #include "csrbf/render/gltf_export.hpp"
+#include "csrbf/render/gltf_runtime.hpp"
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <functional>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -389,4 +393,125 @@ TEST(GltfExport, KeysThatMergeInFloatCountInTheDeviation) {
   render::gltf_binary(io::read_scene(dir / "s.scene.json"), o, r);
   EXPECT_LT(r.objects[0].rotation_deviation_deg, 1e-6);
   fs::remove_all(dir);
+}
+
+// Issue 33: CSRBF_deformation (docs/gltf/CSRBF_deformation.md). Every example exported with
+// --compact and --compact=only, read back by GltfRuntime (the extension's evaluation: float
+// sources and coefficients, vertex groups, the targets it does not replace) equals the Player's
+// deformed mesh at every frame time to 1e-5 of the scene (and between frames within the reported
+// deviation), and equals its own morph-target fallback; with --compact=only the replaced targets
+// hold nothing. The extension is far smaller than the targets it replaces on the face (a mesh of
+// many vertices a control).
+TEST(GltfCompact, EveryExamplePlaysTheSameThroughTheExtension) {
+  for (const char* name : {"fish.scene.json", "face.scene.json", "ball.scene.json"})
+    for (const render::Compact mode : {render::Compact::WithFallback, render::Compact::Only}) {
+      SCOPED_TRACE(std::string(name) + (mode == render::Compact::Only ? " only" : " with fallback"));
+      const anim::Scene scene = io::read_scene(example(name));
+      render::GltfOptions o;
+      o.compact = mode;
+      render::GltfReport r;
+      const std::vector<unsigned char> bytes = render::gltf_binary(scene, o, r);
+      const Glb glb(bytes);
+      const render::GltfRuntime runtime(bytes);
+      // The ball's only deforming part is a contact, refitted every frame: baked, so its targets stay.
+      const bool baked_only = std::string(name) == "ball.scene.json";
+      const auto& used = glb.doc["extensionsUsed"];
+      EXPECT_EQ(std::find(used.begin(), used.end(), "CSRBF_deformation") != used.end(), !baked_only);
+      EXPECT_EQ(glb.doc.contains("extensionsRequired"), mode == render::Compact::Only && !baked_only);
+      anim::Player player(scene);
+      const double tol = 1e-5 * r.scene_size;
+      std::size_t compact_objects = 0;
+      for (std::size_t obj = 0; obj < scene.objects.size(); ++obj) {
+        const std::size_t mesh = runtime.mesh_named(scene.objects[obj].name);
+        compact_objects += runtime.compact(mesh);
+        EXPECT_LE(r.objects[obj].compact_error, tol) << scene.objects[obj].name;
+      }
+      EXPECT_EQ(compact_objects > 0, !baked_only);
+      double worst = 0, worst_fallback = 0, worst_unit = 0;
+      for (std::size_t k = 0; k < r.frames; ++k)
+        for (const double s : {0.0, 0.5}) {
+          const double t = (double(k) + s) / r.fps;
+          if (t > scene.duration) continue;
+          player.evaluate(t);
+          for (std::size_t obj = 0; obj < scene.objects.size(); ++obj) {
+            const std::size_t mesh = runtime.mesh_named(scene.objects[obj].name);
+            const std::vector<double> w = runtime.weights(mesh, t);
+            std::vector<Vec3> p, n, pf, nf;
+            runtime.deform(mesh, w, p, n, true);
+            const double allowed = (s == 0.0 ? 0.0 : r.objects[obj].max_deviation) + tol;
+            const double e = worst_difference(p, player.deformed(obj));
+            ASSERT_LE(e, allowed) << scene.objects[obj].name << " at t = " << t;
+            worst = std::max(worst, e);
+            for (const Vec3& x : n) worst_unit = std::max(worst_unit, std::abs(x.norm() - 1.0));
+            runtime.deform(mesh, w, pf, nf, false);
+            if (mode == render::Compact::WithFallback) {
+              worst_fallback = std::max(worst_fallback, worst_difference(p, pf));
+            } else if (runtime.compact(mesh)) {
+              // Without the extension the replaced targets move nothing: only baked parts move.
+              const auto rest = runtime.rest(mesh);
+              bool exact_part_still = true;
+              for (std::size_t v = 0; v < rest.size(); ++v)
+                if ((p[v] - pf[v]).norm() > tol) exact_part_still &= (pf[v] - rest[v]).norm() <= tol;
+              EXPECT_TRUE(exact_part_still);
+            }
+          }
+        }
+      EXPECT_LE(worst_fallback, 2 * tol);
+      EXPECT_LT(worst_unit, 1e-9);
+      std::printf("%s %s: extension %zu bytes in place of %zu of targets; largest vertex difference %.3g\n", name,
+                  mode == render::Compact::Only ? "only" : "fallback", r.compact_bytes, r.replaced_target_bytes, worst);
+      EXPECT_EQ(r.replaced_target_bytes > 0, !baked_only);
+      if (std::string(name) == "face.scene.json") {
+        EXPECT_LT(20 * r.compact_bytes, r.replaced_target_bytes);
+      }
+    }
+}
+
+// GltfRuntime refuses malformed input, naming what is wrong, and never reads outside the file.
+TEST(GltfCompact, TheRuntimeNamesWhatIsMalformed) {
+  const anim::Scene scene = io::read_scene(example("face.scene.json"));
+  render::GltfOptions o;
+  o.compact = render::Compact::Only;
+  render::GltfReport r;
+  const std::vector<unsigned char> good = render::gltf_binary(scene, o, r);
+  const auto with_doc = [&](const std::function<void(json&)>& edit) {
+    const Glb g(good);
+    json doc = g.doc;
+    edit(doc);
+    std::string text = doc.dump();
+    while (text.size() % 4) text.push_back(' ');
+    std::vector<unsigned char> out;
+    const auto u32 = [&](std::uint32_t x) {
+      for (int i = 0; i < 4; ++i) out.push_back((unsigned char)(x >> (8 * i)));
+    };
+    u32(0x46546C67);
+    u32(2);
+    u32(std::uint32_t(12 + 8 + text.size() + 8 + g.bin.size()));
+    u32(std::uint32_t(text.size()));
+    u32(0x4E4F534A);
+    out.insert(out.end(), text.begin(), text.end());
+    u32(std::uint32_t(g.bin.size()));
+    u32(0x004E4942);
+    out.insert(out.end(), g.bin.begin(), g.bin.end());
+    return out;
+  };
+  const auto refused = [&](const std::vector<unsigned char>& bytes, const std::string& says) {
+    try {
+      render::GltfRuntime rt(bytes);
+      ADD_FAILURE() << "accepted; expected an error saying " << says;
+    } catch (const InvalidInput& e) {
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+  };
+  const auto ext = [](json& doc) -> json& { return doc["meshes"][0]["extensions"]["CSRBF_deformation"]; };
+  refused(with_doc([&](json& d) { ext(d)["deformations"][0]["kernel"] = "C3"; }), "kernel 'C3'");
+  refused(with_doc([&](json& d) { ext(d)["deformations"][0]["radius"] = -1; }), ".radius");
+  refused(with_doc([&](json& d) { ext(d)["deformations"][0]["terms"][0]["weight"] = 99; }), "weight 99");
+  refused(with_doc([&](json& d) { ext(d)["deformations"][0]["sources"] = 100000; }), "accessor 100000");
+  refused(with_doc([&](json& d) { d["bufferViews"][0]["byteLength"] = 1u << 30; }), "outside");
+  std::vector<unsigned char> cut(good.begin(), good.begin() + std::ptrdiff_t(good.size() / 2));
+  refused(cut, "header says");
+  std::vector<unsigned char> junk = good;
+  junk[0] = 'x';
+  refused(junk, "not a glb");
 }

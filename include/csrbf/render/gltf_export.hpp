@@ -35,9 +35,18 @@ enum class Bake {
   Never,   ///< refuse (InvalidInput) a scene that needs baking
 };
 
+/// The CSRBF_deformation extension (docs/gltf/CSRBF_deformation.md): each deformation that a morph
+/// target holds exactly, written as its sources, coefficients, radius and polynomial.
+enum class Compact {
+  Off,           ///< morph targets only
+  WithFallback,  ///< the extension beside the targets it replaces (extensionsUsed): every viewer plays it
+  Only,          ///< the replaced targets hold nothing (extensionsRequired): the extension is needed
+};
+
 struct GltfOptions {
   double fps = 0;  ///< the sampling rate; 0: the scene's
   Bake bake = Bake::Auto;
+  Compact compact = Compact::Off;
   std::size_t max_active = 8;  ///< morph targets active at once in an object (three.js: 8)
   /// The whole process's limit (--memory-limit): baked frames are refused beyond what the program
   /// leaves of it.
@@ -56,6 +65,11 @@ struct GltfObjectReport {
   std::size_t vertices = 0, targets = 0, max_active = 0;
   double rotation_deviation_deg = 0;  ///< squad against the slerp of its samples, largest angle
   double max_deviation = 0;  ///< the largest vertex error of sampled weights, rotations and baking (scene units)
+  /// --compact: the deformations written as CSRBF_deformation, the vertex groups (0: none needed),
+  /// and the largest distance between a deformation evaluated from what is written (float sources
+  /// and coefficients) and the exact displacement, at phase 1, over its vertices.
+  std::size_t compact_deformations = 0, groups = 0;
+  double compact_error = 0;
 };
 
 struct GltfReport {
@@ -65,6 +79,10 @@ struct GltfReport {
   double scene_size = 0;        ///< diagonal of the box of every vertex at every frame
   std::size_t frame_bytes = 0;  ///< every frame's vertices as float xyz (the paper's game engines)
   std::size_t csrbf_bytes = 0;  ///< the deformations' sources, coefficients and radii, as doubles
+  /// --compact: the bytes of the morph targets' accessors that the extension replaces (their
+  /// positions and normals as written without --compact), and the extension's own (sources,
+  /// coefficients, vertex groups).
+  std::size_t replaced_target_bytes = 0, compact_bytes = 0;
   std::size_t targets = 0, max_active = 0;
   std::vector<GltfObjectReport> objects;
   std::vector<GltfPartReport> parts;  ///< every part that deforms
