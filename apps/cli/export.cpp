@@ -205,7 +205,9 @@ int run_export(const ExportOptions& o) {
                               {"rotation_deviation_deg", ob.rotation_deviation_deg},
                               {"max_deviation", ob.max_deviation}});
     if (o.compact_given) {
-      j["compact"] = {{"replaced_target_bytes", r.replaced_target_bytes}, {"compact_bytes", r.compact_bytes}};
+      j["compact"] = {{"replaced_target_bytes", r.replaced_target_bytes},
+                      {"compact_bytes", r.compact_bytes},
+                      {"left_as_targets", r.compact_left_out}};
       for (std::size_t k = 0; k < r.objects.size(); ++k)
         j["objects"][k]["compact"] = {{"deformations", r.objects[k].compact_deformations},
                                       {"groups", r.objects[k].groups},
@@ -245,6 +247,10 @@ int run_export(const ExportOptions& o) {
               << " of morph targets"
               << (go.compact == render::Compact::Only ? " (the targets left empty; the extension is required)\n"
                                                       : " (kept as fallback)\n");
+    for (const auto& name : r.compact_left_out)
+      std::cout << "    left as a morph target: '" << printable(name)
+                << "' (its float sources and coefficients err by more than 1e-5 of the object's size: controls "
+                   "nearly on top of each other?)\n";
     for (const auto& ob : r.objects)
       if (ob.compact_deformations > 0)
         std::printf(

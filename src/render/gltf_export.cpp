@@ -297,6 +297,31 @@ ExportMemory export_memory(const anim::Scene& scene, const std::vector<std::size
   return m;
 }
 
+/// Whether exact target e's deformation may move vertex v: its part owns v, and v is in its area.
+bool moves_vertex(const anim::Object& obj, const ObjectPlan& plan, const ObjectPlan::Exact& e, std::size_t v) {
+  const auto& area = obj.parts[e.part].deformations[e.deformation].area;
+  return plan.owner[v] == int(e.part) &&
+         (area.empty() || std::binary_search(area.begin(), area.end(), std::uint32_t(v)));
+}
+
+/// The map as CSRBF_deformation stores it: sources, coefficients and polynomial rounded to float.
+SpaceMap float_form(const SpaceMap& map) {
+  const std::size_t n = map.size();
+  std::vector<Vec3> src(n);
+  Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(n), 3);
+  for (std::size_t i = 0; i < n; ++i) {
+    src[i] = map.sources()[i].cast<float>().cast<double>();
+    alpha.row(Eigen::Index(i)) = map.coefficients().row(Eigen::Index(i)).cast<float>().cast<double>();
+  }
+  Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
+  if (map.polynomial() != Polynomial::None) beta = map.polynomial_coefficients().cast<float>().cast<double>();
+  FitOptions fo;
+  fo.radius = map.radius();
+  fo.kernel = map.kernel();
+  fo.polynomial = map.polynomial() == Polynomial::None ? Polynomial::None : Polynomial::Linear;
+  return SpaceMap::from_solution(src, alpha, beta, Vec3::Zero(), 1.0, fo);
+}
+
 }  // namespace
 
 std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptions& options, GltfReport& report) {
@@ -624,7 +649,43 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       targets.push_back({{"POSITION", pa}, {"NORMAL", na}});
     };
     std::vector<std::string> target_names;
-    const bool compact = options.compact != Compact::Off && !plan.exact.empty();
+    // --compact: which exact deformations the extension holds. Each is evaluated the way a client
+    // evaluates it, from float sources and coefficients at the float rest positions, against the
+    // exact displacement; one whose float form errs by more than 1e-5 of the object's rest size
+    // (coefficients far above the displacements: controls nearly on top of each other) stays an
+    // ordinary morph target, and the report says so.
+    std::vector<char> in_extension(plan.exact.size(), 0);
+    std::vector<double> float_error(plan.exact.size(), 0.0);
+    if (options.compact != Compact::Off && !plan.exact.empty()) {
+      Vec3 lo = obj.rest.front(), hi = lo;
+      for (const Vec3& p : obj.rest) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+      const double tolerance = 1e-5 * (hi - lo).norm();
+      for (std::size_t j = 0; j < plan.exact.size(); ++j) {
+        const auto& e = plan.exact[j];
+        const SpaceMap written = float_form(*obj.parts[e.part].deformations[e.deformation].map);
+        std::vector<Vec3> x;
+        std::vector<std::size_t> which;
+        for (std::size_t v = 0; v < nv; ++v)
+          if (e.d[v] != Vec3::Zero() || moves_vertex(obj, plan, e, v)) {
+            which.push_back(v);
+            x.push_back(obj.rest[v].cast<float>().cast<double>());
+          }
+        std::vector<Vec3> dw(x.size());
+        if (!x.empty()) written.displacements(x.data()->data(), dw.data()->data(), x.size());
+        double err = 0;
+        for (std::size_t i = 0; i < x.size(); ++i) {
+          const double d = (dw[i] - e.d[which[i]]).norm();
+          err = std::isnan(d) ? std::numeric_limits<double>::infinity() : std::max(err, d);
+        }
+        float_error[j] = err;
+        in_extension[j] = err <= tolerance;
+        if (!in_extension[j]) {
+          const auto& def = obj.parts[e.part].deformations[e.deformation];
+          report.compact_left_out.push_back(obj.name + "/" + obj.parts[e.part].name + "/" + def.name);
+        }
+      }
+    }
+    const bool compact = std::find(in_extension.begin(), in_extension.end(), 1) != in_extension.end();
     std::size_t zero_target = 0;  // --compact=only: the accessor of the targets the extension replaces
     if (compact && options.compact == Compact::Only)
       zero_target = b.accessor({{"componentType", kFloat},
@@ -632,9 +693,10 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
                                 {"type", "VEC3"},
                                 {"min", {0.0, 0.0, 0.0}},
                                 {"max", {0.0, 0.0, 0.0}}});
-    for (const auto& e : plan.exact) {
-      if (compact) report.replaced_target_bytes += target_data(e.d);
-      if (compact && options.compact == Compact::Only)
+    for (std::size_t j = 0; j < plan.exact.size(); ++j) {
+      const auto& e = plan.exact[j];
+      if (in_extension[j]) report.replaced_target_bytes += target_data(e.d);
+      if (in_extension[j] && options.compact == Compact::Only)
         targets.push_back({{"POSITION", zero_target}, {"NORMAL", zero_target}});
       else
         add_target(e.d);
@@ -649,10 +711,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     bool grouped = false;
     if (compact) {
       const auto moves = [&](std::size_t j, std::size_t v) {
-        const auto& e = plan.exact[j];
-        const auto& area = obj.parts[e.part].deformations[e.deformation].area;
-        return plan.owner[v] == int(e.part) &&
-               (area.empty() || std::binary_search(area.begin(), area.end(), std::uint32_t(v)));
+        return in_extension[j] && moves_vertex(obj, plan, plan.exact[j], v);
       };
       std::map<std::vector<std::uint32_t>, std::uint32_t> ids;
       std::vector<std::uint32_t> group(nv), signature;
@@ -662,7 +721,8 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
           if (moves(j, v)) signature.push_back(std::uint32_t(j));
         group[v] = ids.emplace(signature, std::uint32_t(ids.size())).first->second;
       }
-      grouped = !(ids.size() == 1 && ids.begin()->first.size() == plan.exact.size());
+      const auto held = std::size_t(std::count(in_extension.begin(), in_extension.end(), 1));
+      grouped = !(ids.size() == 1 && ids.begin()->first.size() == held);
       if (grouped && ids.size() > 65536)
         throw InvalidInput("export: " + b.where + " --compact: its deformations split the vertices into " +
                            std::to_string(ids.size()) +
@@ -684,49 +744,26 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       }
       json defs = json::array();
       for (std::size_t j = 0; j < plan.exact.size(); ++j) {
+        if (!in_extension[j]) continue;
         const auto& e = plan.exact[j];
         const anim::Deformation& def = obj.parts[e.part].deformations[e.deformation];
         const SpaceMap& map = *def.map;
         const std::size_t n = map.size();
-        // As written (float), and evaluated from that against the exact displacement.
         std::vector<float> src(3 * n), coef(3 * n);
-        std::vector<Vec3> src_d(n);
-        Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(n), 3);
         for (std::size_t i = 0; i < n; ++i)
           for (int c = 0; c < 3; ++c) {
             src[3 * i + std::size_t(c)] = float(map.sources()[i][c]);
             coef[3 * i + std::size_t(c)] = float(map.coefficients()(Eigen::Index(i), c));
-            src_d[i][c] = double(src[3 * i + std::size_t(c)]);
-            alpha(Eigen::Index(i), c) = double(coef[3 * i + std::size_t(c)]);
           }
-        Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
         json term = {{"weight", j}};
         if (map.polynomial() != Polynomial::None) {
           json poly = json::array();
           const Eigen::Matrix<double, 4, 3> pc = map.polynomial_coefficients();
           for (int r = 0; r < 4; ++r)
-            for (int c = 0; c < 3; ++c) {
-              beta(r, c) = double(float(pc(r, c)));
-              poly.push_back(float(pc(r, c)));
-            }
+            for (int c = 0; c < 3; ++c) poly.push_back(float(pc(r, c)));
           term["polynomial"] = poly;
         }
-        FitOptions fo;
-        fo.radius = map.radius();
-        fo.kernel = map.kernel();
-        fo.polynomial = map.polynomial();
-        const SpaceMap written = SpaceMap::from_solution(src_d, alpha, beta, Vec3::Zero(), 1.0, fo);
-        std::vector<Vec3> x;
-        std::vector<std::size_t> which;
-        for (std::size_t v = 0; v < nv; ++v)
-          if (moves(j, v)) {
-            which.push_back(v);
-            x.push_back(obj.rest[v]);
-          }
-        std::vector<Vec3> dw(x.size());
-        if (!x.empty()) written.displacements(x.data()->data(), dw.data()->data(), x.size());
-        for (std::size_t i = 0; i < x.size(); ++i)
-          orep.compact_error = std::max(orep.compact_error, (dw[i] - e.d[which[i]]).norm());
+        orep.compact_error = std::max(orep.compact_error, float_error[j]);
         const std::size_t sa = b.floats(src, 3, "a deformation's sources");
         term["coefficients"] = b.floats(coef, 3, "a deformation's coefficients");
         report.compact_bytes += 24 * n;
@@ -736,6 +773,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         d["extras"] = {{"name", def.name}, {"part", obj.parts[e.part].name}};
         if (grouped) d["groups"] = groups_of[j];
         defs.push_back(std::move(d));
+        ++orep.compact_deformations;
       }
       compact_json = {{"deformations", defs}};
       orep.compact_deformations = plan.exact.size();

@@ -22,59 +22,106 @@ using nlohmann::json;
 
 std::string field(const char* what, std::size_t i) { return std::string(what) + "[" + std::to_string(i) + "]"; }
 
+/// doc[key], an array, or an empty one where doc has no key (by reference: no copy of a deep
+/// document); InvalidInput where it is not an array.
+const json& array_of(const json& doc, const char* key) {
+  static const json empty = json::array();
+  if (!doc.is_object()) return empty;
+  const auto it = doc.find(key);
+  if (it == doc.end()) return empty;
+  if (!it->is_array())
+    throw InvalidInput(std::string("glTF: '") + key + "' is " + it->dump().substr(0, 40) + ", not an array");
+  return *it;
+}
+/// A non-negative integer field (absent: fallback); InvalidInput naming it otherwise.
+std::size_t index_of(const json& o, const char* key, const std::string& where, std::size_t fallback = SIZE_MAX) {
+  const auto it = o.find(key);
+  if (it == o.end()) {
+    if (fallback != SIZE_MAX) return fallback;
+    throw InvalidInput("glTF: " + where + " has no " + key);
+  }
+  if (!it->is_number_unsigned())
+    throw InvalidInput("glTF: " + where + "." + key + " is " + it->dump().substr(0, 40) + ", not an integer >= 0");
+  return it->get<std::size_t>();
+}
+
 /// An accessor's values as doubles (count x components), through its buffer view (byteOffset,
-/// byteStride) or zero where it has none, with its sparse entries applied. Every range is checked
-/// against the buffer.
+/// byteStride), or zero where it has none, with its sparse entries applied. Every range is checked
+/// against the buffer before anything is allocated.
 class Accessors {
  public:
   Accessors(const json& doc, std::span<const unsigned char> bin) : doc_(doc), bin_(bin) {}
 
-  std::vector<double> read(std::size_t index, int components, const char* role) const {
-    const json& accessors = doc_.value("accessors", json::array());
+  /// expect: the count the accessor must have (0: any). An accessor without data (no buffer view,
+  /// no sparse values: all zero) is accepted only with expect given: its size is then known good.
+  /// empty_if_zero: such an accessor comes back empty rather than as expect zeros.
+  std::vector<double> read(std::size_t index, int components, const char* role, std::size_t expect = 0,
+                           bool empty_if_zero = false) const {
+    const json& accessors = array_of(doc_, "accessors");
     if (index >= accessors.size())
       throw InvalidInput("glTF: " + std::string(role) + " names accessor " + std::to_string(index) + " of " +
                          std::to_string(accessors.size()));
     const json& a = accessors[index];
     const std::string where = field("accessors", index);
-    const std::string type = a.value("type", "");
+    if (!a.is_object()) throw InvalidInput("glTF: " + where + " is not an object");
+    const std::string type = a.contains("type") && a["type"].is_string() ? a["type"].get<std::string>() : "";
     const int width = type == "SCALAR" ? 1 : type == "VEC2" ? 2 : type == "VEC3" ? 3 : type == "VEC4" ? 4 : 0;
     if (width != components)
       throw InvalidInput("glTF: " + where + " (" + role + ") has type '" + type + "', expected " +
                          (components == 1 ? "SCALAR" : "VEC" + std::to_string(components)));
-    const std::size_t count = a.value("count", std::size_t(0));
-    if (count == 0 || count > (std::size_t(1) << 31))
-      throw InvalidInput("glTF: " + where + ".count is " + std::to_string(count));
-    const int ct = a.value("componentType", 0);
-    std::vector<double> out(count * std::size_t(width), 0.0);
-    if (a.contains("bufferView")) {
-      const auto [p, stride, avail] = view(a["bufferView"].get<std::size_t>(), a.value("byteOffset", std::size_t(0)));
-      const std::size_t size = component_size(ct, where);
-      const std::size_t element = size * std::size_t(width), step = stride ? stride : element;
-      if (count > 0 && (count - 1) * step + element > avail)
+    const std::size_t count = index_of(a, "count", where);
+    if (count == 0 || count > (std::size_t(1) << 31) || (expect && count != expect))
+      throw InvalidInput("glTF: " + where + ".count is " + std::to_string(count) +
+                         (expect ? ", expected " + std::to_string(expect) + " (" + role + ")" : std::string()));
+    const std::size_t ct = index_of(a, "componentType", where);
+    const std::size_t size = component_size(ct, where);
+    const std::size_t element = size * std::size_t(width);
+    const bool has_view = a.contains("bufferView"), has_sparse = a.contains("sparse");
+    if (!has_view && !expect)
+      throw InvalidInput("glTF: " + where + " (" + role + ") has no bufferView: its values must be stored");
+    if (!has_view && !has_sparse && empty_if_zero) return {};
+    View v{};
+    if (has_view) {
+      v = view(index_of(a, "bufferView", where), index_of(a, "byteOffset", where, 0), element, where);
+      // The last element's end, without overflow: (count - 1) * step + element <= available.
+      if (v.available < element || (count - 1) > (v.available - element) / v.stride)
         throw InvalidInput("glTF: " + where + " runs past its buffer view (" + std::to_string(count) + " elements of " +
-                           std::to_string(element) + " bytes, stride " + std::to_string(step) + ")");
-      for (std::size_t i = 0; i < count; ++i)
-        for (int c = 0; c < width; ++c) out[i * std::size_t(width) + std::size_t(c)] = value(p + i * step + std::size_t(c) * size, ct);
+                           std::to_string(element) + " bytes, stride " + std::to_string(v.stride) + ", " +
+                           std::to_string(v.available) + " bytes available)");
     }
-    if (a.contains("sparse")) {
+    std::vector<double> out(count * std::size_t(width), 0.0);
+    if (has_view)
+      for (std::size_t i = 0; i < count; ++i)
+        for (int c = 0; c < width; ++c)
+          out[i * std::size_t(width) + std::size_t(c)] = value(v.p + i * v.stride + std::size_t(c) * size, ct);
+    if (has_sparse) {
       const json& sp = a["sparse"];
-      const std::size_t n = sp.value("count", std::size_t(0));
-      if (n == 0 || n > count) throw InvalidInput("glTF: " + where + ".sparse.count is " + std::to_string(n));
+      const std::string sw = where + ".sparse";
+      if (!sp.is_object() || !sp.contains("indices") || !sp.contains("values") || !sp["indices"].is_object() ||
+          !sp["values"].is_object())
+        throw InvalidInput("glTF: " + sw + " needs indices and values objects");
+      const std::size_t n = index_of(sp, "count", sw);
+      if (n == 0 || n > count) throw InvalidInput("glTF: " + sw + ".count is " + std::to_string(n));
       const json& ix = sp["indices"];
       const json& vs = sp["values"];
-      const int ict = ix.value("componentType", 0);
-      const auto [ip, istride, iavail] = view(ix["bufferView"].get<std::size_t>(), ix.value("byteOffset", std::size_t(0)));
-      const auto [vp, vstride, vavail] = view(vs["bufferView"].get<std::size_t>(), vs.value("byteOffset", std::size_t(0)));
-      const std::size_t isize = component_size(ict, where + ".sparse.indices"), vsize = component_size(ct, where);
-      if (n * isize > iavail || n * vsize * std::size_t(width) > vavail)
-        throw InvalidInput("glTF: " + where + ".sparse runs past its buffer views");
+      const std::size_t ict = index_of(ix, "componentType", sw + ".indices");
+      if (ict != 5121 && ict != 5123 && ict != 5125)
+        throw InvalidInput("glTF: " + sw + ".indices.componentType " + std::to_string(ict) +
+                           " is not an unsigned integer type");
+      const std::size_t isize = component_size(ict, sw + ".indices");
+      const View iv = view(index_of(ix, "bufferView", sw + ".indices"), index_of(ix, "byteOffset", sw + ".indices", 0),
+                           isize, sw + ".indices");
+      const View vv = view(index_of(vs, "bufferView", sw + ".values"), index_of(vs, "byteOffset", sw + ".values", 0),
+                           element, sw + ".values");
+      if (n > iv.available / isize || n > vv.available / element)
+        throw InvalidInput("glTF: " + sw + " runs past its buffer views");
       for (std::size_t k = 0; k < n; ++k) {
-        const auto i = std::size_t(value(ip + k * isize, ict));
+        const auto i = std::size_t(value(iv.p + k * isize, ict));
         if (i >= count)
-          throw InvalidInput("glTF: " + where + ".sparse index " + std::to_string(i) + " is not below count " +
+          throw InvalidInput("glTF: " + sw + " index " + std::to_string(i) + " is not below count " +
                              std::to_string(count));
         for (int c = 0; c < width; ++c)
-          out[i * std::size_t(width) + std::size_t(c)] = value(vp + (k * std::size_t(width) + std::size_t(c)) * vsize, ct);
+          out[i * std::size_t(width) + std::size_t(c)] = value(vv.p + k * element + std::size_t(c) * size, ct);
       }
     }
     for (const double x : out)
@@ -82,24 +129,42 @@ class Accessors {
     return out;
   }
 
+  /// The component type of accessor index (checked by read()).
+  std::size_t component_type(std::size_t index) const {
+    return index_of(array_of(doc_, "accessors").at(index), "componentType", field("accessors", index));
+  }
+
  private:
   struct View {
     const unsigned char* p;
     std::size_t stride, available;
   };
-  View view(std::size_t index, std::size_t offset) const {
-    const json& views = doc_.value("bufferViews", json::array());
-    if (index >= views.size()) throw InvalidInput("glTF: no bufferViews[" + std::to_string(index) + "]");
+  /// bufferViews[index] from offset; its stride checked as glTF bounds it (4 to 252, a multiple of
+  /// 4, at least the element).
+  View view(std::size_t index, std::size_t offset, std::size_t element, const std::string& who) const {
+    const json& views = array_of(doc_, "bufferViews");
+    if (index >= views.size())
+      throw InvalidInput("glTF: " + who + " names bufferViews[" + std::to_string(index) + "] of " +
+                         std::to_string(views.size()));
     const json& v = views[index];
-    if (v.value("buffer", 0) != 0) throw InvalidInput("glTF: " + field("bufferViews", index) + " is not in the glb's buffer");
-    const std::size_t start = v.value("byteOffset", std::size_t(0)), length = v.value("byteLength", std::size_t(0));
-    if (start > bin_.size() || length > bin_.size() - start || offset > length)
-      throw InvalidInput("glTF: " + field("bufferViews", index) + " (offset " + std::to_string(start) + ", length " +
-                         std::to_string(length) + ") lies outside the " + std::to_string(bin_.size()) +
-                         "-byte binary chunk");
-    return {bin_.data() + start + offset, v.value("byteStride", std::size_t(0)), length - offset};
+    const std::string where = field("bufferViews", index);
+    if (!v.is_object()) throw InvalidInput("glTF: " + where + " is not an object");
+    if (index_of(v, "buffer", where) != 0) throw InvalidInput("glTF: " + where + " is not in the glb's buffer");
+    const std::size_t start = index_of(v, "byteOffset", where, 0), length = index_of(v, "byteLength", where);
+    if (start > bin_.size() || length > bin_.size() - start)
+      throw InvalidInput("glTF: " + where + " (offset " + std::to_string(start) + ", length " + std::to_string(length) +
+                         ") lies outside the " + std::to_string(bin_.size()) + "-byte binary chunk");
+    if (offset > length)
+      throw InvalidInput("glTF: " + who + ".byteOffset " + std::to_string(offset) + " lies beyond " + where + "'s " +
+                         std::to_string(length) + " bytes");
+    const std::size_t stride = index_of(v, "byteStride", where, 0);
+    if (stride && (stride < 4 || stride > 252 || stride % 4 || stride < element))
+      throw InvalidInput("glTF: " + where + ".byteStride " + std::to_string(stride) +
+                         " is not a multiple of 4 in [4, 252] of at least the " + std::to_string(element) +
+                         "-byte element");
+    return {bin_.data() + start + offset, stride ? stride : element, length - offset};
   }
-  static std::size_t component_size(int ct, const std::string& where) {
+  static std::size_t component_size(std::size_t ct, const std::string& where) {
     switch (ct) {
       case 5121:
         return 1;
@@ -112,7 +177,7 @@ class Accessors {
         throw InvalidInput("glTF: " + where + ".componentType " + std::to_string(ct) + " is not read here");
     }
   }
-  static double value(const unsigned char* p, int ct) {
+  static double value(const unsigned char* p, std::size_t ct) {
     if (ct == 5126) {
       float f;
       std::memcpy(&f, p, 4);
@@ -161,6 +226,189 @@ struct Mesh {
   std::string interpolation;
 };
 
+/// The meshes of a glb's JSON and binary chunk (GltfRuntime's constructor).
+void load(const json& doc, std::span<const unsigned char> bin, std::vector<Mesh>& result) {
+  const Accessors acc(doc, bin);
+  const json& meshes = array_of(doc, "meshes");
+  for (std::size_t mi = 0; mi < meshes.size(); ++mi) {
+    const json& m = meshes[mi];
+    const std::string where = field("meshes", mi);
+    if (!m.is_object()) throw InvalidInput("glTF: " + where + " is not an object");
+    Mesh out;
+    out.name = m.contains("name") && m["name"].is_string() ? m["name"].get<std::string>() : "";
+    const json& prims = array_of(m, "primitives");
+    if (prims.empty() || !prims[0].is_object()) throw InvalidInput("glTF: " + where + " has no primitives");
+    // Every primitive of a csrbf mesh shares its attributes and targets: the first stands for all.
+    const json& prim = prims[0];
+    if (!prim.contains("attributes") || !prim["attributes"].is_object())
+      throw InvalidInput("glTF: " + where + ".primitives[0] has no attributes");
+    const json& attrs = prim["attributes"];
+    const std::string aw = where + ".primitives[0].attributes";
+    out.rest = vec3s(acc.read(index_of(attrs, "POSITION", aw), 3, "POSITION"));
+    const std::size_t nv = out.rest.size();
+    out.normal = attrs.contains("NORMAL") ? vec3s(acc.read(index_of(attrs, "NORMAL", aw), 3, "NORMAL", nv))
+                                          : std::vector<Vec3>(nv, Vec3::Zero());
+    const json& targets = array_of(prim, "targets");
+    for (std::size_t ti = 0; ti < targets.size(); ++ti) {
+      const json& t = targets[ti];
+      const std::string tw = where + ".primitives[0].targets[" + std::to_string(ti) + "]";
+      if (!t.is_object()) throw InvalidInput("glTF: " + tw + " is not an object");
+      // Empty: a target without data (all zero), as --compact=only writes the replaced ones.
+      out.target_position.push_back(
+          t.contains("POSITION") ? vec3s(acc.read(index_of(t, "POSITION", tw), 3, "a target's POSITION", nv, true))
+                                 : std::vector<Vec3>{});
+      out.target_normal.push_back(t.contains("NORMAL")
+                                      ? vec3s(acc.read(index_of(t, "NORMAL", tw), 3, "a target's NORMAL", nv, true))
+                                      : std::vector<Vec3>{});
+    }
+    const std::size_t nt = out.target_position.size();
+    out.default_weights.assign(nt, 0.0);
+    if (m.contains("weights")) {
+      const json& w = m["weights"];
+      if (!w.is_array() || w.size() != nt)
+        throw InvalidInput("glTF: " + where + ".weights is not an array of " + std::to_string(nt) +
+                           " numbers (one a morph target)");
+      for (std::size_t j = 0; j < nt; ++j) {
+        if (!w[j].is_number())
+          throw InvalidInput("glTF: " + where + ".weights[" + std::to_string(j) + "] is not a number");
+        out.default_weights[j] = w[j].get<double>();
+      }
+    }
+    out.replaced.assign(nt, 0);
+    const json* ext = nullptr;
+    if (m.contains("extensions") && m["extensions"].is_object() && m["extensions"].contains("CSRBF_deformation"))
+      ext = &m["extensions"]["CSRBF_deformation"];
+    if (ext) {
+      const std::string ew = where + ".extensions.CSRBF_deformation";
+      std::vector<double> group;
+      if (attrs.contains("_CSRBF_GROUP")) {
+        const std::size_t ga = index_of(attrs, "_CSRBF_GROUP", aw);
+        group = acc.read(ga, 1, "_CSRBF_GROUP", nv);
+        if (const std::size_t ct = acc.component_type(ga); ct != 5121 && ct != 5123)
+          throw InvalidInput("glTF: " + aw + "._CSRBF_GROUP's componentType " + std::to_string(ct) +
+                             " is not UNSIGNED_BYTE or UNSIGNED_SHORT");
+      }
+      const json& defs = array_of(*ext, "deformations");
+      if (defs.empty()) throw InvalidInput("glTF: " + ew + " has no deformations");
+      for (std::size_t di = 0; di < defs.size(); ++di) {
+        const json& d = defs[di];
+        const std::string dw = ew + ".deformations[" + std::to_string(di) + "]";
+        if (!d.is_object()) throw InvalidInput("glTF: " + dw + " is not an object");
+        const std::string given = d.contains("kernel") && d["kernel"].is_string() ? d["kernel"].get<std::string>() : "";
+        std::string kname = given;
+        for (char& ch : kname) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+        const auto kernel = parse_kernel(kname);
+        if (!kernel || kname.size() != 2)
+          throw InvalidInput("glTF: " + dw + ".kernel '" + given + "' is not C0, C2, C4 or C6");
+        const double radius = d.contains("radius") && d["radius"].is_number() ? d["radius"].get<double>() : 0.0;
+        if (!(radius >= 1e-150 && radius <= 1e150))
+          throw InvalidInput("glTF: " + dw + ".radius " + (d.contains("radius") ? d["radius"].dump() : "(none)") +
+                             " is not a number in [1e-150, 1e150]");
+        const json& terms = array_of(d, "terms");
+        if (terms.empty()) throw InvalidInput("glTF: " + dw + " has no terms");
+        const std::vector<Vec3> sources = vec3s(acc.read(index_of(d, "sources", dw), 3, "sources"));
+        Deformation def;
+        def.stage = index_of(d, "stage", dw, 0);
+        if (d.contains("groups")) {
+          const json& g = d["groups"];
+          if (!g.is_array() || g.empty()) throw InvalidInput("glTF: " + dw + ".groups is not a non-empty array");
+          if (group.empty()) throw InvalidInput("glTF: " + dw + " has groups but the mesh has no _CSRBF_GROUP");
+          std::vector<char> in(65536, 0);
+          for (const json& x : g) {
+            if (!x.is_number_unsigned() || x.get<std::size_t>() > 65535)
+              throw InvalidInput("glTF: " + dw + ".groups holds " + x.dump().substr(0, 40) + ", not a group number");
+            in[x.get<std::size_t>()] = 1;
+          }
+          for (std::size_t v = 0; v < nv; ++v)
+            if (in[std::size_t(group[v])]) def.vertices.push_back(std::uint32_t(v));
+        } else {
+          for (std::size_t v = 0; v < nv; ++v) def.vertices.push_back(std::uint32_t(v));
+        }
+        for (std::size_t ti = 0; ti < terms.size(); ++ti) {
+          const json& t = terms[ti];
+          const std::string tw = dw + ".terms[" + std::to_string(ti) + "]";
+          if (!t.is_object()) throw InvalidInput("glTF: " + tw + " is not an object");
+          const std::size_t w = index_of(t, "weight", tw);
+          if (w >= nt)
+            throw InvalidInput("glTF: " + tw + ": weight " + std::to_string(w) + " is not below the mesh's " +
+                               std::to_string(nt) + " weights");
+          const std::vector<double> c = acc.read(index_of(t, "coefficients", tw), 3, "coefficients", sources.size());
+          Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(sources.size()), 3);
+          for (std::size_t i = 0; i < sources.size(); ++i)
+            for (int k = 0; k < 3; ++k) alpha(Eigen::Index(i), k) = c[3 * i + std::size_t(k)];
+          Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
+          FitOptions fo;
+          fo.radius = radius;
+          fo.kernel = *kernel;
+          fo.polynomial = Polynomial::None;
+          if (t.contains("polynomial")) {
+            const json& p = t["polynomial"];
+            if (!p.is_array() || p.size() != 12)
+              throw InvalidInput("glTF: " + tw + ".polynomial is not an array of 12 numbers");
+            for (int r = 0; r < 4; ++r)
+              for (int k = 0; k < 3; ++k) {
+                const json& x = p[std::size_t(3 * r + k)];
+                if (!x.is_number() || !std::isfinite(x.get<double>()))
+                  throw InvalidInput("glTF: " + tw + ".polynomial holds " + x.dump().substr(0, 40) + ", not a number");
+                beta(r, k) = x.get<double>();
+              }
+            fo.polynomial = Polynomial::Linear;
+          }
+          def.terms.push_back({w, SpaceMap::from_solution(sources, alpha, beta, Vec3::Zero(), 1.0, fo)});
+          out.replaced[w] = 1;
+        }
+        out.deformations.push_back(std::move(def));
+      }
+      std::stable_sort(out.deformations.begin(), out.deformations.end(),
+                       [](const Deformation& a, const Deformation& b) { return a.stage < b.stage; });
+    }
+    result.push_back(std::move(out));
+  }
+  // The weights channels of the nodes that hold each mesh.
+  const json& nodes = array_of(doc, "nodes");
+  const json& animations = array_of(doc, "animations");
+  for (std::size_t ai = 0; ai < animations.size(); ++ai) {
+    const json& anim = animations[ai];
+    const std::string aw = field("animations", ai);
+    if (!anim.is_object()) throw InvalidInput("glTF: " + aw + " is not an object");
+    const json& channels = array_of(anim, "channels");
+    const json& samplers = array_of(anim, "samplers");
+    for (std::size_t ci = 0; ci < channels.size(); ++ci) {
+      const json& ch = channels[ci];
+      const std::string cw = aw + ".channels[" + std::to_string(ci) + "]";
+      if (!ch.is_object() || !ch.contains("target") || !ch["target"].is_object())
+        throw InvalidInput("glTF: " + cw + " has no target object");
+      const json& target = ch["target"];
+      if (!target.contains("path") || target["path"] != "weights" || !target.contains("node")) continue;
+      const std::size_t node = index_of(target, "node", cw + ".target");
+      if (node >= nodes.size() || !nodes[node].is_object() || !nodes[node].contains("mesh")) continue;
+      const std::size_t mi = index_of(nodes[node], "mesh", field("nodes", node));
+      if (mi >= result.size() || !result[mi].times.empty()) continue;
+      const std::size_t si = index_of(ch, "sampler", cw);
+      if (si >= samplers.size() || !samplers[si].is_object())
+        throw InvalidInput("glTF: " + cw + ".sampler " + std::to_string(si) + " is not one of the " +
+                           std::to_string(samplers.size()) + " samplers");
+      const json& sampler = samplers[si];
+      const std::string sw = aw + ".samplers[" + std::to_string(si) + "]";
+      Mesh& m = result[mi];
+      m.interpolation = sampler.contains("interpolation") && sampler["interpolation"].is_string()
+                            ? sampler["interpolation"].get<std::string>()
+                            : "LINEAR";
+      if (m.interpolation != "LINEAR" && m.interpolation != "STEP" && m.interpolation != "CUBICSPLINE")
+        throw InvalidInput("glTF: " + sw + ".interpolation '" + m.interpolation +
+                           "' is not LINEAR, STEP or CUBICSPLINE");
+      m.times = acc.read(index_of(sampler, "input", sw), 1, "an animation's times");
+      const std::size_t per = (m.interpolation == "CUBICSPLINE" ? 3 : 1) * m.default_weights.size();
+      if (per == 0)
+        throw InvalidInput("glTF: " + sw + " animates the weights of mesh '" + m.name + "', which has no targets");
+      m.values = acc.read(index_of(sampler, "output", sw), 1, "an animation's weights", m.times.size() * per);
+      for (std::size_t k = 1; k < m.times.size(); ++k)
+        if (!(m.times[k] > m.times[k - 1]))
+          throw InvalidInput("glTF: " + sw + ": its times do not increase at key " + std::to_string(k));
+    }
+  }
+}
+
 }  // namespace
 
 struct GltfRuntime::Data {
@@ -169,7 +417,8 @@ struct GltfRuntime::Data {
 
 GltfRuntime::GltfRuntime(const std::vector<unsigned char>& glb) : d_(std::make_unique<Data>()) {
   const auto u32 = [&](std::size_t at) {
-    if (at + 4 > glb.size()) throw InvalidInput("glTF: the glb ends at byte " + std::to_string(glb.size()) + " inside its header");
+    if (at + 4 > glb.size())
+      throw InvalidInput("glTF: the glb ends at byte " + std::to_string(glb.size()) + " inside its header");
     std::uint32_t v;
     std::memcpy(&v, glb.data() + at, 4);
     return std::size_t(v);
@@ -191,123 +440,12 @@ GltfRuntime::GltfRuntime(const std::vector<unsigned char>& glb) : d_(std::make_u
       throw InvalidInput("glTF: the glb's second chunk is not a binary chunk within the file");
     bin = std::span<const unsigned char>(glb.data() + b0 + 8, bl);
   }
-  const Accessors acc(doc, bin);
-  const json& meshes = doc.value("meshes", json::array());
-  for (std::size_t mi = 0; mi < meshes.size(); ++mi) {
-    const json& m = meshes[mi];
-    Mesh out;
-    out.name = m.value("name", "");
-    const std::string where = field("meshes", mi);
-    if (!m.contains("primitives") || m["primitives"].empty()) throw InvalidInput("glTF: " + where + " has no primitives");
-    // Every primitive of a csrbf mesh shares its attributes and targets: the first stands for all.
-    const json& prim = m["primitives"][0];
-    const json& attrs = prim.value("attributes", json::object());
-    if (!attrs.contains("POSITION")) throw InvalidInput("glTF: " + where + ".primitives[0] has no POSITION");
-    out.rest = vec3s(acc.read(attrs["POSITION"].get<std::size_t>(), 3, "POSITION"));
-    const std::size_t nv = out.rest.size();
-    out.normal = attrs.contains("NORMAL") ? vec3s(acc.read(attrs["NORMAL"].get<std::size_t>(), 3, "NORMAL"))
-                                          : std::vector<Vec3>(nv, Vec3::Zero());
-    for (const json& t : prim.value("targets", json::array())) {
-      out.target_position.push_back(t.contains("POSITION")
-                                        ? vec3s(acc.read(t["POSITION"].get<std::size_t>(), 3, "a target's POSITION"))
-                                        : std::vector<Vec3>(nv, Vec3::Zero()));
-      out.target_normal.push_back(t.contains("NORMAL")
-                                      ? vec3s(acc.read(t["NORMAL"].get<std::size_t>(), 3, "a target's NORMAL"))
-                                      : std::vector<Vec3>(nv, Vec3::Zero()));
-      if (out.target_position.back().size() != nv || out.target_normal.back().size() != nv)
-        throw InvalidInput("glTF: " + where + ": a morph target's count is not the vertices' " + std::to_string(nv));
-    }
-    const std::size_t nt = out.target_position.size();
-    out.default_weights = m.value("weights", std::vector<double>(nt, 0.0));
-    if (out.default_weights.size() != nt)
-      throw InvalidInput("glTF: " + where + ".weights holds " + std::to_string(out.default_weights.size()) +
-                         " values for " + std::to_string(nt) + " morph targets");
-    out.replaced.assign(nt, 0);
-    if (m.contains("extensions") && m["extensions"].contains("CSRBF_deformation")) {
-      std::vector<double> group;
-      if (attrs.contains("_CSRBF_GROUP")) {
-        group = acc.read(attrs["_CSRBF_GROUP"].get<std::size_t>(), 1, "_CSRBF_GROUP");
-        if (group.size() != nv) throw InvalidInput("glTF: " + where + ": _CSRBF_GROUP's count is not the vertices'");
-      }
-      const json& defs = m["extensions"]["CSRBF_deformation"].value("deformations", json::array());
-      if (defs.empty()) throw InvalidInput("glTF: " + where + ".extensions.CSRBF_deformation has no deformations");
-      for (std::size_t di = 0; di < defs.size(); ++di) {
-        const json& d = defs[di];
-        const std::string dw = where + ".extensions.CSRBF_deformation.deformations[" + std::to_string(di) + "]";
-        std::string kname = d.value("kernel", "");
-        for (char& ch : kname) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-        const auto kernel = parse_kernel(kname);
-        if (!kernel || kname.size() != 2) throw InvalidInput("glTF: " + dw + ".kernel '" + d.value("kernel", "") + "' is not C0, C2, C4 or C6");
-        const double radius = d.value("radius", 0.0);
-        if (!(radius > 0) || !std::isfinite(radius)) throw InvalidInput("glTF: " + dw + ".radius " + std::to_string(radius) + " is not > 0");
-        if (!d.contains("sources") || !d.contains("terms") || d["terms"].empty())
-          throw InvalidInput("glTF: " + dw + " needs sources and terms");
-        const std::vector<Vec3> sources = vec3s(acc.read(d["sources"].get<std::size_t>(), 3, "sources"));
-        Deformation def;
-        def.stage = d.value("stage", std::size_t(0));
-        if (d.contains("groups")) {
-          const auto groups = d["groups"].get<std::vector<double>>();
-          if (group.empty()) throw InvalidInput("glTF: " + dw + " has groups but the mesh has no _CSRBF_GROUP");
-          for (std::size_t v = 0; v < nv; ++v)
-            if (std::find(groups.begin(), groups.end(), group[v]) != groups.end()) def.vertices.push_back(std::uint32_t(v));
-        } else {
-          for (std::size_t v = 0; v < nv; ++v) def.vertices.push_back(std::uint32_t(v));
-        }
-        for (const json& t : d["terms"]) {
-          const std::size_t w = t.value("weight", std::size_t(-1));
-          if (w >= nt)
-            throw InvalidInput("glTF: " + dw + ": a term's weight " + std::to_string(w) + " is not below the mesh's " +
-                               std::to_string(nt) + " weights");
-          const std::vector<double> c = acc.read(t.at("coefficients").get<std::size_t>(), 3, "coefficients");
-          if (c.size() != 3 * sources.size())
-            throw InvalidInput("glTF: " + dw + ": a term has " + std::to_string(c.size() / 3) + " coefficients for " +
-                               std::to_string(sources.size()) + " sources");
-          Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(sources.size()), 3);
-          for (std::size_t i = 0; i < sources.size(); ++i)
-            for (int k = 0; k < 3; ++k) alpha(Eigen::Index(i), k) = c[3 * i + std::size_t(k)];
-          Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
-          FitOptions fo;
-          fo.radius = radius;
-          fo.kernel = *kernel;
-          fo.polynomial = Polynomial::None;
-          if (t.contains("polynomial")) {
-            const auto p = t["polynomial"].get<std::vector<double>>();
-            if (p.size() != 12) throw InvalidInput("glTF: " + dw + ": a term's polynomial has " + std::to_string(p.size()) + " numbers, not 12");
-            for (int r = 0; r < 4; ++r)
-              for (int k = 0; k < 3; ++k) beta(r, k) = p[std::size_t(3 * r + k)];
-            fo.polynomial = Polynomial::Linear;
-          }
-          def.terms.push_back({w, SpaceMap::from_solution(sources, alpha, beta, Vec3::Zero(), 1.0, fo)});
-          out.replaced[w] = 1;
-        }
-        out.deformations.push_back(std::move(def));
-      }
-      std::stable_sort(out.deformations.begin(), out.deformations.end(),
-                       [](const Deformation& a, const Deformation& b) { return a.stage < b.stage; });
-    }
-    d_->meshes.push_back(std::move(out));
+  try {
+    load(doc, bin, d_->meshes);
+  } catch (const json::exception& e) {
+    // A value of the wrong JSON type where the reads above did not check it first.
+    throw InvalidInput(std::string("glTF: a value of the wrong type: ") + e.what());
   }
-  // The weights channels of the nodes that hold each mesh.
-  const json& nodes = doc.value("nodes", json::array());
-  for (const json& anim : doc.value("animations", json::array()))
-    for (const json& ch : anim.value("channels", json::array())) {
-      const json& target = ch.value("target", json::object());
-      if (target.value("path", "") != "weights" || !target.contains("node")) continue;
-      const std::size_t node = target["node"].get<std::size_t>();
-      if (node >= nodes.size() || !nodes[node].contains("mesh")) continue;
-      const std::size_t mi = nodes[node]["mesh"].get<std::size_t>();
-      if (mi >= d_->meshes.size() || !d_->meshes[mi].times.empty()) continue;
-      const json& sampler = anim["samplers"].at(ch.at("sampler").get<std::size_t>());
-      Mesh& m = d_->meshes[mi];
-      m.times = acc.read(sampler.at("input").get<std::size_t>(), 1, "an animation's times");
-      m.values = acc.read(sampler.at("output").get<std::size_t>(), 1, "an animation's weights");
-      m.interpolation = sampler.value("interpolation", "LINEAR");
-      const std::size_t per = (m.interpolation == "CUBICSPLINE" ? 3 : 1) * m.default_weights.size();
-      if (per == 0 || m.values.size() != m.times.size() * per)
-        throw InvalidInput("glTF: the weights channel of mesh '" + m.name + "' has " + std::to_string(m.values.size()) +
-                           " values for " + std::to_string(m.times.size()) + " times and " +
-                           std::to_string(m.default_weights.size()) + " targets");
-    }
 }
 
 GltfRuntime::~GltfRuntime() = default;
@@ -366,10 +504,8 @@ void GltfRuntime::deform(std::size_t mesh, std::span<const double> weights, std:
   normals = m.normal;
   for (std::size_t j = 0; j < nt; ++j) {
     if (weights[j] == 0 || (use_extension && m.replaced[j])) continue;
-    for (std::size_t v = 0; v < nv; ++v) {
-      positions[v] += weights[j] * m.target_position[j][v];
-      normals[v] += weights[j] * m.target_normal[j][v];
-    }
+    for (std::size_t v = 0; v < m.target_position[j].size(); ++v) positions[v] += weights[j] * m.target_position[j][v];
+    for (std::size_t v = 0; v < m.target_normal[j].size(); ++v) normals[v] += weights[j] * m.target_normal[j][v];
   }
   if (use_extension && !m.deformations.empty()) {
     // Stage by stage: every term of a stage at the stage's input points, J accumulated.

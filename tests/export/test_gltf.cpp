@@ -515,3 +515,37 @@ TEST(GltfCompact, TheRuntimeNamesWhatIsMalformed) {
   junk[0] = 'x';
   refused(junk, "not a glb");
 }
+
+// Found by the attacker: two controls 1e-4 apart, moved in opposite directions, have coefficients
+// far above their displacements, whose float form erred by 0.013 to 25.8 (exit 0, no warning). Such
+// a deformation stays an ordinary morph target, named in the report, and the file plays exactly.
+TEST(GltfCompact, ADeformationFloatCannotHoldStaysAMorphTarget) {
+  const fs::path dir = fs::temp_directory_path() / "csrbf-test-compact-close";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  fs::copy_file(example("fish.obj"), dir / "fish.obj");
+  const json close = {{"name", "close"},
+                      {"sources", {{0.725, 0.550967, 0.5}, {0.7251, 0.550967, 0.5}}},
+                      {"destinations", {{0.725, 0.600967, 0.5}, {0.7251, 0.500967, 0.5}}},
+                      {"radius", 0.3},
+                      {"phase", {{"keys", {{{"time", 0}, {"phase", 0}}, {{"time", 1.0}, {"phase", 1}}}}}}};
+  const json s = {
+      {"format", "csrbf-scene"},
+      {"version", 1},
+      {"duration", 1.0},
+      {"fps", 10},
+      {"objects",
+       {{{"name", "fish"}, {"mesh", "fish.obj"}, {"parts", {{{"name", "body"}, {"deformations", {close}}}}}}}}};
+  std::ofstream(dir / "s.scene.json") << s.dump();
+  const anim::Scene scene = io::read_scene(dir / "s.scene.json");
+  render::GltfOptions o;
+  o.compact = render::Compact::Only;
+  render::GltfReport r;
+  const std::vector<unsigned char> bytes = render::gltf_binary(scene, o, r);
+  ASSERT_EQ(r.compact_left_out, std::vector<std::string>{"fish/body/close"});
+  EXPECT_EQ(r.compact_bytes, 0u);
+  const Glb glb(bytes);
+  EXPECT_FALSE(glb.doc.contains("extensionsRequired"));
+  expect_plays_as_the_scene(scene, o, glb, r);
+  fs::remove_all(dir);
+}

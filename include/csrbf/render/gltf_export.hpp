@@ -83,6 +83,9 @@ struct GltfReport {
   /// positions and normals as written without --compact), and the extension's own (sources,
   /// coefficients, vertex groups).
   std::size_t replaced_target_bytes = 0, compact_bytes = 0;
+  /// --compact: deformations (object/part/deformation) left as ordinary morph targets, their float
+  /// form erring by more than 1e-5 of the object's rest size.
+  std::vector<std::string> compact_left_out;
   std::size_t targets = 0, max_active = 0;
   std::vector<GltfObjectReport> objects;
   std::vector<GltfPartReport> parts;  ///< every part that deforms
