@@ -278,12 +278,13 @@ void SpaceMap::normals_impl(const T* in, T* out, std::size_t n, double phase, co
   if constexpr (std::is_same_v<T, float>) {
     if (!float_normals_trusted()) {
       // Evaluated in double and rounded once at the end: blocks of `block` points in parallel,
-      // each converted in its task into buffers the thread keeps (a block's own call runs in that
-      // thread). Converting the whole batch up front in the calling thread, into fresh buffers,
-      // took 10x the float path's time (page faults and one core).
+      // each converted in its task into the task's buffers (a block's own call runs in that thread).
+      // Converting the whole batch up front in the calling thread took 10x the float path's time
+      // (page faults and one core). Not thread_local: a thread waiting inside a block's call (the
+      // point-by-point path runs its own parallel_for) may take another block of this loop.
       constexpr std::size_t block = 4096;
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, block), [&](const tbb::blocked_range<std::size_t>& r) {
-        thread_local std::vector<double> p, nm, jac;
+        std::vector<double> p, nm, jac;
         for (std::size_t i0 = r.begin(); i0 < r.end(); i0 += block) {
           const std::size_t m = std::min(block, r.end() - i0);
           p.resize(3 * block), nm.resize(normals_in ? 3 * block : 0), jac.resize(jacobians ? 9 * block : 0);

@@ -237,8 +237,7 @@ void vtkCSRBFTransform::TransformPointsNormalsVectors(vtkPoints* inPts, vtkPoint
       };
       constexpr vtkIdType block = 4096;
       tbb::parallel_for(tbb::blocked_range<vtkIdType>(0, n, block), [&](const tbb::blocked_range<vtkIdType>& r) {
-        thread_local std::vector<T> nm;
-        nm.resize(3 * std::size_t(block));
+        std::vector<T> nm(3 * std::size_t(block));  // the task's own (see SpaceMap's float fallback)
         for (vtkIdType b0 = r.begin(); b0 < r.end(); b0 += block) {
           const vtkIdType m = std::min(block, r.end() - b0);
           convert(nin, b0, m, nm.data(), false);
