@@ -217,10 +217,10 @@ void vtkCSRBFTransform::TransformPointsNormalsVectors(vtkPoints* inPts, vtkPoint
                                nin ? at(nout, normals_at) : nullptr, nullptr, true);
         return;
       }
-      // Normals of the other type: blocks in parallel, each block's normals converted into a
-      // buffer its thread keeps, deformed (a block runs in its thread) and converted back. (One
-      // conversion of the whole array into a fresh buffer cost more than the deformation: page
-      // faults and the buffer's zeroing.)
+      // Normals of the other type: blocks in parallel, each block's normals converted into its
+      // task's buffer, deformed (a block runs in its thread) and converted back. (One conversion
+      // of the whole array into a fresh buffer cost more than the deformation: page faults and the
+      // buffer's zeroing.)
       const auto convert = [](vtkDataArray* a, vtkIdType first, vtkIdType count, T* to, bool out) {
         const auto go = [&](auto* p) {
           for (vtkIdType k = 0; k < 3 * count; ++k) {
