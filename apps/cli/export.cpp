@@ -197,6 +197,7 @@ int run_export(const ExportOptions& o) {
     j["csrbf_bytes"] = r.csrbf_bytes;
     j["targets"] = r.targets;
     j["max_active_targets"] = r.max_active;
+    j["shared_targets"] = r.shared_targets;
     for (const auto& ob : r.objects)
       j["objects"].push_back({{"name", ob.name},
                               {"vertices", ob.vertices},

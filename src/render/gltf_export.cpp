@@ -28,7 +28,25 @@ namespace {
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-constexpr int kFloat = 5126, kUnsignedInt = 5125, kArrayBuffer = 34962, kElementArrayBuffer = 34963;
+constexpr int kFloat = 5126, kUnsignedShort = 5123, kUnsignedInt = 5125, kArrayBuffer = 34962,
+              kElementArrayBuffer = 34963;
+
+/// A buffer view's bytes for indices below `limit`: 16-bit where every index fits, else 32-bit.
+struct Indices {
+  std::vector<unsigned char> bytes;
+  int component = kUnsignedInt;
+  Indices(const std::vector<std::uint32_t>& index, std::size_t limit) {
+    if (limit <= 65536) {
+      component = kUnsignedShort;
+      std::vector<std::uint16_t> v(index.begin(), index.end());
+      bytes.assign(reinterpret_cast<const unsigned char*>(v.data()),
+                   reinterpret_cast<const unsigned char*>(v.data() + v.size()));
+    } else {
+      bytes.assign(reinterpret_cast<const unsigned char*>(index.data()),
+                   reinterpret_cast<const unsigned char*>(index.data() + index.size()));
+    }
+  }
+};
 
 /// The binary buffer and the JSON's accessors and buffer views that point into it.
 struct Builder {
@@ -79,8 +97,14 @@ struct Builder {
                      {"min", mn},
                      {"max", mx}});
   }
-  /// A VEC3 accessor of count entries, zero but for (index, value) pairs (sparse, no buffer view).
-  /// min and max over every entry.
+  /// The bytes of a VEC3 accessor of count entries, zero but for k listed ones: sparse (an index,
+  /// 16- or 32-bit, and a float xyz an entry; one explicit zero where none) or dense.
+  static std::size_t sparse_bytes(std::size_t count, std::size_t k) {
+    return std::max<std::size_t>(k, 1) * ((count <= 65536 ? 2 : 4) + 12);
+  }
+  static std::size_t dense_bytes(std::size_t count) { return 12 * count; }
+  /// A VEC3 accessor of count entries, zero but for (index, value) pairs: sparse (no buffer view)
+  /// where that takes fewer bytes than every entry, else dense. min and max over every entry.
   std::size_t sparse_vec3(std::size_t count, std::vector<std::uint32_t> index, std::vector<float> value,
                           const char* what) {
     check_finite(value, what);
@@ -99,16 +123,24 @@ struct Builder {
               {"type", "VEC3"},
               {"min", {lo[0], lo[1], lo[2]}},
               {"max", {hi[0], hi[1], hi[2]}}};
+    if (dense_bytes(count) < sparse_bytes(count, index.size())) {
+      std::vector<float> dense(3 * count, 0.0f);
+      for (std::size_t i = 0; i < index.size(); ++i)
+        for (int c = 0; c < 3; ++c) dense[3 * index[i] + std::size_t(c)] = value[3 * i + std::size_t(c)];
+      a["bufferView"] = view(dense.data(), dense.size() * 4);
+      return accessor(std::move(a));
+    }
     // Sparse with one explicit zero where nothing moves: three.js's loader (r111) drops an
     // accessor with neither a buffer view nor sparse values, and a target then fails to load.
     if (index.empty()) {
       index.push_back(0);
       value.assign(3, 0.0f);
     }
-    const std::size_t iv = view(index.data(), index.size() * 4);
+    const Indices ix(index, count);
+    const std::size_t iv = view(ix.bytes.data(), ix.bytes.size());
     const std::size_t vv = view(value.data(), value.size() * 4);
     a["sparse"] = {{"count", index.size()},
-                   {"indices", {{"bufferView", iv}, {"componentType", kUnsignedInt}}},
+                   {"indices", {{"bufferView", iv}, {"componentType", ix.component}}},
                    {"values", {{"bufferView", vv}}}};
     return accessor(std::move(a));
   }
@@ -640,13 +672,35 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       std::vector<Vec3> dn(nv);
       for (std::size_t v = 0; v < nv; ++v) dn[v] = n[v] - rest_normals[v];
       nonzero(dn, 1e-6, nindex, nvalue);
-      return 16 * (std::max<std::size_t>(index.size(), 1) + std::max<std::size_t>(nindex.size(), 1));
+      const auto bytes = [&](std::size_t k) {
+        return std::min(Builder::sparse_bytes(nv, k), Builder::dense_bytes(nv));
+      };
+      return bytes(index.size()) + bytes(nindex.size());
     };
+    // Targets whose displacements are identical (a baked part at rest over several frames) share
+    // their accessors: stored once.
+    // Keyed by a hash of the float values; a hit is compared whole with the earlier target's
+    // displacements (held by the plan or the baked frames: nothing is copied).
+    std::multimap<std::uint64_t, std::pair<const std::vector<Vec3>*, json>> written;
     const auto add_target = [&](const std::vector<Vec3>& d) {
       target_data(d);
+      std::uint64_t h = 1469598103934665603ull;  // FNV-1a over the listed indices and float values
+      const auto mix = [&](const void* p, std::size_t n) {
+        for (std::size_t i = 0; i < n; ++i) h = (h ^ static_cast<const unsigned char*>(p)[i]) * 1099511628211ull;
+      };
+      mix(index.data(), index.size() * sizeof(std::uint32_t));
+      mix(value.data(), value.size() * sizeof(float));
+      for (auto [it, end] = written.equal_range(h); it != end; ++it)
+        if (*it->second.first == d) {
+          targets.push_back(it->second.second);
+          ++report.shared_targets;
+          return;
+        }
       const std::size_t pa = b.sparse_vec3(nv, index, value, "a morph target's displacements");
       const std::size_t na = b.sparse_vec3(nv, nindex, nvalue, "a morph target's normals");
-      targets.push_back({{"POSITION", pa}, {"NORMAL", na}});
+      const json t = {{"POSITION", pa}, {"NORMAL", na}};
+      targets.push_back(t);
+      written.emplace(h, std::make_pair(&d, t));
     };
     std::vector<std::string> target_names;
     // --compact: which exact deformations the extension holds. Each is evaluated the way a client
@@ -849,9 +903,11 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         }
         attrs["TEXCOORD_0"] = b.floats(uv, 2, "the texture coordinates", kArrayBuffer);
       }
-      const std::size_t iv = b.view(tri.data(), tri.size() * 4, kElementArrayBuffer);
+      // 16-bit where every vertex index fits (65535 is primitive restart in some APIs: kept out).
+      const Indices ix(tri, nv <= 65535 ? nv : std::size_t(65537));
+      const std::size_t iv = b.view(ix.bytes.data(), ix.bytes.size(), kElementArrayBuffer);
       const std::size_t ia = b.accessor({{"bufferView", iv},
-                                         {"componentType", kUnsignedInt},
+                                         {"componentType", ix.component},
                                          {"count", tri.size()},
                                          {"type", "SCALAR"},
                                          {"min", {*std::min_element(tri.begin(), tri.end())}},

@@ -87,6 +87,9 @@ struct GltfReport {
   /// form erring by more than 1e-5 of the object's rest size.
   std::vector<std::string> compact_left_out;
   std::size_t targets = 0, max_active = 0;
+  /// Targets identical to an earlier one of their mesh (a baked part at rest over several frames),
+  /// which share its accessors.
+  std::size_t shared_targets = 0;
   std::vector<GltfObjectReport> objects;
   std::vector<GltfPartReport> parts;  ///< every part that deforms
 };
