@@ -682,8 +682,9 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     // Keyed by a hash of the float values; a hit is compared whole with the earlier target's
     // displacements (held by the plan or the baked frames: nothing is copied).
     std::multimap<std::uint64_t, std::pair<const std::vector<Vec3>*, json>> written;
+    // Returns the target's bytes as target_data gives them.
     const auto add_target = [&](const std::vector<Vec3>& d) {
-      target_data(d);
+      const std::size_t bytes = target_data(d);
       std::uint64_t h = 1469598103934665603ull;  // FNV-1a over the listed indices and float values
       const auto mix = [&](const void* p, std::size_t n) {
         for (std::size_t i = 0; i < n; ++i) h = (h ^ static_cast<const unsigned char*>(p)[i]) * 1099511628211ull;
@@ -694,13 +695,14 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         if (*it->second.first == d) {
           targets.push_back(it->second.second);
           ++report.shared_targets;
-          return;
+          return bytes;
         }
       const std::size_t pa = b.sparse_vec3(nv, index, value, "a morph target's displacements");
       const std::size_t na = b.sparse_vec3(nv, nindex, nvalue, "a morph target's normals");
       const json t = {{"POSITION", pa}, {"NORMAL", na}};
       targets.push_back(t);
       written.emplace(h, std::make_pair(&d, t));
+      return bytes;
     };
     std::vector<std::string> target_names;
     // --compact: which exact deformations the extension holds. Each is evaluated the way a client
@@ -749,11 +751,16 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
                                 {"max", {0.0, 0.0, 0.0}}});
     for (std::size_t j = 0; j < plan.exact.size(); ++j) {
       const auto& e = plan.exact[j];
-      if (in_extension[j]) report.replaced_target_bytes += target_data(e.d);
-      if (in_extension[j] && options.compact == Compact::Only)
+      // The target's displacements and normals are computed once: written as fallback, or only
+      // measured where --compact=only leaves the target empty.
+      std::size_t bytes = 0;
+      if (in_extension[j] && options.compact == Compact::Only) {
+        bytes = target_data(e.d);
         targets.push_back({{"POSITION", zero_target}, {"NORMAL", zero_target}});
-      else
-        add_target(e.d);
+      } else {
+        bytes = add_target(e.d);
+      }
+      if (in_extension[j]) report.replaced_target_bytes += bytes;
       target_names.push_back(obj.parts[e.part].deformations[e.deformation].name);
     }
     // CSRBF_deformation (--compact): each exact target's deformation as its sources, coefficients,
