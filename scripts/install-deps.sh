@@ -30,7 +30,6 @@ packages=(
   python3-gmsh python3-meshio python3-h5py gmsh   # tests: Gmsh, meshio (h5py: its CGNS reader) read the morphed meshes
   openfoam openfoam-examples   # tests: checkMesh, blockMesh, foamFormatConvert judge `csrbf morph`; the airFoil2D and pitzDaily tutorials
   libopenmpi-dev openmpi-bin petsc-dev   # csrbf::mpi: `mpirun csrbf deform|morph`, PETSc's MUMPS Cholesky and CG
-  libjs-three            # csrbf export --html: three.js, copied beside the page
   nodejs blender chromium   # tests: the Khronos glTF validator (npm, below), Blender's importer, the page in a browser
 )
 # npm: Debian's package, unless the machine's Node.js already brings its own (NodeSource's does, and
@@ -39,8 +38,10 @@ if ! command -v npm > /dev/null 2>&1; then
   packages+=(npm)
 fi
 
-# npm packages, into the build folder (never globally): the Khronos glTF validator for the tests.
-npm_packages=(gltf-validator@2.0.0-dev.3.10)
+# npm packages, into the build folder (never globally): the Khronos glTF validator for the tests;
+# three.js (a current release) and esbuild, which bundles it with web/csrbf_deformation.js into the
+# script of the page of `csrbf export --html` when csrbf is built.
+npm_packages=(gltf-validator@2.0.0-dev.3.10 three@0.187.0 esbuild@0.28.2)
 
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then
@@ -66,7 +67,15 @@ fi
 
 # The npm packages, into build/npm of this checkout (the tests look there: CSRBF_NODE_MODULES).
 root="$(cd "$(dirname "$0")/.." && pwd)"
-if [ ! -d "$root/build/npm/node_modules/gltf-validator" ]; then
+npm_missing=()
+for p in "${npm_packages[@]}"; do
+  name="${p%@*}"
+  version="${p##*@}"
+  if ! grep -q "\"version\": \"$version\"" "$root/build/npm/node_modules/$name/package.json" 2>/dev/null; then
+    npm_missing+=("$p")
+  fi
+done
+if [ "${#npm_missing[@]}" -gt 0 ]; then
   mkdir -p "$root/build/npm"
   echo "install-deps: npm install ${npm_packages[*]} into $root/build/npm"
   npm install --prefix "$root/build/npm" --no-audit --no-fund --loglevel=error "${npm_packages[@]}"

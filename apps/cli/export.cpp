@@ -23,11 +23,16 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// Where three.js is: CSRBF_THREE_DIR, else Debian's libjs-three.
-fs::path three_dir() {
-  if (const char* d = std::getenv("CSRBF_THREE_DIR"); d && *d) return d;
-  return CSRBF_THREE_DIR;
+/// Where the page's script is (three-csrbf.js: three.js from npm, its GLTFLoader and
+/// web/csrbf_deformation.js, bundled when csrbf is built): CSRBF_WEB_DIR, else the build's.
+fs::path web_dir() {
+  if (const char* d = std::getenv("CSRBF_WEB_DIR"); d && *d) return d;
+  return CSRBF_WEB_DIR;
 }
+
+constexpr const char* kWebMissing =
+    "the page needs three.js: run scripts/install-deps.sh (npm three and esbuild into build/npm), then rebuild; "
+    "or set CSRBF_WEB_DIR";
 
 /// Writes p (new, in the page's partial folder) with write(stream); the size written is checked.
 void write_file(const fs::path& p, const std::function<void(std::ostream&)>& write) {
@@ -46,9 +51,7 @@ void write_file(const fs::path& p, const std::string& bytes) {
 
 std::string read_all(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);
-  if (!in)
-    throw io::FileError(p.string() +
-                        ": cannot be read; the page needs three.js (Debian: libjs-three, or set CSRBF_THREE_DIR)");
+  if (!in) throw io::FileError(p.string() + ": cannot be read; " + kWebMissing);
   std::ostringstream s;
   s << in.rdbuf();
   if (in.bad()) throw io::FileError(p.string() + ": could not be read");
@@ -123,10 +126,9 @@ int run_export(const ExportOptions& o) {
                        "' exists; the page is written into a new folder (csrbf replaces nothing it did not write)");
     const fs::path parent = page.has_parent_path() ? page.parent_path() : fs::path(".");
     if (!fs::is_directory(parent, ec)) throw UsageError("--html: the folder '" + parent.string() + "' does not exist");
-    for (const char* f : {"build/three.min.js", "examples/js/loaders/GLTFLoader.js"})
-      if (!fs::is_regular_file(three_dir() / f, ec))
-        throw io::FileError((three_dir() / f).string() +
-                            ": not found; the page needs three.js (Debian: libjs-three, or set CSRBF_THREE_DIR)");
+    for (const char* f : {"three-csrbf.js", "LICENSE-three.js.txt"})
+      if (!fs::is_regular_file(web_dir() / f, ec))
+        throw io::FileError((web_dir() / f).string() + ": not found; " + kWebMissing);
   }
   std::error_code ec;
   {
@@ -169,11 +171,8 @@ int run_export(const ExportOptions& o) {
       render::write_base64(s, glb.data(), glb.size());
       s << "\";\n";
     });
-    write_file(partial.path() / "three.min.js", read_all(three_dir() / "build/three.min.js"));
-    write_file(partial.path() / "GLTFLoader.js", read_all(three_dir() / "examples/js/loaders/GLTFLoader.js"));
-    write_file(partial.path() / "LICENSE-three.js.txt",
-               "three.js (https://threejs.org), copied from " + three_dir().string() +
-                   ": MIT License, Copyright (c) 2010-2019 three.js authors\n");
+    write_file(partial.path() / "three-csrbf.js", read_all(web_dir() / "three-csrbf.js"));
+    write_file(partial.path() / "LICENSE-three.js.txt", read_all(web_dir() / "LICENSE-three.js.txt"));
     bool page_committed = false;
     try {
       r.bytes = render::write_gltf(glb, out, [&] {

@@ -217,6 +217,7 @@ struct Deformation {
 struct Mesh {
   std::string name;
   std::vector<Vec3> rest, normal;
+  std::vector<std::uint32_t> triangles;  // every primitive's, three vertices each
   std::vector<std::vector<Vec3>> target_position, target_normal;
   std::vector<double> default_weights;
   std::vector<Deformation> deformations;
@@ -248,6 +249,28 @@ void load(const json& doc, std::span<const unsigned char> bin, std::vector<Mesh>
     const std::size_t nv = out.rest.size();
     out.normal = attrs.contains("NORMAL") ? vec3s(acc.read(index_of(attrs, "NORMAL", aw), 3, "NORMAL", nv))
                                           : std::vector<Vec3>(nv, Vec3::Zero());
+    for (std::size_t pi = 0; pi < prims.size(); ++pi) {
+      const json& pr = prims[pi];
+      const std::string pw = where + ".primitives[" + std::to_string(pi) + "]";
+      if (!pr.is_object()) throw InvalidInput("glTF: " + pw + " is not an object");
+      if (pr.contains("mode") && !(pr["mode"].is_number_unsigned() && pr["mode"].get<std::uint64_t>() == 4))
+        throw InvalidInput("glTF: " + pw + ".mode " + pr["mode"].dump() + " is not 4 (triangles)");
+      std::vector<double> idx;
+      if (pr.contains("indices")) {
+        idx = acc.read(index_of(pr, "indices", pw), 1, "indices");
+      } else {
+        idx.resize(nv);
+        for (std::size_t i = 0; i < nv; ++i) idx[i] = double(i);
+      }
+      if (idx.size() % 3 != 0)
+        throw InvalidInput("glTF: " + pw + " has " + std::to_string(idx.size()) + " indices, not whole triangles");
+      for (std::size_t i = 0; i < idx.size(); ++i) {
+        if (!(idx[i] >= 0 && idx[i] < double(nv)))
+          throw InvalidInput("glTF: " + pw + ": index " + std::to_string(i) + " is " + std::to_string(idx[i]) +
+                             ", past the " + std::to_string(nv) + " vertices");
+        out.triangles.push_back(std::uint32_t(idx[i]));
+      }
+    }
     const json& targets = array_of(prim, "targets");
     for (std::size_t ti = 0; ti < targets.size(); ++ti) {
       const json& t = targets[ti];
@@ -460,6 +483,12 @@ std::size_t GltfRuntime::mesh_named(const std::string& name) const {
 }
 bool GltfRuntime::compact(std::size_t mesh) const { return !d_->meshes.at(mesh).deformations.empty(); }
 std::span<const Vec3> GltfRuntime::rest(std::size_t mesh) const { return d_->meshes.at(mesh).rest; }
+std::span<const std::uint32_t> GltfRuntime::triangles(std::size_t mesh) const { return d_->meshes.at(mesh).triangles; }
+const std::string& GltfRuntime::name(std::size_t mesh) const { return d_->meshes.at(mesh).name; }
+double GltfRuntime::duration(std::size_t mesh) const {
+  const Mesh& m = d_->meshes.at(mesh);
+  return m.times.empty() ? 0.0 : m.times.back();
+}
 
 std::vector<double> GltfRuntime::weights(std::size_t mesh, double t) const {
   const Mesh& m = d_->meshes.at(mesh);

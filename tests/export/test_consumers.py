@@ -17,8 +17,7 @@ import tempfile
 import unittest
 
 import numpy as np
-from vtkmodules.util.numpy_support import vtk_to_numpy
-from vtkmodules.vtkIOImage import vtkPNGReader
+from images import png
 
 CLI = os.environ["CSRBF_CLI"]
 SOURCE = os.environ["CSRBF_SOURCE_DIR"]
@@ -56,15 +55,6 @@ print("CSRBF-JSON " + json.dumps(out))
 
 def run(args, **kw):
     return subprocess.run(args, capture_output=True, text=True, timeout=kw.pop("timeout", 300), **kw)
-
-
-def png(path):
-    r = vtkPNGReader()
-    r.SetFileName(path)
-    r.Update()
-    w, h, _ = r.GetOutput().GetDimensions()
-    a = vtk_to_numpy(r.GetOutput().GetPointData().GetScalars())
-    return a.reshape(h, w, -1)[::-1, :, :3].astype(np.int32)  # rows top to bottom
 
 
 def mask(image, background):

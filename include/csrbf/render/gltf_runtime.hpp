@@ -7,6 +7,7 @@
 #include "csrbf/types.hpp"
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <span>
 #include <string>
@@ -28,7 +29,13 @@ class GltfRuntime {
   std::size_t mesh_named(const std::string& name) const;
   /// Whether the mesh carries CSRBF_deformation.
   bool compact(std::size_t mesh) const;
+  const std::string& name(std::size_t mesh) const;
   std::span<const Vec3> rest(std::size_t mesh) const;
+  /// Every primitive's triangles (mode 4), three vertex indices each (0, 1, 2, ... where a
+  /// primitive has no indices).
+  std::span<const std::uint32_t> triangles(std::size_t mesh) const;
+  /// The last key time of the mesh's weights channel (0 where none is animated).
+  double duration(std::size_t mesh) const;
   /// The mesh's weights at time t: the animations' `weights` channel of a node holding the mesh
   /// (LINEAR or STEP), else its default `weights`.
   std::vector<double> weights(std::size_t mesh, double t) const;

@@ -1,0 +1,239 @@
+"""The page of `csrbf export --html` in headless Chromium (SwiftShader, WebGL2, three.js from npm):
+CSRBF_deformation played in the vertex shader (CTest export_page, label "consumer").
+
+- The shader's deformed vertices, read back from a float render target, equal `csrbf deform` at the
+  same phase within 1e-5 of the mesh's bounding box diagonal, and its normals the exact J^-T n;
+- every example's deformations, played by the shader, equal the morph targets the same file holds
+  (the fallback: base plus the weighted targets, summed in JavaScript) at several times;
+- screenshots of the two paths match (kept in CSRBF_SCREENSHOT_DIR to be looked at);
+- the page warns where an engine would drop morph targets, and plays them all itself.
+
+The engine example, csrbf-play-glb, plays the same glb on the CPU from the file alone: its vertices
+equal csrbf deform's and its normals the shader's.
+
+Environment: CSRBF_CLI, CSRBF_PLAY_GLB, CSRBF_SOURCE_DIR, CSRBF_SCREENSHOT_DIR (optional).
+"""
+import base64
+import html
+import json
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import unittest
+
+import numpy as np
+from images import png
+
+CLI = os.environ["CSRBF_CLI"]
+SOURCE = os.environ["CSRBF_SOURCE_DIR"]
+SHOTS = os.environ.get("CSRBF_SCREENSHOT_DIR", "")
+PLAY = os.environ["CSRBF_PLAY_GLB"]  # examples/engine/play_glb.cpp
+EXAMPLES = os.path.join(SOURCE, "examples")
+SIZE = (640, 480)
+
+
+def run(args, **kw):
+    return subprocess.run(args, capture_output=True, text=True, timeout=kw.pop("timeout", 300), **kw)
+
+
+def chromium(url, *, screenshot=None, dump=False, budget=8000):
+    args = ["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
+            "--enable-unsafe-swiftshader", "--hide-scrollbars", f"--window-size={SIZE[0]},{SIZE[1]}",
+            f"--virtual-time-budget={budget}"]
+    if screenshot:
+        args.append(f"--screenshot={screenshot}")
+    if dump:
+        args.append("--dump-dom")
+    return run(args + [url], timeout=180)
+
+
+def element(dom, name):
+    m = re.search(r'<pre id="' + name + r'" class="out">(.*?)</pre>', dom, re.S)
+    return html.unescape(m.group(1)) if m else ""
+
+
+def floats(b64):
+    return np.frombuffer(base64.b64decode(b64), dtype=np.float32).reshape(-1, 3).astype(np.float64)
+
+
+def read_obj(path):
+    v, vn = [], []
+    with open(path) as f:
+        for line in f:
+            if line.startswith("v "):
+                v.append([float(x) for x in line.split()[1:4]])
+            elif line.startswith("vn "):
+                vn.append([float(x) for x in line.split()[1:4]])
+    return np.array(v), np.array(vn)
+
+
+def angles(a, b):
+    a = a / np.linalg.norm(a, axis=1, keepdims=True)
+    b = b / np.linalg.norm(b, axis=1, keepdims=True)
+    return np.arccos(np.clip((a * b).sum(axis=1), -1, 1))
+
+
+class Page(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.mkdtemp(prefix="csrbf-page-")
+
+    @classmethod
+    def tearDownClass(cls):
+        shutil.rmtree(cls.tmp, ignore_errors=True)
+
+    def export(self, scene, name, *flags):
+        page = os.path.join(self.tmp, name)
+        p = run([CLI, "export", scene, "-o", page + ".glb", "--html", page, "--json"] + list(flags))
+        self.assertEqual(p.returncode, 0, p.stderr)
+        return os.path.join(page, "index.html"), json.loads(p.stdout)
+
+    def readback(self, page, t):
+        p = chromium(f"file://{page}?t={t}&ui=0&readback=1", dump=True)
+        out = element(p.stdout, "readback")
+        self.assertTrue(out, p.stdout[-2000:] + p.stderr[-2000:])
+        return json.loads(out)
+
+    def test_shader_equals_csrbf_deform_at_the_same_phase(self):
+        # The fish bent by fish.controls (R = 0.3) at phase 0.37 the whole time, written as the
+        # extension alone; the shader's vertices against `csrbf deform --phase 0.37`.
+        with open(os.path.join(EXAMPLES, "fish.scene.json")) as f:
+            scene = json.load(f)
+        scene["duration"] = 1.0
+        fish = scene["objects"][0]
+        for k in ("trajectory", "orientation"):
+            fish.pop(k, None)
+        fish["mesh"] = os.path.join(EXAMPLES, "fish.obj")
+        for kernel in ("c2", "c4"):
+            fish["parts"] = [{"name": "body", "combine": "sum", "deformations": [{
+                "name": "bend", "controls": os.path.join(EXAMPLES, "fish.controls"), "radius": 0.3, "kernel": kernel,
+                "phase": {"easing": "linear", "keys": [{"time": 0.0, "phase": 0.37}, {"time": 1.0, "phase": 0.37}]}}]}]
+            path = os.path.join(self.tmp, f"bend-{kernel}.scene.json")
+            with open(path, "w") as f:
+                json.dump(scene, f)
+            page, report = self.export(path, f"bend-{kernel}", "--compact=only")
+            self.assertEqual(report["objects"][0]["compact"]["deformations"], 1, report)
+            got = self.readback(page, 0.5)["fish"]
+            deformed = os.path.join(self.tmp, f"bend-{kernel}.obj")
+            p = run([CLI, "deform", "--mesh", fish["mesh"], "--controls", os.path.join(EXAMPLES, "fish.controls"),
+                     "--radius", "0.3", "--kernel", kernel, "--phase", "0.37", "-o", deformed])
+            self.assertEqual(p.returncode, 0, p.stderr)
+            rest, _ = read_obj(fish["mesh"])
+            want, want_normals = read_obj(deformed)
+            # The glb's vertices are the OBJ's, in an order of the exporter's: matched by rest position.
+            glb_rest = floats(got["rest"])
+            index = {tuple(np.float32(v)): i for i, v in enumerate(rest)}
+            order = np.array([index[tuple(np.float32(v))] for v in glb_rest])
+            diagonal = np.linalg.norm(rest.max(axis=0) - rest.min(axis=0))
+            error = np.abs(floats(got["positions"]) - want[order]).max() / diagonal
+            moved = np.abs(want - rest).max() / diagonal
+            print(f"{kernel}: shader against csrbf deform: {error:.2e} of the diagonal (the deformation moves up to {moved:.3f})")
+            self.assertGreater(moved, 0.01)
+            self.assertLessEqual(error, 1e-5)
+            # The engine example (csrbf::render::GltfRuntime, double) from the glb alone: its vertices,
+            # and its exact normals J^-T n against the shader's.
+            frame = os.path.join(self.tmp, f"bend-{kernel}-cpu.obj")
+            p = run([PLAY, page.replace("index.html", f"bend-{kernel}.glb"), "--obj", frame, "--time", "0.5"])
+            self.assertEqual(p.returncode, 0, p.stderr)
+            self.assertIn("mesh 'fish': 977 vertices", p.stdout)
+            cpu, cpu_normals = read_obj(frame)
+            self.assertEqual(cpu.shape, want.shape)
+            self.assertLessEqual(np.abs(cpu - want[order]).max() / diagonal, 1e-6)
+            a = np.degrees(angles(floats(got["normals"]), cpu_normals))
+            print(f"{kernel}: the shader's normals against the CPU runtime's J^-T n: median {np.median(a):.1e} deg, "
+                  f"max {a.max():.1e} deg")
+            self.assertLess(a.max(), 0.01)
+
+    def six_at_once(self):
+        """The fish with six deformations at phase 0.5 at once, each a morph target with normals."""
+        with open(os.path.join(EXAMPLES, "fish.scene.json")) as f:
+            scene = json.load(f)
+        fish = scene["objects"][0]
+        fish["mesh"] = os.path.join(EXAMPLES, "fish.obj")
+        half = {"easing": "linear", "keys": [{"time": 0.0, "phase": 0.5}, {"time": scene["duration"], "phase": 0.5}]}
+        six = [(c, 0.3) for c in ("fish-tail-left", "fish-tail-right", "fish-mouth", "fish-fin", "fish")] + [("fish", 0.5)]
+        fish["parts"] = [{"name": "body", "combine": "sum", "deformations": [
+            {"name": f"d{k}", "controls": os.path.join(EXAMPLES, c + ".controls"), "radius": r, "phase": half}
+            for k, (c, r) in enumerate(six)]}]
+        path = os.path.join(self.tmp, "six.scene.json")
+        with open(path, "w") as f:
+            json.dump(scene, f)
+        return path
+
+    def test_shader_equals_the_morph_targets_of_every_example(self):
+        scenes = [(os.path.join(EXAMPLES, s + ".scene.json"), s, times)
+                  for s, times in (("fish", (0.1, 1.0, 5.3)), ("face", (1.0, 2.2)), ("ball", (0.5, 1.48)))]
+        for path, s, times in scenes + [(self.six_at_once(), "six", (1.0,))]:
+            page, report = self.export(path, s + "-compact", "--compact")
+            if not any(o.get("compact", {}).get("deformations") for o in report["objects"]):
+                print(f"{s}: nothing written as CSRBF_deformation")
+                continue
+            for t in times:
+                got = self.readback(page, t)
+                self.assertTrue(got, f"{s}: no mesh played by the shader")
+                for name, g in got.items():
+                    rest = floats(g["rest"])
+                    diagonal = np.linalg.norm(rest.max(axis=0) - rest.min(axis=0))
+                    error = np.abs(floats(g["positions"]) - floats(g["targets"])).max() / diagonal
+                    moved = np.abs(floats(g["targets"]) - rest).max() / diagonal
+                    a = np.degrees(angles(floats(g["normals"]), floats(g["target_normals"])))
+                    print(f"{s} t = {t} '{name}': shader against the targets {error:.2e} of the diagonal "
+                          f"(moved {moved:.3f}); normals against the targets' blend: median {np.median(a):.2f} deg")
+                    self.assertGreater(moved, 0.01, f"{s} '{name}' at t = {t}: nothing moves")
+                    self.assertLessEqual(error, 1e-5, f"{s} '{name}' at t = {t}")
+
+    def test_screenshots_of_both_paths_match(self):
+        # The six: three.js r111 played 4 of these 6 targets; the current release plays them all.
+        for scene, s, t in ((os.path.join(EXAMPLES, "fish.scene.json"), "fish", 1.0),
+                            (os.path.join(EXAMPLES, "face.scene.json"), "face", 2.2), (self.six_at_once(), "six", 1.0)):
+            page, _ = self.export(scene, s + "-shots", "--compact")
+            shots = {}
+            for path in ("shader", "targets"):
+                shot = os.path.join(SHOTS or self.tmp, f"page-{s}-{path}.png")
+                if os.path.exists(shot):
+                    os.remove(shot)
+                p = chromium(f"file://{page}?t={t}&ui=0&path={path}", screenshot=shot)
+                self.assertTrue(os.path.exists(shot), p.stderr[-2000:])
+                shots[path] = png(shot)
+            a, b = shots["shader"], shots["targets"]
+            with open(scene) as f:
+                background = np.asarray(json.load(f).get("background", [0.1, 0.1, 0.15])) * 255.0
+            ma = np.abs(a - background).sum(axis=2) > 40
+            mb = np.abs(b - background).sum(axis=2) > 40
+            overlap = (ma & mb).sum() / (ma | mb).sum()
+            differ = (np.abs(a - b).max(axis=2) > 24).mean()
+            print(f"{s} t = {t}: shader against targets, silhouettes overlap {overlap:.4f}, "
+                  f"{100 * differ:.2f}% of pixels differ by more than 24 levels")
+            self.assertGreater(ma.sum(), 2000)
+            self.assertGreaterEqual(overlap, 0.99, s)
+            self.assertLess(differ, 0.01, s)
+
+    def test_the_shader_file_is_the_modules_shader(self):
+        # web/csrbf_deformation.glsl (for engines) is the text csrbf_deformation.js runs.
+        with open(os.path.join(SOURCE, "web", "csrbf_deformation.glsl")) as f:
+            glsl = f.read()
+        with open(os.path.join(SOURCE, "web", "csrbf_deformation.js")) as f:
+            js = f.read()
+        m = re.search(r"// BEGIN CSRBF_GLSL\nexport const CSRBF_GLSL = `(.*?)`;\n// END CSRBF_GLSL", js, re.S)
+        self.assertIsNotNone(m)
+        self.assertEqual(m.group(1), glsl)
+
+    def test_the_page_warns_where_an_engine_would_drop_targets(self):
+        for path, name, most in ((self.six_at_once(), "six-warn", 6), (os.path.join(EXAMPLES, "face.scene.json"), "face-warn", 1)):
+            page, report = self.export(path, name)
+            self.assertEqual(report["max_active_targets"], most)
+            p = chromium(f"file://{page}?t=1&ui=0", dump=True)
+            m = re.search(r'<div id="warning">(.*?)</div>', p.stdout, re.S)
+            self.assertIsNotNone(m, p.stdout[-2000:])
+            said = html.unescape(m.group(1))
+            print(f"{name}: {most} targets at once; the page says: {said or '(nothing)'}")
+            if most > 4:  # normals are morphed: 4 in engines with the old limit
+                self.assertIn(f"{most} morph targets at once", said)
+                self.assertIn("drops some", said)
+            else:
+                self.assertEqual(said, "")
+
+if __name__ == "__main__":
+    unittest.main()

@@ -1,0 +1,464 @@
+// CSRBF_deformation for three.js (WebGL2): a GLTFLoader plugin that plays the extension in the
+// vertex shader (docs/gltf/CSRBF_deformation.md, docs/export.md "In your own three.js page").
+//
+//   import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+//   import { CSRBFDeformationPlugin } from './csrbf_deformation.js';
+//   const loader = new GLTFLoader();
+//   loader.register((parser) => new CSRBFDeformationPlugin(parser));
+//   loader.load('fish.glb', (gltf) => { ... play gltf.animations with an AnimationMixer as usual ... });
+//
+// Every mesh that carries the extension gets a CSRBFDeformation (mesh.userData.csrbfDeformation):
+// its sources, a neighbour grid and the coefficients live in textures, its materials run
+// CSRBF_GLSL (web/csrbf_deformation.glsl, the same text) before the projection, and each frame the
+// mesh's morph weights, animated by the standard `weights` channel, become the coefficients' sum.
+// The morph targets that the extension replaces are not added; the others are, as glTF adds them.
+import * as THREE from 'three';
+
+// The text of web/csrbf_deformation.glsl (a test checks that the two are the same).
+// BEGIN CSRBF_GLSL
+export const CSRBF_GLSL = `// CSRBF_deformation in a vertex shader (docs/gltf/CSRBF_deformation.md): one vertex's
+// deformations, stage by stage, and the Jacobian J of the whole map, so that the deformed normal is
+// the exact J^-T n. GLSL ES 3.00 (WebGL2) and desktop GLSL 3.30 or later; precision highp.
+//
+// The data, laid out by csrbf_deformation.js (or an engine, the same way): every texture is read
+// with texelFetch, element k at (k % width, k / width).
+//   csrbfSources       RGBA32F  element k: source k of all the mesh's deformations (xyz)
+//   csrbfCoefficients  RGBA32F  element k: sum over the terms t of source k's deformation of
+//                               w[t.weight] * alpha_t,k (xyz), updated each frame on the CPU
+//   csrbfDeformations  RGBA32F  8 elements a deformation, sorted by stage:
+//                               0: (R, kernel 0|2|4|6, stage, groups row or -1)
+//                               1: (grid origin xyz, 1 / cell side)
+//                               2: (cells along x, y, z, first cell in csrbfCells)
+//                               3: (sum of w * polynomial constant xyz, 1 if any term's w != 0)
+//                               4..6: sum of w * the polynomial's rows of L (row k multiplies x_k)
+//                               7: unused (0)
+//   csrbfCells         RG32I    element c: (first element in csrbfList, count) of the sources
+//                               within R of cell c, a cell's side at least R
+//   csrbfList          R32I     source indices
+//   csrbfGroups        R8       (group, row): 1 where the deformation of that groups row moves
+//                               vertices of that _CSRBF_GROUP
+// csrbfDeformationCount is the number of deformations (0: nothing moves).
+
+uniform highp sampler2D csrbfSources;
+uniform highp sampler2D csrbfCoefficients;
+uniform highp sampler2D csrbfDeformations;
+uniform highp isampler2D csrbfCells;
+uniform highp isampler2D csrbfList;
+uniform highp sampler2D csrbfGroups;
+uniform int csrbfDeformationCount;
+
+ivec2 csrbfAt(int k, int width) { return ivec2(k % width, k / width); }
+
+// Wendland's phi(r) and phi'(r) / r (finite at r = 0 for C2..C6; C0's gradient is 0 at a source).
+void csrbfKernel(int kernel, float r, out float phi, out float dphiOverR) {
+  float q = 1.0 - r;
+  if (kernel == 0) {
+    phi = q * q;
+    dphiOverR = r > 0.0 ? -2.0 * q / r : 0.0;
+  } else if (kernel == 2) {
+    float q3 = q * q * q;
+    phi = q3 * q * (4.0 * r + 1.0);
+    dphiOverR = -20.0 * q3;
+  } else if (kernel == 4) {
+    float q5 = q * q * q * q * q;
+    phi = q5 * q * ((35.0 * r + 18.0) * r + 3.0);
+    dphiOverR = -q5 * (280.0 * r + 56.0);
+  } else {
+    float q7 = q * q * q * q * q * q * q;
+    phi = q7 * q * (((32.0 * r + 25.0) * r + 8.0) * r + 1.0);
+    dphiOverR = -q7 * ((352.0 * r + 154.0) * r + 22.0);
+  }
+}
+
+// Moves x (the position after the morph targets that no term replaces) and n (its normal, any
+// length; returned unit) by the mesh's deformations. group is the vertex's _CSRBF_GROUP (0 where
+// the mesh has none).
+void csrbfDeform(inout vec3 x, inout vec3 n, float group) {
+  int sw = textureSize(csrbfSources, 0).x, cw = textureSize(csrbfCoefficients, 0).x;
+  int dw = textureSize(csrbfDeformations, 0).x, gw = textureSize(csrbfCells, 0).x;
+  int lw = textureSize(csrbfList, 0).x;
+  ivec2 groupsSize = textureSize(csrbfGroups, 0);
+  vec3 y = x;
+  mat3 stageJ = mat3(1.0), J = mat3(1.0);
+  float stage = -1.0;
+  for (int d = 0; d < csrbfDeformationCount; ++d) {
+    vec4 head = texelFetch(csrbfDeformations, csrbfAt(8 * d, dw), 0);
+    if (head.z != stage) {  // a new stage sees the points the stages before it produced
+      x = y;
+      J = stageJ * J;
+      stageJ = mat3(1.0);
+      stage = head.z;
+    }
+    vec4 constant = texelFetch(csrbfDeformations, csrbfAt(8 * d + 3, dw), 0);
+    if (constant.w == 0.0) continue;  // every term's phase is 0 this frame
+    if (head.w >= 0.0) {
+      int g = int(group + 0.5);
+      if (g >= groupsSize.x || texelFetch(csrbfGroups, ivec2(g, int(head.w)), 0).r < 0.5) continue;
+    }
+    vec3 l0 = texelFetch(csrbfDeformations, csrbfAt(8 * d + 4, dw), 0).xyz;
+    vec3 l1 = texelFetch(csrbfDeformations, csrbfAt(8 * d + 5, dw), 0).xyz;
+    vec3 l2 = texelFetch(csrbfDeformations, csrbfAt(8 * d + 6, dw), 0).xyz;
+    vec3 sum = constant.xyz + x.x * l0 + x.y * l1 + x.z * l2;
+    mat3 gradient = mat3(l0, l1, l2);  // d sum_j / d x_k in column k, row j
+    vec4 grid = texelFetch(csrbfDeformations, csrbfAt(8 * d + 1, dw), 0);
+    vec4 dims = texelFetch(csrbfDeformations, csrbfAt(8 * d + 2, dw), 0);
+    vec3 cellf = floor((x - grid.xyz) * grid.w);
+    if (all(greaterThanEqual(cellf, vec3(0.0))) && all(lessThan(cellf, dims.xyz))) {
+      ivec3 c = ivec3(cellf);
+      ivec3 n3 = ivec3(dims.xyz);
+      int cell = int(dims.w) + c.x + n3.x * (c.y + n3.y * c.z);
+      ivec2 run = texelFetch(csrbfCells, csrbfAt(cell, gw), 0).xy;
+      float invR = 1.0 / head.x;
+      int kernel = int(head.y + 0.5);
+      for (int k = 0; k < run.y; ++k) {
+        int i = texelFetch(csrbfList, csrbfAt(run.x + k, lw), 0).x;
+        vec3 e = (x - texelFetch(csrbfSources, csrbfAt(i, sw), 0).xyz) * invR;
+        float r2 = dot(e, e);
+        if (r2 >= 1.0) continue;
+        float phi, dphiOverR;
+        csrbfKernel(kernel, sqrt(r2), phi, dphiOverR);
+        vec3 a = texelFetch(csrbfCoefficients, csrbfAt(i, cw), 0).xyz;
+        sum += phi * a;
+        gradient += outerProduct(a, e * (dphiOverR * invR));
+      }
+    }
+    y += sum;
+    stageJ += gradient;
+  }
+  x = y;
+  J = stageJ * J;
+  // J^-T n = cof(J) n / det J: the columns' cross products, with det's sign.
+  vec3 a = J[0], b = J[1], c = J[2];
+  vec3 m = n.x * cross(b, c) + n.y * cross(c, a) + n.z * cross(a, b);
+  float s = dot(a, cross(b, c)) < 0.0 ? -1.0 : 1.0;
+  float len = length(m);
+  n = len > 0.0 ? m * (s / len) : n;
+}
+`;
+// END CSRBF_GLSL
+
+export const CSRBF_EXTENSION = 'CSRBF_deformation';
+const KERNELS = { C0: 0, C2: 2, C4: 4, C6: 6 };
+const WIDTH = 1024;  // texels a row of every data texture
+const MAX_CELLS = 1 << 18;  // a deformation's grid: its cells grow past R to stay within this
+
+function rows(count) { return Math.max(1, Math.ceil(count / WIDTH)); }
+
+function dataTexture(array, format, type, internal) {
+  const t = new THREE.DataTexture(array, WIDTH, array.length / WIDTH / (format === THREE.RGBAFormat ? 4 : format === THREE.RGIntegerFormat ? 2 : 1), format, type);
+  if (internal) t.internalFormat = internal;
+  t.minFilter = t.magFilter = THREE.NearestFilter;
+  t.generateMipmaps = false;
+  t.flipY = false;
+  t.unpackAlignment = 1;
+  t.needsUpdate = true;
+  return t;
+}
+
+// The cells of side h >= R over the sources' box grown by R, each listing the sources within R of
+// it (the core's neighbour grid). A point outside the grid is farther than R from every source.
+function neighbourGrid(sources, radius) {
+  const n = sources.length / 3;
+  const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+  for (let i = 0; i < n; ++i)
+    for (let k = 0; k < 3; ++k) {
+      lo[k] = Math.min(lo[k], sources[3 * i + k]);
+      hi[k] = Math.max(hi[k], sources[3 * i + k]);
+    }
+  const origin = lo.map((v) => v - radius);
+  const extent = [0, 1, 2].map((k) => hi[k] + radius - origin[k]);
+  let h = radius;
+  let dims = extent.map((e) => Math.max(1, Math.ceil(e / h)));
+  while (dims[0] * dims[1] * dims[2] > MAX_CELLS) {
+    h *= 1.25;
+    dims = extent.map((e) => Math.max(1, Math.ceil(e / h)));
+  }
+  const cells = dims[0] * dims[1] * dims[2];
+  const count = new Int32Array(cells);
+  const visit = (i, add) => {
+    const s = [sources[3 * i], sources[3 * i + 1], sources[3 * i + 2]];
+    const a = [0, 1, 2].map((k) => Math.max(0, Math.floor((s[k] - radius - origin[k]) / h)));
+    const b = [0, 1, 2].map((k) => Math.min(dims[k] - 1, Math.floor((s[k] + radius - origin[k]) / h)));
+    for (let z = a[2]; z <= b[2]; ++z)
+      for (let y = a[1]; y <= b[1]; ++y)
+        for (let x = a[0]; x <= b[0]; ++x) {
+          // The distance from s to the cell's box, against R (a little wider: float rounding).
+          const c = [x, y, z];
+          let d2 = 0;
+          for (let k = 0; k < 3; ++k) {
+            const l = origin[k] + c[k] * h, u = l + h;
+            const e = s[k] < l ? l - s[k] : s[k] > u ? s[k] - u : 0;
+            d2 += e * e;
+          }
+          if (d2 <= radius * radius * (1 + 1e-6)) add(x + dims[0] * (y + dims[1] * z));
+        }
+  };
+  for (let i = 0; i < n; ++i) visit(i, (c) => ++count[c]);
+  const first = new Int32Array(cells + 1);
+  for (let c = 0; c < cells; ++c) first[c + 1] = first[c] + count[c];
+  const list = new Int32Array(first[cells]);
+  const at = first.slice(0, cells);
+  for (let i = 0; i < n; ++i) visit(i, (c) => { list[at[c]++] = i; });
+  return { origin, h, dims, first, count, list };
+}
+
+// One mesh's deformations: textures, uniforms and the per-frame sum of its terms.
+export class CSRBFDeformation {
+  // deformations: [{ kernel: 'C2', radius, stage, groups: [..] | undefined, sources: Float32Array
+  // (xyz), terms: [{ weight, coefficients: Float32Array (xyz), polynomial: [12] | undefined }] }]
+  constructor(deformations) {
+    this.enabled = true;
+    this.deformations = deformations.map((d, index) => ({ ...d, index, stage: d.stage || 0 }))
+      .sort((a, b) => a.stage - b.stage || a.index - b.index);
+    this.replaced = new Set();
+    let sources = 0, cells = 0, listed = 0;
+    const groupRows = [];
+    let groupCount = 1;
+    for (const d of this.deformations) {
+      if (!(d.kernel in KERNELS)) throw new Error(`${CSRBF_EXTENSION}: kernel '${d.kernel}' is not C0, C2, C4 or C6`);
+      if (!(d.radius > 0)) throw new Error(`${CSRBF_EXTENSION}: radius ${d.radius} is not > 0`);
+      const n = d.sources.length / 3;
+      for (const t of d.terms) {
+        if (t.coefficients.length !== 3 * n) throw new Error(`${CSRBF_EXTENSION}: a term's coefficients are not one a source`);
+        this.replaced.add(t.weight);
+      }
+      d.firstSource = sources;
+      sources += n;
+      d.grid = neighbourGrid(d.sources, d.radius);
+      d.firstCell = cells;
+      d.firstListed = listed;
+      cells += d.grid.dims[0] * d.grid.dims[1] * d.grid.dims[2];
+      listed += d.grid.list.length;
+      if (d.groups && d.groups.length) {
+        d.groupsRow = groupRows.length;
+        groupRows.push(d.groups);
+        for (const g of d.groups) groupCount = Math.max(groupCount, g + 1);
+      } else d.groupsRow = -1;
+      if (cells > 2 ** 24 || sources > 2 ** 24) throw new Error(`${CSRBF_EXTENSION}: too many sources or cells for float indices`);
+    }
+    this.sourceCount = sources;
+    const sourceData = new Float32Array(rows(sources) * WIDTH * 4);
+    const cellData = new Int32Array(rows(cells) * WIDTH * 2);
+    const listData = new Int32Array(rows(listed) * WIDTH);
+    this.coefficientData = new Float32Array(rows(sources) * WIDTH * 4);
+    this.deformationData = new Float32Array(rows(8 * this.deformations.length) * WIDTH * 4);
+    const groupData = new Uint8Array(Math.max(1, groupRows.length) * groupCount);
+    groupRows.forEach((list, row) => { for (const g of list) groupData[row * groupCount + g] = 255; });
+    for (const d of this.deformations) {
+      const n = d.sources.length / 3;
+      for (let i = 0; i < n; ++i)
+        for (let k = 0; k < 3; ++k) sourceData[4 * (d.firstSource + i) + k] = d.sources[3 * i + k];
+      const g = d.grid, cellsHere = g.dims[0] * g.dims[1] * g.dims[2];
+      for (let c = 0; c < cellsHere; ++c) {
+        cellData[2 * (d.firstCell + c)] = d.firstListed + g.first[c];
+        cellData[2 * (d.firstCell + c) + 1] = g.count[c];
+      }
+      for (let k = 0; k < g.list.length; ++k) listData[d.firstListed + k] = d.firstSource + g.list[k];
+      const o = 32 * this.deformations.indexOf(d);
+      this.deformationData.set([d.radius, KERNELS[d.kernel], d.stage, d.groupsRow], o);
+      this.deformationData.set([g.origin[0], g.origin[1], g.origin[2], 1 / g.h], o + 4);
+      this.deformationData.set([g.dims[0], g.dims[1], g.dims[2], d.firstCell], o + 8);
+    }
+    this.textures = {
+      csrbfSources: dataTexture(sourceData, THREE.RGBAFormat, THREE.FloatType),
+      csrbfCoefficients: dataTexture(this.coefficientData, THREE.RGBAFormat, THREE.FloatType),
+      csrbfDeformations: dataTexture(this.deformationData, THREE.RGBAFormat, THREE.FloatType),
+      csrbfCells: dataTexture(cellData, THREE.RGIntegerFormat, THREE.IntType, 'RG32I'),
+      csrbfList: dataTexture(listData, THREE.RedIntegerFormat, THREE.IntType, 'R32I'),
+    };
+    const groups = new THREE.DataTexture(groupData, groupCount, Math.max(1, groupRows.length), THREE.RedFormat, THREE.UnsignedByteType);
+    groups.minFilter = groups.magFilter = THREE.NearestFilter;
+    groups.generateMipmaps = false;
+    groups.unpackAlignment = 1;
+    groups.needsUpdate = true;
+    this.textures.csrbfGroups = groups;
+    this.uniforms = { csrbfDeformationCount: { value: this.deformations.length } };
+    for (const [k, t] of Object.entries(this.textures)) this.uniforms[k] = { value: t };
+    this._weights = null;
+  }
+
+  // The coefficients' and polynomials' sums at these weights (the mesh's morph weights).
+  update(weights) {
+    if (this._weights && this._weights.length === weights.length && this._weights.every((w, i) => w === weights[i])) return;
+    this._weights = Array.from(weights);
+    this.coefficientData.fill(0);
+    this.deformations.forEach((d, slot) => {
+      const o = 32 * slot;
+      const poly = new Float32Array(16);
+      let active = 0;
+      for (const t of d.terms) {
+        const w = t.weight < weights.length ? weights[t.weight] : 0;
+        if (w === 0) continue;
+        active = 1;
+        const c = t.coefficients, n = c.length / 3;
+        for (let i = 0; i < n; ++i)
+          for (let k = 0; k < 3; ++k) this.coefficientData[4 * (d.firstSource + i) + k] += w * c[3 * i + k];
+        if (t.polynomial)
+          for (let k = 0; k < 12; ++k) poly[k + ((k / 3) | 0)] += w * t.polynomial[k];
+      }
+      poly[3] = active;
+      this.deformationData.set(poly, o + 12);  // elements 3..6
+    });
+    this.textures.csrbfCoefficients.needsUpdate = true;
+    this.textures.csrbfDeformations.needsUpdate = true;
+  }
+
+  // Plays the deformations on mesh (a Mesh of a glTF mesh with the extension): its materials are
+  // cloned and get CSRBF_GLSL; each frame its weights are summed and the replaced targets skipped.
+  attach(mesh) {
+    const self = this;
+    const patch = (material) => {
+      const m = material.clone();
+      m.onBeforeCompile = (shader) => {
+        Object.assign(shader.uniforms, self.uniforms);
+        shader.vertexShader = injectCSRBF(shader.vertexShader);
+      };
+      m.customProgramCacheKey = () => 'csrbf-deformation';
+      return m;
+    };
+    mesh.material = Array.isArray(mesh.material) ? mesh.material.map(patch) : patch(mesh.material);
+    mesh.frustumCulled = false;  // the bounds are the rest shape's
+    const saved = [];
+    mesh.onBeforeRender = function () {
+      const w = this.morphTargetInfluences || [];
+      self.uniforms.csrbfDeformationCount.value = self.enabled ? self.deformations.length : 0;
+      if (!self.enabled) return;
+      self.update(w);
+      saved.length = 0;
+      for (const k of self.replaced) if (k < w.length) { saved.push([k, w[k]]); w[k] = 0; }
+    };
+    mesh.onAfterRender = function () {
+      const w = this.morphTargetInfluences || [];
+      for (const [k, v] of saved) w[k] = v;
+      saved.length = 0;
+    };
+    mesh.userData.csrbfDeformation = this;
+    return this;
+  }
+
+  // The deformed positions (what = 'position') or unit normals ('normal') of mesh's vertices at
+  // its current weights, computed by CSRBF_GLSL and read back from a float render target: M × 3.
+  readback(renderer, mesh, what = 'position') {
+    const geometry = mesh.geometry, count = geometry.attributes.position.count;
+    const width = 256, height = Math.max(1, Math.ceil(count / width));
+    const target = new THREE.WebGLRenderTarget(width, height, {
+      type: THREE.FloatType, format: THREE.RGBAFormat, minFilter: THREE.NearestFilter,
+      magFilter: THREE.NearestFilter, depthBuffer: false,
+    });
+    const weights = Array.from(mesh.morphTargetInfluences || []);
+    this.update(weights);
+    for (const k of this.replaced) if (k < weights.length) weights[k] = 0;
+    const material = new THREE.ShaderMaterial({
+      uniforms: { ...this.uniforms, csrbfReadWidth: { value: width }, csrbfReadHeight: { value: height },
+        csrbfReadNormal: { value: what === 'normal' ? 1 : 0 } },
+      vertexShader: `
+        #include <common>
+        #include <morphtarget_pars_vertex>
+        attribute float _csrbf_group;
+        ${CSRBF_GLSL}
+        uniform int csrbfReadWidth, csrbfReadHeight, csrbfReadNormal;
+        varying vec4 csrbfValue;
+        void main() {
+          vec3 objectNormal = vec3(normal);
+          #include <morphnormal_vertex>
+          vec3 transformed = vec3(position);
+          #include <morphtarget_vertex>
+          csrbfDeform(transformed, objectNormal, _csrbf_group);
+          csrbfValue = vec4(csrbfReadNormal == 1 ? objectNormal : transformed, 1.0);
+          vec2 at = vec2(float(gl_VertexID % csrbfReadWidth), float(gl_VertexID / csrbfReadWidth)) + 0.5;
+          gl_Position = vec4(at / vec2(csrbfReadWidth, csrbfReadHeight) * 2.0 - 1.0, 0.0, 1.0);
+          gl_PointSize = 1.0;
+        }`,
+      fragmentShader: `
+        varying vec4 csrbfValue;
+        void main() { gl_FragColor = csrbfValue; }`,
+      depthTest: false, depthWrite: false, blending: THREE.NoBlending,
+    });
+    material.uniforms.csrbfDeformationCount.value = this.deformations.length;
+    const points = new THREE.Points(geometry, material);
+    points.morphTargetInfluences = weights;
+    points.frustumCulled = false;
+    const scene = new THREE.Scene();
+    scene.add(points);
+    const camera = new THREE.OrthographicCamera(-1, 1, 1, -1, -1, 1);
+    const before = renderer.getRenderTarget();
+    renderer.setRenderTarget(target);
+    renderer.setClearColor(0x000000, 0);
+    renderer.clear();
+    renderer.render(scene, camera);
+    const pixels = new Float32Array(width * height * 4);
+    renderer.readRenderTargetPixels(target, 0, 0, width, height, pixels);
+    renderer.setRenderTarget(before);
+    target.dispose();
+    material.dispose();
+    this.uniforms.csrbfDeformationCount.value = this.enabled ? this.deformations.length : 0;
+    const out = new Float32Array(3 * count);
+    for (let i = 0; i < count; ++i) for (let k = 0; k < 3; ++k) out[3 * i + k] = pixels[4 * i + k];
+    return out;
+  }
+}
+
+// A three.js vertex shader with CSRBF_GLSL run after the morph targets: the position and normal
+// are deformed together, before skinning and the projection.
+export function injectCSRBF(vertexShader) {
+  const morph = THREE.ShaderChunk.morphtarget_vertex.replace(/\btransformed\b/g, 'csrbfPosition');
+  const block = `
+    vec3 csrbfPosition = vec3(position);
+    ${morph}
+    csrbfDeform(csrbfPosition, csrbfNormal, _csrbf_group);`;
+  let s = vertexShader.replace('void main() {', `attribute float _csrbf_group;\n${CSRBF_GLSL}\nvoid main() {`);
+  if (s.includes('#include <morphnormal_vertex>')) {
+    s = s.replace('#include <morphnormal_vertex>', `#include <morphnormal_vertex>\n#define csrbfNormal objectNormal\n${block}\n#undef csrbfNormal`);
+  } else {
+    s = s.replace('#include <begin_vertex>', `vec3 csrbfNormal = vec3(0.0, 0.0, 1.0);\n${block}\n#include <begin_vertex>`);
+  }
+  if (!s.includes('csrbfDeform(') || !s.includes('#include <begin_vertex>') || !s.includes('#include <morphtarget_vertex>'))
+    throw new Error(`${CSRBF_EXTENSION}: this three.js's vertex shader has no <begin_vertex> and <morphtarget_vertex>`);
+  return s.replace('#include <begin_vertex>', '#include <begin_vertex>\ntransformed = csrbfPosition;')
+    .replace('#include <morphtarget_vertex>', '');
+}
+
+// The GLTFLoader plugin: reads each mesh's extension (accessors through the parser) and attaches
+// a CSRBFDeformation to every Mesh made of it.
+export class CSRBFDeformationPlugin {
+  constructor(parser) {
+    this.parser = parser;
+    this.name = CSRBF_EXTENSION;
+  }
+
+  async afterRoot(result) {
+    const parser = this.parser, json = parser.json;
+    const made = new Map();
+    const load = async (meshIndex) => {
+      const ext = json.meshes[meshIndex].extensions[CSRBF_EXTENSION];
+      const floats = async (index, what) => {
+        const a = await parser.getDependency('accessor', index);
+        if (a.itemSize !== 3) throw new Error(`${CSRBF_EXTENSION}: ${what} accessor ${index} is not VEC3`);
+        const out = new Float32Array(3 * a.count);
+        for (let i = 0; i < a.count; ++i) { out[3 * i] = a.getX(i); out[3 * i + 1] = a.getY(i); out[3 * i + 2] = a.getZ(i); }
+        return out;
+      };
+      const deformations = [];
+      for (const d of ext.deformations) {
+        const terms = [];
+        for (const t of d.terms)
+          terms.push({ weight: t.weight, coefficients: await floats(t.coefficients, 'coefficients'), polynomial: t.polynomial });
+        deformations.push({ kernel: d.kernel, radius: d.radius, stage: d.stage || 0, groups: d.groups,
+          sources: await floats(d.sources, 'sources'), terms });
+      }
+      return new CSRBFDeformation(deformations);
+    };
+    const meshes = [];
+    result.scene.traverse((o) => {
+      const a = parser.associations.get(o);
+      if (!o.isMesh || !a || a.meshes === undefined) return;
+      const def = json.meshes[a.meshes];
+      if (def && def.extensions && def.extensions[CSRBF_EXTENSION]) meshes.push([o, a.meshes]);
+    });
+    for (const [o, index] of meshes) {
+      if (!made.has(index)) made.set(index, await load(index));
+      made.get(index).attach(o);
+    }
+    result.userData.csrbfDeformations = [...new Set(made.values())];
+  }
+}
