@@ -79,6 +79,8 @@ class Page(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
         cls.tmp = tempfile.mkdtemp(prefix="csrbf-page-")
+        if SHOTS:
+            os.makedirs(SHOTS, exist_ok=True)
 
     @classmethod
     def tearDownClass(cls):
