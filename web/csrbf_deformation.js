@@ -375,7 +375,12 @@ export class CSRBFDeformation {
       depthTest: false, depthWrite: false, blending: THREE.NoBlending,
     });
     material.uniforms.csrbfDeformationCount.value = this.deformations.length;
-    const points = new THREE.Points(geometry, material);
+    // Every vertex once, drawn as a point: the attributes without the primitive's index.
+    const all = new THREE.BufferGeometry();
+    for (const [k, a] of Object.entries(geometry.attributes)) all.setAttribute(k, a);
+    all.morphAttributes = geometry.morphAttributes;
+    all.morphTargetsRelative = geometry.morphTargetsRelative;
+    const points = new THREE.Points(all, material);
     points.morphTargetInfluences = weights;
     points.frustumCulled = false;
     const scene = new THREE.Scene();
@@ -391,6 +396,7 @@ export class CSRBFDeformation {
     renderer.setRenderTarget(before);
     target.dispose();
     material.dispose();
+    all.dispose();
     this.uniforms.csrbfDeformationCount.value = this.enabled ? this.deformations.length : 0;
     const out = new Float32Array(3 * count);
     for (let i = 0; i < count; ++i) for (let k = 0; k < 3; ++k) out[3 * i + k] = pixels[4 * i + k];

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <sstream>
+#include <stdexcept>
 
 namespace csrbf::anim {
 
@@ -163,6 +164,35 @@ double Player::bytes(const Scene& scene) {
 Player::~Player() = default;
 Player::Player(Player&&) noexcept = default;
 
+std::optional<SpaceMap> Player::contact_map(std::size_t object, std::size_t part, std::size_t deformation,
+                                            double t) const {
+  std::vector<Vec3> s, d;
+  return contact_fit(object, part, deformation, t, s, d);
+}
+
+std::optional<SpaceMap> Player::contact_fit(std::size_t o, std::size_t p, std::size_t k, double t, std::vector<Vec3>& s,
+                                            std::vector<Vec3>& d) const {
+  const Object& obj = scene_->objects.at(o);
+  const Deformation& def = obj.parts.at(p).deformations.at(k);
+  if (!def.contact) throw std::invalid_argument("Player::contact_map: the deformation is not a contact");
+  const PartState& ps = impl_->objects[o].parts[p];
+  const Pose pose = pose_at(obj, t);
+  const Pose cp = pose_at(scene_->objects[def.contact->collider], t);
+  // The collider's centre in this object's model coordinates.
+  const Vec3 centre = pose.rotation.conjugate() * (cp.position - pose.position) + obj.centre;
+  contact_controls(ps.lo, ps.hi, centre, def.contact->collider_radius, def.contact->spread, s, d);
+  if (s.size() == 8) return std::nullopt;
+  // A contact is refitted at every frame: a fit that fails says where and when.
+  try {
+    return SpaceMap::fit(s, d, def.options);
+  } catch (const std::exception& e) {
+    std::ostringstream m;
+    m << "objects[" << o << "].parts[" << p << "].deformations[" << k << "] (contact) at t = " << t
+      << " s: " << e.what();
+    throw InvalidInput(m.str());
+  }
+}
+
 void Player::evaluate(double t) {
   const Scene& scene = *scene_;
   for (std::size_t o = 0; o < scene.objects.size(); ++o) {
@@ -181,23 +211,9 @@ void Player::evaluate(double t) {
         const double phase = def.schedule.phase(t);
         if (phase == 0.0) continue;
         if (def.contact) {
-          const Object& col = scene.objects[def.contact->collider];
-          const Pose cp = pose_at(col, t);
-          // The collider's centre in this object's model coordinates.
-          const Vec3 centre = pose.rotation.conjugate() * (cp.position - pose.position) + obj.centre;
-          contact_controls(ps.lo, ps.hi, centre, def.contact->collider_radius, def.contact->spread, impl_->s, impl_->d);
-          if (impl_->s.size() == 8) continue;  // no wall touched: corners only, the identity
-          // A contact is refitted at every frame: a fit that fails says where and when.
-          const SpaceMap map = [&] {
-            try {
-              return SpaceMap::fit(impl_->s, impl_->d, def.options);
-            } catch (const std::exception& e) {
-              std::ostringstream m;
-              m << "objects[" << o << "].parts[" << p << "].deformations[" << k << "] (contact) at t = " << t
-                << " s: " << e.what();
-              throw InvalidInput(m.str());
-            }
-          }();
+          const std::optional<SpaceMap> fitted = contact_fit(o, p, k, t, impl_->s, impl_->d);
+          if (!fitted) continue;  // no wall touched: corners only, the identity
+          const SpaceMap& map = *fitted;
           const double* in = part.combine == Combine::Sum ? ps.rest.data() : ps.a.data();
           if (part.combine == Combine::Sum) {
             map.displacements(in, ps.b.data(), n);

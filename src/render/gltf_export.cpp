@@ -18,6 +18,7 @@
 #include <fstream>
 #include <iterator>
 #include <map>
+#include <memory>
 #include <numbers>
 #include <sstream>
 #include <string_view>
@@ -336,17 +337,34 @@ bool moves_vertex(const anim::Object& obj, const ObjectPlan& plan, const ObjectP
          (area.empty() || std::binary_search(area.begin(), area.end(), std::uint32_t(v)));
 }
 
-/// The map as CSRBF_deformation stores it: sources, coefficients and polynomial rounded to float.
-SpaceMap float_form(const SpaceMap& map) {
+/// A deformation of a baked part as CSRBF_deformation writes it: a fixed one with a term for each
+/// baked frame where its phase is not 0; a contact's fit at one frame, with that frame's term.
+struct BakedDeformation {
+  std::size_t part, deformation, slot, stage;
+  std::shared_ptr<const SpaceMap> map;
+  std::vector<std::pair<std::size_t, double>> terms;  // (the baked target's index among them, phase)
+};
+
+/// Whether baked deformation bd may move vertex v: its part owns v, and v is in its area (a contact
+/// moves its whole part).
+bool baked_moves(const anim::Object& obj, const ObjectPlan& plan, const BakedDeformation& bd, std::size_t v) {
+  const auto& def = obj.parts[bd.part].deformations[bd.deformation];
+  return plan.owner[v] == int(bd.part) &&
+         (def.contact || def.area.empty() || std::binary_search(def.area.begin(), def.area.end(), std::uint32_t(v)));
+}
+
+/// The map as CSRBF_deformation stores it: sources, coefficients and polynomial (times scale, a
+/// per-frame term's phase) rounded to float.
+SpaceMap float_form(const SpaceMap& map, double scale = 1.0) {
   const std::size_t n = map.size();
   std::vector<Vec3> src(n);
   Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(n), 3);
   for (std::size_t i = 0; i < n; ++i) {
     src[i] = map.sources()[i].cast<float>().cast<double>();
-    alpha.row(Eigen::Index(i)) = map.coefficients().row(Eigen::Index(i)).cast<float>().cast<double>();
+    alpha.row(Eigen::Index(i)) = (scale * map.coefficients().row(Eigen::Index(i))).cast<float>().cast<double>();
   }
   Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
-  if (map.polynomial() != Polynomial::None) beta = map.polynomial_coefficients().cast<float>().cast<double>();
+  if (map.polynomial() != Polynomial::None) beta = (scale * map.polynomial_coefficients()).cast<float>().cast<double>();
   FitOptions fo;
   fo.radius = map.radius();
   fo.kernel = map.kernel();
@@ -741,7 +759,99 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         }
       }
     }
-    const bool compact = std::find(in_extension.begin(), in_extension.end(), 1) != in_extension.end();
+    // The baked frames (frames where nothing moves have no target); their targets follow the exact ones.
+    std::vector<std::size_t> baked_frame;  // the frame of each baked target
+    if (plan.any_baked())
+      for (std::size_t k = 0; k < frames; ++k) {
+        bool moves = false;
+        for (const auto& d : baked_frames[o][k]) moves |= d != Vec3::Zero();
+        if (moves) baked_frame.push_back(k);
+      }
+    // --compact: the baked parts as CSRBF_deformation too. Each baked target's frame becomes terms
+    // of its weight: a fixed deformation keeps its sources, with one term a frame, its coefficients
+    // times the frame's phase; a contact, refitted every frame, is a deformation a frame (its
+    // sources move) with one term. A Compose part's deformations are stages, in order. The baked
+    // targets are replaced only where every frame's float form, evaluated as a client evaluates
+    // it, is within the tolerance of the baked displacement.
+    std::vector<BakedDeformation> baked_defs;
+    std::vector<std::pair<std::size_t, std::size_t>> baked_slots;  // (part, deformation) for vertex groups
+    bool baked_in_extension = false;
+    double baked_error = 0;
+    if (options.compact != Compact::Off && !baked_frame.empty()) {
+      for (std::size_t p = 0; p < obj.parts.size(); ++p) {
+        const anim::Part& part = obj.parts[p];
+        if (!plan.baked[p]) continue;
+        for (std::size_t i = 0; i < part.deformations.size(); ++i) {
+          const anim::Deformation& def = part.deformations[i];
+          const std::size_t stage = part.combine == anim::Combine::Compose ? i : 0;
+          const std::size_t slot = baked_slots.size();
+          baked_slots.emplace_back(p, i);
+          if (def.map) baked_defs.push_back({p, i, slot, stage, std::make_shared<SpaceMap>(*def.map), {}});
+          for (std::size_t j = 0; j < baked_frame.size(); ++j) {
+            const double t = frame_t[baked_frame[j]];
+            const double phase = def.schedule.phase(t);
+            if (phase == 0.0) continue;
+            if (def.map) {
+              baked_defs.back().terms.emplace_back(j, phase);
+            } else if (auto fit = player.contact_map(o, p, i, t)) {
+              baked_defs.push_back({p, i, slot, stage, std::make_shared<SpaceMap>(std::move(*fit)), {{j, phase}}});
+            }
+          }
+        }
+      }
+      Vec3 lo = obj.rest.front(), hi = lo;
+      for (const Vec3& x : obj.rest) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
+      const double tolerance = 1e-5 * (hi - lo).norm();
+      std::vector<SpaceMap> written;  // per baked_defs entry and term, made once a frame below
+      for (std::size_t j = 0; j < baked_frame.size() && baked_error <= tolerance; ++j) {
+        const auto& want = baked_frames[o][baked_frame[j]];
+        for (std::size_t p = 0; p < obj.parts.size(); ++p) {
+          if (!plan.baked[p]) continue;
+          std::vector<std::size_t> verts;
+          for (std::size_t v = 0; v < nv; ++v)
+            if (plan.owner[v] == int(p)) verts.push_back(v);
+          std::vector<Vec3> x(verts.size()), y, dw;
+          for (std::size_t i = 0; i < verts.size(); ++i) x[i] = obj.rest[verts[i]].cast<float>().cast<double>();
+          std::size_t stage_count = 0;
+          for (const auto& bd : baked_defs)
+            if (bd.part == p) stage_count = std::max(stage_count, bd.stage + 1);
+          for (std::size_t stage = 0; stage < stage_count; ++stage) {
+            y = x;
+            for (const auto& bd : baked_defs) {
+              if (bd.part != p || bd.stage != stage) continue;
+              const auto term =
+                  std::find_if(bd.terms.begin(), bd.terms.end(), [&](const auto& t) { return t.first == j; });
+              if (term == bd.terms.end()) continue;
+              const SpaceMap form = float_form(*bd.map, term->second);
+              std::vector<Vec3> at;
+              std::vector<std::size_t> which;
+              for (std::size_t i = 0; i < verts.size(); ++i)
+                if (baked_moves(obj, plan, bd, verts[i])) {
+                  which.push_back(i);
+                  at.push_back(x[i]);
+                }
+              dw.resize(at.size());
+              if (!at.empty()) form.displacements(at.data()->data(), dw.data()->data(), at.size());
+              for (std::size_t i = 0; i < at.size(); ++i) y[which[i]] += dw[i];
+            }
+            x = y;
+          }
+          for (std::size_t i = 0; i < verts.size(); ++i) {
+            const double d = (x[i] - (obj.rest[verts[i]] + want[verts[i]])).norm();
+            baked_error = std::isnan(d) ? std::numeric_limits<double>::infinity() : std::max(baked_error, d);
+          }
+        }
+      }
+      baked_in_extension = baked_error <= tolerance;
+      if (!baked_in_extension) {
+        baked_defs.clear();
+        baked_slots.clear();
+        for (std::size_t p = 0; p < obj.parts.size(); ++p)
+          if (plan.baked[p]) report.compact_left_out.push_back(obj.name + "/" + obj.parts[p].name + " (baked)");
+      }
+    }
+    const bool compact =
+        std::find(in_extension.begin(), in_extension.end(), 1) != in_extension.end() || baked_in_extension;
     std::size_t zero_target = 0;  // --compact=only: the accessor of the targets the extension replaces
     if (compact && options.compact == Compact::Only)
       zero_target = b.accessor({{"componentType", kFloat},
@@ -771,6 +881,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     std::size_t group_accessor = 0;
     bool grouped = false;
     if (compact) {
+      // Slots: the exact targets j, then each baked part's deformations (plan.exact.size() + slot).
       const auto moves = [&](std::size_t j, std::size_t v) {
         return in_extension[j] && moves_vertex(obj, plan, plan.exact[j], v);
       };
@@ -780,16 +891,20 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         signature.clear();
         for (std::size_t j = 0; j < plan.exact.size(); ++j)
           if (moves(j, v)) signature.push_back(std::uint32_t(j));
+        for (std::size_t k = 0; k < baked_slots.size(); ++k) {
+          const BakedDeformation probe{baked_slots[k].first, baked_slots[k].second, k, 0, nullptr, {}};
+          if (baked_moves(obj, plan, probe, v)) signature.push_back(std::uint32_t(plan.exact.size() + k));
+        }
         group[v] = ids.emplace(signature, std::uint32_t(ids.size())).first->second;
       }
-      const auto held = std::size_t(std::count(in_extension.begin(), in_extension.end(), 1));
+      const auto held = std::size_t(std::count(in_extension.begin(), in_extension.end(), 1)) + baked_slots.size();
       grouped = !(ids.size() == 1 && ids.begin()->first.size() == held);
       if (grouped && ids.size() > 65536)
         throw InvalidInput("export: " + b.where + " --compact: its deformations split the vertices into " +
                            std::to_string(ids.size()) +
                            " groups (each a set of deformations that move a vertex); CSRBF_deformation numbers at "
                            "most 65536 (_CSRBF_GROUP is UNSIGNED_SHORT)");
-      std::vector<json> groups_of(plan.exact.size(), json::array());
+      std::vector<json> groups_of(plan.exact.size() + baked_slots.size(), json::array());
       for (const auto& [set, id] : ids)
         for (const std::uint32_t j : set) groups_of[j].push_back(id);
       if (grouped) {
@@ -804,57 +919,76 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         orep.groups = ids.size();
       }
       json defs = json::array();
+      // A deformation: its sources, kernel and radius, and one term a (weight, phase) of terms:
+      // the coefficients and polynomial times the phase, in float.
+      const auto write = [&](const SpaceMap& map, const std::vector<std::pair<std::size_t, double>>& terms,
+                             std::size_t stage, std::size_t slot, const std::string& name, const std::string& part) {
+        const std::size_t n = map.size();
+        std::vector<float> src(3 * n), coef(3 * n);
+        for (std::size_t i = 0; i < n; ++i)
+          for (int c = 0; c < 3; ++c) src[3 * i + std::size_t(c)] = float(map.sources()[i][c]);
+        json term_list = json::array();
+        for (const auto& [weight, phase] : terms) {
+          for (std::size_t i = 0; i < n; ++i)
+            for (int c = 0; c < 3; ++c)
+              coef[3 * i + std::size_t(c)] = float(phase * map.coefficients()(Eigen::Index(i), c));
+          json term = {{"weight", weight}};
+          if (map.polynomial() != Polynomial::None) {
+            json poly = json::array();
+            const Eigen::Matrix<double, 4, 3> pc = map.polynomial_coefficients();
+            for (int r = 0; r < 4; ++r)
+              for (int c = 0; c < 3; ++c) poly.push_back(float(phase * pc(r, c)));
+            term["polynomial"] = poly;
+          }
+          term["coefficients"] = b.floats(coef, 3, "a deformation's coefficients");
+          report.compact_bytes += 12 * n;
+          term_list.push_back(std::move(term));
+        }
+        const std::size_t sa = b.floats(src, 3, "a deformation's sources");
+        report.compact_bytes += 12 * n;
+        std::string kernel(kernel_name(map.kernel()));
+        for (char& ch : kernel) ch = char(std::toupper(static_cast<unsigned char>(ch)));
+        json d = {{"kernel", kernel}, {"radius", map.radius()}, {"sources", sa}, {"terms", std::move(term_list)}};
+        if (stage > 0) d["stage"] = stage;
+        d["extras"] = {{"name", name}, {"part", part}};
+        if (grouped) d["groups"] = groups_of[slot];
+        defs.push_back(std::move(d));
+        ++orep.compact_deformations;
+      };
       for (std::size_t j = 0; j < plan.exact.size(); ++j) {
         if (!in_extension[j]) continue;
         const auto& e = plan.exact[j];
         const anim::Deformation& def = obj.parts[e.part].deformations[e.deformation];
-        const SpaceMap& map = *def.map;
-        const std::size_t n = map.size();
-        std::vector<float> src(3 * n), coef(3 * n);
-        for (std::size_t i = 0; i < n; ++i)
-          for (int c = 0; c < 3; ++c) {
-            src[3 * i + std::size_t(c)] = float(map.sources()[i][c]);
-            coef[3 * i + std::size_t(c)] = float(map.coefficients()(Eigen::Index(i), c));
-          }
-        json term = {{"weight", j}};
-        if (map.polynomial() != Polynomial::None) {
-          json poly = json::array();
-          const Eigen::Matrix<double, 4, 3> pc = map.polynomial_coefficients();
-          for (int r = 0; r < 4; ++r)
-            for (int c = 0; c < 3; ++c) poly.push_back(float(pc(r, c)));
-          term["polynomial"] = poly;
-        }
         orep.compact_error = std::max(orep.compact_error, float_error[j]);
-        const std::size_t sa = b.floats(src, 3, "a deformation's sources");
-        term["coefficients"] = b.floats(coef, 3, "a deformation's coefficients");
-        report.compact_bytes += 24 * n;
-        std::string kernel(kernel_name(map.kernel()));
-        for (char& ch : kernel) ch = char(std::toupper(static_cast<unsigned char>(ch)));
-        json d = {{"kernel", kernel}, {"radius", map.radius()}, {"sources", sa}, {"terms", json::array({term})}};
-        d["extras"] = {{"name", def.name}, {"part", obj.parts[e.part].name}};
-        if (grouped) d["groups"] = groups_of[j];
-        defs.push_back(std::move(d));
-        ++orep.compact_deformations;
+        write(*def.map, {{j, 1.0}}, 0, j, def.name, obj.parts[e.part].name);
       }
+      for (const auto& bd : baked_defs) {
+        if (bd.terms.empty()) continue;  // a fixed deformation whose phase is 0 at every baked frame
+        std::vector<std::pair<std::size_t, double>> terms;
+        for (const auto& [j, phase] : bd.terms) terms.emplace_back(plan.exact.size() + j, phase);
+        write(*bd.map, terms, bd.stage, plan.exact.size() + bd.slot,
+              obj.parts[bd.part].deformations[bd.deformation].name, obj.parts[bd.part].name);
+      }
+      if (baked_in_extension) orep.compact_error = std::max(orep.compact_error, baked_error);
       compact_json = {{"deformations", defs}};
-      orep.compact_deformations = plan.exact.size();
       if (!std::isfinite(orep.compact_error))
         throw InvalidInput("export: " + b.where +
                            " --compact: a deformation evaluated from its float sources and "
                            "coefficients is not finite (coefficients beyond single precision?)");
     }
-    std::vector<std::size_t> baked_frame;  // the frame of each baked target
-    if (plan.any_baked())
-      for (std::size_t k = 0; k < frames; ++k) {
-        bool moves = false;
-        for (const auto& d : baked_frames[o][k]) moves |= d != Vec3::Zero();
-        if (!moves) continue;
-        add_target(baked_frames[o][k]);
-        baked_frame.push_back(k);
-        char name[64];
-        std::snprintf(name, sizeof name, "baked frame %zu (t = %.4g s)", k, frame_t[k]);
-        target_names.push_back(name);
+    for (const std::size_t k : baked_frame) {
+      std::size_t bytes = 0;
+      if (baked_in_extension && options.compact == Compact::Only) {
+        bytes = target_data(baked_frames[o][k]);
+        targets.push_back({{"POSITION", zero_target}, {"NORMAL", zero_target}});
+      } else {
+        bytes = add_target(baked_frames[o][k]);
       }
+      if (baked_in_extension) report.replaced_target_bytes += bytes;
+      char name[64];
+      std::snprintf(name, sizeof name, "baked frame %zu (t = %.4g s)", k, frame_t[k]);
+      target_names.push_back(name);
+    }
     const std::size_t ntargets = targets.size();
     orep.targets = ntargets;
 

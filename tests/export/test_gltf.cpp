@@ -426,8 +426,9 @@ TEST(GltfCompact, EveryExamplePlaysTheSameThroughTheExtension) {
       const std::vector<unsigned char> bytes = render::gltf_binary(scene, o, r);
       const Glb glb(bytes);
       const render::GltfRuntime runtime(bytes);
-      // The ball's only deforming part is a contact, refitted every frame: baked, so its targets stay.
-      const bool baked_only = std::string(name) == "ball.scene.json";
+      // The ball's only deforming part is a contact, refitted every frame: baked targets, replaced
+      // by one deformation a frame.
+      const bool baked_only = false;
       const auto& used = glb.doc["extensionsUsed"];
       EXPECT_EQ(std::find(used.begin(), used.end(), "CSRBF_deformation") != used.end(), !baked_only);
       EXPECT_EQ(glb.doc.contains("extensionsRequired"), mode == render::Compact::Only && !baked_only);
@@ -560,5 +561,70 @@ TEST(GltfCompact, ADeformationFloatCannotHoldStaysAMorphTarget) {
   const Glb glb(bytes);
   EXPECT_FALSE(glb.doc.contains("extensionsRequired"));
   expect_plays_as_the_scene(scene, o, glb, r);
+  fs::remove_all(dir);
+}
+
+// A Compose part (T2 o T1, not linear in its phases) is baked; --compact writes its deformations as
+// stages with one term a baked frame, replacing every baked target, and plays as the scene.
+TEST(GltfCompact, ComposedPartsAreStagesWithATermAFrame) {
+  const fs::path dir = fs::temp_directory_path() / "csrbf-test-compact-compose";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  for (const char* f : {"fish.obj", "fish-tail-left.controls", "fish-fin.controls"}) fs::copy_file(example(f), dir / f);
+  const auto deformation = [](const char* name, const char* controls, double at) {
+    return json{
+        {"name", name},
+        {"controls", controls},
+        {"radius", 0.3},
+        {"phase",
+         {{"keys", {{{"time", 0}, {"phase", 0}}, {{"time", at}, {"phase", 1}}, {{"time", 1.0}, {"phase", 0.2}}}}}}};
+  };
+  const json s = {{"format", "csrbf-scene"},
+                  {"version", 1},
+                  {"duration", 1.0},
+                  {"fps", 10},
+                  {"objects",
+                   {{{"name", "fish"},
+                     {"mesh", "fish.obj"},
+                     {"parts",
+                      {{{"name", "body"},
+                        {"combine", "compose"},
+                        {"deformations",
+                         {deformation("tail", "fish-tail-left.controls", 0.4),
+                          deformation("fin", "fish-fin.controls", 0.7)}}}}}}}}};
+  std::ofstream(dir / "s.scene.json") << s.dump();
+  const anim::Scene scene = io::read_scene(dir / "s.scene.json");
+  for (const render::Compact mode : {render::Compact::WithFallback, render::Compact::Only}) {
+    render::GltfOptions o;
+    o.compact = mode;
+    render::GltfReport r;
+    const std::vector<unsigned char> bytes = render::gltf_binary(scene, o, r);
+    ASSERT_TRUE(r.parts[0].baked);
+    EXPECT_TRUE(r.compact_left_out.empty());
+    const Glb glb(bytes);
+    const json& defs = glb.doc["meshes"][0]["extensions"]["CSRBF_deformation"]["deformations"];
+    ASSERT_EQ(defs.size(), 2u);
+    EXPECT_FALSE(defs[0].contains("stage"));
+    EXPECT_EQ(defs[1]["stage"], 1);
+    // One term a baked frame where the phase is not 0: frames 1..10 of 11 (t = 0 is the rest).
+    EXPECT_EQ(defs[0]["terms"].size(), 10u);
+    EXPECT_GT(r.replaced_target_bytes, 2 * r.compact_bytes);
+    const render::GltfRuntime runtime(bytes);
+    anim::Player player(scene);
+    const double tol = 1e-5 * r.scene_size;
+    double worst = 0;
+    for (std::size_t k = 0; k + 1 < 2 * r.frames; ++k) {
+      const double t = double(k) / (2 * r.fps);
+      player.evaluate(t);
+      std::vector<Vec3> p, n;
+      runtime.deform(0, runtime.weights(0, t), p, n, true);
+      const double e = worst_difference(p, player.deformed(0));
+      // Between frames the stages' phases are the frames' cross-faded, within the deviation.
+      EXPECT_LE(e, (k % 2 ? r.objects[0].max_deviation : 0.0) + tol) << "t = " << t;
+      if (k % 2 == 0) worst = std::max(worst, e);
+    }
+    std::printf("compose %s: %zu bytes of extension for %zu of baked targets; at frames %.3g\n",
+                mode == render::Compact::Only ? "only" : "fallback", r.compact_bytes, r.replaced_target_bytes, worst);
+  }
   fs::remove_all(dir);
 }

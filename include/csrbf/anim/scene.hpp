@@ -133,8 +133,14 @@ class Player {
   /// Vertices of object i in model coordinates (deformed, before the rigid motion).
   const std::vector<Vec3>& deformed(std::size_t object) const;
   const Scene& scene() const noexcept { return *scene_; }
+  /// The map that contact deformation `deformation` of part `part` of object `object` is refitted
+  /// to at time t (what evaluate(t) applies with its phase), or none where no wall is touched.
+  /// Throws InvalidInput naming the deformation and t where the fit fails.
+  std::optional<SpaceMap> contact_map(std::size_t object, std::size_t part, std::size_t deformation, double t) const;
 
  private:
+  std::optional<SpaceMap> contact_fit(std::size_t object, std::size_t part, std::size_t deformation, double t,
+                                      std::vector<Vec3>& sources, std::vector<Vec3>& destinations) const;
   struct Impl;
   const Scene* scene_;
   std::unique_ptr<Impl> impl_;
