@@ -9,6 +9,7 @@ packages=(
   libtbb-dev             # core: parallel loops over vertices
   libassimp-dev          # io: STL and glTF meshes
   nlohmann-json3-dev     # io/cli: JSON output
+  libmeshoptimizer-dev   # render: csrbf export --meshopt (EXT_meshopt_compression)
   libcli11-dev           # cli: argument parsing
   libgtest-dev libgmock-dev   # tests
   libbenchmark-dev       # bench/

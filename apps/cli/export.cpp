@@ -100,6 +100,7 @@ int run_export(const ExportOptions& o) {
     go.bake = render::Bake::Never;
   else
     throw UsageError("--bake: expected auto, always or never, got '" + o.bake + "'");
+  go.meshopt = o.meshopt;
   if (o.compact_given) {
     if (o.compact.empty() || o.compact == "fallback")
       go.compact = render::Compact::WithFallback;

@@ -13,6 +13,7 @@ struct ExportOptions {
   bool html_given = false;     ///< --html was on the command line (an empty name is an error)
   std::string compact;         ///< --compact's value: empty (the fallback kept) or "only"
   bool compact_given = false;  ///< --compact was on the command line
+  bool meshopt = false;        ///< --meshopt: EXT_meshopt_compression
 };
 
 /// `csrbf export`: the scene as glTF 2.0 (and, with --html, a page that plays it). Returns the exit

@@ -359,6 +359,9 @@ int main(int argc, char** argv) {
                    "Also write each exactly held deformation as CSRBF_deformation (docs/gltf/CSRBF_deformation.md): "
                    "--compact keeps the morph targets as fallback, --compact=only replaces them")
       ->expected(0, 1);
+  exporter->add_flag("--meshopt", export_opts.meshopt,
+                     "Compress vertex, index and animation data with meshoptimizer (EXT_meshopt_compression, "
+                     "required: three.js, Babylon.js and gltfpack read it, Blender 3.4 does not)");
   exporter->add_flag("--json", export_opts.json, "Print the report as one JSON object");
   add_scene_memory_limit(exporter, export_opts.memory_limit_gib);
 

@@ -7,6 +7,7 @@
 #include "csrbf/io/scene.hpp"
 #include "csrbf/kernels.hpp"
 #include "csrbf/space_map.hpp"
+#include "gltf_meshopt_internal.hpp"
 #include "texture_coordinates.hpp"
 
 #include <nlohmann/json.hpp>
@@ -62,7 +63,10 @@ struct Builder {
                            " has a value beyond single precision (glTF stores float32): " + std::to_string(x));
   }
 
-  std::size_t view(const void* data, std::size_t bytes, int target = 0) {
+  std::vector<MeshoptView> hints;  // per buffer view: how --meshopt compresses it
+
+  std::size_t view(const void* data, std::size_t bytes, int target = 0, MeshoptView hint = {}) {
+    hints.push_back(hint);
     while (bin.size() % 4) bin.push_back(0);
     const std::size_t offset = bin.size();
     const auto* p = static_cast<const unsigned char*>(data);
@@ -91,7 +95,8 @@ struct Builder {
       mx.push_back(hi);
     }
     const char* type = width == 1 ? "SCALAR" : width == 2 ? "VEC2" : width == 3 ? "VEC3" : "VEC4";
-    return accessor({{"bufferView", view(v.data(), v.size() * 4, target)},
+    const MeshoptView hint{MeshoptView::Mode::Attributes, 4 * std::size_t(width)};
+    return accessor({{"bufferView", view(v.data(), v.size() * 4, target, hint)},
                      {"componentType", kFloat},
                      {"count", count},
                      {"type", type},
@@ -128,7 +133,7 @@ struct Builder {
       std::vector<float> dense(3 * count, 0.0f);
       for (std::size_t i = 0; i < index.size(); ++i)
         for (int c = 0; c < 3; ++c) dense[3 * index[i] + std::size_t(c)] = value[3 * i + std::size_t(c)];
-      a["bufferView"] = view(dense.data(), dense.size() * 4);
+      a["bufferView"] = view(dense.data(), dense.size() * 4, 0, {MeshoptView::Mode::Attributes, 12});
       return accessor(std::move(a));
     }
     // Sparse with one explicit zero where nothing moves: three.js's loader (r111) drops an
@@ -138,8 +143,9 @@ struct Builder {
       value.assign(3, 0.0f);
     }
     const Indices ix(index, count);
-    const std::size_t iv = view(ix.bytes.data(), ix.bytes.size());
-    const std::size_t vv = view(value.data(), value.size() * 4);
+    const std::size_t iv =
+        view(ix.bytes.data(), ix.bytes.size(), 0, {MeshoptView::Mode::Indices, ix.component == 5123 ? 2u : 4u});
+    const std::size_t vv = view(value.data(), value.size() * 4, 0, {MeshoptView::Mode::Attributes, 12});
     a["sparse"] = {{"count", index.size()},
                    {"indices", {{"bufferView", iv}, {"componentType", ix.component}}},
                    {"values", {{"bufferView", vv}}}};
@@ -912,7 +918,8 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         // elements to 4 bytes.
         std::vector<std::uint16_t> packed(2 * nv, 0);
         for (std::size_t v = 0; v < nv; ++v) packed[2 * v] = std::uint16_t(group[v]);
-        const std::size_t view = b.view(packed.data(), packed.size() * 2, kArrayBuffer);
+        const std::size_t view =
+            b.view(packed.data(), packed.size() * 2, kArrayBuffer, {MeshoptView::Mode::Attributes, 4});
         b.doc["bufferViews"][view]["byteStride"] = 4;
         group_accessor = b.accessor({{"bufferView", view}, {"componentType", 5123}, {"count", nv}, {"type", "SCALAR"}});
         report.compact_bytes += packed.size() * 2;
@@ -1046,7 +1053,8 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       }
       // 16-bit where every vertex index fits (65535 is primitive restart in some APIs: kept out).
       const Indices ix(tri, nv <= 65535 ? nv : std::size_t(65537));
-      const std::size_t iv = b.view(ix.bytes.data(), ix.bytes.size(), kElementArrayBuffer);
+      const std::size_t iv = b.view(ix.bytes.data(), ix.bytes.size(), kElementArrayBuffer,
+                                    {MeshoptView::Mode::Triangles, ix.component == 5123 ? 2u : 4u});
       const std::size_t ia = b.accessor({{"bufferView", iv},
                                          {"componentType", ix.component},
                                          {"count", tri.size()},
@@ -1309,6 +1317,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     if (b.doc[key].empty()) b.doc.erase(key);
   while (b.bin.size() % 4) b.bin.push_back(0);
   b.doc["buffers"] = json::array({json{{"byteLength", b.bin.size()}}});
+  if (options.meshopt) meshopt_compress(b.doc, b.bin, b.hints);
 
   // The glb: header, the JSON chunk (padded with spaces), the binary chunk.
   std::string text = b.doc.dump();

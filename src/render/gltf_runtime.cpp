@@ -1,5 +1,6 @@
 // GltfRuntime: a glb's meshes as a client of CSRBF_deformation plays them (gltf_runtime.hpp).
 #include "csrbf/render/gltf_runtime.hpp"
+#include "csrbf/render/gltf_meshopt.hpp"
 
 #include "csrbf/errors.hpp"
 #include "csrbf/kernels.hpp"
@@ -438,7 +439,9 @@ struct GltfRuntime::Data {
   std::vector<Mesh> meshes;
 };
 
-GltfRuntime::GltfRuntime(const std::vector<unsigned char>& glb) : d_(std::make_unique<Data>()) {
+GltfRuntime::GltfRuntime(const std::vector<unsigned char>& compressed) : d_(std::make_unique<Data>()) {
+  // EXT_meshopt_compression's views decoded first (a glb without it is read as it is).
+  const std::vector<unsigned char> glb = gltf_without_meshopt(compressed);
   const auto u32 = [&](std::size_t at) {
     if (at + 4 > glb.size())
       throw InvalidInput("glTF: the glb ends at byte " + std::to_string(glb.size()) + " inside its header");

@@ -24,7 +24,7 @@ SOURCE = os.environ["CSRBF_SOURCE_DIR"]
 NODE_MODULES = os.environ["CSRBF_NODE_MODULES"]
 EXAMPLES = os.path.join(SOURCE, "examples")
 SCENES = ["fish", "face", "ball"]
-COMPACT_SCENES = ["fish", "face"]
+COMPACT_SCENES = ["fish", "face", "ball"]
 with open(os.path.join(EXAMPLES, "checker.png"), "rb") as _f:
     CHECKER = _f.read()
 
@@ -84,6 +84,14 @@ class Export(unittest.TestCase):
                 assert p.returncode == 0, p.stderr
                 cls.reports[s + suffix + ".glb"] = json.loads(p.stdout)
 
+        # Compressed by meshoptimizer (EXT_meshopt_compression), with and without the extension.
+        for s in SCENES:
+            for flags, suffix in (([], "-meshopt"), (["--compact=only"], "-only-meshopt")):
+                out = os.path.join(cls.tmp, s + suffix + ".glb")
+                p = run([CLI, "export", os.path.join(EXAMPLES, s + ".scene.json"), "-o", out, "--json", "--meshopt"] + flags)
+                assert p.returncode == 0, p.stderr
+                cls.reports[s + suffix + ".glb"] = json.loads(p.stdout)
+
     @classmethod
     def tearDownClass(cls):
         shutil.rmtree(cls.tmp, ignore_errors=True)
@@ -92,6 +100,7 @@ class Export(unittest.TestCase):
         files = [os.path.join(self.tmp, s + ext) for s in SCENES for ext in (".glb", ".gltf")]
         files += [os.path.join(self.tmp, s + "-page", s + ".glb") for s in SCENES]
         files += [os.path.join(self.tmp, s + suffix + ".glb") for s in COMPACT_SCENES for suffix in ("-compact", "-only")]
+        files += [os.path.join(self.tmp, s + suffix + ".glb") for s in SCENES for suffix in ("-meshopt", "-only-meshopt")]
         p = run(["node", os.path.join(SOURCE, "tests", "export", "validate.js"), NODE_MODULES] + files)
         print(p.stdout)
         self.assertEqual(p.returncode, 0, p.stdout + p.stderr)

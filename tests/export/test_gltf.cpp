@@ -5,6 +5,7 @@
 #include "csrbf/errors.hpp"
 #include "csrbf/io/scene.hpp"
 #include "csrbf/render/gltf_export.hpp"
+#include "csrbf/render/gltf_meshopt.hpp"
 #include "csrbf/render/gltf_runtime.hpp"
 
 #include <gtest/gtest.h>
@@ -627,4 +628,71 @@ TEST(GltfCompact, ComposedPartsAreStagesWithATermAFrame) {
                 mode == render::Compact::Only ? "only" : "fallback", r.compact_bytes, r.replaced_target_bytes, worst);
   }
   fs::remove_all(dir);
+}
+
+// --meshopt: every vertex, index and animation view compressed (EXT_meshopt_compression). Decoded,
+// each example plays as the scene, and the runtime reads the compressed file as the plain one.
+TEST(GltfMeshopt, EveryExampleDecodesToWhatPlaysAsTheScene) {
+  for (const char* name : {"fish.scene.json", "face.scene.json", "ball.scene.json"})
+    for (const render::Compact mode : {render::Compact::Off, render::Compact::Only}) {
+      SCOPED_TRACE(name);
+      const anim::Scene scene = io::read_scene(example(name));
+      render::GltfOptions o;
+      o.compact = mode;
+      render::GltfReport plain_report, r;
+      const std::vector<unsigned char> plain = render::gltf_binary(scene, o, plain_report);
+      o.meshopt = true;
+      const std::vector<unsigned char> packed = render::gltf_binary(scene, o, r);
+      EXPECT_LT(packed.size() * 5, plain.size() * 4) << "at least 20% smaller";
+      const Glb glb(packed);
+      const auto& required = glb.doc["extensionsRequired"];
+      EXPECT_NE(std::find(required.begin(), required.end(), "EXT_meshopt_compression"), required.end());
+      EXPECT_EQ(glb.doc["buffers"].size(), 2u);
+      const std::vector<unsigned char> decoded = render::gltf_without_meshopt(packed);
+      if (mode == render::Compact::Off) expect_plays_as_the_scene(scene, o, Glb(decoded), r);
+      const render::GltfRuntime a(plain), b(packed);
+      ASSERT_EQ(a.meshes(), b.meshes());
+      for (std::size_t m = 0; m < a.meshes(); ++m)
+        for (const double t : {0.0, 0.73, 1.48, 2.0}) {
+          std::vector<Vec3> pa, na, pb, nb;
+          a.deform(m, a.weights(m, t), pa, na);
+          b.deform(m, b.weights(m, t), pb, nb);
+          EXPECT_EQ(pa, pb) << "mesh " << m << " at t = " << t;
+          EXPECT_EQ(na, nb);
+          EXPECT_EQ(std::vector<std::uint32_t>(a.triangles(m).begin(), a.triangles(m).end()).size(),
+                    b.triangles(m).size());
+        }
+      std::printf("%s%s: %zu bytes plain, %zu with --meshopt\n", name,
+                  mode == render::Compact::Only ? " --compact=only" : "", plain.size(), packed.size());
+    }
+}
+
+// A compressed view that does not decode, or lies outside the file, is an error naming it.
+TEST(GltfMeshopt, DamagedDataIsAnErrorNamingTheView) {
+  const anim::Scene scene = io::read_scene(example("fish.scene.json"));
+  render::GltfOptions o;
+  o.meshopt = true;
+  render::GltfReport r;
+  std::vector<unsigned char> packed = render::gltf_binary(scene, o, r);
+  const Glb glb(packed);
+  // The first compressed view's bytes, overwritten.
+  std::size_t at = 0, length = 0;
+  for (const auto& v : glb.doc["bufferViews"])
+    if (v.contains("extensions")) {
+      at = v["extensions"]["EXT_meshopt_compression"]["byteOffset"].get<std::size_t>();
+      length = v["extensions"]["EXT_meshopt_compression"]["byteLength"].get<std::size_t>();
+      break;
+    }
+  ASSERT_GT(length, 0u);
+  std::uint32_t json_length;
+  std::memcpy(&json_length, packed.data() + 12, 4);
+  const std::size_t bin = 20 + json_length + 8;
+  std::fill(packed.begin() + std::ptrdiff_t(bin + at), packed.begin() + std::ptrdiff_t(bin + at + length), 0xff);
+  try {
+    render::gltf_without_meshopt(packed);
+    FAIL() << "damaged data decoded";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("bufferViews["), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(render::GltfRuntime{packed}, InvalidInput);
 }

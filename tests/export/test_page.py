@@ -188,8 +188,12 @@ class Page(unittest.TestCase):
         scenes = [(os.path.join(EXAMPLES, s + ".scene.json"), s, times)
                   for s, times in (("fish", (0.1, 1.0, 5.3)), ("face", (1.0, 2.2)), ("ball", (0.5, 1.48)))]
         # The composed fish at frame times, where its baked targets are exact: the shader's stages.
-        for path, s, times in scenes + [(self.six_at_once(), "six", (1.0,)), (self.composed(), "composed", (0.5, 0.8))]:
-            page, report = self.export(path, s + "-compact", "--compact")
+        # And the fish compressed by meshoptimizer (three.js's MeshoptDecoder reads it).
+        scenes += [(self.six_at_once(), "six", (1.0,)), (self.composed(), "composed", (0.5, 0.8)),
+                   (os.path.join(EXAMPLES, "fish.scene.json"), "fish-meshopt", (1.0,))]
+        for path, s, times in scenes:
+            flags = ["--compact"] + (["--meshopt"] if s.endswith("-meshopt") else [])
+            page, report = self.export(path, s + "-compact", *flags)
             if not any(o.get("compact", {}).get("deformations") for o in report["objects"]):
                 print(f"{s}: nothing written as CSRBF_deformation")
                 continue

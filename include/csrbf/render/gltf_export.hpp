@@ -47,6 +47,9 @@ struct GltfOptions {
   double fps = 0;  ///< the sampling rate; 0: the scene's
   Bake bake = Bake::Auto;
   Compact compact = Compact::Off;
+  /// EXT_meshopt_compression: every vertex attribute, index and animation buffer view compressed by
+  /// meshoptimizer's codecs (the extension required; Blender 3.4 does not read it).
+  bool meshopt = false;
   std::size_t max_active = 8;  ///< morph targets active at once in an object (three.js: 8)
   /// The whole process's limit (--memory-limit): baked frames are refused beyond what the program
   /// leaves of it.
