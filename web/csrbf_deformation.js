@@ -1,5 +1,5 @@
 // CSRBF_deformation for three.js (WebGL2): a GLTFLoader plugin that plays the extension in the
-// vertex shader (docs/gltf/CSRBF_deformation.md, docs/export.md "In your own three.js page").
+// vertex shader (docs/gltf/CSRBF_deformation.md; docs/export.md, "Playing CSRBF_deformation").
 //
 //   import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
 //   import { CSRBFDeformationPlugin } from './csrbf_deformation.js';
@@ -7,11 +7,13 @@
 //   loader.register((parser) => new CSRBFDeformationPlugin(parser));
 //   loader.load('fish.glb', (gltf) => { ... play gltf.animations with an AnimationMixer as usual ... });
 //
-// Every mesh that carries the extension gets a CSRBFDeformation (mesh.userData.csrbfDeformation):
-// its sources, a neighbour grid and the coefficients live in textures, its materials run
-// CSRBF_GLSL (web/csrbf_deformation.glsl, the same text) before the projection, and each frame the
+// Every mesh that carries the extension gets a CSRBFDeformation (CSRBFDeformation.of(mesh)): its
+// sources, a neighbour grid and the coefficients live in textures, its materials run CSRBF_GLSL
+// (web/csrbf_deformation.glsl, the same text) before the projection, and before each draw the
 // mesh's morph weights, animated by the standard `weights` channel, become the coefficients' sum.
 // The morph targets that the extension replaces are not added; the others are, as glTF adds them.
+// Clones of the mesh share its materials and play with their own weights. A material set on the
+// mesh later needs attach(mesh) again; dispose() frees the textures.
 import * as THREE from 'three';
 
 // The text of web/csrbf_deformation.glsl (a test checks that the two are the same).
@@ -141,6 +143,9 @@ export const CSRBF_EXTENSION = 'CSRBF_deformation';
 const KERNELS = { C0: 0, C2: 2, C4: 4, C6: 6 };
 const WIDTH = 1024;  // texels a row of every data texture
 const MAX_CELLS = 1 << 18;  // a deformation's grid: its cells grow past R to stay within this
+const PLAYED_BY = new WeakMap();  // material -> the CSRBFDeformation it plays
+const OWNER = new WeakMap();  // material -> the mesh it was made for
+const BASE = new WeakMap();  // material -> the application's material it was cloned from
 
 function rows(count) { return Math.max(1, Math.ceil(count / WIDTH)); }
 
@@ -272,9 +277,21 @@ export class CSRBFDeformation {
     groups.unpackAlignment = 1;
     groups.needsUpdate = true;
     this.textures.csrbfGroups = groups;
-    this.uniforms = { csrbfDeformationCount: { value: this.deformations.length } };
+    // The morph targets that terms replace, one texel a target (1: replaced).
+    const targets = Math.max(1, ...this.replaced) + 1;
+    const replacedData = new Uint8Array(rows(targets) * WIDTH);
+    for (const k of this.replaced) replacedData[k] = 255;
+    const replaced = new THREE.DataTexture(replacedData, WIDTH, rows(targets), THREE.RedFormat, THREE.UnsignedByteType);
+    replaced.minFilter = replaced.magFilter = THREE.NearestFilter;
+    replaced.generateMipmaps = false;
+    replaced.unpackAlignment = 1;
+    replaced.needsUpdate = true;
+    this.textures.csrbfReplaced = replaced;
+    this.replacedCount = targets;
+    this.uniforms = { csrbfDeformationCount: { value: this.deformations.length }, csrbfEnabled: { value: 1 } };
     for (const [k, t] of Object.entries(this.textures)) this.uniforms[k] = { value: t };
     this._weights = null;
+    this.materials = new Set();
   }
 
   // The coefficients' and polynomials' sums at these weights (the mesh's morph weights).
@@ -303,37 +320,54 @@ export class CSRBFDeformation {
     this.textures.csrbfDeformations.needsUpdate = true;
   }
 
+  // The CSRBFDeformation that plays mesh (through its material), or null.
+  static of(mesh) {
+    const materials = Array.isArray(mesh.material) ? mesh.material : [mesh.material];
+    for (const m of materials) if (m && PLAYED_BY.has(m)) return PLAYED_BY.get(m);
+    return null;
+  }
+
   // Plays the deformations on mesh (a Mesh of a glTF mesh with the extension): its materials are
-  // cloned and get CSRBF_GLSL; each frame its weights are summed and the replaced targets skipped.
+  // cloned for it and get CSRBF_GLSL; before each draw, its weights are summed. Call again after
+  // setting another material on the mesh.
   attach(mesh) {
     const self = this;
     const patch = (material) => {
-      const m = material.clone();
+      if (OWNER.get(material) === mesh) return material;
+      const base = BASE.get(material) || material;
+      const m = base.clone();
       m.onBeforeCompile = (shader) => {
         Object.assign(shader.uniforms, self.uniforms);
         shader.vertexShader = injectCSRBF(shader.vertexShader);
       };
       m.customProgramCacheKey = () => 'csrbf-deformation';
+      // Before every draw: the mesh's own weights. three.js uploads a material's uniforms when the
+      // material changes between draws, so every mesh gets its own material: a clone (which shares
+      // its original's) gets one at its first draw, and plays its own weights from its next frame.
+      m.onBeforeRender = (renderer, scene, camera, geometry, object) => {
+        self.uniforms.csrbfEnabled.value = self.enabled ? 1 : 0;
+        self.uniforms.csrbfDeformationCount.value = self.enabled ? self.deformations.length : 0;
+        if (self.enabled) self.update(object.morphTargetInfluences || []);
+        if (object !== mesh && object.isMesh) self.attach(object);
+      };
+      PLAYED_BY.set(m, self);
+      OWNER.set(m, mesh);
+      BASE.set(m, base);
+      self.materials.add(m);
       return m;
     };
     mesh.material = Array.isArray(mesh.material) ? mesh.material.map(patch) : patch(mesh.material);
     mesh.frustumCulled = false;  // the bounds are the rest shape's
-    const saved = [];
-    mesh.onBeforeRender = function () {
-      const w = this.morphTargetInfluences || [];
-      self.uniforms.csrbfDeformationCount.value = self.enabled ? self.deformations.length : 0;
-      if (!self.enabled) return;
-      self.update(w);
-      saved.length = 0;
-      for (const k of self.replaced) if (k < w.length) { saved.push([k, w[k]]); w[k] = 0; }
-    };
-    mesh.onAfterRender = function () {
-      const w = this.morphTargetInfluences || [];
-      for (const [k, v] of saved) w[k] = v;
-      saved.length = 0;
-    };
-    mesh.userData.csrbfDeformation = this;
+    // Not enumerable: Object3D.clone copies userData through JSON, which would copy the textures' data.
+    Object.defineProperty(mesh.userData, 'csrbfDeformation', { value: this, enumerable: false, configurable: true });
     return this;
+  }
+
+  // Frees the textures and forgets the materials (dispose those as usual).
+  dispose() {
+    for (const t of Object.values(this.textures)) t.dispose();
+    for (const m of this.materials) PLAYED_BY.delete(m);
+    this.materials.clear();
   }
 
   // The deformed positions (what = 'position') or unit normals ('normal') of mesh's vertices at
@@ -397,30 +431,52 @@ export class CSRBFDeformation {
     target.dispose();
     material.dispose();
     all.dispose();
-    this.uniforms.csrbfDeformationCount.value = this.enabled ? this.deformations.length : 0;
     const out = new Float32Array(3 * count);
     for (let i = 0; i < count; ++i) for (let k = 0; k < 3; ++k) out[3 * i + k] = pixels[4 * i + k];
     return out;
   }
 }
 
-// A three.js vertex shader with CSRBF_GLSL run after the morph targets: the position and normal
-// are deformed together, before skinning and the projection.
+// A three.js vertex shader with CSRBF_GLSL run first: the position and normal after the morph
+// targets that terms do not replace, deformed together at the start of main(); the material's own
+// normal and position chunks then start from them (before skinning and the projection). Every
+// material's shader works, lit or not.
 export function injectCSRBF(vertexShader) {
-  const morph = THREE.ShaderChunk.morphtarget_vertex.replace(/\btransformed\b/g, 'csrbfPosition');
-  const block = `
+  const head = `
+    attribute float _csrbf_group;
+    uniform int csrbfEnabled;
+    uniform highp sampler2D csrbfReplaced;
+    ${CSRBF_GLSL}
+    bool csrbfIsReplaced(int target) {
+      return csrbfEnabled == 1 &&
+        texelFetch(csrbfReplaced, csrbfAt(target, textureSize(csrbfReplaced, 0).x), 0).r > 0.5;
+    }
+    void main() {`;
+  const start = `
     vec3 csrbfPosition = vec3(position);
-    ${morph}
+    vec3 csrbfNormal = vec3(normal);
+    #ifdef USE_MORPHTARGETS
+      csrbfPosition *= morphTargetBaseInfluence;
+      #ifdef USE_MORPHNORMALS
+        csrbfNormal *= morphTargetBaseInfluence;
+      #endif
+      for (int i = 0; i < MORPHTARGETS_COUNT; i++) {
+        float w = morphTargetInfluences[i];
+        if (w == 0.0 || csrbfIsReplaced(i)) continue;
+        csrbfPosition += getMorph(gl_VertexID, i, 0).xyz * w;
+        #ifdef USE_MORPHNORMALS
+          csrbfNormal += getMorph(gl_VertexID, i, 1).xyz * w;
+        #endif
+      }
+    #endif
     csrbfDeform(csrbfPosition, csrbfNormal, _csrbf_group);`;
-  let s = vertexShader.replace('void main() {', `attribute float _csrbf_group;\n${CSRBF_GLSL}\nvoid main() {`);
-  if (s.includes('#include <morphnormal_vertex>')) {
-    s = s.replace('#include <morphnormal_vertex>', `#include <morphnormal_vertex>\n#define csrbfNormal objectNormal\n${block}\n#undef csrbfNormal`);
-  } else {
-    s = s.replace('#include <begin_vertex>', `vec3 csrbfNormal = vec3(0.0, 0.0, 1.0);\n${block}\n#include <begin_vertex>`);
-  }
-  if (!s.includes('csrbfDeform(') || !s.includes('#include <begin_vertex>') || !s.includes('#include <morphtarget_vertex>'))
-    throw new Error(`${CSRBF_EXTENSION}: this three.js's vertex shader has no <begin_vertex> and <morphtarget_vertex>`);
-  return s.replace('#include <begin_vertex>', '#include <begin_vertex>\ntransformed = csrbfPosition;')
+  for (const chunk of ['void main() {', '#include <begin_vertex>', '#include <morphtarget_vertex>'])
+    if (!vertexShader.includes(chunk))
+      throw new Error(`${CSRBF_EXTENSION}: this three.js's vertex shader has no '${chunk}'`);
+  return vertexShader.replace('void main() {', head + start)
+    .replace('#include <beginnormal_vertex>', '#include <beginnormal_vertex>\nobjectNormal = csrbfNormal;')
+    .replace('#include <morphnormal_vertex>', '')
+    .replace('#include <begin_vertex>', '#include <begin_vertex>\ntransformed = csrbfPosition;')
     .replace('#include <morphtarget_vertex>', '');
 }
 

@@ -101,6 +101,11 @@ int run_export(const ExportOptions& o) {
   else
     throw UsageError("--bake: expected auto, always or never, got '" + o.bake + "'");
   go.meshopt = o.meshopt;
+  go.quantize = o.quantize;
+  if (o.quantize && o.compact_given)
+    throw UsageError(
+        "--quantize with --compact: CSRBF_deformation carries the deformation in float coordinates; quantize the "
+        "morph targets (--quantize) or write the extension (--compact), not both");
   if (o.compact_given) {
     if (o.compact.empty() || o.compact == "fallback")
       go.compact = render::Compact::WithFallback;
@@ -204,7 +209,8 @@ int run_export(const ExportOptions& o) {
                               {"targets", ob.targets},
                               {"max_active_targets", ob.max_active},
                               {"rotation_deviation_deg", ob.rotation_deviation_deg},
-                              {"max_deviation", ob.max_deviation}});
+                              {"max_deviation", ob.max_deviation},
+                              {"quantization_error", ob.quantization_error}});
     if (o.compact_given) {
       j["compact"] = {{"replaced_target_bytes", r.replaced_target_bytes},
                       {"compact_bytes", r.compact_bytes},

@@ -14,6 +14,7 @@ struct ExportOptions {
   std::string compact;         ///< --compact's value: empty (the fallback kept) or "only"
   bool compact_given = false;  ///< --compact was on the command line
   bool meshopt = false;        ///< --meshopt: EXT_meshopt_compression
+  bool quantize = false;       ///< --quantize: KHR_mesh_quantization
 };
 
 /// `csrbf export`: the scene as glTF 2.0 (and, with --html, a page that plays it). Returns the exit

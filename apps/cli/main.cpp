@@ -362,6 +362,9 @@ int main(int argc, char** argv) {
   exporter->add_flag("--meshopt", export_opts.meshopt,
                      "Compress vertex, index and animation data with meshoptimizer (EXT_meshopt_compression, "
                      "required: three.js, Babylon.js and gltfpack read it, Blender 3.4 does not)");
+  exporter->add_flag("--quantize", export_opts.quantize,
+                     "Positions and displacements as 16-bit, normals as 8-bit integers (KHR_mesh_quantization, "
+                     "required); not with --compact");
   exporter->add_flag("--json", export_opts.json, "Print the report as one JSON object");
   add_scene_memory_limit(exporter, export_opts.memory_limit_gib);
 

@@ -5,9 +5,11 @@
 //
 //   csrbf-play-glb FILE.glb [--fps N] [--obj OUT.obj --time T]
 //
-// Prints, for each mesh, its vertices, the frames played, the median time a frame, and where the
-// file also holds the morph targets (--compact), the largest difference between the extension's
-// vertices and the targets', relative to the mesh's size. --obj writes the mesh at time T.
+// Prints, for each mesh with the extension, its vertices, the frames played, the median time a
+// frame, and where the file also holds the morph targets (--compact), the largest difference
+// between the extension's vertices and the targets', relative to the mesh's size. --obj writes
+// those meshes at time T (past the animation's end: its last key). Meshes without the extension
+// (rigid ones) are left out; a file without any is an error.
 #include <csrbf/render/gltf_runtime.hpp>
 
 #include <algorithm>
@@ -69,6 +71,8 @@ int main(int argc, char** argv) {
   }
   if (file.empty()) return usage("no glb given");
   if (!obj.empty() && !time_given) return usage("--obj needs --time");
+  if (obj.empty() && time_given) return usage("--time needs --obj (the mesh at that time is written there)");
+  if (time_given && at < 0) return usage("--time must be at least 0");
   std::error_code ec;
   if (!obj.empty() && std::filesystem::exists(std::filesystem::symlink_status(obj, ec)))
     return usage(("--obj: '" + obj + "' exists (nothing is replaced)").c_str());
@@ -87,6 +91,13 @@ int main(int argc, char** argv) {
         std::cerr << "csrbf-play-glb: " << obj << ": cannot be written\n";
         return 1;
       }
+    }
+    std::size_t compact = 0;
+    for (std::size_t m = 0; m < runtime.meshes(); ++m) compact += runtime.compact(m);
+    if (compact == 0) {
+      std::cerr << "csrbf-play-glb: " << file
+                << ": no mesh carries CSRBF_deformation (write it with csrbf export --compact)\n";
+      return 1;
     }
     std::size_t written = 0;
     std::vector<csrbf::Vec3> positions, normals, fallback, fallback_normals;

@@ -30,8 +30,8 @@ namespace {
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-constexpr int kFloat = 5126, kUnsignedShort = 5123, kUnsignedInt = 5125, kArrayBuffer = 34962,
-              kElementArrayBuffer = 34963;
+constexpr int kByte = 5120, kShort = 5122, kFloat = 5126, kUnsignedShort = 5123, kUnsignedInt = 5125,
+              kArrayBuffer = 34962, kElementArrayBuffer = 34963;
 
 /// A buffer view's bytes for indices below `limit`: 16-bit where every index fits, else 32-bit.
 struct Indices {
@@ -103,37 +103,85 @@ struct Builder {
                      {"min", mn},
                      {"max", mx}});
   }
-  /// The bytes of a VEC3 accessor of count entries, zero but for k listed ones: sparse (an index,
-  /// 16- or 32-bit, and a float xyz an entry; one explicit zero where none) or dense.
-  static std::size_t sparse_bytes(std::size_t count, std::size_t k) {
-    return std::max<std::size_t>(k, 1) * ((count <= 65536 ? 2 : 4) + 12);
+  /// A VEC3 element's bytes: float (12), or KHR_mesh_quantization's normalized SHORT or BYTE (6 or
+  /// 3), padded to 4-byte multiples where it is a vertex attribute (8 or 4).
+  static std::size_t element_bytes(int component, bool padded) {
+    if (component == kFloat) return 12;
+    const std::size_t b = component == kShort ? 6 : 3;
+    return padded ? (b + 3) / 4 * 4 : b;
   }
-  static std::size_t dense_bytes(std::size_t count) { return 12 * count; }
+  /// values (xyz, in [-1, 1] for SHORT and BYTE) as count elements of component, padded or not.
+  static std::vector<unsigned char> pack(const std::vector<float>& v, int component, bool padded) {
+    if (component == kFloat)
+      return {reinterpret_cast<const unsigned char*>(v.data()),
+              reinterpret_cast<const unsigned char*>(v.data() + v.size())};
+    const std::size_t n = v.size() / 3, eb = element_bytes(component, padded), cb = component == kShort ? 2 : 1;
+    const double most = component == kShort ? 32767.0 : 127.0;
+    std::vector<unsigned char> out(n * eb, 0);
+    for (std::size_t i = 0; i < n; ++i)
+      for (std::size_t c = 0; c < 3; ++c) {
+        const auto q = std::int16_t(std::lround(std::clamp(double(v[3 * i + c]), -1.0, 1.0) * most));
+        if (cb == 2)
+          std::memcpy(&out[i * eb + 2 * c], &q, 2);
+        else
+          out[i * eb + c] = static_cast<unsigned char>(std::int8_t(q));
+      }
+    return out;
+  }
+  /// The integer a normalized SHORT or BYTE stores for x in [-1, 1] (glTF's min and max of such an
+  /// accessor are these integers).
+  static double stored(float x, int component) {
+    if (component == kFloat) return x;
+    return double(std::lround(std::clamp(double(x), -1.0, 1.0) * (component == kShort ? 32767.0 : 127.0)));
+  }
+  /// What a reader gets back from a normalized SHORT or BYTE: max(q / most, -1).
+  static float dequantized(float x, int component) {
+    if (component == kFloat) return x;
+    const double most = component == kShort ? 32767.0 : 127.0;
+    return float(std::max(double(std::lround(std::clamp(double(x), -1.0, 1.0) * most)) / most, -1.0));
+  }
+  /// The bytes of a VEC3 accessor of count entries, zero but for k listed ones: sparse (an index,
+  /// 16- or 32-bit, and an element an entry; one explicit zero where none) or dense.
+  static std::size_t sparse_bytes(std::size_t count, std::size_t k, int component = kFloat) {
+    return std::max<std::size_t>(k, 1) * ((count <= 65536 ? 2 : 4) + element_bytes(component, false));
+  }
+  static std::size_t dense_bytes(std::size_t count, int component = kFloat) {
+    return element_bytes(component, true) * count;
+  }
   /// A VEC3 accessor of count entries, zero but for (index, value) pairs: sparse (no buffer view)
-  /// where that takes fewer bytes than every entry, else dense. min and max over every entry.
+  /// where that takes fewer bytes than every entry, else dense. min and max over every entry (as a
+  /// reader gets them). component: float, or normalized SHORT or BYTE with values in [-1, 1].
   std::size_t sparse_vec3(std::size_t count, std::vector<std::uint32_t> index, std::vector<float> value,
-                          const char* what) {
+                          const char* what, int component = kFloat) {
     check_finite(value, what);
     // min and max of every entry: the zeros count only where some entry is not listed.
-    const float inf = std::numeric_limits<float>::infinity();
-    float lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
+    const double inf = std::numeric_limits<double>::infinity();
+    double lo[3] = {inf, inf, inf}, hi[3] = {-inf, -inf, -inf};
     if (index.size() < count || index.empty())
       for (int c = 0; c < 3; ++c) lo[c] = hi[c] = 0;
     for (std::size_t i = 0; i < index.size(); ++i)
       for (int c = 0; c < 3; ++c) {
-        lo[c] = std::min(lo[c], value[3 * i + std::size_t(c)]);
-        hi[c] = std::max(hi[c], value[3 * i + std::size_t(c)]);
+        const double x = stored(value[3 * i + std::size_t(c)], component);
+        lo[c] = std::min(lo[c], x);
+        hi[c] = std::max(hi[c], x);
       }
-    json a = {{"componentType", kFloat},
-              {"count", count},
-              {"type", "VEC3"},
-              {"min", {lo[0], lo[1], lo[2]}},
-              {"max", {hi[0], hi[1], hi[2]}}};
-    if (dense_bytes(count) < sparse_bytes(count, index.size())) {
+    json a = {{"componentType", component}, {"count", count}, {"type", "VEC3"}};
+    if (component == kFloat) {
+      a["min"] = {float(lo[0]), float(lo[1]), float(lo[2])};
+      a["max"] = {float(hi[0]), float(hi[1]), float(hi[2])};
+    } else {
+      a["min"] = {std::lround(lo[0]), std::lround(lo[1]), std::lround(lo[2])};
+      a["max"] = {std::lround(hi[0]), std::lround(hi[1]), std::lround(hi[2])};
+    }
+    if (component != kFloat) a["normalized"] = true;
+    if (dense_bytes(count, component) < sparse_bytes(count, index.size(), component)) {
       std::vector<float> dense(3 * count, 0.0f);
       for (std::size_t i = 0; i < index.size(); ++i)
         for (int c = 0; c < 3; ++c) dense[3 * index[i] + std::size_t(c)] = value[3 * i + std::size_t(c)];
-      a["bufferView"] = view(dense.data(), dense.size() * 4, 0, {MeshoptView::Mode::Attributes, 12});
+      const std::vector<unsigned char> bytes = pack(dense, component, true);
+      const std::size_t eb = element_bytes(component, true);
+      a["bufferView"] = view(bytes.data(), bytes.size(), 0, {MeshoptView::Mode::Attributes, eb});
+      if (component != kFloat) doc["bufferViews"][a["bufferView"].get<std::size_t>()]["byteStride"] = eb;
       return accessor(std::move(a));
     }
     // Sparse with one explicit zero where nothing moves: three.js's loader (r111) drops an
@@ -145,7 +193,11 @@ struct Builder {
     const Indices ix(index, count);
     const std::size_t iv =
         view(ix.bytes.data(), ix.bytes.size(), 0, {MeshoptView::Mode::Indices, ix.component == 5123 ? 2u : 4u});
-    const std::size_t vv = view(value.data(), value.size() * 4, 0, {MeshoptView::Mode::Attributes, 12});
+    const std::vector<unsigned char> packed = pack(value, component, false);
+    const std::size_t vb = element_bytes(component, false);
+    const std::size_t vv =
+        view(packed.data(), packed.size(), 0,
+             vb % 4 == 0 ? MeshoptView{MeshoptView::Mode::Attributes, vb} : MeshoptView{MeshoptView::Mode::None, 0});
     a["sparse"] = {{"count", index.size()},
                    {"indices", {{"bufferView", iv}, {"componentType", ix.component}}},
                    {"values", {{"bufferView", vv}}}};
@@ -381,6 +433,9 @@ SpaceMap float_form(const SpaceMap& map, double scale = 1.0) {
 }  // namespace
 
 std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptions& options, GltfReport& report) {
+  if (options.quantize && options.compact != Compact::Off)
+    throw std::invalid_argument(
+        "gltf_binary: quantize with compact: CSRBF_deformation's sources and radius are in float coordinates");
   const double fps = options.fps > 0 ? options.fps : scene.fps;
   if (!(fps > 0) || !std::isfinite(fps)) throw InvalidInput("export: the frame rate must be > 0");
   const double duration = scene.duration;
@@ -678,8 +733,60 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         pos[3 * v + std::size_t(c)] = float(obj.rest[v][c]);
         nor[3 * v + std::size_t(c)] = float(rest_normals[v][c]);
       }
-    const std::size_t pos_acc = b.floats(pos, 3, "the rest positions", kArrayBuffer);
-    const std::size_t nor_acc = b.floats(nor, 3, "the rest normals", kArrayBuffer);
+    // --quantize (KHR_mesh_quantization): positions as normalized SHORT in the box's frame (centre
+    // qc, half side qk: the mesh node scales them back), normals as normalized BYTE; the targets'
+    // displacements as SHORT in the same frame, their normals' changes as BYTE, each where it fits
+    // in [-1, 1] (else float). The largest vertex error this makes is reported.
+    Vec3 qc = Vec3::Zero();
+    double qk = 1.0;
+    if (options.quantize) {
+      Vec3 lo = obj.rest.front(), hi = lo;
+      for (const Vec3& x : obj.rest) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
+      qc = 0.5 * (lo + hi);
+      qk = 0.5 * (hi - lo).maxCoeff();
+      if (!(qk > 0)) qk = 1.0;
+    }
+    double quantization_error = 0;
+    const auto quantized_attribute = [&](const std::vector<float>& v, int component, const char* what) {
+      b.check_finite(v, what);
+      const std::vector<unsigned char> bytes = Builder::pack(v, component, true);
+      const std::size_t eb = Builder::element_bytes(component, true);
+      const std::size_t view = b.view(bytes.data(), bytes.size(), kArrayBuffer, {MeshoptView::Mode::Attributes, eb});
+      b.doc["bufferViews"][view]["byteStride"] = eb;
+      json mn = json::array(), mx = json::array();
+      for (std::size_t c = 0; c < 3; ++c) {
+        double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+        for (std::size_t i = 0; i < v.size() / 3; ++i) {
+          lo = std::min(lo, Builder::stored(v[3 * i + c], component));
+          hi = std::max(hi, Builder::stored(v[3 * i + c], component));
+        }
+        mn.push_back(std::lround(lo));
+        mx.push_back(std::lround(hi));
+      }
+      return b.accessor({{"bufferView", view},
+                         {"componentType", component},
+                         {"normalized", true},
+                         {"count", v.size() / 3},
+                         {"type", "VEC3"},
+                         {"min", mn},
+                         {"max", mx}});
+    };
+    std::size_t pos_acc = 0, nor_acc = 0;
+    if (options.quantize) {
+      std::vector<float> qp(pos.size());
+      for (std::size_t v = 0; v < nv; ++v)
+        for (int c = 0; c < 3; ++c) {
+          const double x = (obj.rest[v][c] - qc[c]) / qk;
+          qp[3 * v + std::size_t(c)] = float(x);
+          quantization_error =
+              std::max(quantization_error, std::abs(double(Builder::dequantized(float(x), kShort)) - x) * qk);
+        }
+      pos_acc = quantized_attribute(qp, kShort, "the rest positions");
+      nor_acc = quantized_attribute(nor, kByte, "the rest normals");
+    } else {
+      pos_acc = b.floats(pos, 3, "the rest positions", kArrayBuffer);
+      nor_acc = b.floats(nor, 3, "the rest normals", kArrayBuffer);
+    }
 
     // The morph targets: exact ones, then one a frame for the baked parts (frames where nothing
     // moves have none).
@@ -688,6 +795,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     std::vector<float> value, nvalue;
     // A target's displacements and its normals' change, as (index, value) lists, and their bytes as
     // sparse accessors (an index and a float xyz an entry; one explicit zero where none).
+    int pcomp = kFloat, ncomp = kFloat;  // the last target_data's components (--quantize)
     const auto target_data = [&](const std::vector<Vec3>& d) {
       nonzero(d, 0.0, index, value);
       std::vector<Vec3> moved(nv);
@@ -696,10 +804,28 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       std::vector<Vec3> dn(nv);
       for (std::size_t v = 0; v < nv; ++v) dn[v] = n[v] - rest_normals[v];
       nonzero(dn, 1e-6, nindex, nvalue);
-      const auto bytes = [&](std::size_t k) {
-        return std::min(Builder::sparse_bytes(nv, k), Builder::dense_bytes(nv));
+      pcomp = ncomp = kFloat;
+      if (options.quantize) {
+        // In the quantized frame, where every value fits [-1, 1]: SHORT displacements, BYTE normals.
+        double most = 0, nmost = 0, err = 0;
+        for (float& x : value) {
+          x = float(double(x) / qk);
+          most = std::max(most, double(std::abs(x)));
+        }
+        for (const float x : nvalue) nmost = std::max(nmost, double(std::abs(x)));
+        if (most <= 1.0) {
+          pcomp = kShort;
+          for (const float x : value) err = std::max(err, std::abs(double(Builder::dequantized(x, kShort)) - x) * qk);
+          quantization_error = std::max(quantization_error, 2 * err);  // the rest's and the target's
+        } else {
+          for (float& x : value) x = float(double(x) * qk);  // back: a float target
+        }
+        if (nmost <= 1.0) ncomp = kByte;
+      }
+      const auto bytes = [&](std::size_t k, int component) {
+        return std::min(Builder::sparse_bytes(nv, k, component), Builder::dense_bytes(nv, component));
       };
-      return bytes(index.size()) + bytes(nindex.size());
+      return bytes(index.size(), pcomp) + bytes(nindex.size(), ncomp);
     };
     // Targets whose displacements are identical (a baked part at rest over several frames) share
     // their accessors: stored once.
@@ -721,8 +847,8 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
           ++report.shared_targets;
           return bytes;
         }
-      const std::size_t pa = b.sparse_vec3(nv, index, value, "a morph target's displacements");
-      const std::size_t na = b.sparse_vec3(nv, nindex, nvalue, "a morph target's normals");
+      const std::size_t pa = b.sparse_vec3(nv, index, value, "a morph target's displacements", pcomp);
+      const std::size_t na = b.sparse_vec3(nv, nindex, nvalue, "a morph target's normals", ncomp);
       const json t = {{"POSITION", pa}, {"NORMAL", na}};
       targets.push_back(t);
       written.emplace(h, std::make_pair(&d, t));
@@ -1082,7 +1208,9 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     // The pivot (the centre of gravity, moved and turned) and, under it, the mesh (model coordinates).
     const std::size_t pivot = b.doc["nodes"].size();
     b.doc["nodes"].push_back({{"name", obj.name + " pivot"}, {"children", {pivot + 1}}});
-    b.doc["nodes"].push_back({{"name", obj.name}, {"mesh", mesh_index}, {"translation", vec_json(-obj.centre)}});
+    json mesh_json = {{"name", obj.name}, {"mesh", mesh_index}, {"translation", vec_json(qc - obj.centre)}};
+    if (options.quantize) mesh_json["scale"] = {qk, qk, qk};  // KHR_mesh_quantization's positions back
+    b.doc["nodes"].push_back(std::move(mesh_json));
     b.doc["scenes"][0]["nodes"].push_back(pivot);
     const std::size_t mesh_node = pivot + 1;
 
@@ -1225,6 +1353,8 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         report.csrbf_bytes += n * 48 + 8;
       }
     }
+    orep.quantization_error = quantization_error;
+    orep.max_deviation += quantization_error;
     report.objects.push_back(orep);
   }
 
@@ -1307,9 +1437,13 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
                          "'); rename the object so that animations reach the right node");
   }
   b.doc["extensionsUsed"] = {"KHR_lights_punctual"};
+  if (options.quantize) {
+    b.doc["extensionsUsed"].push_back("KHR_mesh_quantization");
+    b.doc["extensionsRequired"].push_back("KHR_mesh_quantization");
+  }
   if (any_compact) {
     b.doc["extensionsUsed"].push_back("CSRBF_deformation");
-    if (options.compact == Compact::Only) b.doc["extensionsRequired"] = {"CSRBF_deformation"};
+    if (options.compact == Compact::Only) b.doc["extensionsRequired"].push_back("CSRBF_deformation");
   }
   b.doc["extensions"] = {{"KHR_lights_punctual", {{"lights", khr}}}};
   if (!animation["channels"].empty()) b.doc["animations"] = json::array({animation});

@@ -86,9 +86,10 @@ class Export(unittest.TestCase):
 
         # Compressed by meshoptimizer (EXT_meshopt_compression), with and without the extension.
         for s in SCENES:
-            for flags, suffix in (([], "-meshopt"), (["--compact=only"], "-only-meshopt")):
+            for flags, suffix in ((["--meshopt"], "-meshopt"), (["--meshopt", "--compact=only"], "-only-meshopt"),
+                                  (["--quantize"], "-quantized"), (["--quantize", "--meshopt"], "-quantized-meshopt")):
                 out = os.path.join(cls.tmp, s + suffix + ".glb")
-                p = run([CLI, "export", os.path.join(EXAMPLES, s + ".scene.json"), "-o", out, "--json", "--meshopt"] + flags)
+                p = run([CLI, "export", os.path.join(EXAMPLES, s + ".scene.json"), "-o", out, "--json"] + flags)
                 assert p.returncode == 0, p.stderr
                 cls.reports[s + suffix + ".glb"] = json.loads(p.stdout)
 
@@ -100,7 +101,8 @@ class Export(unittest.TestCase):
         files = [os.path.join(self.tmp, s + ext) for s in SCENES for ext in (".glb", ".gltf")]
         files += [os.path.join(self.tmp, s + "-page", s + ".glb") for s in SCENES]
         files += [os.path.join(self.tmp, s + suffix + ".glb") for s in COMPACT_SCENES for suffix in ("-compact", "-only")]
-        files += [os.path.join(self.tmp, s + suffix + ".glb") for s in SCENES for suffix in ("-meshopt", "-only-meshopt")]
+        files += [os.path.join(self.tmp, s + suffix + ".glb") for s in SCENES
+                  for suffix in ("-meshopt", "-only-meshopt", "-quantized", "-quantized-meshopt")]
         p = run(["node", os.path.join(SOURCE, "tests", "export", "validate.js"), NODE_MODULES] + files)
         print(p.stdout)
         self.assertEqual(p.returncode, 0, p.stdout + p.stderr)
@@ -126,7 +128,8 @@ class Export(unittest.TestCase):
 
     def test_blender_imports_shape_keys_and_actions(self):
         # --compact files too: Blender does not know CSRBF_deformation and plays the fallback targets.
-        for file in SCENES + [s + "-compact" for s in COMPACT_SCENES]:
+        # And the quantized files (Blender 3.4 reads KHR_mesh_quantization; not EXT_meshopt_compression).
+        for file in SCENES + [s + "-compact" for s in COMPACT_SCENES] + [s + "-quantized" for s in SCENES]:
             s = file.split("-")[0]
             p = run(["blender", "-b", "--factory-startup", "--python-expr", BLENDER_SCRIPT, "--",
                      os.path.join(self.tmp, file + ".glb")])
@@ -191,6 +194,7 @@ class Export(unittest.TestCase):
             ([fish, "-o", os.path.join(d, "x.obj")], 2, "must end in .glb or .gltf"),
             ([fish, "-o", out, "--bake", "sometimes"], 2, "--bake"),
             ([fish, "-o", out, "--compact=sometimes"], 2, "--compact: expected no value"),
+            ([fish, "-o", out, "--compact", "--quantize"], 2, "--quantize with --compact"),
             ([fish, "-o", out, "--fps", "0"], 2, "--fps"),
             ([fish, "-o", out, "--html", self.tmp], 2, "exists"),
             ([os.path.join(EXAMPLES, "ball.scene.json"), "-o", out, "--bake", "never"], 1, "'walls' needs baking"),

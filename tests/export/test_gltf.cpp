@@ -62,13 +62,38 @@ struct Glb {
     std::memcpy(out.data(), bin.data() + off, count * sizeof(T));
     return out;
   }
-  /// A float accessor, dense, with its sparse values applied.
+  /// count elements of w components of type ct from view v (its byteStride, else packed), as float:
+  /// normalized SHORT and BYTE (KHR_mesh_quantization) as max(q / 32767 or 127, -1).
+  std::vector<float> elements(std::size_t v, std::size_t count, std::size_t w, int ct, bool packed) const {
+    const json& bv = doc["bufferViews"][v];
+    const std::size_t cs = ct == 5126 ? 4 : ct == 5122 ? 2 : 1;
+    const std::size_t stride = !packed && bv.contains("byteStride") ? bv["byteStride"].get<std::size_t>() : cs * w;
+    const std::size_t off = bv.value("byteOffset", std::size_t(0));
+    EXPECT_LE(count ? (count - 1) * stride + cs * w : 0, bv["byteLength"].get<std::size_t>());
+    std::vector<float> out(count * w);
+    for (std::size_t i = 0; i < count; ++i)
+      for (std::size_t c = 0; c < w; ++c) {
+        const unsigned char* p = bin.data() + off + i * stride + c * cs;
+        if (ct == 5126) {
+          std::memcpy(&out[i * w + c], p, 4);
+        } else if (ct == 5122) {
+          std::int16_t q;
+          std::memcpy(&q, p, 2);
+          out[i * w + c] = std::max(float(q) / 32767.0f, -1.0f);
+        } else {
+          out[i * w + c] = std::max(float(std::int8_t(*p)) / 127.0f, -1.0f);
+        }
+      }
+    return out;
+  }
+  /// A float (or normalized SHORT or BYTE) accessor, dense, with its sparse values applied.
   std::vector<float> floats(std::size_t a, std::size_t* sparse_count = nullptr) const {
     const json& acc = doc["accessors"][a];
-    EXPECT_EQ(acc["componentType"], 5126);
+    const int ct = acc["componentType"];
+    EXPECT_TRUE(ct == 5126 || (acc.value("normalized", false) && (ct == 5122 || ct == 5120))) << ct;
     const std::size_t w = std::size_t(width(acc["type"])), n = acc["count"];
     std::vector<float> out(n * w, 0.0f);
-    if (acc.contains("bufferView")) out = view<float>(acc["bufferView"], n * w);
+    if (acc.contains("bufferView")) out = elements(acc["bufferView"], n, w, ct, false);
     if (acc.contains("sparse")) {
       const json& sp = acc["sparse"];
       const std::size_t k = sp["count"];
@@ -80,7 +105,7 @@ struct Glb {
         EXPECT_EQ(sp["indices"]["componentType"], 5125);
         idx = view<std::uint32_t>(sp["indices"]["bufferView"], k);
       }
-      const auto val = view<float>(sp["values"]["bufferView"], k * w);
+      const auto val = elements(sp["values"]["bufferView"], k, w, ct, true);
       for (std::size_t i = 0; i < k; ++i)
         for (std::size_t c = 0; c < w; ++c) out[idx[i] * w + c] = val[i * w + c];
       if (sparse_count) *sparse_count = k;
@@ -150,6 +175,7 @@ struct Glb {
     Eigen::Affine3d m = Eigen::Affine3d::Identity();
     m.translate(tr);
     m.rotate(q.normalized());
+    if (n.contains("scale")) m.scale(Vec3(n["scale"][0], n["scale"][1], n["scale"][2]));
     return m;
   }
   std::size_t node_named(const std::string& name) const {
@@ -195,8 +221,9 @@ double worst_difference(const std::vector<Vec3>& a, const std::vector<Vec3>& b) 
   return w;
 }
 
-/// Every object at every frame time (1e-5 of the scene size), and at three points between frames
-/// (within the reported deviation, plus the same 1e-5).
+/// Every object at every frame time (1e-5 of the scene size, plus the reported quantization error
+/// where quantized), and at three points between frames (within the reported deviation, which
+/// counts it, plus the same 1e-5).
 void expect_plays_as_the_scene(const anim::Scene& scene, const render::GltfOptions& o, const Glb& glb,
                                const render::GltfReport& r) {
   anim::Player player(scene);
@@ -209,7 +236,7 @@ void expect_plays_as_the_scene(const anim::Scene& scene, const render::GltfOptio
       player.evaluate(t);
       for (std::size_t obj = 0; obj < scene.objects.size(); ++obj) {
         const double w = worst_difference(glb.vertices(scene.objects[obj].name, t), player.positions(obj));
-        const double allowed = (s == 0.0 ? 0.0 : r.objects[obj].max_deviation) + tol;
+        const double allowed = (s == 0.0 ? r.objects[obj].quantization_error : r.objects[obj].max_deviation) + tol;
         ASSERT_LE(w, allowed) << scene.objects[obj].name << " at t = " << t << " (bake " << int(o.bake) << ")";
       }
     }
@@ -695,4 +722,38 @@ TEST(GltfMeshopt, DamagedDataIsAnErrorNamingTheView) {
     EXPECT_NE(std::string(e.what()).find("bufferViews["), std::string::npos) << e.what();
   }
   EXPECT_THROW(render::GltfRuntime{packed}, InvalidInput);
+}
+
+// --quantize (KHR_mesh_quantization): 16-bit positions and displacements in each object's box, 8-bit
+// normals. Every example plays as the scene within 1e-5 of its size, and the file is smaller.
+TEST(GltfQuantize, EveryExamplePlaysAsTheScene) {
+  for (const char* name : {"fish.scene.json", "face.scene.json", "ball.scene.json"}) {
+    SCOPED_TRACE(name);
+    const anim::Scene scene = io::read_scene(example(name));
+    render::GltfOptions o;
+    render::GltfReport plain_report, r;
+    const std::size_t plain = render::gltf_binary(scene, o, plain_report).size();
+    o.quantize = true;
+    const std::vector<unsigned char> bytes = render::gltf_binary(scene, o, r);
+    const Glb glb(bytes);
+    const auto& required = glb.doc["extensionsRequired"];
+    EXPECT_NE(std::find(required.begin(), required.end(), "KHR_mesh_quantization"), required.end());
+    const json& pos =
+        glb.doc["accessors"][glb.doc["meshes"][0]["primitives"][0]["attributes"]["POSITION"].get<std::size_t>()];
+    EXPECT_EQ(pos["componentType"], 5122);
+    EXPECT_LT(bytes.size() * 4, plain * 3) << "at least 25% smaller";
+    for (const auto& ob : r.objects) {
+      EXPECT_GT(ob.quantization_error, 0.0);
+      EXPECT_LT(ob.quantization_error, 1e-5 * r.scene_size);
+    }
+    expect_plays_as_the_scene(scene, o, glb, r);
+    std::printf("%s: %zu bytes plain, %zu quantized; largest quantization error %.3g (scene %.3g)\n", name, plain,
+                bytes.size(), r.objects[0].quantization_error, r.scene_size);
+  }
+  // Not with --compact: the extension's sources are in float coordinates.
+  render::GltfOptions o;
+  o.quantize = true;
+  o.compact = render::Compact::Only;
+  render::GltfReport r;
+  EXPECT_THROW(render::gltf_binary(io::read_scene(example("fish.scene.json")), o, r), std::invalid_argument);
 }

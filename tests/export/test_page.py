@@ -237,6 +237,31 @@ class Page(unittest.TestCase):
             self.assertGreaterEqual(overlap, 0.99, s)
             self.assertLess(differ, 0.01, s)
 
+    def test_a_web_developers_uses_of_the_module(self):
+        """page_api.html: csrbf_deformation.js as an application uses three.js around it."""
+        page, _ = self.export(os.path.join(EXAMPLES, "fish.scene.json"), "fish-api", "--compact=only")
+        folder = os.path.dirname(page)
+        shutil.copy(os.path.join(SOURCE, "tests", "export", "page_api.html"), folder)
+        p = chromium(f"file://{folder}/page_api.html", dump=True)
+        m = re.search(r'<pre id="result">(.*?)</pre>', p.stdout, re.S)
+        self.assertIsNotNone(m, p.stdout[-2000:] + p.stderr[-2000:])
+        r = json.loads(html.unescape(m.group(1)))
+        print(json.dumps(r))
+        self.assertEqual(r["errors"], [])
+        self.assertGreater(r["pixels"], 1000)
+        self.assertLess(r["iou_between_times"], 0.5)  # the fish moves between t = 1 and 2.5
+        # An unlit material the application sets: the rest shape until attach(mesh), then deformed.
+        self.assertLess(r["iou_basic_without_attach"], 0.95)
+        self.assertGreater(r["iou_basic"], 0.99)
+        # A clone plays its own time, alone and beside its original; userData stays small.
+        self.assertGreater(r["iou_clone"], 0.99)
+        self.assertGreater(r["iou_original_after_clone"], 0.99)
+        self.assertGreater(r["iou_both"], 0.99)
+        self.assertLess(r["clone_userdata_bytes"], 1000)
+        # dispose() frees the deformation's seven textures.
+        self.assertEqual(r["t_before_dispose"] - r["t_after_deformation_dispose"], 7)
+        self.assertTrue(r["of_after_dispose"])
+
     def test_the_shader_file_is_the_modules_shader(self):
         # web/csrbf_deformation.glsl (for engines) is the text csrbf_deformation.js runs.
         with open(os.path.join(SOURCE, "web", "csrbf_deformation.glsl")) as f:

@@ -50,6 +50,10 @@ struct GltfOptions {
   /// EXT_meshopt_compression: every vertex attribute, index and animation buffer view compressed by
   /// meshoptimizer's codecs (the extension required; Blender 3.4 does not read it).
   bool meshopt = false;
+  /// KHR_mesh_quantization: positions and displacements as normalized 16-bit integers in each
+  /// object's box (its node scales them back), normals as 8-bit; the extension required. Not with
+  /// compact (the extension's sources are in float coordinates).
+  bool quantize = false;
   std::size_t max_active = 8;  ///< morph targets active at once in an object (three.js: 8)
   /// The whole process's limit (--memory-limit): baked frames are refused beyond what the program
   /// leaves of it.
@@ -73,6 +77,9 @@ struct GltfObjectReport {
   /// and coefficients) and the exact displacement, at phase 1, over its vertices.
   std::size_t compact_deformations = 0, groups = 0;
   double compact_error = 0;
+  /// --quantize: the largest vertex error that quantizing positions and displacements makes (scene
+  /// units; counted in max_deviation).
+  double quantization_error = 0;
 };
 
 struct GltfReport {
