@@ -210,7 +210,9 @@ int run_export(const ExportOptions& o) {
                               {"max_active_targets", ob.max_active},
                               {"rotation_deviation_deg", ob.rotation_deviation_deg},
                               {"max_deviation", ob.max_deviation},
-                              {"quantization_error", ob.quantization_error}});
+                              {"quantization_error", ob.quantization_error},
+                              {"normal_error_deg", ob.normal_error_deg},
+                              {"normal_error_endpoint_deg", ob.normal_error_endpoint_deg}});
     if (o.compact_given) {
       j["compact"] = {{"replaced_target_bytes", r.replaced_target_bytes},
                       {"compact_bytes", r.compact_bytes},

@@ -796,13 +796,45 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     // A target's displacements and its normals' change, as (index, value) lists, and their bytes as
     // sparse accessors (an index and a float xyz an entry; one explicit zero where none).
     int pcomp = kFloat, ncomp = kFloat;  // the last target_data's components (--quantize)
-    const auto target_data = [&](const std::vector<Vec3>& d) {
+    // A target's normals: a client blends n0 + w dn (then normalises) at weight w. For an exact
+    // target (w is its phase, anywhere in [0, 1]), dn is fitted by least squares to the deformed
+    // mesh's normals at w = 1/4, 1/2, 3/4 and 1, which lowers the largest angle against them
+    // (dn = n(1) - n0 is right at w = 1 only); a baked frame's target (w is 1 at its frame) keeps
+    // n(1) - n0. The largest angle at those weights is reported, with the endpoint's for comparison.
+    std::vector<Vec3> moved(nv), dn(nv);
+    const auto target_data = [&](const std::vector<Vec3>& d, bool fit_phases = false) {
       nonzero(d, 0.0, index, value);
-      std::vector<Vec3> moved(nv);
       for (std::size_t v = 0; v < nv; ++v) moved[v] = obj.rest[v] + d[v];
-      const std::vector<Vec3> n = vertex_normals(moved, obj.faces);
-      std::vector<Vec3> dn(nv);
-      for (std::size_t v = 0; v < nv; ++v) dn[v] = n[v] - rest_normals[v];
+      const std::vector<Vec3> n1 = vertex_normals(moved, obj.faces);
+      for (std::size_t v = 0; v < nv; ++v) dn[v] = n1[v] - rest_normals[v];
+      if (fit_phases) {
+        constexpr double ws[] = {0.25, 0.5, 0.75, 1.0};
+        std::vector<std::vector<Vec3>> at;
+        for (const double w : ws) {
+          for (std::size_t v = 0; v < nv; ++v) moved[v] = obj.rest[v] + w * d[v];
+          at.push_back(vertex_normals(moved, obj.faces));
+        }
+        const auto angle = [](const Vec3& a, const Vec3& b) {
+          const double na = a.norm(), nb = b.norm();
+          if (!(na > 0 && nb > 0)) return 0.0;
+          return std::acos(std::clamp(a.dot(b) / (na * nb), -1.0, 1.0)) * 180.0 / std::numbers::pi;
+        };
+        for (std::size_t v = 0; v < nv; ++v) {
+          Vec3 num = Vec3::Zero();
+          double den = 0;
+          for (std::size_t k = 0; k < 4; ++k) {
+            num += ws[k] * (at[k][v] - rest_normals[v]);
+            den += ws[k] * ws[k];
+          }
+          const Vec3 fitted = num / den;
+          for (std::size_t k = 0; k < 4; ++k) {
+            orep.normal_error_endpoint_deg =
+                std::max(orep.normal_error_endpoint_deg, angle(rest_normals[v] + ws[k] * dn[v], at[k][v]));
+            orep.normal_error_deg = std::max(orep.normal_error_deg, angle(rest_normals[v] + ws[k] * fitted, at[k][v]));
+          }
+          dn[v] = fitted;
+        }
+      }
       nonzero(dn, 1e-6, nindex, nvalue);
       pcomp = ncomp = kFloat;
       if (options.quantize) {
@@ -833,8 +865,8 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     // displacements (held by the plan or the baked frames: nothing is copied).
     std::multimap<std::uint64_t, std::pair<const std::vector<Vec3>*, json>> written;
     // Returns the target's bytes as target_data gives them.
-    const auto add_target = [&](const std::vector<Vec3>& d) {
-      const std::size_t bytes = target_data(d);
+    const auto add_target = [&](const std::vector<Vec3>& d, bool fit_phases = false) {
+      const std::size_t bytes = target_data(d, fit_phases);
       std::uint64_t h = 1469598103934665603ull;  // FNV-1a over the listed indices and float values
       const auto mix = [&](const void* p, std::size_t n) {
         for (std::size_t i = 0; i < n; ++i) h = (h ^ static_cast<const unsigned char*>(p)[i]) * 1099511628211ull;
@@ -997,10 +1029,10 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       // measured where --compact=only leaves the target empty.
       std::size_t bytes = 0;
       if (in_extension[j] && options.compact == Compact::Only) {
-        bytes = target_data(e.d);
+        bytes = target_data(e.d, true);
         targets.push_back({{"POSITION", zero_target}, {"NORMAL", zero_target}});
       } else {
-        bytes = add_target(e.d);
+        bytes = add_target(e.d, true);
       }
       if (in_extension[j]) report.replaced_target_bytes += bytes;
       target_names.push_back(obj.parts[e.part].deformations[e.deformation].name);

@@ -80,6 +80,10 @@ struct GltfObjectReport {
   /// --quantize: the largest vertex error that quantizing positions and displacements makes (scene
   /// units; counted in max_deviation).
   double quantization_error = 0;
+  /// The exact targets' blended normals (n0 + w dn, normalised) against the deformed mesh's normals
+  /// at w = 1/4, 1/2, 3/4, 1: the largest angle with dn fitted to those four (written), and with dn
+  /// = n(1) - n0 (for comparison), in degrees.
+  double normal_error_deg = 0, normal_error_endpoint_deg = 0;
 };
 
 struct GltfReport {
