@@ -8,17 +8,17 @@
 //   csrbfCoefficients  RGBA32F  element k: sum over the terms t of source k's deformation of
 //                               w[t.weight] * alpha_t,k (xyz), updated each frame on the CPU
 //   csrbfDeformations  RGBA32F  8 elements a deformation, sorted by stage:
-//                               0: (R, kernel 0|2|4|6, stage, groups row or -1)
+//                               0: (R, kernel 0|2|4|6, stage, 1 if it has groups else -1)
 //                               1: (grid origin xyz, 1 / cell side)
 //                               2: (cells along x, y, z, first cell in csrbfCells)
 //                               3: (sum of w * polynomial constant xyz, 1 if any term's w != 0)
 //                               4..6: sum of w * the polynomial's rows of L (row k multiplies x_k)
-//                               7: unused (0)
+//                               7: (first element in csrbfGroups, count, 0, 0) of its groups
 //   csrbfCells         RG32I    element c: (first element in csrbfList, count) of the sources
 //                               within R of cell c, a cell's side at least R
 //   csrbfList          R32I     source indices
-//   csrbfGroups        R8       (group, row): 1 where the deformation of that groups row moves
-//                               vertices of that _CSRBF_GROUP
+//   csrbfGroups        R32I     each grouped deformation's groups (_CSRBF_GROUP values that it
+//                               moves), ascending, one deformation's after another
 // csrbfDeformationCount is the number of deformations (0: nothing moves).
 
 uniform highp sampler2D csrbfSources;
@@ -26,7 +26,7 @@ uniform highp sampler2D csrbfCoefficients;
 uniform highp sampler2D csrbfDeformations;
 uniform highp isampler2D csrbfCells;
 uniform highp isampler2D csrbfList;
-uniform highp sampler2D csrbfGroups;
+uniform highp isampler2D csrbfGroups;
 uniform int csrbfDeformationCount;
 
 ivec2 csrbfAt(int k, int width) { return ivec2(k % width, k / width); }
@@ -59,7 +59,7 @@ void csrbfDeform(inout vec3 x, inout vec3 n, float group) {
   int sw = textureSize(csrbfSources, 0).x, cw = textureSize(csrbfCoefficients, 0).x;
   int dw = textureSize(csrbfDeformations, 0).x, gw = textureSize(csrbfCells, 0).x;
   int lw = textureSize(csrbfList, 0).x;
-  ivec2 groupsSize = textureSize(csrbfGroups, 0);
+  int rw = textureSize(csrbfGroups, 0).x;
   vec3 y = x;
   mat3 stageJ = mat3(1.0), J = mat3(1.0);
   float stage = -1.0;
@@ -73,9 +73,20 @@ void csrbfDeform(inout vec3 x, inout vec3 n, float group) {
     }
     vec4 constant = texelFetch(csrbfDeformations, csrbfAt(8 * d + 3, dw), 0);
     if (constant.w == 0.0) continue;  // every term's phase is 0 this frame
-    if (head.w >= 0.0) {
-      int g = int(group + 0.5);
-      if (g >= groupsSize.x || texelFetch(csrbfGroups, ivec2(g, int(head.w)), 0).r < 0.5) continue;
+    if (head.w >= 0.0) {  // the vertex's group among the deformation's, by bisection
+      vec4 groups = texelFetch(csrbfDeformations, csrbfAt(8 * d + 7, dw), 0);
+      int g = int(group + 0.5), lo = int(groups.x), hi = int(groups.x) + int(groups.y);
+      bool member = false;
+      while (lo < hi) {
+        int mid = (lo + hi) / 2, at = texelFetch(csrbfGroups, csrbfAt(mid, rw), 0).x;
+        if (at == g) {
+          member = true;
+          break;
+        }
+        if (at < g) lo = mid + 1;
+        else hi = mid;
+      }
+      if (!member) continue;
     }
     vec3 l0 = texelFetch(csrbfDeformations, csrbfAt(8 * d + 4, dw), 0).xyz;
     vec3 l1 = texelFetch(csrbfDeformations, csrbfAt(8 * d + 5, dw), 0).xyz;

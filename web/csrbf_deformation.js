@@ -28,17 +28,17 @@ export const CSRBF_GLSL = `// CSRBF_deformation in a vertex shader (docs/gltf/CS
 //   csrbfCoefficients  RGBA32F  element k: sum over the terms t of source k's deformation of
 //                               w[t.weight] * alpha_t,k (xyz), updated each frame on the CPU
 //   csrbfDeformations  RGBA32F  8 elements a deformation, sorted by stage:
-//                               0: (R, kernel 0|2|4|6, stage, groups row or -1)
+//                               0: (R, kernel 0|2|4|6, stage, 1 if it has groups else -1)
 //                               1: (grid origin xyz, 1 / cell side)
 //                               2: (cells along x, y, z, first cell in csrbfCells)
 //                               3: (sum of w * polynomial constant xyz, 1 if any term's w != 0)
 //                               4..6: sum of w * the polynomial's rows of L (row k multiplies x_k)
-//                               7: unused (0)
+//                               7: (first element in csrbfGroups, count, 0, 0) of its groups
 //   csrbfCells         RG32I    element c: (first element in csrbfList, count) of the sources
 //                               within R of cell c, a cell's side at least R
 //   csrbfList          R32I     source indices
-//   csrbfGroups        R8       (group, row): 1 where the deformation of that groups row moves
-//                               vertices of that _CSRBF_GROUP
+//   csrbfGroups        R32I     each grouped deformation's groups (_CSRBF_GROUP values that it
+//                               moves), ascending, one deformation's after another
 // csrbfDeformationCount is the number of deformations (0: nothing moves).
 
 uniform highp sampler2D csrbfSources;
@@ -46,7 +46,7 @@ uniform highp sampler2D csrbfCoefficients;
 uniform highp sampler2D csrbfDeformations;
 uniform highp isampler2D csrbfCells;
 uniform highp isampler2D csrbfList;
-uniform highp sampler2D csrbfGroups;
+uniform highp isampler2D csrbfGroups;
 uniform int csrbfDeformationCount;
 
 ivec2 csrbfAt(int k, int width) { return ivec2(k % width, k / width); }
@@ -79,7 +79,7 @@ void csrbfDeform(inout vec3 x, inout vec3 n, float group) {
   int sw = textureSize(csrbfSources, 0).x, cw = textureSize(csrbfCoefficients, 0).x;
   int dw = textureSize(csrbfDeformations, 0).x, gw = textureSize(csrbfCells, 0).x;
   int lw = textureSize(csrbfList, 0).x;
-  ivec2 groupsSize = textureSize(csrbfGroups, 0);
+  int rw = textureSize(csrbfGroups, 0).x;
   vec3 y = x;
   mat3 stageJ = mat3(1.0), J = mat3(1.0);
   float stage = -1.0;
@@ -93,9 +93,20 @@ void csrbfDeform(inout vec3 x, inout vec3 n, float group) {
     }
     vec4 constant = texelFetch(csrbfDeformations, csrbfAt(8 * d + 3, dw), 0);
     if (constant.w == 0.0) continue;  // every term's phase is 0 this frame
-    if (head.w >= 0.0) {
-      int g = int(group + 0.5);
-      if (g >= groupsSize.x || texelFetch(csrbfGroups, ivec2(g, int(head.w)), 0).r < 0.5) continue;
+    if (head.w >= 0.0) {  // the vertex's group among the deformation's, by bisection
+      vec4 groups = texelFetch(csrbfDeformations, csrbfAt(8 * d + 7, dw), 0);
+      int g = int(group + 0.5), lo = int(groups.x), hi = int(groups.x) + int(groups.y);
+      bool member = false;
+      while (lo < hi) {
+        int mid = (lo + hi) / 2, at = texelFetch(csrbfGroups, csrbfAt(mid, rw), 0).x;
+        if (at == g) {
+          member = true;
+          break;
+        }
+        if (at < g) lo = mid + 1;
+        else hi = mid;
+      }
+      if (!member) continue;
     }
     vec3 l0 = texelFetch(csrbfDeformations, csrbfAt(8 * d + 4, dw), 0).xyz;
     vec3 l1 = texelFetch(csrbfDeformations, csrbfAt(8 * d + 5, dw), 0).xyz;
@@ -217,10 +228,9 @@ export class CSRBFDeformation {
       .sort((a, b) => a.stage - b.stage || a.index - b.index);
     this.replaced = new Set();
     let sources = 0, cells = 0, listed = 0;
-    const groupRows = [];
-    let groupCount = 1;
+    const groupList = [];  // each grouped deformation's groups, ascending, one after another
     for (const d of this.deformations) {
-      if (!(d.kernel in KERNELS)) throw new Error(`${CSRBF_EXTENSION}: kernel '${d.kernel}' is not C0, C2, C4 or C6`);
+      if (!Object.prototype.hasOwnProperty.call(KERNELS, d.kernel)) throw new Error(`${CSRBF_EXTENSION}: kernel '${d.kernel}' is not C0, C2, C4 or C6`);
       if (!(d.radius > 0)) throw new Error(`${CSRBF_EXTENSION}: radius ${d.radius} is not > 0`);
       const n = d.sources.length / 3;
       for (const t of d.terms) {
@@ -235,10 +245,11 @@ export class CSRBFDeformation {
       cells += d.grid.dims[0] * d.grid.dims[1] * d.grid.dims[2];
       listed += d.grid.list.length;
       if (d.groups && d.groups.length) {
-        d.groupsRow = groupRows.length;
-        groupRows.push(d.groups);
-        for (const g of d.groups) groupCount = Math.max(groupCount, g + 1);
-      } else d.groupsRow = -1;
+        const sorted = [...new Set(d.groups)].sort((a, b) => a - b);
+        d.groupsFirst = groupList.length;
+        d.groupsCount = sorted.length;
+        groupList.push(...sorted);
+      } else d.groupsFirst = -1;
       if (cells > 2 ** 24 || sources > 2 ** 24) throw new Error(`${CSRBF_EXTENSION}: too many sources or cells for float indices`);
     }
     this.sourceCount = sources;
@@ -247,8 +258,9 @@ export class CSRBFDeformation {
     const listData = new Int32Array(rows(listed) * WIDTH);
     this.coefficientData = new Float32Array(rows(sources) * WIDTH * 4);
     this.deformationData = new Float32Array(rows(8 * this.deformations.length) * WIDTH * 4);
-    const groupData = new Uint8Array(Math.max(1, groupRows.length) * groupCount);
-    groupRows.forEach((list, row) => { for (const g of list) groupData[row * groupCount + g] = 255; });
+    if (groupList.length > 2 ** 24) throw new Error(`${CSRBF_EXTENSION}: more than 2^24 group numbers in all`);
+    const groupData = new Int32Array(rows(groupList.length) * WIDTH);
+    groupData.set(groupList);
     for (const d of this.deformations) {
       const n = d.sources.length / 3;
       for (let i = 0; i < n; ++i)
@@ -260,7 +272,8 @@ export class CSRBFDeformation {
       }
       for (let k = 0; k < g.list.length; ++k) listData[d.firstListed + k] = d.firstSource + g.list[k];
       const o = 32 * this.deformations.indexOf(d);
-      this.deformationData.set([d.radius, KERNELS[d.kernel], d.stage, d.groupsRow], o);
+      this.deformationData.set([d.radius, KERNELS[d.kernel], d.stage, d.groupsFirst < 0 ? -1 : 1], o);
+      if (d.groupsFirst >= 0) this.deformationData.set([d.groupsFirst, d.groupsCount, 0, 0], o + 28);
       this.deformationData.set([g.origin[0], g.origin[1], g.origin[2], 1 / g.h], o + 4);
       this.deformationData.set([g.dims[0], g.dims[1], g.dims[2], d.firstCell], o + 8);
     }
@@ -271,11 +284,7 @@ export class CSRBFDeformation {
       csrbfCells: dataTexture(cellData, THREE.RGIntegerFormat, THREE.IntType, 'RG32I'),
       csrbfList: dataTexture(listData, THREE.RedIntegerFormat, THREE.IntType, 'R32I'),
     };
-    const groups = new THREE.DataTexture(groupData, groupCount, Math.max(1, groupRows.length), THREE.RedFormat, THREE.UnsignedByteType);
-    groups.minFilter = groups.magFilter = THREE.NearestFilter;
-    groups.generateMipmaps = false;
-    groups.unpackAlignment = 1;
-    groups.needsUpdate = true;
+    const groups = dataTexture(groupData, THREE.RedIntegerFormat, THREE.IntType, 'R32I');
     this.textures.csrbfGroups = groups;
     // The morph targets that terms replace, one texel a target (1: replaced).
     const targets = Math.max(1, ...this.replaced) + 1;
@@ -491,24 +500,69 @@ export class CSRBFDeformationPlugin {
   async afterRoot(result) {
     const parser = this.parser, json = parser.json;
     const made = new Map();
+    // Every value checked before it reaches the GPU: a malformed file is an error naming the field,
+    // not a mesh drawn wrong (the same rules as csrbf::render::GltfRuntime).
+    const fail = (where, why) => { throw new Error(`${CSRBF_EXTENSION}: ${where} ${why}`); };
+    const integer = (x, lo, hi) => Number.isInteger(x) && x >= lo && x <= hi;
+    const LARGEST = 1e30;  // coefficients and polynomials: their float sums stay finite
     const load = async (meshIndex) => {
-      const ext = json.meshes[meshIndex].extensions[CSRBF_EXTENSION];
-      const floats = async (index, what) => {
+      const mesh = json.meshes[meshIndex], ext = mesh.extensions[CSRBF_EXTENSION];
+      const where = `meshes[${meshIndex}].extensions.${CSRBF_EXTENSION}`;
+      const prims = Array.isArray(mesh.primitives) ? mesh.primitives : [];
+      const targets = prims.length && Array.isArray(prims[0].targets) ? prims[0].targets.length : 0;
+      const grouped = prims.length > 0 && prims.every((p) => p.attributes && p.attributes._CSRBF_GROUP !== undefined);
+      const floats = async (index, what, largest) => {
+        if (!integer(index, 0, (json.accessors || []).length - 1)) fail(what, `${JSON.stringify(index)} is not an accessor`);
         const a = await parser.getDependency('accessor', index);
-        if (a.itemSize !== 3) throw new Error(`${CSRBF_EXTENSION}: ${what} accessor ${index} is not VEC3`);
+        if (a.itemSize !== 3) fail(what, `(accessor ${index}) is not VEC3`);
         const out = new Float32Array(3 * a.count);
         for (let i = 0; i < a.count; ++i) { out[3 * i] = a.getX(i); out[3 * i + 1] = a.getY(i); out[3 * i + 2] = a.getZ(i); }
+        for (let i = 0; i < out.length; ++i)
+          if (!(Math.abs(out[i]) <= largest)) fail(what, `(accessor ${index}) holds ${out[i]} at ${Math.floor(i / 3)}`);
         return out;
       };
+      if (!ext || !Array.isArray(ext.deformations) || !ext.deformations.length) fail(where, 'has no deformations');
       const deformations = [];
-      for (const d of ext.deformations) {
+      for (const [di, d] of ext.deformations.entries()) {
+        const dw = `${where}.deformations[${di}]`;
+        const kernel = typeof d.kernel === 'string' ? d.kernel.toUpperCase() : '';
+        if (!Object.prototype.hasOwnProperty.call(KERNELS, kernel)) fail(`${dw}.kernel`, `${JSON.stringify(d.kernel)} is not C0, C2, C4 or C6`);
+        if (!(typeof d.radius === 'number' && d.radius >= 1e-18 && d.radius <= 1e18))
+          fail(`${dw}.radius`, `${JSON.stringify(d.radius)} is not a number in [1e-18, 1e18]`);
+        if (d.stage !== undefined && !integer(d.stage, 0, 65535)) fail(`${dw}.stage`, `${JSON.stringify(d.stage)} is not in 0..65535`);
+        if (d.groups !== undefined) {
+          if (!Array.isArray(d.groups) || !d.groups.length || !d.groups.every((g) => integer(g, 0, 65535)))
+            fail(`${dw}.groups`, `${JSON.stringify(d.groups).slice(0, 60)} is not a non-empty array of group numbers`);
+          if (!grouped) fail(dw, 'has groups but the mesh has no _CSRBF_GROUP');
+        }
+        if (!Array.isArray(d.terms) || !d.terms.length) fail(dw, 'has no terms');
+        const sources = await floats(d.sources, `${dw}.sources`, 1e30);
         const terms = [];
-        for (const t of d.terms)
-          terms.push({ weight: t.weight, coefficients: await floats(t.coefficients, 'coefficients'), polynomial: t.polynomial });
-        deformations.push({ kernel: d.kernel, radius: d.radius, stage: d.stage || 0, groups: d.groups,
-          sources: await floats(d.sources, 'sources'), terms });
+        for (const [ti, t] of d.terms.entries()) {
+          const tw = `${dw}.terms[${ti}]`;
+          if (!integer(t.weight, 0, targets - 1)) fail(`${tw}.weight`, `${JSON.stringify(t.weight)} is not a morph weight of the mesh's ${targets}`);
+          if (t.polynomial !== undefined && !(Array.isArray(t.polynomial) && t.polynomial.length === 12 &&
+              t.polynomial.every((x) => typeof x === 'number' && Math.abs(x) <= LARGEST)))
+            fail(`${tw}.polynomial`, 'is not 12 numbers of at most 1e30');
+          const coefficients = await floats(t.coefficients, `${tw}.coefficients`, LARGEST);
+          if (coefficients.length !== sources.length) fail(`${tw}.coefficients`, 'are not one a source');
+          terms.push({ weight: t.weight, coefficients, polynomial: t.polynomial });
+        }
+        deformations.push({ kernel, radius: d.radius, stage: d.stage || 0, groups: d.groups, sources, terms });
       }
       return new CSRBFDeformation(deformations);
+    };
+    // The weights that animations give these meshes: finite (a NaN phase would draw NaN vertices).
+    const animated = async () => {
+      for (const [ai, an] of (json.animations || []).entries())
+        for (const ch of an.channels || []) {
+          if (!ch.target || ch.target.path !== 'weights') continue;
+          const node = (json.nodes || [])[ch.target.node];
+          if (!node || node.mesh === undefined || !((json.meshes[node.mesh] || {}).extensions || {})[CSRBF_EXTENSION]) continue;
+          const out = await parser.getDependency('accessor', an.samplers[ch.sampler].output);
+          for (let i = 0; i < out.array.length; ++i)
+            if (!Number.isFinite(out.array[i])) fail(`animations[${ai}]`, `gives a weight of ${out.array[i]} (key ${i})`);
+        }
     };
     const meshes = [];
     result.scene.traverse((o) => {
@@ -517,6 +571,7 @@ export class CSRBFDeformationPlugin {
       const def = json.meshes[a.meshes];
       if (def && def.extensions && def.extensions[CSRBF_EXTENSION]) meshes.push([o, a.meshes]);
     });
+    if (meshes.length) await animated();
     for (const [o, index] of meshes) {
       if (!made.has(index)) made.set(index, await load(index));
       made.get(index).attach(o);

@@ -10,6 +10,7 @@
 // between the extension's vertices and the targets', relative to the mesh's size. --obj writes
 // those meshes at time T (past the animation's end: its last key). Meshes without the extension
 // (rigid ones) are left out; a file without any is an error.
+#include <csrbf/io/atomic_file.hpp>
 #include <csrbf/render/gltf_runtime.hpp>
 
 #include <algorithm>
@@ -21,6 +22,7 @@
 #include <fstream>
 #include <iostream>
 #include <iterator>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -55,6 +57,7 @@ int main(int argc, char** argv) {
       if (!v) return usage((a + " needs a value").c_str());
       if (a == "--obj") {
         obj = v;
+        if (obj.empty()) return usage("--obj: the file name is empty");
         continue;
       }
       char* end = nullptr;
@@ -76,28 +79,37 @@ int main(int argc, char** argv) {
   std::error_code ec;
   if (!obj.empty() && std::filesystem::exists(std::filesystem::symlink_status(obj, ec)))
     return usage(("--obj: '" + obj + "' exists (nothing is replaced)").c_str());
+  // A regular file of at most 2 GiB (a glb's size field is 32-bit), read whole.
+  const auto size = std::filesystem::is_regular_file(file, ec) ? std::filesystem::file_size(file, ec) : 0;
+  if (ec || !std::filesystem::is_regular_file(file, ec) || size > (std::uintmax_t(1) << 31)) {
+    std::cerr << "csrbf-play-glb: " << file << ": not a readable regular file of at most 2 GiB\n";
+    return 1;
+  }
   std::ifstream in(file, std::ios::binary);
-  if (!in) {
+  std::vector<unsigned char> glb(size);
+  if (!in || !in.read(reinterpret_cast<char*>(glb.data()), std::streamsize(size))) {
     std::cerr << "csrbf-play-glb: " << file << ": cannot be read\n";
     return 1;
   }
-  const std::vector<unsigned char> glb((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   try {
     const csrbf::render::GltfRuntime runtime(glb);
-    std::ofstream out;
-    if (!obj.empty()) {
-      out.open(obj, std::ios::trunc);
-      if (!out) {
-        std::cerr << "csrbf-play-glb: " << obj << ": cannot be written\n";
-        return 1;
-      }
-    }
     std::size_t compact = 0;
     for (std::size_t m = 0; m < runtime.meshes(); ++m) compact += runtime.compact(m);
     if (compact == 0) {
       std::cerr << "csrbf-play-glb: " << file
                 << ": no mesh carries CSRBF_deformation (write it with csrbf export --compact)\n";
       return 1;
+    }
+    // The OBJ goes to a partial file beside it, renamed to its name (never replacing one) when whole.
+    std::optional<csrbf::io::Partial> partial;
+    std::ofstream out;
+    if (!obj.empty()) {
+      partial.emplace(obj, csrbf::io::Partial::Kind::File, ".obj");
+      out.open(partial->path(), std::ios::trunc);
+      if (!out) {
+        std::cerr << "csrbf-play-glb: " << obj << ": cannot be written\n";
+        return 1;
+      }
     }
     std::size_t written = 0;
     std::vector<csrbf::Vec3> positions, normals, fallback, fallback_normals;
@@ -112,6 +124,11 @@ int main(int argc, char** argv) {
       }
       const double size = (hi - lo).norm();
       const double duration = runtime.duration(m);
+      if (!(duration * fps <= 100000)) {
+        std::cerr << "csrbf-play-glb: " << file << ": mesh '" << runtime.name(m) << "' is animated for " << duration
+                  << " s: more than 100000 frames at " << fps << " fps\n";
+        return 1;
+      }
       const auto frames = std::size_t(std::floor(duration * fps + 1e-9)) + 1;
       std::vector<double> ms;
       double worst = 0;
@@ -160,6 +177,7 @@ int main(int argc, char** argv) {
         std::cerr << "csrbf-play-glb: " << obj << ": could not be written completely\n";
         return 1;
       }
+      partial->commit_new(obj);
     }
   } catch (const std::exception& e) {
     std::cerr << "csrbf-play-glb: " << file << ": " << e.what() << "\n";

@@ -411,6 +411,10 @@ bool baked_moves(const anim::Object& obj, const ObjectPlan& plan, const BakedDef
          (def.contact || def.area.empty() || std::binary_search(def.area.begin(), def.area.end(), std::uint32_t(v)));
 }
 
+/// Whether a client can evaluate radius R in single precision (R, 1/R and R^2 normal floats): the
+/// range CSRBF_deformation allows, [1e-18, 1e18].
+bool float_radius(double r) { return r >= 1e-18 && r <= 1e18; }
+
 /// The map as CSRBF_deformation stores it: sources, coefficients and polynomial (times scale, a
 /// per-frame term's phase) rounded to float.
 SpaceMap float_form(const SpaceMap& map, double scale = 1.0) {
@@ -916,7 +920,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
           err = std::isnan(d) ? std::numeric_limits<double>::infinity() : std::max(err, d);
         }
         float_error[j] = err;
-        in_extension[j] = err <= tolerance;
+        in_extension[j] = err <= tolerance && float_radius(written.radius());
         if (!in_extension[j]) {
           const auto& def = obj.parts[e.part].deformations[e.deformation];
           report.compact_left_out.push_back(obj.name + "/" + obj.parts[e.part].name + "/" + def.name);
@@ -1006,7 +1010,9 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
           }
         }
       }
-      baked_in_extension = baked_error <= tolerance;
+      bool radii = true;
+      for (const auto& bd : baked_defs) radii = radii && float_radius(bd.map->radius());
+      baked_in_extension = baked_error <= tolerance && radii;
       if (!baked_in_extension) {
         baked_defs.clear();
         baked_slots.clear();

@@ -6,6 +6,7 @@
 #include "csrbf/kernels.hpp"
 #include "csrbf/space_map.hpp"
 
+#include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <nlohmann/json.hpp>
 
@@ -257,14 +258,25 @@ void load(const json& doc, std::span<const unsigned char> bin, std::vector<Mesh>
       if (pr.contains("mode") && !(pr["mode"].is_number_unsigned() && pr["mode"].get<std::uint64_t>() == 4))
         throw InvalidInput("glTF: " + pw + ".mode " + pr["mode"].dump() + " is not 4 (triangles)");
       std::vector<double> idx;
+      if (!pr.contains("attributes") || !pr["attributes"].is_object() ||
+          index_of(pr["attributes"], "POSITION", pw + ".attributes") != index_of(attrs, "POSITION", aw))
+        throw InvalidInput("glTF: " + pw +
+                           ": its POSITION is not the first primitive's (a csrbf mesh's primitives "
+                           "share their vertices)");
       if (pr.contains("indices")) {
-        idx = acc.read(index_of(pr, "indices", pw), 1, "indices");
+        const std::size_t ia = index_of(pr, "indices", pw);
+        if (const std::size_t ct = acc.component_type(ia); ct != 5121 && ct != 5123 && ct != 5125)
+          throw InvalidInput("glTF: " + pw + ".indices: componentType " + std::to_string(ct) +
+                             " is not an unsigned integer type");
+        idx = acc.read(ia, 1, "indices");
       } else {
         idx.resize(nv);
         for (std::size_t i = 0; i < nv; ++i) idx[i] = double(i);
       }
       if (idx.size() % 3 != 0)
-        throw InvalidInput("glTF: " + pw + " has " + std::to_string(idx.size()) + " indices, not whole triangles");
+        throw InvalidInput("glTF: " + pw + " draws " + std::to_string(idx.size()) + " vertices" +
+                           (pr.contains("indices") ? " (indices)" : " (no indices: every vertex)") +
+                           ", not whole triangles");
       for (std::size_t i = 0; i < idx.size(); ++i) {
         if (!(idx[i] >= 0 && idx[i] < double(nv)))
           throw InvalidInput("glTF: " + pw + ": index " + std::to_string(i) + " is " + std::to_string(idx[i]) +
@@ -325,14 +337,17 @@ void load(const json& doc, std::span<const unsigned char> bin, std::vector<Mesh>
         if (!kernel || kname.size() != 2)
           throw InvalidInput("glTF: " + dw + ".kernel '" + given + "' is not C0, C2, C4 or C6");
         const double radius = d.contains("radius") && d["radius"].is_number() ? d["radius"].get<double>() : 0.0;
-        if (!(radius >= 1e-150 && radius <= 1e150))
+        // Clients evaluate in single precision: R, 1/R and R^2 must be normal floats.
+        if (!(radius >= 1e-18 && radius <= 1e18))
           throw InvalidInput("glTF: " + dw + ".radius " + (d.contains("radius") ? d["radius"].dump() : "(none)") +
-                             " is not a number in [1e-150, 1e150]");
+                             " is not a number in [1e-18, 1e18]");
         const json& terms = array_of(d, "terms");
         if (terms.empty()) throw InvalidInput("glTF: " + dw + " has no terms");
         const std::vector<Vec3> sources = vec3s(acc.read(index_of(d, "sources", dw), 3, "sources"));
         Deformation def;
         def.stage = index_of(d, "stage", dw, 0);
+        if (def.stage > 65535)
+          throw InvalidInput("glTF: " + dw + ".stage " + std::to_string(def.stage) + " is past 65535");
         if (d.contains("groups")) {
           const json& g = d["groups"];
           if (!g.is_array() || g.empty()) throw InvalidInput("glTF: " + dw + ".groups is not a non-empty array");
@@ -571,11 +586,21 @@ void GltfRuntime::deform(std::size_t mesh, std::span<const double> weights, std:
       positions = std::move(next);
       d0 = d1;
     }
-    for (std::size_t v = 0; v < nv; ++v)
-      if (moved[v]) normals[v] = jac[v].inverse().transpose() * normals[v];
+    // J^-T n as cof(J) n with det's sign, finite where J is singular (a polynomial that flattens).
+    for (std::size_t v = 0; v < nv; ++v) {
+      if (!moved[v]) continue;
+      const Vec3 a = jac[v].col(0), b = jac[v].col(1), c = jac[v].col(2), n = normals[v];
+      const Vec3 m = n.x() * b.cross(c) + n.y() * c.cross(a) + n.z() * a.cross(b);
+      if (m.squaredNorm() > 0) normals[v] = a.dot(b.cross(c)) < 0 ? Vec3(-m) : m;
+    }
   }
-  for (Vec3& n : normals)
+  for (std::size_t v = 0; v < nv; ++v) {
+    Vec3& n = normals[v];
     if (n.norm() > 0) n.normalize();
+    if (!positions[v].allFinite() || !n.allFinite())
+      throw InvalidInput("glTF: mesh '" + m.name + "': vertex " + std::to_string(v) +
+                         " is not finite at these weights (coefficients or polynomial beyond what float sums hold)");
+  }
 }
 
 }  // namespace csrbf::render

@@ -509,6 +509,26 @@ TEST(GltfCompact, EveryExamplePlaysTheSameThroughTheExtension) {
     }
 }
 
+/// A glb of this JSON and binary chunk.
+std::vector<unsigned char> glb_of(const json& doc, const std::vector<unsigned char>& bin) {
+  std::string text = doc.dump();
+  while (text.size() % 4) text.push_back(' ');
+  std::vector<unsigned char> out;
+  const auto u32 = [&](std::size_t x) {
+    for (int i = 0; i < 4; ++i) out.push_back((unsigned char)(x >> (8 * i)));
+  };
+  u32(0x46546C67);
+  u32(2);
+  u32(12 + 8 + text.size() + 8 + bin.size());
+  u32(text.size());
+  u32(0x4E4F534A);
+  out.insert(out.end(), text.begin(), text.end());
+  u32(bin.size());
+  u32(0x004E4942);
+  out.insert(out.end(), bin.begin(), bin.end());
+  return out;
+}
+
 // GltfRuntime refuses malformed input, naming what is wrong, and never reads outside the file.
 TEST(GltfCompact, TheRuntimeNamesWhatIsMalformed) {
   const anim::Scene scene = io::read_scene(example("face.scene.json"));
@@ -520,22 +540,7 @@ TEST(GltfCompact, TheRuntimeNamesWhatIsMalformed) {
     const Glb g(good);
     json doc = g.doc;
     edit(doc);
-    std::string text = doc.dump();
-    while (text.size() % 4) text.push_back(' ');
-    std::vector<unsigned char> out;
-    const auto u32 = [&](std::uint32_t x) {
-      for (int i = 0; i < 4; ++i) out.push_back((unsigned char)(x >> (8 * i)));
-    };
-    u32(0x46546C67);
-    u32(2);
-    u32(std::uint32_t(12 + 8 + text.size() + 8 + g.bin.size()));
-    u32(std::uint32_t(text.size()));
-    u32(0x4E4F534A);
-    out.insert(out.end(), text.begin(), text.end());
-    u32(std::uint32_t(g.bin.size()));
-    u32(0x004E4942);
-    out.insert(out.end(), g.bin.begin(), g.bin.end());
-    return out;
+    return glb_of(doc, g.bin);
   };
   const auto refused = [&](const std::vector<unsigned char>& bytes, const std::string& says) {
     try {
@@ -551,6 +556,21 @@ TEST(GltfCompact, TheRuntimeNamesWhatIsMalformed) {
   refused(with_doc([&](json& d) { ext(d)["deformations"][0]["terms"][0]["weight"] = 99; }), "weight 99");
   refused(with_doc([&](json& d) { ext(d)["deformations"][0]["sources"] = 100000; }), "accessor 100000");
   refused(with_doc([&](json& d) { d["bufferViews"][0]["byteLength"] = 1u << 30; }), "outside");
+  // What single precision cannot evaluate, float indices, and a primitive with vertices of its own.
+  refused(with_doc([&](json& d) { ext(d)["deformations"][0]["radius"] = 1e-160; }), "[1e-18, 1e18]");
+  refused(with_doc([&](json& d) { ext(d)["deformations"][0]["stage"] = 70000; }), "stage 70000 is past 65535");
+  refused(with_doc([&](json& d) {
+            const std::size_t ia = d["meshes"][0]["primitives"][0]["indices"];
+            d["accessors"][ia]["componentType"] = 5126;
+            d["accessors"][ia]["count"] = d["accessors"][ia]["count"].get<std::size_t>() / 2;
+          }),
+          "not an unsigned integer type");
+  refused(with_doc([&](json& d) {
+            json p = d["meshes"][0]["primitives"][0];
+            p["attributes"]["POSITION"] = p["attributes"]["NORMAL"];
+            d["meshes"][0]["primitives"].push_back(p);
+          }),
+          "its POSITION is not the first primitive's");
   std::vector<unsigned char> cut(good.begin(), good.begin() + std::ptrdiff_t(good.size() / 2));
   refused(cut, "header says");
   std::vector<unsigned char> junk = good;
@@ -798,4 +818,35 @@ TEST(GltfExport, TargetNormalsAreFittedOverThePhases) {
   EXPECT_LT(r.objects[0].normal_error_deg, 0.75 * r.objects[0].normal_error_endpoint_deg);
   std::printf("fish: largest normal angle %.2f deg fitted, %.2f deg with the phase-1 normals\n",
               r.objects[0].normal_error_deg, r.objects[0].normal_error_endpoint_deg);
+}
+
+// A polynomial that flattens the mesh (J singular) gives finite normals (the cofactor of J, as the
+// shader computes them), and coefficients past what double sums hold are an error, not NaN vertices.
+TEST(GltfCompact, SingularAndOverflowingDeformationsGiveNoNaN) {
+  const anim::Scene scene = io::read_scene(example("face.scene.json"));
+  render::GltfOptions o;
+  o.compact = render::Compact::Only;
+  render::GltfReport r;
+  const Glb g(render::gltf_binary(scene, o, r));
+  const auto rebuilt = [&](const json& doc) { return glb_of(doc, g.bin); };
+  json flat = g.doc;
+  // d(x) = -x_0 e_0: at weight 1, x' = x with its first coordinate 0 (J = diag(0, 1, 1)).
+  flat["meshes"][0]["extensions"]["CSRBF_deformation"]["deformations"][0]["terms"][0]["polynomial"] =
+      json::array({0, 0, 0, -1, 0, 0, 0, 0, 0, 0, 0, 0});
+  const render::GltfRuntime rt(rebuilt(flat));
+  std::vector<double> w(rt.weights(0, 0).size(), 0.0);
+  w[0] = 1;
+  std::vector<Vec3> p, n;
+  rt.deform(0, w, p, n);
+  for (std::size_t v = 0; v < p.size(); ++v) {
+    ASSERT_TRUE(p[v].allFinite() && n[v].allFinite()) << v;
+    EXPECT_NEAR(n[v].norm(), 1.0, 1e-12);
+  }
+  json huge = g.doc;
+  huge["meshes"][0]["extensions"]["CSRBF_deformation"]["deformations"][0]["terms"][0]["polynomial"] =
+      json::array({1e308, 0, 0, 1e308, 0, 0, 0, 0, 0, 0, 0, 0});
+  const render::GltfRuntime big(rebuilt(huge));
+  w.assign(w.size(), 0.0);
+  w[0] = 10;
+  EXPECT_THROW(big.deform(0, w, p, n), InvalidInput);
 }

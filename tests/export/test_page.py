@@ -262,6 +262,42 @@ class Page(unittest.TestCase):
         self.assertEqual(r["t_before_dispose"] - r["t_after_deformation_dispose"], 7)
         self.assertTrue(r["of_after_dispose"])
 
+    def test_malformed_data_is_an_error_on_the_page(self):
+        """Hostile CSRBF_deformation data: the page names the field (#error, title "error"); it never
+        draws NaN or a wrong mesh as if all were well."""
+        page, _ = self.export(os.path.join(EXAMPLES, "fish.scene.json"), "fish-hostile", "--compact=only")
+        folder = os.path.dirname(page)
+        with open(os.path.join(folder, "fish-hostile.glb"), "rb") as f:
+            glb = f.read()
+        length = int.from_bytes(glb[12:16], "little")
+        doc, rest = json.loads(glb[20:20 + length]), glb[20 + length:]
+
+        def ext(d):
+            return d["meshes"][0]["extensions"]["CSRBF_deformation"]["deformations"][0]
+        cases = [
+            (lambda d: ext(d)["terms"][0].update(weight=-1), "weight -1 is not a morph weight"),
+            (lambda d: ext(d).update(kernel="__proto__"), 'kernel "__proto__" is not C0'),
+            (lambda d: ext(d).update(radius="0.3"), 'radius "0.3" is not a number'),
+            (lambda d: ext(d).update(radius=1e-39), "radius 1e-39 is not a number in [1e-18, 1e18]"),
+            (lambda d: ext(d).update(groups=[0]), "has groups but the mesh has no _CSRBF_GROUP"),
+            (lambda d: ext(d).update(stage=2 ** 24), "stage 16777216 is not in 0..65535"),
+            (lambda d: ext(d)["terms"][0].update(polynomial=[0, 0, 0] + [3e38] * 9), "polynomial is not 12 numbers"),
+        ]
+        for edit, says in cases:
+            d = json.loads(json.dumps(doc))
+            edit(d)
+            text = json.dumps(d).encode()
+            text += b" " * (-len(text) % 4)
+            body = len(text).to_bytes(4, "little") + b"JSON" + text + rest
+            data = b"glTF" + (2).to_bytes(4, "little") + (12 + len(body)).to_bytes(4, "little") + body
+            with open(os.path.join(folder, "scene.glb.js"), "w") as f:
+                f.write('window.CSRBF_GLB = "' + base64.b64encode(data).decode() + '";\n')
+            p = chromium(f"file://{page}?t=1&ui=0", dump=True)
+            title = re.search(r"<title>(.*?)</title>", p.stdout, re.S)
+            error = re.search(r'<div id="error">(.*?)</div>', p.stdout, re.S)
+            self.assertEqual(title.group(1) if title else None, "error", says)
+            self.assertIn(says, html.unescape(error.group(1)) if error else "", says)
+
     def test_the_shader_file_is_the_modules_shader(self):
         # web/csrbf_deformation.glsl (for engines) is the text csrbf_deformation.js runs.
         with open(os.path.join(SOURCE, "web", "csrbf_deformation.glsl")) as f:
