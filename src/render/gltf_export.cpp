@@ -970,7 +970,6 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       Vec3 lo = obj.rest.front(), hi = lo;
       for (const Vec3& x : obj.rest) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
       const double tolerance = 1e-5 * (hi - lo).norm();
-      std::vector<SpaceMap> written;  // per baked_defs entry and term, made once a frame below
       for (std::size_t j = 0; j < baked_frame.size() && baked_error <= tolerance; ++j) {
         const auto& want = baked_frames[o][baked_frame[j]];
         for (std::size_t p = 0; p < obj.parts.size(); ++p) {

@@ -173,7 +173,7 @@ class Export(unittest.TestCase):
                 page = os.path.join(self.tmp, s + "-page", "index.html")
                 p = run(["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
                          "--enable-unsafe-swiftshader", "--hide-scrollbars", f"--window-size={size[0]},{size[1]}",
-                         "--virtual-time-budget=5000", f"--screenshot={shot}",
+                         "--virtual-time-budget=30000", f"--screenshot={shot}",
                          f"file://{page}?t={t}&ui=0"], timeout=120)
                 self.assertTrue(os.path.exists(shot), p.stderr[-2000:])
                 a = mask(png(os.path.join(frames, "frame_00000.png")), background)

@@ -38,7 +38,11 @@ def run(args, **kw):
     return subprocess.run(args, capture_output=True, text=True, timeout=kw.pop("timeout", 300), **kw)
 
 
-def chromium(url, *, screenshot=None, dump=False, budget=8000):
+def chromium(url, *, screenshot=None, dump=False, budget=60000):
+    """Headless Chromium on url. Its virtual time budget is what it waits for the page's work (the
+    glb's asynchronous load); virtual time runs ahead while the page is idle, so a large budget
+    costs nothing. A run that Chromium still cuts short (a loaded machine: the page's title is not
+    yet "ready", "error" or "done") is run again, at most twice, and says so."""
     args = ["chromium", "--headless", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
             "--enable-unsafe-swiftshader", "--hide-scrollbars", f"--window-size={SIZE[0]},{SIZE[1]}",
             f"--virtual-time-budget={budget}"]
@@ -46,7 +50,12 @@ def chromium(url, *, screenshot=None, dump=False, budget=8000):
         args.append(f"--screenshot={screenshot}")
     if dump:
         args.append("--dump-dom")
-    return run(args + [url], timeout=180)
+    for attempt in range(3):
+        p = run(args + [url], timeout=300)
+        if not dump or re.search(r"<title>(ready|error|done)</title>", p.stdout):
+            return p
+        print(f"chromium: {url}: the page had not finished (attempt {attempt + 1}); run again")
+    return p
 
 
 def element(dom, name):
