@@ -287,7 +287,8 @@ export class CSRBFDeformation {
     const groups = dataTexture(groupData, THREE.RedIntegerFormat, THREE.IntType, 'R32I');
     this.textures.csrbfGroups = groups;
     // The morph targets that terms replace, one texel a target (1: replaced).
-    const targets = Math.max(1, ...this.replaced) + 1;
+    let targets = 2;
+    for (const k of this.replaced) targets = Math.max(targets, k + 1);  // (no spread: a Set may be large)
     const replacedData = new Uint8Array(rows(targets) * WIDTH);
     for (const k of this.replaced) replacedData[k] = 255;
     const replaced = new THREE.DataTexture(replacedData, WIDTH, rows(targets), THREE.RedFormat, THREE.UnsignedByteType);
