@@ -261,7 +261,7 @@ export class CSRBFDeformation {
     if (groupList.length > 2 ** 24) throw new Error(`${CSRBF_EXTENSION}: more than 2^24 group numbers in all`);
     const groupData = new Int32Array(rows(groupList.length) * WIDTH);
     groupData.set(groupList);
-    for (const d of this.deformations) {
+    this.deformations.forEach((d, slot) => {
       const n = d.sources.length / 3;
       for (let i = 0; i < n; ++i)
         for (let k = 0; k < 3; ++k) sourceData[4 * (d.firstSource + i) + k] = d.sources[3 * i + k];
@@ -271,12 +271,12 @@ export class CSRBFDeformation {
         cellData[2 * (d.firstCell + c) + 1] = g.count[c];
       }
       for (let k = 0; k < g.list.length; ++k) listData[d.firstListed + k] = d.firstSource + g.list[k];
-      const o = 32 * this.deformations.indexOf(d);
+      const o = 32 * slot;
       this.deformationData.set([d.radius, KERNELS[d.kernel], d.stage, d.groupsFirst < 0 ? -1 : 1], o);
       if (d.groupsFirst >= 0) this.deformationData.set([d.groupsFirst, d.groupsCount, 0, 0], o + 28);
       this.deformationData.set([g.origin[0], g.origin[1], g.origin[2], 1 / g.h], o + 4);
       this.deformationData.set([g.dims[0], g.dims[1], g.dims[2], d.firstCell], o + 8);
-    }
+    });
     this.textures = {
       csrbfSources: dataTexture(sourceData, THREE.RGBAFormat, THREE.FloatType),
       csrbfCoefficients: dataTexture(this.coefficientData, THREE.RGBAFormat, THREE.FloatType),
@@ -284,20 +284,13 @@ export class CSRBFDeformation {
       csrbfCells: dataTexture(cellData, THREE.RGIntegerFormat, THREE.IntType, 'RG32I'),
       csrbfList: dataTexture(listData, THREE.RedIntegerFormat, THREE.IntType, 'R32I'),
     };
-    const groups = dataTexture(groupData, THREE.RedIntegerFormat, THREE.IntType, 'R32I');
-    this.textures.csrbfGroups = groups;
+    this.textures.csrbfGroups = dataTexture(groupData, THREE.RedIntegerFormat, THREE.IntType, 'R32I');
     // The morph targets that terms replace, one texel a target (1: replaced).
     let targets = 2;
     for (const k of this.replaced) targets = Math.max(targets, k + 1);  // (no spread: a Set may be large)
     const replacedData = new Uint8Array(rows(targets) * WIDTH);
     for (const k of this.replaced) replacedData[k] = 255;
-    const replaced = new THREE.DataTexture(replacedData, WIDTH, rows(targets), THREE.RedFormat, THREE.UnsignedByteType);
-    replaced.minFilter = replaced.magFilter = THREE.NearestFilter;
-    replaced.generateMipmaps = false;
-    replaced.unpackAlignment = 1;
-    replaced.needsUpdate = true;
-    this.textures.csrbfReplaced = replaced;
-    this.replacedCount = targets;
+    this.textures.csrbfReplaced = dataTexture(replacedData, THREE.RedFormat, THREE.UnsignedByteType);
     this.uniforms = { csrbfDeformationCount: { value: this.deformations.length }, csrbfEnabled: { value: 1 } };
     for (const [k, t] of Object.entries(this.textures)) this.uniforms[k] = { value: t };
     this._weights = null;

@@ -7,6 +7,7 @@
 #include "csrbf/io/scene.hpp"
 #include "csrbf/kernels.hpp"
 #include "csrbf/space_map.hpp"
+#include "glb_internal.hpp"
 #include "gltf_meshopt_internal.hpp"
 #include "texture_coordinates.hpp"
 
@@ -815,6 +816,10 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         constexpr double ws[] = {0.25, 0.5, 0.75, 1.0};
         std::vector<std::vector<Vec3>> at;
         for (const double w : ws) {
+          if (w == 1.0) {
+            at.push_back(n1);  // the mesh moved by d, as computed above
+            continue;
+          }
           for (std::size_t v = 0; v < nv; ++v) moved[v] = obj.rest[v] + w * d[v];
           at.push_back(vertex_normals(moved, obj.faces));
         }
@@ -1491,23 +1496,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
   if (options.meshopt) meshopt_compress(b.doc, b.bin, b.hints);
 
   // The glb: header, the JSON chunk (padded with spaces), the binary chunk.
-  std::string text = b.doc.dump();
-  while (text.size() % 4) text.push_back(' ');
-  std::vector<unsigned char> head;
-  const auto u32 = [&](std::uint32_t x) {
-    for (int i = 0; i < 4; ++i) head.push_back((unsigned char)(x >> (8 * i)));
-  };
-  const std::size_t total = 12 + 8 + text.size() + 8 + b.bin.size();
-  if (total > 0xffffffffu)
-    throw InvalidInput("export: the glb would be " + std::to_string(total) + " bytes; glTF allows 4 GiB");
-  u32(0x46546C67);  // "glTF"
-  u32(2);
-  u32(std::uint32_t(total));
-  u32(std::uint32_t(text.size()));
-  u32(0x4E4F534A);  // "JSON"
-  head.insert(head.end(), text.begin(), text.end());
-  u32(std::uint32_t(b.bin.size()));
-  u32(0x004E4942);  // "BIN\0"
+  const std::vector<unsigned char> head = glb_head(b.doc, b.bin.size(), "export");
   // In front of the binary chunk, in place where the reserve has room (no second copy of the buffer).
   std::vector<unsigned char> glb = std::move(b.bin);
   glb.insert(glb.begin(), head.begin(), head.end());

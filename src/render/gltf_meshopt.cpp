@@ -1,6 +1,7 @@
 #include "csrbf/render/gltf_meshopt.hpp"
 
 #include "csrbf/errors.hpp"
+#include "glb_internal.hpp"
 #include "gltf_meshopt_internal.hpp"
 
 #include <meshoptimizer.h>
@@ -75,11 +76,12 @@ void meshopt_compress(json& doc, std::vector<unsigned char>& bin, const std::vec
       continue;
     }
     std::size_t n = 0;
+    std::vector<std::uint32_t> ix;  // index modes: the view's indices, 32-bit
     if (h.mode == MeshoptView::Mode::Attributes) {
       encoded.resize(meshopt_encodeVertexBufferBound(count, h.stride));
       n = meshopt_encodeVertexBuffer(encoded.data(), encoded.size(), src, count, h.stride);
     } else {
-      const std::vector<std::uint32_t> ix = indices_of(src, count, h.stride);
+      ix = indices_of(src, count, h.stride);
       std::uint32_t most = 0;
       for (const auto i : ix) most = std::max(most, i);
       if (h.mode == MeshoptView::Mode::Triangles) {
@@ -95,7 +97,8 @@ void meshopt_compress(json& doc, std::vector<unsigned char>& bin, const std::vec
     check.assign(length, 0);
     bool same = n > 0 && decode(h.mode, count, h.stride, encoded.data(), n, check.data());
     if (same && h.mode == MeshoptView::Mode::Triangles) {
-      const auto a = indices_of(src, count, h.stride), b = indices_of(check.data(), count, h.stride);
+      const auto& a = ix;
+      const auto b = indices_of(check.data(), count, h.stride);
       for (std::size_t t = 0; same && t + 2 < count; t += 3) {
         bool rotated = false;
         for (std::size_t r = 0; r < 3; ++r)
@@ -203,20 +206,7 @@ std::vector<unsigned char> gltf_without_meshopt(const std::vector<unsigned char>
       doc[key] = kept;
       if (kept.empty()) doc.erase(key);
     }
-  std::string text = doc.dump();
-  while (text.size() % 4) text.push_back(' ');
-  std::vector<unsigned char> result;
-  const auto put = [&](std::size_t x) {
-    for (int i = 0; i < 4; ++i) result.push_back((unsigned char)(x >> (8 * i)));
-  };
-  put(0x46546C67);
-  put(2);
-  put(12 + 8 + text.size() + 8 + out.size());
-  put(text.size());
-  put(0x4E4F534A);
-  result.insert(result.end(), text.begin(), text.end());
-  put(out.size());
-  put(0x004E4942);
+  std::vector<unsigned char> result = glb_head(doc, out.size(), "glTF: EXT_meshopt_compression decoded");
   result.insert(result.end(), out.begin(), out.end());
   return result;
 }

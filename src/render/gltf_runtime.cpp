@@ -454,9 +454,11 @@ struct GltfRuntime::Data {
   std::vector<Mesh> meshes;
 };
 
-GltfRuntime::GltfRuntime(const std::vector<unsigned char>& compressed) : d_(std::make_unique<Data>()) {
-  // EXT_meshopt_compression's views decoded first (a glb without it is read as it is).
-  const std::vector<unsigned char> glb = gltf_without_meshopt(compressed);
+namespace {
+
+/// The meshes of a glb (GltfRuntime's constructor). One whose views EXT_meshopt_compression
+/// compresses is decoded first (gltf_without_meshopt) and read again; others are read in place.
+void load_glb(const std::vector<unsigned char>& glb, std::vector<Mesh>& meshes) {
   const auto u32 = [&](std::size_t at) {
     if (at + 4 > glb.size())
       throw InvalidInput("glTF: the glb ends at byte " + std::to_string(glb.size()) + " inside its header");
@@ -473,6 +475,11 @@ GltfRuntime::GltfRuntime(const std::vector<unsigned char>& compressed) : d_(std:
   if (u32(16) != 0x4E4F534Au || jl > glb.size() - 20) throw InvalidInput("glTF: the glb's first chunk is not its JSON");
   const json doc = json::parse(glb.begin() + 20, glb.begin() + 20 + std::ptrdiff_t(jl), nullptr, false);
   if (doc.is_discarded() || !doc.is_object()) throw InvalidInput("glTF: the glb's JSON chunk does not parse");
+  if (doc.contains("extensionsUsed") && doc["extensionsUsed"].is_array()) {
+    const json& used = doc["extensionsUsed"];
+    if (std::find(used.begin(), used.end(), "EXT_meshopt_compression") != used.end())
+      return load_glb(gltf_without_meshopt(glb), meshes);  // the decoded file lists it no more
+  }
   std::span<const unsigned char> bin;
   const std::size_t b0 = 20 + jl;
   if (b0 + 8 <= glb.size()) {
@@ -482,11 +489,17 @@ GltfRuntime::GltfRuntime(const std::vector<unsigned char>& compressed) : d_(std:
     bin = std::span<const unsigned char>(glb.data() + b0 + 8, bl);
   }
   try {
-    load(doc, bin, d_->meshes);
+    load(doc, bin, meshes);
   } catch (const json::exception& e) {
     // A value of the wrong JSON type where the reads above did not check it first.
     throw InvalidInput(std::string("glTF: a value of the wrong type: ") + e.what());
   }
+}
+
+}  // namespace
+
+GltfRuntime::GltfRuntime(const std::vector<unsigned char>& glb) : d_(std::make_unique<Data>()) {
+  load_glb(glb, d_->meshes);
 }
 
 GltfRuntime::~GltfRuntime() = default;
