@@ -16,6 +16,7 @@
 #endif
 #include "csrbf/space_map.hpp"
 #include "csrbf/version.hpp"
+#include "interpolator_binding.hpp"
 
 #include <nlohmann/json.hpp>
 #include <pybind11/numpy.h>
@@ -282,6 +283,8 @@ PYBIND11_MODULE(csrbf, m) {
       PyErr_SetString(PyExc_ValueError, e.what());
     }
   });
+
+  bind_interpolator(m);
 
   py::class_<csrbf::SpaceMap>(m, "SpaceMap", R"doc(
 A CSRBF space mapping T(x) = x + phase * d(x), fitted to control points.

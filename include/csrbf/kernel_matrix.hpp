@@ -27,8 +27,15 @@ class KernelMatrix {
   std::size_t size() const noexcept { return pattern_.size(); }
   Kernel kernel() const noexcept { return kernel_; }
   double radius() const noexcept { return radius_; }
-  /// phi(0), the whole diagonal.
+  /// phi(0), the diagonal of the plain CSRBF matrix (every row's, unless add_to_diagonal changed it).
   double diagonal() const noexcept { return diagonal_; }
+  /// Row i's diagonal entry: phi(0), plus its shift where add_to_diagonal gave one.
+  double diagonal(std::size_t i) const noexcept { return row_diagonal_.empty() ? diagonal_ : row_diagonal_[i]; }
+  /// Whether every row's diagonal is phi(0) (no shift).
+  bool constant_diagonal() const noexcept { return row_diagonal_.empty(); }
+  /// A + diag(shift): the smoothing of an approximation (csrbf::Interpolator), shift one value for
+  /// every row or one a row, each >= 0 and finite (the matrix stays positive definite).
+  void add_to_diagonal(std::span<const double> shift);
   /// The off-diagonal pattern: row i's columns, ascending (its dist2 is empty: the values hold them).
   const AdjacencyGraph& pattern() const noexcept { return pattern_; }
   /// Row i's off-diagonal entries, beside pattern().neighbors_of(i).
@@ -45,6 +52,7 @@ class KernelMatrix {
  private:
   AdjacencyGraph pattern_;
   FillVector<double> values_;
+  std::vector<double> row_diagonal_;  // empty: phi(0) on every row
   Kernel kernel_ = Kernel::C2;
   double radius_ = 1.0, diagonal_ = 1.0;
 };

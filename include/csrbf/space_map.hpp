@@ -126,10 +126,14 @@ class SpaceMap {
   /// The CSRBF matrix A of the sources (input order), as the fit built it.
   const KernelMatrix& matrix() const noexcept;
 
- private:
-  friend struct FitPhases;
+  /// The fitted state (src/core/fit_state.hpp): private to csrbf's core, named here so that
+  /// csrbf::Interpolator's fit can share the phases of this one.
   struct Structure;
   struct State;
+
+ private:
+  friend struct FitPhases;
+  friend class Interpolator;
   explicit SpaceMap(std::shared_ptr<const State> s) : s_(std::move(s)) {}
   SpaceMap solve_destinations(std::span<const Vec3> destinations) const;  // sizes and values already checked
   template <class T>

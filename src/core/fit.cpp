@@ -166,7 +166,7 @@ struct FitPhases {
       const auto nb = g.neighbors_of(i);
       const auto d2 = g.dist2_of(i);
       for (std::size_t k = 0; k < nb.size(); ++k)
-        if (d2[k] == 0.0) {
+        if (d2[k] == 0.0 && !shifted(st, i, nb[k])) {
           const std::size_t a = std::min<std::size_t>(i, nb[k]), b = std::max<std::size_t>(i, nb[k]);
           std::ostringstream os;
           os << "control sources " << a << " and " << b << " are at the same position (" << sources[a].x() << ", "
@@ -177,6 +177,7 @@ struct FitPhases {
     stats.seconds_graph = seconds_since(t0);
     t0 = Clock::now();
     st.a = KernelMatrix(std::move(g), options.kernel, options.radius);
+    st.a.add_to_diagonal(st.diagonal_shift);
     stats.seconds_assembly = seconds_since(t0);
   }
 
@@ -483,6 +484,13 @@ struct FitPhases {
   }
 
  private:
+  /// Whether sources i and j may share a position: both have a smoothing shift > 0 (A + diag stays
+  /// positive definite).
+  static bool shifted(const Structure& st, std::size_t i, std::size_t j) {
+    const auto& s = st.diagonal_shift;
+    if (s.empty()) return false;
+    return s.size() == 1 ? s[0] > 0 : s[i] > 0 && s[j] > 0;
+  }
   static std::vector<std::uint32_t> compute_ordering(const AdjacencyGraph& g, Ordering o) {
     switch (o) {
       case Ordering::Identity:
@@ -511,6 +519,21 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
   auto structure_only = std::make_shared<State>();
   structure_only->st = std::move(st);
   return SpaceMap(std::move(structure_only)).solve_destinations(destinations);
+}
+
+std::shared_ptr<SpaceMap::Structure> detail::fit_structure(std::span<const Vec3> sources, const FitOptions& options,
+                                                           std::span<const double> diagonal_shift) {
+  auto st = std::make_shared<SpaceMap::Structure>();
+  st->options = options;
+  st->options.polynomial = Polynomial::None;
+  st->sources.assign(sources.begin(), sources.end());
+  st->diagonal_shift.assign(diagonal_shift.begin(), diagonal_shift.end());
+  st->stats.controls = sources.size();
+  FitPhases::polynomial_frame(*st);
+  FitPhases::neighbour_graph_and_matrix(*st);
+  const Solver solver = FitPhases::ordering_and_solver(*st);
+  FitPhases::factorise(*st, solver);
+  return st;
 }
 
 SpaceMap SpaceMap::from_solution(std::span<const Vec3> sources, const Eigen::Matrix<double, Eigen::Dynamic, 3>& alpha,

@@ -78,6 +78,9 @@ struct SpaceMap::Structure {
   Eigen::LLT<Eigen::MatrixXd> schur;  // P^T A^{-1} P
   FitStats stats;                     // the structural part and its times
   bool solved_elsewhere = false;      // SpaceMap::from_solution: no matrix, no factor
+  /// csrbf::Interpolator's smoothing: A + diag(shift) (one value, or one a source; empty: none).
+  /// Sources at one position are allowed where both are shifted (> 0).
+  std::vector<double> diagonal_shift;
 
   /// b = A^-1 b (input order); CG starts from `initial` where it is given.
   void solve_in_place(RowMatrix& b, const RowMatrix* initial = nullptr) const {
@@ -273,6 +276,15 @@ struct SpaceMap::Structure {
     return condition_;
   }
 };
+
+namespace detail {
+/// The phases of SpaceMap::fit that depend on the sources only, for csrbf::Interpolator: the
+/// polynomial's frame (center and scale; options.polynomial must be None, the interpolator solves its
+/// own polynomial block), the neighbour graph, A + diag(diagonal_shift), the ordering and solver, the
+/// factorisation. The sources must have been checked (finite, radius and limit valid).
+std::shared_ptr<SpaceMap::Structure> fit_structure(std::span<const Vec3> sources, const FitOptions& options,
+                                                   std::span<const double> diagonal_shift);
+}  // namespace detail
 
 struct SpaceMap::State {
   std::shared_ptr<const Structure> st;

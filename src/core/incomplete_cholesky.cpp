@@ -15,7 +15,8 @@ std::size_t ic_blocks(std::size_t n) noexcept {
 }
 
 IncompleteCholesky::IncompleteCholesky(std::span<const std::size_t> row, std::span<const std::uint32_t> col,
-                                       std::span<const double> val, double diagonal, std::size_t n) {
+                                       std::span<const double> val, double diagonal,
+                                       std::span<const double> row_diagonal, std::size_t n) {
   const std::size_t nb = n == 0 ? 1 : ic_blocks(n);
   block_start_.resize(nb + 1);
   for (std::size_t b = 0; b <= nb; ++b) block_start_[b] = n * b / nb;
@@ -48,7 +49,7 @@ IncompleteCholesky::IncompleteCholesky(std::span<const std::size_t> row, std::sp
     std::vector<std::int64_t> position(last - first, -1);
     std::vector<double> lrow;
     for (double alpha = 0;; alpha = alpha == 0 ? 1e-3 : 2 * alpha) {
-      const double d = diagonal * (1 + alpha);
+      const double scale = 1 + alpha;
       bool broke = false;
       for (std::size_t k = first; k < last && !broke; ++k) {
         const std::size_t begin = row_[k], end = row_[k + 1];
@@ -76,6 +77,7 @@ IncompleteCholesky::IncompleteCholesky(std::span<const std::size_t> row, std::sp
           sum_squares += double(l) * double(l);
         }
         for (std::size_t e = begin; e < end; ++e) position[col_[e] - first] = -1;
+        const double d = (row_diagonal.empty() ? diagonal : row_diagonal[k]) * scale;
         const double pivot = d - sum_squares;
         // A pivot that vanishes against the diagonal (or worse) makes M near singular: shift again.
         if (!(pivot > 1e-6 * d)) {
@@ -91,7 +93,7 @@ IncompleteCholesky::IncompleteCholesky(std::span<const std::size_t> row, std::sp
       if (alpha > 1e6) {  // A + 1e6 diag(A) is diagonally dominant: unreachable for a finite A
         for (std::size_t k = first; k < last; ++k) {
           for (std::size_t e = row_[k]; e < row_[k + 1]; ++e) val_[e] = 0;
-          inv_diagonal_[k] = 1.0 / std::sqrt(diagonal);
+          inv_diagonal_[k] = 1.0 / std::sqrt(row_diagonal.empty() ? diagonal : row_diagonal[k]);
         }
         shifts[b] = std::numeric_limits<double>::infinity();
         break;

@@ -28,9 +28,10 @@ std::size_t ic_blocks(std::size_t n) noexcept;
 class IncompleteCholesky {
  public:
   /// A's rows in CG's order: row k's off-diagonal columns col[row[k] .. row[k+1]) (any order within
-  /// a row, both triangles) and values, and the constant diagonal.
+  /// a row, both triangles) and values, and the diagonal: `diagonal` on every row, or row k's
+  /// row_diagonal[k] where that is not empty.
   IncompleteCholesky(std::span<const std::size_t> row, std::span<const std::uint32_t> col, std::span<const double> val,
-                     double diagonal, std::size_t n);
+                     double diagonal, std::span<const double> row_diagonal, std::size_t n);
 
   /// z = M^-1 r for n x m values (row-major, m <= 8), blocks in parallel.
   void apply(const double* r, double* z, std::size_t m) const;

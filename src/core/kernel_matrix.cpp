@@ -32,7 +32,7 @@ RowMatrix KernelMatrix::operator*(const RowMatrix& x) const {
   const auto rows = [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
       const auto k = Eigen::Index(i);
-      y.row(k) = diagonal_ * x.row(k);
+      y.row(k) = diagonal(i) * x.row(k);
       const auto nb = pattern_.neighbors_of(i);
       const auto v = values_of(i);
       for (std::size_t j = 0; j < nb.size(); ++j) y.row(k) += v[j] * x.row(Eigen::Index(nb[j]));
@@ -46,6 +46,13 @@ RowMatrix KernelMatrix::operator*(const RowMatrix& x) const {
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, grain),
                     [&](const tbb::blocked_range<std::size_t>& r) { rows(r.begin(), r.end()); });
   return y;
+}
+
+void KernelMatrix::add_to_diagonal(std::span<const double> shift) {
+  if (shift.empty()) return;
+  const std::size_t n = size();
+  if (row_diagonal_.empty()) row_diagonal_.assign(n, diagonal_);
+  for (std::size_t i = 0; i < n; ++i) row_diagonal_[i] += shift.size() == 1 ? shift[0] : shift[i];
 }
 
 std::pair<std::size_t, std::size_t> KernelMatrix::closest_pair() const noexcept {
@@ -70,7 +77,7 @@ EnvelopeMatrix envelope_matrix(const KernelMatrix& a, std::span<const std::uint3
   for (std::size_t k = 0; k < n; ++k) pos[order[k]] = std::uint32_t(k);
   EnvelopeMatrix env(std::move(first_columns));
   for (std::size_t k = 0; k < n; ++k) {
-    env.at(k, k) = a.diagonal();
+    env.at(k, k) = a.diagonal(order[k]);
     const auto nb = a.pattern().neighbors_of(order[k]);
     const auto v = a.values_of(order[k]);
     for (std::size_t e = 0; e < nb.size(); ++e)

@@ -106,7 +106,7 @@ Sparse lower_matrix(const KernelMatrix& m, std::span<const std::uint32_t> order 
       const std::size_t j = source(k);
       const auto nb = g.neighbors_of(j);
       const auto v = m.values_of(j);
-      column.assign(1, {int(k), m.diagonal()});
+      column.assign(1, {int(k), m.diagonal(j)});
       for (std::size_t e = 0; e < nb.size(); ++e)
         if (position[nb[e]] > k) column.emplace_back(int(position[nb[e]]), v[e]);
       std::sort(column.begin(), column.end());
@@ -334,6 +334,10 @@ class BatchedCg final : public SparseFactor {
     std::vector<std::uint32_t> position(n);
     for (std::size_t k = 0; k < n; ++k) position[order_[k]] = std::uint32_t(k);
     diagonal_ = a.diagonal();
+    if (!a.constant_diagonal()) {
+      row_diagonal_.resize(n);
+      for (std::size_t k = 0; k < n; ++k) row_diagonal_[k] = a.diagonal(order_[k]);
+    }
     row_.assign(n + 1, 0);
     for (std::size_t k = 0; k < n; ++k) row_[k + 1] = row_[k] + a.pattern().degree(order_[k]);
     col_.resize(row_[n]);
@@ -402,7 +406,8 @@ class BatchedCg final : public SparseFactor {
     return reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
       for (std::size_t k = range.begin(); k < range.end(); ++k) {
         double acc[8];
-        for (std::size_t c = 0; c < m; ++c) acc[c] = diagonal_ * p[k * m + c];
+        const double d = row_diagonal_.empty() ? diagonal_ : row_diagonal_[k];
+        for (std::size_t c = 0; c < m; ++c) acc[c] = d * p[k * m + c];
         for (std::size_t e = row_[k]; e < row_[k + 1]; ++e) {
           const double a = val_[e];
           const double* pj = &p[std::size_t(col_[e]) * m];
@@ -477,7 +482,7 @@ class BatchedCg final : public SparseFactor {
     // all: the sphere's 1e6 controls converge in 40 plain steps (28 preconditioned, each twice the
     // work); the cube's take 1805 plain and 166 preconditioned. The recurrence restarts from x.
     const auto turn_to_preconditioner = [&] {
-      ic_.emplace(row_, col_, val_, diagonal_, n);
+      ic_.emplace(row_, col_, val_, diagonal_, row_diagonal_, n);
       z.resize(n * m);
       rz = precondition();
       p = z;
@@ -601,6 +606,7 @@ class BatchedCg final : public SparseFactor {
   FillVector<double> val_;
   mutable std::optional<IncompleteCholesky> ic_;  // CG's preconditioner, once a solve needed it
   double diagonal_ = 1.0, tolerance_;
+  std::vector<double> row_diagonal_;  // in `order`, where A's diagonal is not constant
   std::size_t max_iterations_;
   CgProbe probe_;
   mutable std::atomic<bool> probing_{true};

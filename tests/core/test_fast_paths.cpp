@@ -780,7 +780,7 @@ TEST(IncompleteCholesky, IsTheDenseCholeskyWhereThePatternIsFull) {
     val.insert(val.end(), v.begin(), v.end());
     row[i + 1] = col.size();
   }
-  const detail::IncompleteCholesky ic(row, col, val, a.diagonal(), n);
+  const detail::IncompleteCholesky ic(row, col, val, a.diagonal(), {}, n);
   EXPECT_EQ(ic.blocks(), 1u);
   EXPECT_EQ(ic.shift(), 0.0);
   const RowMatrix r = RowMatrix::Random(Eigen::Index(n), 3);

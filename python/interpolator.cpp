@@ -1,0 +1,561 @@
+// csrbf.Interpolator: csrbf::Interpolator (csrbf/interpolator.hpp) for numpy, in the shape of
+// scipy.interpolate.RBFInterpolator. Values of any trailing shape are fitted as P x V; float32
+// values give float32 results. Fit and evaluation release the GIL and run in a TBB arena of
+// `threads` threads where given. Pickled as its levels' coefficients (no refit).
+#include "interpolator_binding.hpp"
+
+#include "csrbf/errors.hpp"
+#include "csrbf/interpolator.hpp"
+#include "csrbf/names.hpp"
+
+#include <pybind11/numpy.h>
+#include <pybind11/stl.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+namespace py = pybind11;
+
+namespace {
+
+std::string shape_text(const std::vector<py::ssize_t>& s) {
+  std::ostringstream os;
+  os << "(";
+  for (std::size_t i = 0; i < s.size(); ++i) os << (i ? ", " : "") << s[i];
+  os << (s.size() == 1 ? ",)" : ")");
+  return os.str();
+}
+std::vector<py::ssize_t> shape_of(const py::array& a) { return {a.shape(), a.shape() + a.ndim()}; }
+
+/// obj as a numpy array of real numbers, or TypeError naming the argument.
+py::array real_array(const py::object& obj, const char* what) {
+  py::array a;
+  if (py::isinstance<py::array>(obj))
+    a = py::reinterpret_borrow<py::array>(obj);
+  else {
+    a = py::array::ensure(obj);
+    if (!a)
+      throw py::type_error(std::string(what) + " must be an array of numbers, got a " +
+                           py::str(obj.get_type().attr("__name__")).cast<std::string>() +
+                           " that numpy cannot make one of (ragged, or not numbers)");
+  }
+  const char kind = a.dtype().kind();
+  if (kind != 'f' && kind != 'i' && kind != 'u' && kind != 'b')
+    throw py::type_error(std::string(what) + " must hold real numbers (float64 or float32), got dtype " +
+                         std::string(py::str(a.dtype())));
+  if (a.dtype().itemsize() > 8 && kind == 'f')
+    throw py::type_error(std::string(what) + " has dtype " + std::string(py::str(a.dtype())) +
+                         ", which float64 cannot hold exactly; convert it to float64 first");
+  return a;
+}
+
+using Dbl = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using Flt = py::array_t<float, py::array::c_style | py::array::forcecast>;
+
+template <class T>
+void check_finite(const T* p, std::size_t n, std::size_t width, const char* what) {
+  for (std::size_t i = 0; i < n * width; ++i)
+    if (!std::isfinite(p[i])) {
+      std::ostringstream m;
+      m << what << "[" << i / width << ", " << i % width << "] is " << p[i] << " (must be finite)";
+      throw py::value_error(m.str());
+    }
+}
+
+/// Runs f without the GIL, in an arena of `threads` threads (0: TBB's default).
+template <class F>
+void run_released(int threads, F&& f) {
+  py::gil_scoped_release release;
+  if (threads > 0) {
+    tbb::task_arena arena(threads);
+    arena.execute(f);
+  } else {
+    f();
+  }
+}
+
+struct PyInterpolator {
+  csrbf::Interpolator core;
+  std::vector<py::ssize_t> value_shape;  // the trailing shape of the values
+  bool single = false;                   // float32 values: float32 results
+  int threads = 0;
+  bool radius_auto = true;
+  double neighbors = csrbf::kDefaultNeighbors;
+  std::string solver = "auto";
+};
+
+py::dtype result_dtype(const PyInterpolator& s) {
+  return s.single ? py::dtype::of<float>() : py::dtype::of<double>();
+}
+
+/// The evaluation points as (Q, D) and whether one point (D,) was given.
+std::pair<py::array, bool> query_points(const PyInterpolator& s, const py::object& obj, const char* what) {
+  py::array x = real_array(obj, what);
+  const py::ssize_t d = s.core.dimension();
+  if (x.ndim() == 1 && x.shape(0) == d) return {x.reshape({py::ssize_t(1), d}), true};
+  if (x.ndim() == 0 && d == 1) return {x.reshape({py::ssize_t(1), py::ssize_t(1)}), true};
+  if (x.ndim() != 2 || x.shape(1) != d)
+    throw py::value_error(std::string(what) + " must have shape (Q, " + std::to_string(d) + ") or (" +
+                          std::to_string(d) + ",), for this interpolant of " + std::to_string(d) +
+                          "-D points, got " + shape_text(shape_of(x)));
+  return {x, false};
+}
+
+/// The result's array: `out` checked (shape, dtype, C-contiguous, writeable), or a new one.
+py::array result_for(const py::object& out, const std::vector<py::ssize_t>& shape, const py::dtype& dtype) {
+  if (out.is_none()) return py::array(dtype, shape);
+  if (!py::isinstance<py::array>(out)) throw py::type_error("out must be a numpy array, got a " +
+                                                            py::str(out.get_type().attr("__name__")).cast<std::string>());
+  const auto a = py::reinterpret_borrow<py::array>(out);
+  std::ostringstream m;
+  m << "out must be a writeable C-contiguous " << shape_text(shape) << " " << py::str(py::handle(dtype)).cast<std::string>()
+    << " array: ";
+  if (!a.dtype().is(dtype))
+    m << "its dtype is " << std::string(py::str(a.dtype()));
+  else if (shape_of(a) != shape)
+    m << "its shape is " << shape_text(shape_of(a));
+  else if (!(a.flags() & py::array::c_style))
+    m << "it is not C-contiguous";
+  else if (!a.writeable())
+    m << "it is read-only";
+  else
+    return a;
+  throw py::value_error(m.str());
+}
+
+py::array evaluate(const PyInterpolator& s, const py::object& x_obj, const py::object& out) {
+  auto [x, one] = query_points(s, x_obj, "x");
+  const std::size_t q = std::size_t(x.shape(0)), d = std::size_t(s.core.dimension()), nv = s.core.value_count();
+  std::vector<py::ssize_t> shape;
+  if (!one) shape.push_back(py::ssize_t(q));
+  shape.insert(shape.end(), s.value_shape.begin(), s.value_shape.end());
+  py::array result = result_for(out, shape, result_dtype(s));
+  if (s.single && x.dtype().is(py::dtype::of<float>())) {
+    const Flt xf = Flt::ensure(x);
+    check_finite(xf.data(), q, d, "x");
+    float* o = static_cast<float*>(result.mutable_data());
+    const bool overlap = static_cast<const void*>(o) < static_cast<const void*>(xf.data() + q * d) &&
+                         static_cast<const void*>(xf.data()) < static_cast<const void*>(o + q * nv);
+    std::vector<float> staging(overlap ? q * nv : 0);
+    run_released(s.threads, [&] {
+      s.core.evaluate(xf.data(), q, overlap ? staging.data() : o);
+      if (overlap) std::copy(staging.begin(), staging.end(), o);
+    });
+    return result;
+  }
+  const Dbl xd = Dbl::ensure(x);
+  if (!xd) throw py::error_already_set();
+  check_finite(xd.data(), q, d, "x");
+  if (!s.single) {
+    double* o = static_cast<double*>(result.mutable_data());
+    const bool overlap = static_cast<const void*>(o) < static_cast<const void*>(xd.data() + q * d) &&
+                         static_cast<const void*>(xd.data()) < static_cast<const void*>(o + q * nv);
+    std::vector<double> staging(overlap ? q * nv : 0);
+    run_released(s.threads, [&] {
+      s.core.evaluate(xd.data(), q, overlap ? staging.data() : o);
+      if (overlap) std::copy(staging.begin(), staging.end(), o);
+    });
+    return result;
+  }
+  std::vector<double> staging(q * nv);  // float32 values at float64 points: evaluated in double
+  float* o = static_cast<float*>(result.mutable_data());
+  run_released(s.threads, [&] {
+    s.core.evaluate(xd.data(), q, staging.data());
+    for (std::size_t i = 0; i < staging.size(); ++i) o[i] = float(staging[i]);
+  });
+  return result;
+}
+
+py::array gradient(const PyInterpolator& s, const py::object& x_obj, const py::object& out) {
+  auto [x, one] = query_points(s, x_obj, "x");
+  const std::size_t q = std::size_t(x.shape(0)), d = std::size_t(s.core.dimension()), nv = s.core.value_count();
+  std::vector<py::ssize_t> shape;
+  if (!one) shape.push_back(py::ssize_t(q));
+  shape.insert(shape.end(), s.value_shape.begin(), s.value_shape.end());
+  shape.push_back(py::ssize_t(d));
+  py::array result = result_for(out, shape, result_dtype(s));
+  const Dbl xd = Dbl::ensure(x);
+  if (!xd) throw py::error_already_set();
+  check_finite(xd.data(), q, d, "x");
+  std::vector<double> g(q * nv * d);
+  run_released(s.threads, [&] { s.core.gradient(xd.data(), q, g.data()); });
+  if (s.single) {
+    float* o = static_cast<float*>(result.mutable_data());
+    for (std::size_t i = 0; i < g.size(); ++i) o[i] = float(g[i]);
+  } else {
+    std::copy(g.begin(), g.end(), static_cast<double*>(result.mutable_data()));
+  }
+  return result;
+}
+
+py::dict stats_of(const PyInterpolator& s) {
+  py::list levels;
+  double worst = 0;
+  for (const auto& l : s.core.levels()) {
+    py::dict d;
+    d["points"] = l.points.size() / std::size_t(s.core.dimension());
+    d["radius"] = l.radius;
+    d["neighbors"] = l.mean_neighbors;
+    d["solver"] = std::string(csrbf::solver_name(l.solver));
+    d["iterations"] = l.iterations;
+    d["residual"] = l.residual_relative;
+    d["rms_before"] = l.rms_before;
+    d["seconds"] = l.seconds;
+    worst = std::max(worst, l.residual_relative);
+    levels.append(d);
+  }
+  const auto& finest = s.core.levels().back();
+  py::dict d;
+  d["points"] = s.core.size();
+  d["dimension"] = s.core.dimension();
+  d["values"] = s.core.value_count();
+  d["radius"] = finest.radius;
+  d["radius_auto"] = s.radius_auto;
+  d["target_neighbors"] = s.neighbors;
+  d["neighbors"] = finest.mean_neighbors;
+  d["solver"] = std::string(csrbf::solver_name(finest.solver));
+  d["iterations"] = finest.iterations;
+  d["residual"] = worst;
+  d["levels"] = levels;
+  d["seconds_fit"] = s.core.seconds_fit();
+  return d;
+}
+
+py::array_t<double> vector_array(const std::vector<double>& v, py::ssize_t rows, py::ssize_t cols) {
+  py::array_t<double> a({rows, cols});
+  std::copy(v.begin(), v.end(), a.mutable_data());
+  return a;
+}
+
+std::vector<double> vector_of(const py::handle& obj, const char* what) {
+  const Dbl a = Dbl::ensure(obj);
+  if (!a) throw py::value_error(std::string("Interpolator state: ") + what + " is not an array of numbers");
+  return {a.data(), a.data() + a.size()};
+}
+
+constexpr int kStateVersion = 1;
+
+py::tuple get_state(const PyInterpolator& s) {
+  const auto d = py::ssize_t(s.core.dimension()), nv = py::ssize_t(s.core.value_count());
+  py::list levels;
+  const int terms0 = s.core.degree() < 0 ? 0 : s.core.degree() == 0 ? 1 : 1 + int(d);
+  for (std::size_t k = 0; k < s.core.levels().size(); ++k) {
+    const auto& l = s.core.levels()[k];
+    const auto n = py::ssize_t(l.points.size()) / d;
+    levels.append(py::make_tuple(
+        l.radius, vector_array(l.points, n, d), vector_array(l.alpha, n, nv),
+        vector_array(l.beta, k == 0 ? terms0 : 0, nv), py::make_tuple(l.center.x(), l.center.y(), l.center.z()),
+        l.scale,
+        py::make_tuple(l.mean_neighbors, std::string(csrbf::solver_name(l.solver)), l.iterations, l.residual_relative,
+                       l.rms_before, l.seconds)));
+  }
+  return py::make_tuple(kStateVersion, int(d), py::cast(s.value_shape), s.single,
+                        std::string(csrbf::kernel_name(s.core.kernel())), s.core.degree(), levels, s.threads,
+                        s.radius_auto, s.neighbors, s.solver);
+}
+
+PyInterpolator set_state(const py::tuple& t) {
+  if (t.size() != 11 || t[0].cast<int>() != kStateVersion)
+    throw py::value_error("Interpolator state: not a state of this version of csrbf");
+  PyInterpolator s;
+  const int d = t[1].cast<int>();
+  s.value_shape = t[2].cast<std::vector<py::ssize_t>>();
+  s.single = t[3].cast<bool>();
+  const auto kernel = csrbf::parse_name<csrbf::Kernel>(t[4].cast<std::string>());
+  if (!kernel) throw py::value_error("Interpolator state: unknown kernel");
+  const int degree = t[5].cast<int>();
+  std::size_t nv = 1;
+  for (py::ssize_t e : s.value_shape) nv *= std::size_t(e);
+  std::vector<csrbf::InterpolatorLevel> levels;
+  for (const py::handle h : t[6].cast<py::list>()) {
+    const auto l = h.cast<py::tuple>();
+    csrbf::InterpolatorLevel lv;
+    lv.radius = l[0].cast<double>();
+    lv.points = vector_of(l[1], "points");
+    lv.alpha = vector_of(l[2], "alpha");
+    lv.beta = vector_of(l[3], "beta");
+    const auto c = l[4].cast<py::tuple>();
+    lv.center = csrbf::Vec3(c[0].cast<double>(), c[1].cast<double>(), c[2].cast<double>());
+    lv.scale = l[5].cast<double>();
+    const auto st = l[6].cast<py::tuple>();
+    lv.mean_neighbors = st[0].cast<double>();
+    lv.solver = csrbf::parse_solver(st[1].cast<std::string>()).value_or(csrbf::Solver::Auto);
+    lv.iterations = st[2].cast<std::size_t>();
+    lv.residual_relative = st[3].cast<double>();
+    lv.rms_before = st[4].cast<double>();
+    lv.seconds = st[5].cast<double>();
+    levels.push_back(std::move(lv));
+  }
+  s.core = csrbf::Interpolator::from_levels(d, nv, *kernel, degree, std::move(levels));
+  s.threads = t[7].cast<int>();
+  s.radius_auto = t[8].cast<bool>();
+  s.neighbors = t[9].cast<double>();
+  s.solver = t[10].cast<std::string>();
+  return s;
+}
+
+PyInterpolator make(const py::object& points_obj, const py::object& values_obj, const py::object& radius,
+                    const std::string& kernel, int degree, const py::object& smoothing, double neighbors,
+                    const py::object& levels, const std::string& method, const py::object& memory_limit,
+                    const py::object& threads, const std::string& solver) {
+  PyInterpolator s;
+  csrbf::InterpolatorOptions o;
+  // Options first (cheap), then the arrays.
+  if (py::isinstance<py::str>(radius)) {
+    const auto text = radius.cast<std::string>();
+    if (text != "auto") throw py::value_error("radius must be a positive number or 'auto', got '" + text + "'");
+  } else if (!radius.is_none()) {
+    if (!py::isinstance<py::float_>(radius) && !py::isinstance<py::int_>(radius) &&
+        !py::hasattr(radius, "__float__"))
+      throw py::type_error("radius must be a positive number or 'auto', got a " +
+                           py::str(radius.get_type().attr("__name__")).cast<std::string>());
+    o.radius = radius.cast<double>();
+    if (!(o.radius > 0) || !std::isfinite(o.radius))
+      throw py::value_error("radius must be a positive finite number or 'auto', got " +
+                            py::str(radius).cast<std::string>());
+    s.radius_auto = false;
+  }
+  const auto k = csrbf::parse_name<csrbf::Kernel>(kernel);
+  if (!k) throw py::value_error("kernel must be one of " + csrbf::names_text<csrbf::Kernel>() + ", got '" + kernel + "'");
+  o.kernel = *k;
+  if (degree < -1 || degree > 1) throw py::value_error("degree must be -1 (none), 0 or 1, got " + std::to_string(degree));
+  o.degree = degree;
+  if (!(neighbors > 0) || !std::isfinite(neighbors))
+    throw py::value_error("neighbors must be a positive number, got " + py::str(py::float_(neighbors)).cast<std::string>());
+  o.neighbors = neighbors;
+  s.neighbors = neighbors;
+  if (method != "single" && method != "multiscale")
+    throw py::value_error("method must be 'single' or 'multiscale', got '" + method + "'");
+  o.levels = method == "multiscale" ? 0 : 1;
+  if (py::isinstance<py::str>(levels)) {
+    const auto text = levels.cast<std::string>();
+    if (text != "auto") throw py::value_error("levels must be an integer 1.." + std::to_string(csrbf::kMaxLevels) +
+                                              " or 'auto', got '" + text + "'");
+    o.levels = 0;
+  } else if (!levels.is_none()) {
+    if (!py::isinstance<py::int_>(levels) || py::isinstance<py::bool_>(levels))
+      throw py::type_error("levels must be an integer or 'auto', got a " +
+                           py::str(levels.get_type().attr("__name__")).cast<std::string>());
+    const long l = levels.cast<long>();
+    if (l < 1 || l > csrbf::kMaxLevels)
+      throw py::value_error("levels must be within 1.." + std::to_string(csrbf::kMaxLevels) + ", got " +
+                            std::to_string(l));
+    o.levels = int(l);  // levels > 1 is the multiscale method whatever `method` says
+  }
+  const auto sv = csrbf::parse_solver(solver);
+  if (!sv) throw py::value_error("solver must be one of " + csrbf::names_text<csrbf::Solver>() + ", got '" + solver + "'");
+  o.solver = *sv;
+  s.solver = solver;
+  if (!memory_limit.is_none()) {
+    const double gib = memory_limit.cast<double>();
+    if (!(gib > 0) || !std::isfinite(gib))
+      throw py::value_error("memory_limit must be a positive number of GiB, got " + py::str(memory_limit).cast<std::string>());
+    o.memory_limit_bytes = gib * double(1ull << 30);
+  }
+  if (!threads.is_none()) {
+    const long t = threads.cast<long>();
+    if (t < 1 || t > 4096) throw py::value_error("threads must be a positive integer, got " + std::to_string(t));
+    s.threads = int(t);
+  }
+
+  const py::array points = real_array(points_obj, "points");
+  if (points.ndim() != 2)
+    throw py::value_error("points must have shape (P, D), D = 1, 2 or 3, got " + shape_text(shape_of(points)) +
+                          (points.ndim() == 1 ? " (1-D data: points[:, None])" : ""));
+  if (points.shape(1) < 1 || points.shape(1) > csrbf::Interpolator::kMaxDimension)
+    throw py::value_error(
+        "points must have shape (P, D) with D = 1, 2 or 3, got " + shape_text(shape_of(points)) +
+        ": csrbf's Wendland kernels are positive definite only up to 3 dimensions (built for R^3); in "
+        "higher dimensions the system can be singular");
+  if (points.shape(0) == 0) throw py::value_error("points is empty (shape " + shape_text(shape_of(points)) + ")");
+  const py::array values = real_array(values_obj, "values");
+  if (values.ndim() < 1 || values.shape(0) != points.shape(0))
+    throw py::value_error("values must have shape (P, ...) with P = " + std::to_string(points.shape(0)) +
+                          " (one row a point), got " + shape_text(shape_of(values)));
+  s.value_shape.assign(values.shape() + 1, values.shape() + values.ndim());
+  s.single = values.dtype().is(py::dtype::of<float>());
+  const std::size_t p = std::size_t(points.shape(0)), d = std::size_t(points.shape(1));
+  std::size_t nv = 1;
+  for (py::ssize_t e : s.value_shape) nv *= std::size_t(e);
+  if (nv == 0) throw py::value_error("values has no value a point (shape " + shape_text(shape_of(values)) + ")");
+  const Dbl pts = Dbl::ensure(points), vals = Dbl::ensure(values);
+  if (!pts || !vals) throw py::error_already_set();
+  check_finite(pts.data(), p, d, "points");
+  check_finite(vals.data(), p, nv, "values");
+  if (!smoothing.is_none()) {
+    const py::array sm = real_array(smoothing, "smoothing");
+    if (!(sm.ndim() == 0 || (sm.ndim() == 1 && std::size_t(sm.shape(0)) == p)))
+      throw py::value_error("smoothing must be a number or an array of shape (" + std::to_string(p) + ",), got " +
+                            shape_text(shape_of(sm)));
+    const Dbl sd = Dbl::ensure(sm);
+    for (py::ssize_t i = 0; i < sd.size(); ++i)
+      if (!(sd.data()[i] >= 0) || !std::isfinite(sd.data()[i])) {
+        std::ostringstream m;
+        m << "smoothing" << (sm.ndim() ? "[" + std::to_string(i) + "]" : std::string()) << " is " << sd.data()[i]
+          << " (must be finite and >= 0)";
+        throw py::value_error(m.str());
+      }
+    o.smoothing.assign(sd.data(), sd.data() + sd.size());
+    if (std::all_of(o.smoothing.begin(), o.smoothing.end(), [](double v) { return v == 0; })) o.smoothing.clear();
+  }
+  run_released(s.threads, [&] {
+    s.core = csrbf::Interpolator::fit({pts.data(), p * d}, int(d), {vals.data(), p * nv}, nv, o);
+  });
+  return s;
+}
+
+std::string repr(const PyInterpolator& s) {
+  std::ostringstream os;
+  os.precision(6);
+  const auto& finest = s.core.levels().back();
+  os << "csrbf.Interpolator(points=" << s.core.size() << ", dimension=" << s.core.dimension()
+     << ", values=" << shape_text(s.value_shape) << " " << (s.single ? "float32" : "float64")
+     << ", kernel='" << csrbf::kernel_name(s.core.kernel()) << "', degree=" << s.core.degree()
+     << ", levels=" << s.core.levels().size() << ", radius=" << finest.radius << (s.radius_auto ? " (auto)" : "")
+     << ", neighbors=" << finest.mean_neighbors << ")";
+  return os.str();
+}
+
+}  // namespace
+
+void bind_interpolator(py::module_& m) {
+  py::class_<PyInterpolator>(m, "Interpolator", R"doc(
+Interpolation of scattered data by compactly supported radial basis functions (Wendland).
+
+The compact-support counterpart of ``scipy.interpolate.RBFInterpolator``: each basis function
+reaches only ``radius`` from its point, so the system is sparse and evaluation touches only the
+points within ``radius`` of x.
+
+    s(x) = sum_i alpha_i phi(|x - x_i| / R) + p(x),   s(x_i) + lambda_i alpha_i = f_i
+
+Parameters
+----------
+points : array_like, shape (P, D)
+    The data sites, D = 1, 2 or 3 (the Wendland kernels are positive definite up to 3-D).
+values : array_like, shape (P, ...)
+    The data values: any trailing shape (scalars, vectors, tensors). float32 values give float32
+    results; anything else float64.
+radius : float or 'auto', optional
+    The radius of support R in the points' units. 'auto' (default) picks R so that a point has
+    ``neighbors`` others within R on average; ``stats`` says what was chosen. With several levels,
+    the radius of the finest level (each coarser level doubles it).
+kernel : {'c0', 'c2', 'c4', 'c6'}, optional
+    The Wendland function (smoothness C0 to C6). Default 'c2'.
+degree : {-1, 0, 1}, optional
+    The polynomial: -1 none (default; strictly local: s = 0 farther than R from every point),
+    0 a constant, 1 linear.
+smoothing : float or array_like of shape (P,), optional
+    lambda >= 0 added to the diagonal: 0 interpolates, larger values smooth noisy data.
+neighbors : float, optional
+    The mean number of neighbours the automatic radius aims at (default 40).
+levels : int or 'auto', optional
+    1 (default): one radius. n > 1: the multiscale method (Floater & Iske 1996): nested subsets of
+    the points, each level fitting what the coarser ones left with half their radius. 'auto':
+    levels until the coarsest has about 1000 points (at most 6).
+method : {'single', 'multiscale'}, optional
+    'multiscale' is ``levels='auto'``.
+memory_limit : float, optional
+    The most memory the fit may take, in GiB (default 4); beyond it MemoryError, before allocating.
+threads : int, optional
+    Threads for fit and evaluation (default: all cores).
+solver : {'auto', 'envelope', 'eigen', 'cholmod', 'cg'}, optional
+    The sparse solver (default 'auto').
+
+Raises
+------
+ValueError
+    Bad shapes or values (the message names the argument, its shape and the first bad element),
+    duplicate points without smoothing, a degenerate polynomial, an ill-conditioned system.
+TypeError
+    Arguments that are not arrays of real numbers.
+MemoryError
+    The fit would pass ``memory_limit``.
+
+Examples
+--------
+>>> import numpy as np, csrbf
+>>> rng = np.random.default_rng(0)
+>>> xy = rng.random((2000, 2))
+>>> f = np.sin(3 * xy[:, 0]) * xy[:, 1]
+>>> s = csrbf.Interpolator(xy, f, neighbors=30)
+>>> float(abs(s([0.5, 0.5]) - np.sin(1.5) * 0.5)) < 1e-2
+True
+)doc")
+      .def(py::init(&make), py::arg("points"), py::arg("values"), py::kw_only(), py::arg("radius") = "auto",
+           py::arg("kernel") = "c2", py::arg("degree") = -1, py::arg("smoothing") = 0.0,
+           py::arg("neighbors") = csrbf::kDefaultNeighbors, py::arg("levels") = py::none(),
+           py::arg("method") = "single", py::arg("memory_limit") = py::none(), py::arg("threads") = py::none(),
+           py::arg("solver") = "auto")
+      .def("__call__", &evaluate, py::arg("x"), py::kw_only(), py::arg("out") = py::none(), R"doc(
+Evaluates the interpolant.
+
+Parameters
+----------
+x : array_like, shape (Q, D) or (D,)
+    The points.
+out : numpy.ndarray, optional
+    Where to write the result: C-contiguous, writeable, of the result's shape and dtype.
+
+Returns
+-------
+numpy.ndarray, shape (Q, ...) or (...)
+    The values' trailing shape, in the values' dtype.
+
+Examples
+--------
+>>> import numpy as np, csrbf
+>>> s = csrbf.Interpolator(np.eye(3), np.arange(3.0), radius=2.0)
+>>> s(np.eye(3)).round(12).tolist()
+[0.0, 1.0, 2.0]
+)doc")
+      .def("gradient", &gradient, py::arg("x"), py::kw_only(), py::arg("out") = py::none(), R"doc(
+The derivatives of the interpolant.
+
+Parameters
+----------
+x : array_like, shape (Q, D) or (D,)
+out : numpy.ndarray, optional
+
+Returns
+-------
+numpy.ndarray, shape (Q, ..., D) or (..., D)
+    ``g[q, ..., d]`` is the derivative of the value ``[...]`` along coordinate d at x[q].
+
+Examples
+--------
+>>> import numpy as np, csrbf
+>>> x = np.linspace(0, 1, 50)[:, None]
+>>> s = csrbf.Interpolator(x, 2 * x[:, 0], radius=0.2, degree=1)
+>>> round(float(s.gradient([0.5])[0]), 6)
+2.0
+)doc")
+      .def_property_readonly("stats", &stats_of, R"doc(
+What the fit chose and did: the radius (and whether it was automatic), the mean neighbours, the
+solver, its iterations, the largest relative residual of the system, and each level's figures.
+
+Examples
+--------
+>>> import numpy as np, csrbf
+>>> s = csrbf.Interpolator(np.random.default_rng(1).random((500, 2)), np.ones(500), neighbors=20)
+>>> round(s.stats['neighbors'])
+20
+)doc")
+      .def_property_readonly("dimension", [](const PyInterpolator& s) { return s.core.dimension(); },
+                             "D, the dimension of the points")
+      .def_property_readonly("value_shape", [](const PyInterpolator& s) { return py::tuple(py::cast(s.value_shape)); },
+                             "The trailing shape of the values")
+      .def_property_readonly("dtype", &result_dtype, "The dtype of the results (the values')")
+      .def_property_readonly("kernel", [](const PyInterpolator& s) { return std::string(csrbf::kernel_name(s.core.kernel())); },
+                             "The Wendland kernel")
+      .def_property_readonly("degree", [](const PyInterpolator& s) { return s.core.degree(); }, "The polynomial's degree")
+      .def_property_readonly("radius", [](const PyInterpolator& s) { return s.core.levels().back().radius; },
+                             "The radius of support (of the finest level)")
+      .def_property_readonly("levels", [](const PyInterpolator& s) { return s.core.levels().size(); },
+                             "The number of levels (1: single scale)")
+      .def("__len__", [](const PyInterpolator& s) { return s.core.size(); })
+      .def("__repr__", &repr)
+      .def(py::pickle(&get_state, &set_state));
+}

@@ -1,0 +1,486 @@
+// csrbf::Interpolator (interpolator.hpp): the levels, each fitted by SpaceMap's phases for the
+// sources (fit_structure) and its own polynomial block for D dimensions and V values; evaluated
+// through SpaceMap's loops, three values a map, points padded to 3-D with zeros (the distances are
+// the same).
+#include "csrbf/interpolator.hpp"
+
+#include "csrbf/estimate.hpp"
+#include "fit_state.hpp"
+
+#include <Eigen/SVD>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+#include <array>
+#include <unordered_map>
+#include <unordered_set>
+
+namespace csrbf {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// Right-hand sides a solve takes at once (CG's preconditioner works on up to 8).
+constexpr std::size_t kSolveColumns = 8;
+/// Points evaluated a batch (padded to 3-D in a scratch buffer).
+constexpr std::size_t kBatch = std::size_t(1) << 17;
+
+int terms_of(int degree, int dim) { return degree < 0 ? 0 : degree == 0 ? 1 : 1 + dim; }
+
+std::string num(double v) {
+  std::ostringstream os;
+  os.precision(6);
+  os << v;
+  return os.str();
+}
+
+/// The volume of the unit ball in D dimensions.
+double unit_ball(int dim) { return dim == 1 ? 2.0 : dim == 2 ? std::numbers::pi : 4.0 / 3.0 * std::numbers::pi; }
+
+void validate(std::span<const double> points, int dim, std::span<const double> values, std::size_t v,
+              const InterpolatorOptions& o) {
+  if (dim < 1 || dim > Interpolator::kMaxDimension) {
+    std::ostringstream os;
+    os << "points: dimension D = " << dim
+       << " is not supported: the Wendland functions are positive definite on R^D only for D <= 3 (they are "
+          "built for R^3), so for D > 3 the system may be singular; D must be 1, 2 or 3";
+    throw InvalidInput(os.str());
+  }
+  if (points.size() % std::size_t(dim) != 0)
+    throw InvalidInput("points: " + std::to_string(points.size()) + " numbers are not a whole number of " +
+                       std::to_string(dim) + "-D points");
+  const std::size_t n = points.size() / std::size_t(dim);
+  if (n == 0) throw InvalidInput("points: none given (need at least 1)");
+  if (v == 0) throw InvalidInput("values: no value a point (need at least 1)");
+  if (values.size() != n * v) {
+    std::ostringstream os;
+    os << "values: " << values.size() << " numbers for " << n << " points of " << v << " values each (expected "
+       << n * v << ")";
+    throw InvalidInput(os.str());
+  }
+  for (std::size_t i = 0; i < points.size(); ++i)
+    if (!std::isfinite(points[i]) || std::abs(points[i]) > detail::kMaxCoordinate) {
+      std::ostringstream os;
+      os << "points[" << i / std::size_t(dim) << ", " << i % std::size_t(dim) << "] is " << points[i]
+         << (std::isfinite(points[i]) ? " (beyond 1e150)" : " (points must be finite)");
+      throw InvalidInput(os.str());
+    }
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!std::isfinite(values[i])) {
+      std::ostringstream os;
+      os << "values[" << i / v << ", " << i % v << "] is " << values[i] << " (values must be finite)";
+      throw InvalidInput(os.str());
+    }
+  if (!(o.radius >= 0) || !std::isfinite(o.radius) || (o.radius > 0 && (o.radius < 1e-150 || o.radius > 1e150)))
+    throw InvalidInput("radius must be a positive finite number in [1e-150, 1e150] (or automatic), got " +
+                       num(o.radius));
+  if (!(o.neighbors > 0) || !std::isfinite(o.neighbors))
+    throw InvalidInput("neighbors must be a positive number, got " + num(o.neighbors));
+  if (o.degree < -1 || o.degree > 1)
+    throw InvalidInput("degree must be -1 (no polynomial), 0 or 1, got " + std::to_string(o.degree));
+  if (!o.smoothing.empty() && o.smoothing.size() != 1 && o.smoothing.size() != n)
+    throw InvalidInput("smoothing: " + std::to_string(o.smoothing.size()) + " values for " + std::to_string(n) +
+                       " points (give one value, or one a point)");
+  for (std::size_t i = 0; i < o.smoothing.size(); ++i)
+    if (!(o.smoothing[i] >= 0) || !std::isfinite(o.smoothing[i]))
+      throw InvalidInput("smoothing[" + std::to_string(i) + "] is " + num(o.smoothing[i]) +
+                         " (smoothing must be finite and >= 0)");
+  if (o.levels < 0 || o.levels > kMaxLevels)
+    throw InvalidInput("levels must be 0 (automatic) or 1.." + std::to_string(kMaxLevels) + ", got " +
+                       std::to_string(o.levels));
+  if (!(o.memory_limit_bytes > 0))
+    throw InvalidInput("memory_limit_bytes must be a number > 0, got " + num(o.memory_limit_bytes));
+}
+
+/// The radius at which a point of `pts` has `neighbors` others within R on average; all points
+/// where there are too few of them to have that many.
+double auto_radius(std::span<const Vec3> pts, double neighbors) {
+  const std::size_t n = pts.size();
+  Vec3 lo = pts[0], hi = pts[0];
+  for (const Vec3& p : pts) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double diag = (hi - lo).norm();
+  if (!(diag > 0)) return 1.0;  // one point, or all at one position (refused later as duplicates)
+  if (neighbors >= double(n) - 1) return diag * 1.0000001;  // every point sees every other
+  return suggest_radius(pts, neighbors);
+}
+
+using Cell = std::array<std::int64_t, 3>;
+struct CellHash {
+  std::size_t operator()(const Cell& c) const noexcept {
+    return std::size_t((std::uint64_t(c[0]) * 73856093u) ^ (std::uint64_t(c[1]) * 19349663u) ^
+                       (std::uint64_t(c[2]) * 83492791u));
+  }
+};
+
+/// Nested subsets by thinning: level l keeps, for each cell of side cells[l] (halving level by
+/// level, one origin), the point nearest the cell's centre, beside the points coarser levels kept.
+/// Returns, for each point, the first level that holds it (levels.size() - 1 for the rest).
+std::vector<std::uint8_t> thin(std::span<const Vec3> pts, int dim, std::span<const double> cells) {
+  const std::size_t n = pts.size();
+  const std::size_t last = cells.size();  // the finest level holds every point
+  std::vector<std::uint8_t> first(n, std::uint8_t(last));
+  Vec3 lo = pts[0];
+  for (const Vec3& p : pts) lo = lo.cwiseMin(p);
+  for (std::size_t l = 0; l < cells.size(); ++l) {
+    const double h = cells[l];
+    std::unordered_map<Cell, std::pair<std::size_t, double>, CellHash> best;  // cell -> point, distance^2
+    std::unordered_set<Cell, CellHash> taken;                                 // cells holding a coarser point
+    best.reserve(n / 4 + 16);
+    for (std::size_t i = 0; i < n; ++i) {
+      Cell key{};
+      double d2 = 0;
+      for (int a = 0; a < dim; ++a) {
+        // Cells of side h >= 1e-9 of the points' extent (the grid's own rule) fit an int64.
+        const double c = std::floor((pts[i][a] - lo[a]) / h);
+        key[std::size_t(a)] = std::int64_t(c);
+        const double off = (pts[i][a] - lo[a]) - (c + 0.5) * h;
+        d2 += off * off;
+      }
+      if (first[i] < l) {
+        taken.insert(key);
+        continue;
+      }
+      auto [it, fresh] = best.try_emplace(key, i, d2);
+      if (!fresh && d2 < it->second.second) it->second = {i, d2};
+    }
+    for (const auto& [key, pick] : best)
+      if (!taken.count(key)) first[pick.first] = std::uint8_t(l);
+  }
+  return first;
+}
+
+}  // namespace
+
+std::size_t Interpolator::size() const noexcept {
+  return levels_ && !levels_->empty() ? levels_->back().points.size() / std::size_t(dim_) : 0;
+}
+
+SpaceMap Interpolator::map_of(std::shared_ptr<const SpaceMap::Structure> st, const InterpolatorLevel& level, int dim,
+                              std::size_t values, std::size_t chunk, int degree) {
+  const std::size_t n = level.points.size() / std::size_t(dim);
+  Eigen::Matrix<double, Eigen::Dynamic, 3> alpha = Eigen::Matrix<double, Eigen::Dynamic, 3>::Zero(Eigen::Index(n), 3);
+  Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
+  const int terms = terms_of(degree, dim);
+  for (std::size_t c = 0; c < 3 && 3 * chunk + c < values; ++c) {
+    const std::size_t v = 3 * chunk + c;
+    for (std::size_t i = 0; i < n; ++i) alpha(Eigen::Index(i), Eigen::Index(c)) = level.alpha[i * values + v];
+    for (int t = 0; t < terms; ++t) beta(t, Eigen::Index(c)) = level.beta[std::size_t(t) * values + v];
+  }
+  if (!st) {
+    std::vector<Vec3> pts(n, Vec3::Zero());
+    for (std::size_t i = 0; i < n; ++i)
+      for (int a = 0; a < dim; ++a) pts[i][a] = level.points[i * std::size_t(dim) + std::size_t(a)];
+    FitOptions o;
+    o.radius = level.radius;
+    o.polynomial = degree < 0 ? Polynomial::None : degree == 0 ? Polynomial::Constant : Polynomial::Linear;
+    return SpaceMap::from_solution(pts, alpha, beta, level.center, level.scale, o);
+  }
+  auto s = std::make_shared<SpaceMap::State>();
+  s->st = std::move(st);
+  s->alpha = std::move(alpha);
+  s->beta = beta;
+  s->poly.center = level.center;
+  s->poly.inv_scale = 1.0 / level.scale;
+  for (int r = 0; r < 4; ++r)
+    for (int c = 0; c < 3; ++c) s->poly.b[r][c] = beta(r, c);
+  s->stats = s->st->stats;
+  return SpaceMap(std::move(s));
+}
+
+Interpolator Interpolator::fit(std::span<const double> points, int dim, std::span<const double> values,
+                               std::size_t value_count, const InterpolatorOptions& options) {
+  const auto t_fit = Clock::now();
+  validate(points, dim, values, value_count, options);
+  const std::size_t n = points.size() / std::size_t(dim), nv = value_count;
+  std::vector<Vec3> all(n, Vec3::Zero());
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < dim; ++a) all[i][a] = points[i * std::size_t(dim) + std::size_t(a)];
+
+  // The levels: the finest radius, then the subsets.
+  const double finest = options.radius > 0 ? options.radius : auto_radius(all, options.neighbors);
+  // A cell of side h holds one point of a level; with R / h = (K / ball)^(1/D) a point has about K
+  // others within R.
+  const double cell = finest * std::pow(unit_ball(dim) / options.neighbors, 1.0 / dim);
+  std::vector<double> cells;  // coarsest first, without the finest level (all points)
+  std::vector<std::uint8_t> first;
+  if (options.levels != 1 && n > 1) {
+    const int most = options.levels == 0 ? kAutoLevels : options.levels;
+    for (int l = 1; l < most; ++l) {
+      std::vector<double> tried(cells.size() + 1);
+      for (std::size_t k = 0; k < tried.size(); ++k) tried[k] = cell * std::ldexp(1.0, int(tried.size() - k));
+      std::vector<std::uint8_t> f = thin(all, dim, tried);
+      const std::size_t coarsest = std::size_t(std::count(f.begin(), f.end(), std::uint8_t(0)));
+      if (coarsest < 2) break;  // no coarser level can be fitted
+      cells = std::move(tried);
+      first = std::move(f);
+      if (options.levels == 0 && double(coarsest) <= kCoarsestPoints) break;
+    }
+  }
+  const std::size_t levels = cells.size() + 1;
+  if (first.empty()) first.assign(n, 0);
+
+  auto out = std::make_shared<std::vector<InterpolatorLevel>>(levels);
+  auto maps = std::make_shared<std::vector<std::vector<SpaceMap>>>(levels);
+  std::vector<double> residual(values.begin(), values.end());  // n x V: what the levels so far leave
+  const std::size_t chunks = (nv + 2) / 3;
+  for (std::size_t l = 0; l < levels; ++l) {
+    const auto t0 = Clock::now();
+    InterpolatorLevel& lv = (*out)[l];
+    const int degree = l == 0 ? options.degree : -1;  // the polynomial belongs to the coarsest level
+    std::vector<std::size_t> member;
+    for (std::size_t i = 0; i < n; ++i)
+      if (first[i] <= l) member.push_back(i);
+    const std::size_t m = member.size();
+    std::vector<Vec3> pts(m);
+    for (std::size_t k = 0; k < m; ++k) pts[k] = all[member[k]];
+    std::vector<double> shift;
+    if (options.smoothing.size() == 1)
+      shift = options.smoothing;
+    else if (!options.smoothing.empty())
+      for (std::size_t i : member) shift.push_back(options.smoothing[i]);
+    const bool any_shift = std::any_of(shift.begin(), shift.end(), [](double s) { return s > 0; });
+    if (!any_shift) shift.clear();
+    lv.radius = options.radius > 0 ? std::ldexp(finest, int(levels - 1 - l))
+                : l + 1 == levels  ? finest
+                                   : auto_radius(pts, options.neighbors);
+    FitOptions fo;
+    fo.radius = lv.radius;
+    fo.kernel = options.kernel;
+    fo.solver = options.solver;
+    fo.memory_limit_bytes = options.memory_limit_bytes;
+    Vec3 lo = pts[0], hi = pts[0];
+    for (const Vec3& p : pts) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    NeighborIndex::check_extent(lo, hi, lv.radius, "points");
+    std::shared_ptr<SpaceMap::Structure> st;
+    try {
+      st = detail::fit_structure(pts, fo, shift);
+    } catch (const DuplicateSource& e) {
+      const std::size_t a = member[e.first()], b = member[e.second()];
+      std::ostringstream os;
+      os << "points " << a << " and " << b << " are at the same position (";
+      for (int d = 0; d < dim; ++d) os << (d ? ", " : "") << all[a][d];
+      os << "): interpolation needs distinct points (give them smoothing > 0, or merge them)";
+      throw DuplicateSource(a, b, os.str());
+    }
+    lv.center = st->center;
+    lv.scale = st->scale;
+    const std::vector<std::uint32_t>& order = st->order;  // row k of the solves is member[order[k]]
+
+    // The polynomial block P (m x terms) in the solves' order: Y = (A + Lambda)^-1 P, S = P^T Y.
+    const int terms = terms_of(degree, dim);
+    RowMatrix p(Eigen::Index(m), terms), y;
+    Eigen::LLT<Eigen::MatrixXd> schur;
+    const auto solve = [&](RowMatrix& b) {
+      for (Eigen::Index c0 = 0; c0 < b.cols(); c0 += Eigen::Index(kSolveColumns)) {
+        const Eigen::Index w = std::min<Eigen::Index>(Eigen::Index(kSolveColumns), b.cols() - c0);
+        RowMatrix part = b.middleCols(c0, w);
+        st->solve_in_place(part);
+        b.middleCols(c0, w) = part;
+      }
+    };
+    if (terms > 0) {
+      for (std::size_t k = 0; k < m; ++k) {
+        p(Eigen::Index(k), 0) = 1.0;
+        const Vec3 u = (pts[order[k]] - st->center) / st->scale;
+        for (int a = 1; a < terms; ++a) p(Eigen::Index(k), a) = u[a - 1];
+      }
+      if (terms > 1) {
+        const char* shape = dim == 1 ? "all at one position" : dim == 2 ? "collinear" : "coplanar";
+        bool degenerate = m < std::size_t(dim) + 1;
+        if (!degenerate) {
+          const Eigen::VectorXd sv = Eigen::JacobiSVD<Eigen::MatrixXd>(p.rightCols(dim)).singularValues();
+          degenerate = !(sv(dim - 1) > 1e-9 * std::max(sv(0), 1e-300));
+        }
+        if (degenerate)
+          throw DegeneratePolynomial("degree 1 needs points that span their " + std::to_string(dim) + "-D space, but the " +
+                                     std::to_string(m) + " points are " + shape + "; use degree 0 or -1");
+      }
+      y = p;
+      solve(y);
+      schur.compute(p.transpose() * y);
+      if (schur.info() != Eigen::Success)
+        throw DegeneratePolynomial("degree " + std::to_string(degree) +
+                                   ": the points do not determine the polynomial; use degree -1");
+    }
+    RowMatrix z = RowMatrix(Eigen::Index(m), Eigen::Index(nv));
+    for (std::size_t k = 0; k < m; ++k)
+      for (std::size_t v = 0; v < nv; ++v) z(Eigen::Index(k), Eigen::Index(v)) = residual[member[order[k]] * nv + v];
+    double sum2 = 0, gmax = 0;
+    for (std::size_t k = 0; k < m; ++k) {
+      sum2 += z.row(Eigen::Index(k)).squaredNorm();
+      gmax = std::max(gmax, z.row(Eigen::Index(k)).norm());
+    }
+    lv.rms_before = std::sqrt(sum2 / double(m * nv));
+    const RowMatrix g = z;
+    solve(z);
+    Eigen::MatrixXd beta;
+    if (terms > 0) {
+      beta = schur.solve(p.transpose() * z);  // terms x V
+      z -= y * beta;
+    }
+    // The residual of the system, (A + Lambda) alpha + P beta - f, in the input order of the level.
+    RowMatrix alpha = RowMatrix(Eigen::Index(m), Eigen::Index(nv));
+    for (std::size_t k = 0; k < m; ++k) alpha.row(order[k]) = z.row(Eigen::Index(k));
+    RowMatrix fitted = st->a * alpha;
+    if (terms > 0) {
+      RowMatrix p_input(Eigen::Index(m), terms);
+      for (std::size_t k = 0; k < m; ++k) p_input.row(order[k]) = p.row(Eigen::Index(k));
+      fitted += p_input * beta;
+    }
+    double res = 0;
+    for (std::size_t k = 0; k < m; ++k) {
+      const double e = (fitted.row(order[k]) - g.row(Eigen::Index(k))).norm();
+      res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
+    }
+    if (!alpha.allFinite() || (terms > 0 && !beta.allFinite())) res = std::numeric_limits<double>::infinity();
+    lv.residual_relative = gmax > 0 ? res / gmax : res;
+    if (!(lv.residual_relative <= kResidualLimit)) {
+      std::ostringstream os;
+      os << "the values cannot be fitted to a relative residual of " << kResidualLimit << " (got "
+         << lv.residual_relative << ")";
+      if (levels > 1) os << " at level " << l + 1 << " of " << levels;
+      os << ": the matrix is too ill-conditioned at radius " << lv.radius;
+      if (!st->a.values().empty()) {
+        const auto [a, b] = st->a.closest_pair();
+        os << "; the closest points, " << member[a] << " and " << member[b] << ", are "
+           << (pts[a] - pts[b]).norm() / lv.radius << " R apart";
+      }
+      os << ". Use a smaller radius (fewer neighbours), smoothing > 0, or merge close points";
+      throw IllConditioned(os.str());
+    }
+    lv.mean_neighbors = st->stats.mean_neighbors;
+    lv.solver = st->fell_back ? st->fallback_solver : st->stats.solver;
+    if (st->sparse) lv.iterations = (st->fell_back && st->fallback) ? st->fallback->iterations() : st->sparse->iterations();
+    lv.points.resize(m * std::size_t(dim));
+    for (std::size_t k = 0; k < m; ++k)
+      for (int a = 0; a < dim; ++a) lv.points[k * std::size_t(dim) + std::size_t(a)] = pts[k][a];
+    lv.alpha.assign(alpha.data(), alpha.data() + alpha.size());
+    if (terms > 0) {
+      lv.beta.resize(std::size_t(terms) * nv);
+      for (int t = 0; t < terms; ++t)
+        for (std::size_t v = 0; v < nv; ++v) lv.beta[std::size_t(t) * nv + v] = beta(t, Eigen::Index(v));
+    }
+    // The solver's matrix and factor are not needed to evaluate: freed, the neighbour grid kept.
+    st->a = KernelMatrix();
+    st->factor = EnvelopeMatrix();
+    st->sparse.reset();
+    st->fallback.reset();
+    st->solved_elsewhere = true;
+    // The evaluation adds the polynomial where the structure has one (beta's rows past D are zero).
+    st->options.polynomial = degree < 0 ? Polynomial::None : degree == 0 ? Polynomial::Constant : Polynomial::Linear;
+    st->terms = degree < 0 ? 0 : degree == 0 ? 1 : 4;
+    std::shared_ptr<const SpaceMap::Structure> shared = std::move(st);
+    for (std::size_t c = 0; c < chunks; ++c) (*maps)[l].push_back(map_of(shared, lv, dim, nv, c, degree));
+    // What is left for the finer levels, at every point they hold.
+    if (l + 1 < levels) {
+      std::vector<double> x(3 * n), d(3 * n);
+      for (std::size_t i = 0; i < n; ++i)
+        for (int a = 0; a < 3; ++a) x[3 * i + std::size_t(a)] = all[i][a];
+      for (std::size_t c = 0; c < chunks; ++c) {
+        (*maps)[l][c].displacements(x.data(), d.data(), n);
+        for (std::size_t i = 0; i < n; ++i)
+          for (std::size_t k = 0; k < 3 && 3 * c + k < nv; ++k) residual[i * nv + 3 * c + k] -= d[3 * i + k];
+      }
+    }
+    lv.seconds = seconds_since(t0);
+  }
+  Interpolator r;
+  r.dim_ = dim;
+  r.values_ = nv;
+  r.kernel_ = options.kernel;
+  r.degree_ = options.degree;
+  r.levels_ = std::move(out);
+  r.maps_ = std::move(maps);
+  r.seconds_fit_ = seconds_since(t_fit);
+  return r;
+}
+
+Interpolator Interpolator::from_levels(int dim, std::size_t value_count, Kernel kernel, int degree,
+                                       std::vector<InterpolatorLevel> levels) {
+  if (dim < 1 || dim > kMaxDimension) throw InvalidInput("from_levels: dimension must be 1, 2 or 3");
+  if (value_count == 0 || levels.empty() || levels.size() > std::size_t(kMaxLevels))
+    throw InvalidInput("from_levels: needs 1.." + std::to_string(kMaxLevels) + " levels and at least one value");
+  if (degree < -1 || degree > 1) throw InvalidInput("from_levels: degree must be -1, 0 or 1");
+  auto maps = std::make_shared<std::vector<std::vector<SpaceMap>>>(levels.size());
+  for (std::size_t l = 0; l < levels.size(); ++l) {
+    const InterpolatorLevel& lv = levels[l];
+    const std::size_t n = lv.points.size() / std::size_t(dim);
+    const int terms = terms_of(l == 0 ? degree : -1, dim);
+    if (n == 0 || lv.points.size() != n * std::size_t(dim) || lv.alpha.size() != n * value_count ||
+        lv.beta.size() != std::size_t(terms) * value_count)
+      throw InvalidInput("from_levels: level " + std::to_string(l) + " has " + std::to_string(lv.points.size()) +
+                         " coordinates, " + std::to_string(lv.alpha.size()) + " coefficients and " +
+                         std::to_string(lv.beta.size()) + " polynomial terms, which do not agree with D = " +
+                         std::to_string(dim) + " and " + std::to_string(value_count) + " values");
+    for (double a : lv.points)
+      if (!std::isfinite(a)) throw InvalidInput("from_levels: level " + std::to_string(l) + " has a non-finite point");
+    for (std::size_t c = 0; c < (value_count + 2) / 3; ++c)
+      (*maps)[l].push_back(map_of(nullptr, lv, dim, value_count, c, l == 0 ? degree : -1));
+  }
+  Interpolator r;
+  r.dim_ = dim;
+  r.values_ = value_count;
+  r.kernel_ = kernel;
+  r.degree_ = degree;
+  r.levels_ = std::make_shared<const std::vector<InterpolatorLevel>>(std::move(levels));
+  r.maps_ = std::move(maps);
+  return r;
+}
+
+template <class T>
+void Interpolator::evaluate_impl(const T* x, std::size_t q, T* out) const {
+  if (!maps_) throw InvalidInput("Interpolator: not fitted");
+  const std::size_t nv = values_, d = std::size_t(dim_);
+  std::vector<T> in(3 * std::min(q, kBatch)), part(in.size());
+  for (std::size_t b = 0; b < q; b += kBatch) {
+    const std::size_t m = std::min(kBatch, q - b);
+    for (std::size_t i = 0; i < m; ++i)
+      for (std::size_t a = 0; a < 3; ++a) in[3 * i + a] = a < d ? x[(b + i) * d + a] : T(0);
+    T* o = out + b * nv;
+    std::fill(o, o + m * nv, T(0));
+    for (const auto& level : *maps_)
+      for (std::size_t c = 0; c < level.size(); ++c) {
+        level[c].displacements(in.data(), part.data(), m);
+        for (std::size_t i = 0; i < m; ++i)
+          for (std::size_t k = 0; k < 3 && 3 * c + k < nv; ++k) o[i * nv + 3 * c + k] += part[3 * i + k];
+      }
+  }
+}
+
+void Interpolator::evaluate(const double* x, std::size_t q, double* out) const { evaluate_impl(x, q, out); }
+void Interpolator::evaluate(const float* x, std::size_t q, float* out) const { evaluate_impl(x, q, out); }
+
+void Interpolator::gradient(const double* x, std::size_t q, double* out) const {
+  if (!maps_) throw InvalidInput("Interpolator: not fitted");
+  const std::size_t nv = values_, d = std::size_t(dim_);
+  const std::size_t batch = std::min(q, kBatch);
+  std::vector<double> in(3 * batch), moved(3 * batch), jac(9 * batch);
+  for (std::size_t b = 0; b < q; b += kBatch) {
+    const std::size_t m = std::min(kBatch, q - b);
+    for (std::size_t i = 0; i < m; ++i)
+      for (std::size_t a = 0; a < 3; ++a) in[3 * i + a] = a < d ? x[(b + i) * d + a] : 0.0;
+    double* o = out + b * nv * d;
+    std::fill(o, o + m * nv * d, 0.0);
+    for (const auto& level : *maps_)
+      for (std::size_t c = 0; c < level.size(); ++c) {
+        level[c].apply_with_normals(in.data(), moved.data(), m, 1.0, nullptr, nullptr, jac.data());
+        for (std::size_t i = 0; i < m; ++i)
+          for (std::size_t k = 0; k < 3 && 3 * c + k < nv; ++k)
+            for (std::size_t a = 0; a < d; ++a)
+              o[(i * nv + 3 * c + k) * d + a] += jac[9 * i + 3 * k + a] - (k == a ? 1.0 : 0.0);
+      }
+  }
+}
+
+}  // namespace csrbf
