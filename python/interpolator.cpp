@@ -87,9 +87,7 @@ struct PyInterpolator {
   std::string solver = "auto";
 };
 
-py::dtype result_dtype(const PyInterpolator& s) {
-  return s.single ? py::dtype::of<float>() : py::dtype::of<double>();
-}
+py::dtype result_dtype(const PyInterpolator& s) { return s.single ? py::dtype::of<float>() : py::dtype::of<double>(); }
 
 /// The evaluation points as (Q, D) and whether one point (D,) was given.
 std::pair<py::array, bool> query_points(const PyInterpolator& s, const py::object& obj, const char* what) {
@@ -99,20 +97,21 @@ std::pair<py::array, bool> query_points(const PyInterpolator& s, const py::objec
   if (x.ndim() == 0 && d == 1) return {x.reshape({py::ssize_t(1), py::ssize_t(1)}), true};
   if (x.ndim() != 2 || x.shape(1) != d)
     throw py::value_error(std::string(what) + " must have shape (Q, " + std::to_string(d) + ") or (" +
-                          std::to_string(d) + ",), for this interpolant of " + std::to_string(d) +
-                          "-D points, got " + shape_text(shape_of(x)));
+                          std::to_string(d) + ",), for this interpolant of " + std::to_string(d) + "-D points, got " +
+                          shape_text(shape_of(x)));
   return {x, false};
 }
 
 /// The result's array: `out` checked (shape, dtype, C-contiguous, writeable), or a new one.
 py::array result_for(const py::object& out, const std::vector<py::ssize_t>& shape, const py::dtype& dtype) {
   if (out.is_none()) return py::array(dtype, shape);
-  if (!py::isinstance<py::array>(out)) throw py::type_error("out must be a numpy array, got a " +
-                                                            py::str(out.get_type().attr("__name__")).cast<std::string>());
+  if (!py::isinstance<py::array>(out))
+    throw py::type_error("out must be a numpy array, got a " +
+                         py::str(out.get_type().attr("__name__")).cast<std::string>());
   const auto a = py::reinterpret_borrow<py::array>(out);
   std::ostringstream m;
-  m << "out must be a writeable C-contiguous " << shape_text(shape) << " " << py::str(py::handle(dtype)).cast<std::string>()
-    << " array: ";
+  m << "out must be a writeable C-contiguous " << shape_text(shape) << " "
+    << py::str(py::handle(dtype)).cast<std::string>() << " array: ";
   if (!a.dtype().is(dtype))
     m << "its dtype is " << std::string(py::str(a.dtype()));
   else if (shape_of(a) != shape)
@@ -245,12 +244,11 @@ py::tuple get_state(const PyInterpolator& s) {
   for (std::size_t k = 0; k < s.core.levels().size(); ++k) {
     const auto& l = s.core.levels()[k];
     const auto n = py::ssize_t(l.points.size()) / d;
-    levels.append(py::make_tuple(
-        l.radius, vector_array(l.points, n, d), vector_array(l.alpha, n, nv),
-        vector_array(l.beta, k == 0 ? terms0 : 0, nv), py::make_tuple(l.center.x(), l.center.y(), l.center.z()),
-        l.scale,
-        py::make_tuple(l.mean_neighbors, std::string(csrbf::solver_name(l.solver)), l.iterations, l.residual_relative,
-                       l.rms_before, l.seconds)));
+    levels.append(py::make_tuple(l.radius, vector_array(l.points, n, d), vector_array(l.alpha, n, nv),
+                                 vector_array(l.beta, k == 0 ? terms0 : 0, nv),
+                                 py::make_tuple(l.center.x(), l.center.y(), l.center.z()), l.scale,
+                                 py::make_tuple(l.mean_neighbors, std::string(csrbf::solver_name(l.solver)),
+                                                l.iterations, l.residual_relative, l.rms_before, l.seconds)));
   }
   return py::make_tuple(kStateVersion, int(d), py::cast(s.value_shape), s.single,
                         std::string(csrbf::kernel_name(s.core.kernel())), s.core.degree(), levels, s.threads,
@@ -308,8 +306,7 @@ PyInterpolator make(const py::object& points_obj, const py::object& values_obj, 
     const auto text = radius.cast<std::string>();
     if (text != "auto") throw py::value_error("radius must be a positive number or 'auto', got '" + text + "'");
   } else if (!radius.is_none()) {
-    if (!py::isinstance<py::float_>(radius) && !py::isinstance<py::int_>(radius) &&
-        !py::hasattr(radius, "__float__"))
+    if (!py::isinstance<py::float_>(radius) && !py::isinstance<py::int_>(radius) && !py::hasattr(radius, "__float__"))
       throw py::type_error("radius must be a positive number or 'auto', got a " +
                            py::str(radius.get_type().attr("__name__")).cast<std::string>());
     o.radius = radius.cast<double>();
@@ -319,12 +316,15 @@ PyInterpolator make(const py::object& points_obj, const py::object& values_obj, 
     s.radius_auto = false;
   }
   const auto k = csrbf::parse_name<csrbf::Kernel>(kernel);
-  if (!k) throw py::value_error("kernel must be one of " + csrbf::names_text<csrbf::Kernel>() + ", got '" + kernel + "'");
+  if (!k)
+    throw py::value_error("kernel must be one of " + csrbf::names_text<csrbf::Kernel>() + ", got '" + kernel + "'");
   o.kernel = *k;
-  if (degree < -1 || degree > 1) throw py::value_error("degree must be -1 (none), 0 or 1, got " + std::to_string(degree));
+  if (degree < -1 || degree > 1)
+    throw py::value_error("degree must be -1 (none), 0 or 1, got " + std::to_string(degree));
   o.degree = degree;
   if (!(neighbors > 0) || !std::isfinite(neighbors))
-    throw py::value_error("neighbors must be a positive number, got " + py::str(py::float_(neighbors)).cast<std::string>());
+    throw py::value_error("neighbors must be a positive number, got " +
+                          py::str(py::float_(neighbors)).cast<std::string>());
   o.neighbors = neighbors;
   s.neighbors = neighbors;
   if (method != "single" && method != "multiscale")
@@ -332,8 +332,9 @@ PyInterpolator make(const py::object& points_obj, const py::object& values_obj, 
   o.levels = method == "multiscale" ? 0 : 1;
   if (py::isinstance<py::str>(levels)) {
     const auto text = levels.cast<std::string>();
-    if (text != "auto") throw py::value_error("levels must be an integer 1.." + std::to_string(csrbf::kMaxLevels) +
-                                              " or 'auto', got '" + text + "'");
+    if (text != "auto")
+      throw py::value_error("levels must be an integer 1.." + std::to_string(csrbf::kMaxLevels) + " or 'auto', got '" +
+                            text + "'");
     o.levels = 0;
   } else if (!levels.is_none()) {
     if (!py::isinstance<py::int_>(levels) || py::isinstance<py::bool_>(levels))
@@ -346,13 +347,15 @@ PyInterpolator make(const py::object& points_obj, const py::object& values_obj, 
     o.levels = int(l);  // levels > 1 is the multiscale method whatever `method` says
   }
   const auto sv = csrbf::parse_solver(solver);
-  if (!sv) throw py::value_error("solver must be one of " + csrbf::names_text<csrbf::Solver>() + ", got '" + solver + "'");
+  if (!sv)
+    throw py::value_error("solver must be one of " + csrbf::names_text<csrbf::Solver>() + ", got '" + solver + "'");
   o.solver = *sv;
   s.solver = solver;
   if (!memory_limit.is_none()) {
     const double gib = memory_limit.cast<double>();
     if (!(gib > 0) || !std::isfinite(gib))
-      throw py::value_error("memory_limit must be a positive number of GiB, got " + py::str(memory_limit).cast<std::string>());
+      throw py::value_error("memory_limit must be a positive number of GiB, got " +
+                            py::str(memory_limit).cast<std::string>());
     o.memory_limit_bytes = gib * double(1ull << 30);
   }
   if (!threads.is_none()) {
@@ -412,10 +415,10 @@ std::string repr(const PyInterpolator& s) {
   os.precision(6);
   const auto& finest = s.core.levels().back();
   os << "csrbf.Interpolator(points=" << s.core.size() << ", dimension=" << s.core.dimension()
-     << ", values=" << shape_text(s.value_shape) << " " << (s.single ? "float32" : "float64")
-     << ", kernel='" << csrbf::kernel_name(s.core.kernel()) << "', degree=" << s.core.degree()
-     << ", levels=" << s.core.levels().size() << ", radius=" << finest.radius << (s.radius_auto ? " (auto)" : "")
-     << ", neighbors=" << finest.mean_neighbors << ")";
+     << ", values=" << shape_text(s.value_shape) << " " << (s.single ? "float32" : "float64") << ", kernel='"
+     << csrbf::kernel_name(s.core.kernel()) << "', degree=" << s.core.degree() << ", levels=" << s.core.levels().size()
+     << ", radius=" << finest.radius << (s.radius_auto ? " (auto)" : "") << ", neighbors=" << finest.mean_neighbors
+     << ")";
   return os.str();
 }
 
@@ -543,18 +546,23 @@ Examples
 >>> round(s.stats['neighbors'])
 20
 )doc")
-      .def_property_readonly("dimension", [](const PyInterpolator& s) { return s.core.dimension(); },
-                             "D, the dimension of the points")
-      .def_property_readonly("value_shape", [](const PyInterpolator& s) { return py::tuple(py::cast(s.value_shape)); },
-                             "The trailing shape of the values")
+      .def_property_readonly(
+          "dimension", [](const PyInterpolator& s) { return s.core.dimension(); }, "D, the dimension of the points")
+      .def_property_readonly(
+          "value_shape", [](const PyInterpolator& s) { return py::tuple(py::cast(s.value_shape)); },
+          "The trailing shape of the values")
       .def_property_readonly("dtype", &result_dtype, "The dtype of the results (the values')")
-      .def_property_readonly("kernel", [](const PyInterpolator& s) { return std::string(csrbf::kernel_name(s.core.kernel())); },
-                             "The Wendland kernel")
-      .def_property_readonly("degree", [](const PyInterpolator& s) { return s.core.degree(); }, "The polynomial's degree")
-      .def_property_readonly("radius", [](const PyInterpolator& s) { return s.core.levels().back().radius; },
-                             "The radius of support (of the finest level)")
-      .def_property_readonly("levels", [](const PyInterpolator& s) { return s.core.levels().size(); },
-                             "The number of levels (1: single scale)")
+      .def_property_readonly(
+          "kernel", [](const PyInterpolator& s) { return std::string(csrbf::kernel_name(s.core.kernel())); },
+          "The Wendland kernel")
+      .def_property_readonly(
+          "degree", [](const PyInterpolator& s) { return s.core.degree(); }, "The polynomial's degree")
+      .def_property_readonly(
+          "radius", [](const PyInterpolator& s) { return s.core.levels().back().radius; },
+          "The radius of support (of the finest level)")
+      .def_property_readonly(
+          "levels", [](const PyInterpolator& s) { return s.core.levels().size(); },
+          "The number of levels (1: single scale)")
       .def("__len__", [](const PyInterpolator& s) { return s.core.size(); })
       .def("__repr__", &repr)
       .def(py::pickle(&get_state, &set_state));

@@ -23,7 +23,7 @@ packages=(
   pybind11-dev python3-dev python3-numpy   # the Python module (Debian's /usr/bin/python3)
   python3-vtk9           # vtkCSRBFTransform wrapped for VTK's Python (VTK's wrapping tools and runtime)
   python3-scipy python3-pip python3-setuptools python3-wheel   # Python tests: SciPy; the offline wheel
-  python3-matplotlib python3-mypy python3-venv   # bench/python_interpolation.py's plot; the stubs checked by mypy; the wheel in a venv
+  python3-matplotlib python3-venv   # bench/python_interpolation.py's plot; the wheel tried in a venv (tests/install)
   clang libclang-rt-14-dev   # scripts/fuzz.sh: libFuzzer targets (not needed to build or test)
   clang-format           # scripts/check-format.sh: CI checks the tree's formatting
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png

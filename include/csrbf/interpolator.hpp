@@ -55,9 +55,9 @@ struct InterpolatorOptions {
   double memory_limit_bytes = 4.0 * (1ull << 30);
 };
 /// The automatic multiscale choice: levels until the coarsest has at most this many points...
-inline constexpr double kCoarsestPoints = 1000.0;
+inline constexpr double kCoarsestPoints = 250.0;
 /// ...and at most this many levels.
-inline constexpr int kAutoLevels = 6;
+inline constexpr int kAutoLevels = 8;
 
 /// One level of a fit: its points, radius and coefficients, and what its fit did.
 struct InterpolatorLevel {
@@ -70,10 +70,10 @@ struct InterpolatorLevel {
   // What the fit did (zero for a level rebuilt from its coefficients):
   double mean_neighbors = 0;
   Solver solver = Solver::Auto;
-  std::size_t iterations = 0;      ///< CG's steps (the slowest block of right-hand sides)
-  double residual_relative = 0;    ///< max |(A + Lambda) alpha + P beta - f| / max |f| on this level
-  double rms_before = 0;           ///< RMS of the values this level fitted (the residual of those before)
-  double seconds = 0;              ///< its fit, and the residual it passes on
+  std::size_t iterations = 0;    ///< CG's steps (the slowest block of right-hand sides)
+  double residual_relative = 0;  ///< max |(A + Lambda) alpha + P beta - f| / max |f| on this level
+  double rms_before = 0;         ///< RMS of the values this level fitted (the residual of those before)
+  double seconds = 0;            ///< its fit, and the residual it passes on
 };
 
 /// A fitted interpolant. Immutable; copies share the fit; every const member is thread-safe.

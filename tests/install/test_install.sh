@@ -58,6 +58,25 @@ done
 
 cmake --build "$build" --target python_wheel > /dev/null
 wheel=$(ls "$build"/dist/csrbf-*.whl | head -n1)
-PIP_ROOT_USER_ACTION=ignore "$python" -m pip install --disable-pip-version-check --no-index --no-deps --quiet --target "$tmp/site" "$wheel"
-PYTHONPATH="$tmp/site" "$python" -c "import csrbf; print('wheel', csrbf.__version__)"
-echo "a consumer per component built with find_package(csrbf); wheel installs offline"
+# As a Python user installs it: a venv that sees Debian's numpy, pip offline, the wheel's stated
+# dependency (numpy) resolved against it (no --no-deps), the type stubs beside the module.
+"$python" -c "import sys, zipfile; z = zipfile.ZipFile(sys.argv[1]); sys.exit(not any(l.startswith('Requires-Dist: numpy') for n in z.namelist() if n.endswith('.dist-info/METADATA') for l in z.read(n).decode().splitlines()))" "$wheel" || { echo "the wheel does not state numpy"; exit 1; }
+"$python" -m venv --system-site-packages "$tmp/venv"
+(cd "$tmp" && PYTHONPATH= PIP_ROOT_USER_ACTION=ignore "$tmp/venv/bin/python" -m pip install --disable-pip-version-check \
+  --no-index --quiet "$wheel")
+(cd "$tmp" && PYTHONPATH= "$tmp/venv/bin/python" - <<'PY'
+import multiprocessing, os, pickle, site
+import numpy as np
+import csrbf
+assert csrbf.__file__.startswith(site.getsitepackages()[0]), csrbf.__file__
+assert os.path.exists(os.path.join(site.getsitepackages()[0], "csrbf-stubs", "__init__.pyi"))
+xy = np.random.default_rng(0).random((2000, 2))
+s = csrbf.Interpolator(xy, np.sin(4 * xy[:, 0]), neighbors=20)
+t = pickle.loads(pickle.dumps(s))
+with multiprocessing.Pool(2) as pool:
+    got = pool.map(t, [xy[:10], xy[10:20]])
+assert np.allclose(np.concatenate(got), np.sin(4 * xy[:20, 0]), atol=1e-9)
+print("wheel", csrbf.__version__, "in a venv:", repr(s))
+PY
+)
+echo "a consumer per component built with find_package(csrbf); wheel installs offline into a venv"

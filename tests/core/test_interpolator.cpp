@@ -1,0 +1,95 @@
+// csrbf::Interpolator in C++: against a dense solve of the same saddle-point system (Eigen's LU), in
+// double and float, with a linear polynomial and per-point smoothing on 2-D points with 4 values; a
+// fit restored from its levels evaluates as the fit; the refusals. The Python tests
+// (tests/python/test_interpolator.py) cover every dimension, value shape, degree and the multiscale levels.
+#include "csrbf/errors.hpp"
+#include "csrbf/interpolator.hpp"
+
+#include <Eigen/Dense>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+namespace {
+
+using namespace csrbf;
+
+double c2(double r) { return r < 1 ? std::pow(1 - r, 4) * (4 * r + 1) : 0.0; }
+
+TEST(Interpolator, EqualsADenseSolveWithAPolynomialAndSmoothing) {
+  std::mt19937_64 rng(34);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  constexpr std::size_t P = 300, V = 4, Q = 200;
+  constexpr double R = 0.22;
+  std::vector<double> pts(2 * P), vals(V * P), lambda(P), x(2 * Q);
+  for (double& a : pts) a = u(rng);
+  for (double& a : vals) a = u(rng) - 0.5;
+  for (double& a : lambda) a = 0.02 * u(rng);
+  for (double& a : x) a = 1.2 * u(rng) - 0.1;
+  InterpolatorOptions o;
+  o.radius = R;
+  o.degree = 1;
+  o.smoothing = lambda;
+  const Interpolator s = Interpolator::fit(pts, 2, vals, V, o);
+  // [[A + Lambda, P], [P^T, 0]] [alpha; beta] = [f; 0], P = [1, x, y].
+  Eigen::MatrixXd m = Eigen::MatrixXd::Zero(P + 3, P + 3), rhs = Eigen::MatrixXd::Zero(P + 3, V);
+  for (std::size_t i = 0; i < P; ++i) {
+    for (std::size_t j = 0; j < P; ++j)
+      m(i, j) = c2(std::hypot(pts[2 * i] - pts[2 * j], pts[2 * i + 1] - pts[2 * j + 1]) / R);
+    m(i, i) += lambda[i];
+    m(i, P) = m(P, i) = 1;
+    m(i, P + 1) = m(P + 1, i) = pts[2 * i];
+    m(i, P + 2) = m(P + 2, i) = pts[2 * i + 1];
+    for (std::size_t v = 0; v < V; ++v) rhs(i, v) = vals[i * V + v];
+  }
+  const Eigen::MatrixXd sol = m.lu().solve(rhs);
+  std::vector<double> got(Q * V);
+  std::vector<float> xf(x.begin(), x.end()), gotf(Q * V);
+  s.evaluate(x.data(), Q, got.data());
+  s.evaluate(xf.data(), Q, gotf.data());
+  double largest = 0, err = 0, errf = 0;
+  for (std::size_t q = 0; q < Q; ++q)
+    for (std::size_t v = 0; v < V; ++v) {
+      double want = sol(P, v) + sol(P + 1, v) * x[2 * q] + sol(P + 2, v) * x[2 * q + 1];
+      for (std::size_t i = 0; i < P; ++i)
+        want += sol(i, v) * c2(std::hypot(x[2 * q] - pts[2 * i], x[2 * q + 1] - pts[2 * i + 1]) / R);
+      largest = std::max(largest, std::abs(want));
+      err = std::max(err, std::abs(got[q * V + v] - want));
+      errf = std::max(errf, std::abs(double(gotf[q * V + v]) - want));
+    }
+  EXPECT_LT(err, 1e-9 * largest);
+  EXPECT_LT(errf, 1e-4 * largest);
+  EXPECT_EQ(s.levels().size(), 1u);
+  EXPECT_LE(s.levels()[0].residual_relative, kResidualLimit);
+
+  // Restored from its levels (pickling), it evaluates as the fit.
+  const Interpolator t = Interpolator::from_levels(2, V, s.kernel(), s.degree(), s.levels());
+  std::vector<double> again(Q * V);
+  t.evaluate(x.data(), Q, again.data());
+  for (std::size_t k = 0; k < again.size(); ++k) EXPECT_NEAR(again[k], got[k], 1e-13 * largest);
+}
+
+TEST(Interpolator, RefusesWhatItCannotFit) {
+  const std::vector<double> pts{0, 0, 1, 0, 0, 1, 1, 1}, vals{1, 2, 3, 4};
+  InterpolatorOptions o;
+  o.radius = 1.5;
+  EXPECT_THROW(Interpolator::fit(std::vector<double>(8, 0.0), 4, std::vector<double>(2, 0.0), 1, o), InvalidInput);
+  EXPECT_THROW(Interpolator::fit(pts, 2, std::vector<double>{1, 2, 3}, 1, o), InvalidInput);
+  EXPECT_THROW(Interpolator::fit(std::vector<double>{0, 0, 1, 0, 0, 0, 1, 1}, 2, vals, 1, o), DuplicateSource);
+  o.degree = 1;
+  EXPECT_THROW(Interpolator::fit(std::vector<double>{0, 0, 1, 1, 2, 2, 3, 3}, 2, vals, 1, o), DegeneratePolynomial);
+  o.degree = -1;
+  o.smoothing = {-1.0};
+  EXPECT_THROW(Interpolator::fit(pts, 2, vals, 1, o), InvalidInput);
+  o.smoothing = {};
+  o.memory_limit_bytes = 100;
+  std::vector<double> many(2 * 2000), ones(2000, 1.0);
+  std::mt19937_64 rng(1);
+  for (double& a : many) a = std::uniform_real_distribution<double>(0, 1)(rng);
+  o.radius = 2.0;
+  EXPECT_THROW(Interpolator::fit(many, 2, ones, 1, o), ResourceLimit);
+}
+
+}  // namespace
