@@ -13,6 +13,7 @@
 #include <tbb/task_arena.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <memory>
 #include <sstream>
@@ -237,6 +238,17 @@ std::vector<double> vector_of(const py::handle& obj, const char* what) {
 
 constexpr int kStateVersion = 1;
 
+/// The fitted interpolant behind self, or ValueError for an object whose __init__ was not called or
+/// failed (Interpolator.__new__, an empty pickle): pybind11 leaves its storage unconstructed.
+const PyInterpolator& self_of(const py::handle& self) {
+  if (!py::isinstance<PyInterpolator>(self)) throw py::type_error("not a csrbf.Interpolator");
+  auto* inst = reinterpret_cast<py::detail::instance*>(self.ptr());
+  auto vh = inst->get_value_and_holder(py::detail::get_type_info(typeid(PyInterpolator)));
+  if (!vh || !vh.holder_constructed() || !vh.value_ptr())
+    throw py::value_error("this csrbf.Interpolator was never fitted (its __init__ was not called, or failed)");
+  return *vh.template value_ptr<PyInterpolator>();
+}
+
 py::tuple get_state(const PyInterpolator& s) {
   const auto d = py::ssize_t(s.core.dimension()), nv = py::ssize_t(s.core.value_count());
   py::list levels;
@@ -252,11 +264,11 @@ py::tuple get_state(const PyInterpolator& s) {
   }
   return py::make_tuple(kStateVersion, int(d), py::cast(s.value_shape), s.single,
                         std::string(csrbf::kernel_name(s.core.kernel())), s.core.degree(), levels, s.threads,
-                        s.radius_auto, s.neighbors, s.solver);
+                        s.radius_auto, s.neighbors, s.solver, s.core.seconds_fit());
 }
 
-PyInterpolator set_state(const py::tuple& t) {
-  if (t.size() != 11 || t[0].cast<int>() != kStateVersion)
+PyInterpolator set_state_checked(const py::tuple& t) {
+  if (t.size() != 12 || !py::isinstance<py::int_>(t[0]) || t[0].cast<int>() != kStateVersion)
     throw py::value_error("Interpolator state: not a state of this version of csrbf");
   PyInterpolator s;
   const int d = t[1].cast<int>();
@@ -266,7 +278,12 @@ PyInterpolator set_state(const py::tuple& t) {
   if (!kernel) throw py::value_error("Interpolator state: unknown kernel");
   const int degree = t[5].cast<int>();
   std::size_t nv = 1;
-  for (py::ssize_t e : s.value_shape) nv *= std::size_t(e);
+  for (py::ssize_t e : s.value_shape) {
+    if (e < 1 || e > (py::ssize_t(1) << 40) || nv > (std::size_t(1) << 40))
+      throw py::value_error("Interpolator state: value shape " + shape_text(s.value_shape));
+    nv *= std::size_t(e);
+  }
+  if (s.value_shape.size() > 32) throw py::value_error("Interpolator state: value shape of too many dimensions");
   std::vector<csrbf::InterpolatorLevel> levels;
   for (const py::handle h : t[6].cast<py::list>()) {
     const auto l = h.cast<py::tuple>();
@@ -287,87 +304,192 @@ PyInterpolator set_state(const py::tuple& t) {
     lv.seconds = st[5].cast<double>();
     levels.push_back(std::move(lv));
   }
-  s.core = csrbf::Interpolator::from_levels(d, nv, *kernel, degree, std::move(levels));
+  s.core = csrbf::Interpolator::from_levels(d, nv, *kernel, degree, std::move(levels), t[11].cast<double>());
   s.threads = t[7].cast<int>();
+  if (s.threads < 0 || s.threads > 4096)
+    throw py::value_error("Interpolator state: threads " + std::to_string(s.threads));
   s.radius_auto = t[8].cast<bool>();
   s.neighbors = t[9].cast<double>();
   s.solver = t[10].cast<std::string>();
   return s;
 }
 
-PyInterpolator make(const py::object& points_obj, const py::object& values_obj, const py::object& radius,
-                    const std::string& kernel, int degree, const py::object& smoothing, double neighbors,
-                    const py::object& levels, const std::string& method, const py::object& memory_limit,
-                    const py::object& threads, const std::string& solver) {
+PyInterpolator set_state(const py::object& state) {
+  // Every malformed state is a ValueError naming the state (not pybind11's cast or index errors).
+  try {
+    if (!py::isinstance<py::tuple>(state)) throw py::value_error("Interpolator state: not a tuple");
+    return set_state_checked(state.cast<py::tuple>());
+  } catch (const py::cast_error& e) {
+    throw py::value_error(std::string("Interpolator state: malformed (") + e.what() + ")");
+  } catch (const py::index_error& e) {
+    throw py::value_error(std::string("Interpolator state: malformed (") + e.what() + ")");
+  } catch (const py::error_already_set& e) {
+    if (e.matches(PyExc_TypeError) || e.matches(PyExc_IndexError) || e.matches(PyExc_OverflowError))
+      throw py::value_error(std::string("Interpolator state: malformed (") + e.what() + ")");
+    throw;
+  }
+}
+
+std::string short_number(double v) {
+  std::ostringstream os;
+  os.precision(3);
+  os << v;
+  return os.str();
+}
+
+std::string type_name(const py::handle& h) { return py::str(h.get_type().attr("__name__")).cast<std::string>(); }
+
+/// A keyword argument's text, lower case (names are matched in any case, as the CLI's are).
+std::string text_of(const py::handle& h, const char* what, const std::string& expected) {
+  if (!py::isinstance<py::str>(h))
+    throw py::type_error(std::string(what) + " must be " + expected + ", got a " + type_name(h));
+  std::string t = h.cast<std::string>();
+  for (char& c : t) c = char(std::tolower(static_cast<unsigned char>(c)));
+  return t;
+}
+/// A real number (a Python or numpy number, not a bool or a string).
+double number_of(const py::handle& h, const char* what, const std::string& expected) {
+  if (py::isinstance<py::bool_>(h) || py::isinstance<py::str>(h) || !py::hasattr(h, "__float__"))
+    throw py::type_error(std::string(what) + " must be " + expected + ", got a " + type_name(h));
+  return py::float_(py::reinterpret_borrow<py::object>(h)).cast<double>();
+}
+/// An integer (a Python or numpy integer, not a bool or a float).
+long integer_of(const py::handle& h, const char* what, const std::string& expected) {
+  if (py::isinstance<py::bool_>(h) || !PyIndex_Check(h.ptr()))
+    throw py::type_error(std::string(what) + " must be " + expected + ", got a " + type_name(h) +
+                         (py::hasattr(h, "__float__") ? " (" + py::repr(h).cast<std::string>() + ")" : ""));
+  const py::int_ i(py::reinterpret_borrow<py::object>(h));
+  int overflow = 0;
+  const long v = PyLong_AsLongAndOverflow(i.ptr(), &overflow);
+  if (overflow) throw py::value_error(std::string(what) + " is out of range: " + py::repr(h).cast<std::string>());
+  return v;
+}
+
+constexpr const char* kKeywords[] = {"radius", "kernel", "degree",       "smoothing", "neighbors",
+                                     "levels", "method", "memory_limit", "threads",   "solver"};
+
+PyInterpolator make(const py::args& args, const py::kwargs& kwargs) {
+  // Parsed here rather than by pybind11, whose errors print every element of the arrays given.
+  if (args.size() != 2)
+    throw py::type_error("Interpolator() takes points and values as its two positional arguments, got " +
+                         std::to_string(args.size()) +
+                         (args.size() > 2 ? "; radius and the rest are keyword-only" : ""));
+  const py::object points_obj = args[0], values_obj = args[1];
+  py::dict kw;
+  for (const auto& [key, value] : kwargs) {
+    const auto name = key.cast<std::string>();
+    if (std::find_if(std::begin(kKeywords), std::end(kKeywords), [&](const char* k) { return name == k; }) ==
+        std::end(kKeywords)) {
+      std::string hint;
+      if (name == "epsilon") hint = " (SciPy's shape parameter: csrbf's kernels have a radius of support, radius=)";
+      if (name == "points" || name == "values") hint = " (points and values are positional)";
+      throw py::type_error("Interpolator() got an unexpected keyword argument '" + name + "'" + hint +
+                           "; it takes radius, kernel, degree, smoothing, neighbors, levels, method, memory_limit, "
+                           "threads and solver");
+    }
+    kw[key] = value;
+  }
+  const auto get = [&](const char* name) -> py::object {
+    return kw.contains(name) ? py::object(kw[name]) : py::object(py::none());
+  };
   PyInterpolator s;
   csrbf::InterpolatorOptions o;
   // Options first (cheap), then the arrays.
-  if (py::isinstance<py::str>(radius)) {
-    const auto text = radius.cast<std::string>();
-    if (text != "auto") throw py::value_error("radius must be a positive number or 'auto', got '" + text + "'");
-  } else if (!radius.is_none()) {
-    if (!py::isinstance<py::float_>(radius) && !py::isinstance<py::int_>(radius) && !py::hasattr(radius, "__float__"))
-      throw py::type_error("radius must be a positive number or 'auto', got a " +
-                           py::str(radius.get_type().attr("__name__")).cast<std::string>());
-    o.radius = radius.cast<double>();
-    if (!(o.radius > 0) || !std::isfinite(o.radius))
-      throw py::value_error("radius must be a positive finite number or 'auto', got " +
-                            py::str(radius).cast<std::string>());
-    s.radius_auto = false;
+  if (const py::object radius = get("radius"); !radius.is_none()) {
+    if (py::isinstance<py::str>(radius)) {
+      const auto text = text_of(radius, "radius", "a positive number or 'auto'");
+      if (text != "auto")
+        throw py::value_error("radius must be a positive number or 'auto', got '" + radius.cast<std::string>() + "'");
+    } else {
+      o.radius = number_of(radius, "radius", "a positive number or 'auto'");
+      if (!(o.radius > 0) || !std::isfinite(o.radius) || o.radius < 1e-150 || o.radius > 1e150)
+        throw py::value_error("radius must be a positive finite number (within [1e-150, 1e150]) or 'auto', got " +
+                              py::repr(radius).cast<std::string>());
+      s.radius_auto = false;
+    }
   }
-  const auto k = csrbf::parse_name<csrbf::Kernel>(kernel);
-  if (!k)
-    throw py::value_error("kernel must be one of " + csrbf::names_text<csrbf::Kernel>() + ", got '" + kernel + "'");
-  o.kernel = *k;
-  if (degree < -1 || degree > 1)
-    throw py::value_error("degree must be -1 (none), 0 or 1, got " + std::to_string(degree));
-  o.degree = degree;
-  if (!(neighbors > 0) || !std::isfinite(neighbors))
-    throw py::value_error("neighbors must be a positive number, got " +
-                          py::str(py::float_(neighbors)).cast<std::string>());
-  o.neighbors = neighbors;
-  s.neighbors = neighbors;
-  if (method != "single" && method != "multiscale")
-    throw py::value_error("method must be 'single' or 'multiscale', got '" + method + "'");
+  if (const py::object kernel = get("kernel"); !kernel.is_none()) {
+    const auto text = text_of(kernel, "kernel", "one of " + csrbf::names_text<csrbf::Kernel>());
+    const auto k = csrbf::parse_name<csrbf::Kernel>(text);
+    if (!k)
+      throw py::value_error("kernel must be one of " + csrbf::names_text<csrbf::Kernel>() + ", got '" +
+                            kernel.cast<std::string>() + "'" +
+                            (text == "thin_plate_spline" || text == "gaussian" || text == "multiquadric"
+                                 ? " (SciPy's global kernels; csrbf's are Wendland's compactly supported ones)"
+                                 : ""));
+    o.kernel = *k;
+  }
+  if (const py::object degree = get("degree"); !degree.is_none()) {  // None: the default, as SciPy's
+    const long d = integer_of(degree, "degree", "-1 (none), 0 or 1");
+    if (d < -1 || d > 1) throw py::value_error("degree must be -1 (none), 0 or 1, got " + std::to_string(d));
+    o.degree = int(d);
+  }
+  if (const py::object neighbors = get("neighbors"); !neighbors.is_none()) {
+    o.neighbors = number_of(neighbors, "neighbors", "a positive number");
+    if (!(o.neighbors > 0) || !std::isfinite(o.neighbors))
+      throw py::value_error("neighbors must be a positive number, got " + py::repr(neighbors).cast<std::string>());
+  }
+  s.neighbors = o.neighbors;
+  std::string method;
+  if (const py::object m = get("method"); !m.is_none()) {
+    method = text_of(m, "method", "'single' or 'multiscale'");
+    if (method != "single" && method != "multiscale")
+      throw py::value_error("method must be 'single' or 'multiscale', got '" + m.cast<std::string>() + "'");
+  }
   o.levels = method == "multiscale" ? 0 : 1;
-  if (py::isinstance<py::str>(levels)) {
-    const auto text = levels.cast<std::string>();
-    if (text != "auto")
-      throw py::value_error("levels must be an integer 1.." + std::to_string(csrbf::kMaxLevels) + " or 'auto', got '" +
-                            text + "'");
-    o.levels = 0;
-  } else if (!levels.is_none()) {
-    if (!py::isinstance<py::int_>(levels) || py::isinstance<py::bool_>(levels))
-      throw py::type_error("levels must be an integer or 'auto', got a " +
-                           py::str(levels.get_type().attr("__name__")).cast<std::string>());
-    const long l = levels.cast<long>();
-    if (l < 1 || l > csrbf::kMaxLevels)
-      throw py::value_error("levels must be within 1.." + std::to_string(csrbf::kMaxLevels) + ", got " +
-                            std::to_string(l));
-    o.levels = int(l);  // levels > 1 is the multiscale method whatever `method` says
+  if (const py::object levels = get("levels"); !levels.is_none()) {
+    const std::string expected = "an integer 1.." + std::to_string(csrbf::kMaxLevels) + " or 'auto'";
+    if (py::isinstance<py::str>(levels)) {
+      if (text_of(levels, "levels", expected) != "auto")
+        throw py::value_error("levels must be " + expected + ", got '" + levels.cast<std::string>() + "'");
+      o.levels = 0;
+    } else {
+      const long l = integer_of(levels, "levels", expected);
+      if (l < 1 || l > csrbf::kMaxLevels)
+        throw py::value_error("levels must be within 1.." + std::to_string(csrbf::kMaxLevels) + " or 'auto', got " +
+                              std::to_string(l));
+      o.levels = int(l);
+    }
+    if (method == "single" && o.levels != 1)
+      throw py::value_error("method='single' with levels=" + py::str(levels).cast<std::string>() +
+                            ": several levels are the multiscale method (give levels alone, or method='multiscale')");
+    if (method == "multiscale" && o.levels == 1)
+      throw py::value_error("method='multiscale' with levels=1: one level is the single-scale method");
   }
-  const auto sv = csrbf::parse_solver(solver);
-  if (!sv)
-    throw py::value_error("solver must be one of " + csrbf::names_text<csrbf::Solver>() + ", got '" + solver + "'");
-  o.solver = *sv;
-  s.solver = solver;
-  if (!memory_limit.is_none()) {
-    const double gib = memory_limit.cast<double>();
-    if (!(gib > 0) || !std::isfinite(gib))
-      throw py::value_error("memory_limit must be a positive number of GiB, got " +
-                            py::str(memory_limit).cast<std::string>());
+  if (const py::object solver = get("solver"); !solver.is_none()) {
+    const auto text = text_of(solver, "solver", "one of " + csrbf::names_text<csrbf::Solver>());
+    const auto sv = csrbf::parse_solver(text);
+    if (!sv)
+      throw py::value_error("solver must be one of " + csrbf::names_text<csrbf::Solver>() + ", got '" +
+                            solver.cast<std::string>() + "'");
+    o.solver = *sv;
+    s.solver = std::string(csrbf::solver_name(*sv));
+  }
+  if (const py::object memory_limit = get("memory_limit"); !memory_limit.is_none()) {
+    const double gib = number_of(memory_limit, "memory_limit", "a number of GiB");
+    if (!(gib > 0 && gib <= 1e6))
+      throw py::value_error("memory_limit is in GiB, as csrbf's --memory-limit: a number in (0, 1e6], got " +
+                            py::repr(memory_limit).cast<std::string>() +
+                            (gib > 1e6 ? " (bytes? that is " + short_number(gib / double(1ull << 30)) + " GiB)" : ""));
     o.memory_limit_bytes = gib * double(1ull << 30);
   }
-  if (!threads.is_none()) {
-    const long t = threads.cast<long>();
-    if (t < 1 || t > 4096) throw py::value_error("threads must be a positive integer, got " + std::to_string(t));
+  if (const py::object threads = get("threads"); !threads.is_none()) {
+    const long t = integer_of(threads, "threads", "a positive integer");
+    if (t < 1 || t > 4096)
+      throw py::value_error("threads must be a positive integer (at most 4096), got " + std::to_string(t));
     s.threads = int(t);
   }
+  const py::object smoothing = get("smoothing");
 
   const py::array points = real_array(points_obj, "points");
   if (points.ndim() != 2)
     throw py::value_error("points must have shape (P, D), D = 1, 2 or 3, got " + shape_text(shape_of(points)) +
                           (points.ndim() == 1 ? " (1-D data: points[:, None])" : ""));
+  if (points.shape(1) > csrbf::Interpolator::kMaxDimension && points.shape(0) >= 1 &&
+      points.shape(0) <= csrbf::Interpolator::kMaxDimension)
+    throw py::value_error("points must have shape (P, D) with D = 1, 2 or 3, got " + shape_text(shape_of(points)) +
+                          ": is it transposed? (points.T has shape (" + std::to_string(points.shape(1)) + ", " +
+                          std::to_string(points.shape(0)) + "))");
   if (points.shape(1) < 1 || points.shape(1) > csrbf::Interpolator::kMaxDimension)
     throw py::value_error(
         "points must have shape (P, D) with D = 1, 2 or 3, got " + shape_text(shape_of(points)) +
@@ -404,9 +526,17 @@ PyInterpolator make(const py::object& points_obj, const py::object& values_obj, 
     o.smoothing.assign(sd.data(), sd.data() + sd.size());
     if (std::all_of(o.smoothing.begin(), o.smoothing.end(), [](double v) { return v == 0; })) o.smoothing.clear();
   }
-  run_released(s.threads, [&] {
-    s.core = csrbf::Interpolator::fit({pts.data(), p * d}, int(d), {vals.data(), p * nv}, nv, o);
-  });
+  try {
+    run_released(s.threads, [&] {
+      s.core = csrbf::Interpolator::fit({pts.data(), p * d}, int(d), {vals.data(), p * nv}, nv, o);
+    });
+  } catch (const csrbf::ResourceLimit& e) {
+    const std::string m = std::string(e.what()) + " [csrbf.Interpolator: memory_limit is " +
+                          short_number(o.memory_limit_bytes / double(1ull << 30)) +
+                          " GiB; raise it, or ask for fewer neighbors or a smaller radius]";
+    PyErr_SetString(PyExc_MemoryError, m.c_str());
+    throw py::error_already_set();
+  }
   return s;
 }
 
@@ -449,17 +579,22 @@ kernel : {'c0', 'c2', 'c4', 'c6'}, optional
     The Wendland function (smoothness C0 to C6). Default 'c2'.
 degree : {-1, 0, 1}, optional
     The polynomial: -1 none (default; strictly local: s = 0 farther than R from every point),
-    0 a constant, 1 linear.
+    0 a constant, 1 linear (as SciPy's thin-plate spline: data with an offset or a trend, and
+    points evaluated between sparse data, want 1). None is the default.
 smoothing : float or array_like of shape (P,), optional
-    lambda >= 0 added to the diagonal: 0 interpolates, larger values smooth noisy data.
+    lambda >= 0 added to the diagonal: 0 interpolates, larger values smooth noisy data. The
+    diagonal is phi(0) = 1 (or 3 for C4), so lambda is relative to 1, not to SciPy's kernel scale.
 neighbors : float, optional
-    The mean number of neighbours the automatic radius aims at (default 40).
+    The mean number of other points within the automatic radius (default 40). Not SciPy's
+    ``neighbors``: compact support is the locality, nothing is looked up a query. With several
+    levels, the thinned levels have about this many; the finest (every point) half the radius,
+    about neighbors / 2^D.
 levels : int or 'auto', optional
     1 (default): one radius. n > 1: the multiscale method (Floater & Iske 1996): nested subsets of
-    the points, each level fitting what the coarser ones left with half their radius. 'auto':
-    levels until the coarsest has about 1000 points (at most 6).
+    the points, each level fitting what the coarser ones left with half their radius, the last at
+    every point. 'auto': levels until the coarsest has at most 250 points (at most 8).
 method : {'single', 'multiscale'}, optional
-    'multiscale' is ``levels='auto'``.
+    'multiscale' is ``levels='auto'``; 'single' is ``levels=1``.
 memory_limit : float, optional
     The most memory the fit may take, in GiB (default 4); beyond it MemoryError, before allocating.
 threads : int, optional
@@ -487,12 +622,11 @@ Examples
 >>> float(abs(s([0.5, 0.5]) - np.sin(1.5) * 0.5)) < 1e-2
 True
 )doc")
-      .def(py::init(&make), py::arg("points"), py::arg("values"), py::kw_only(), py::arg("radius") = "auto",
-           py::arg("kernel") = "c2", py::arg("degree") = -1, py::arg("smoothing") = 0.0,
-           py::arg("neighbors") = csrbf::kDefaultNeighbors, py::arg("levels") = py::none(),
-           py::arg("method") = "single", py::arg("memory_limit") = py::none(), py::arg("threads") = py::none(),
-           py::arg("solver") = "auto")
-      .def("__call__", &evaluate, py::arg("x"), py::kw_only(), py::arg("out") = py::none(), R"doc(
+      .def(py::init(&make))
+      .def(
+          "__call__",
+          [](py::handle self, const py::object& x, const py::object& out) { return evaluate(self_of(self), x, out); },
+          py::arg("x"), py::kw_only(), py::arg("out") = py::none(), R"doc(
 Evaluates the interpolant.
 
 Parameters
@@ -514,7 +648,10 @@ Examples
 >>> s(np.eye(3)).round(12).tolist()
 [0.0, 1.0, 2.0]
 )doc")
-      .def("gradient", &gradient, py::arg("x"), py::kw_only(), py::arg("out") = py::none(), R"doc(
+      .def(
+          "gradient",
+          [](py::handle self, const py::object& x, const py::object& out) { return gradient(self_of(self), x, out); },
+          py::arg("x"), py::kw_only(), py::arg("out") = py::none(), R"doc(
 The derivatives of the interpolant.
 
 Parameters
@@ -535,7 +672,8 @@ Examples
 >>> round(float(s.gradient([0.5])[0]), 6)
 2.0
 )doc")
-      .def_property_readonly("stats", &stats_of, R"doc(
+      .def_property_readonly(
+          "stats", [](py::handle self) { return stats_of(self_of(self)); }, R"doc(
 What the fit chose and did: the radius (and whether it was automatic), the mean neighbours, the
 solver, its iterations, the largest relative residual of the system, and each level's figures.
 
@@ -547,23 +685,63 @@ Examples
 20
 )doc")
       .def_property_readonly(
-          "dimension", [](const PyInterpolator& s) { return s.core.dimension(); }, "D, the dimension of the points")
+          "dimension",
+          [](py::handle self) {
+            const PyInterpolator& s = self_of(self);
+            return s.core.dimension();
+          },
+          "D, the dimension of the points")
       .def_property_readonly(
-          "value_shape", [](const PyInterpolator& s) { return py::tuple(py::cast(s.value_shape)); },
+          "value_shape",
+          [](py::handle self) {
+            const PyInterpolator& s = self_of(self);
+            return py::tuple(py::cast(s.value_shape));
+          },
           "The trailing shape of the values")
-      .def_property_readonly("dtype", &result_dtype, "The dtype of the results (the values')")
       .def_property_readonly(
-          "kernel", [](const PyInterpolator& s) { return std::string(csrbf::kernel_name(s.core.kernel())); },
+          "dtype", [](py::handle self) { return result_dtype(self_of(self)); },
+          "The dtype of the results (the values')")
+      .def_property_readonly(
+          "kernel",
+          [](py::handle self) {
+            const PyInterpolator& s = self_of(self);
+            return std::string(csrbf::kernel_name(s.core.kernel()));
+          },
           "The Wendland kernel")
       .def_property_readonly(
-          "degree", [](const PyInterpolator& s) { return s.core.degree(); }, "The polynomial's degree")
+          "degree",
+          [](py::handle self) {
+            const PyInterpolator& s = self_of(self);
+            return s.core.degree();
+          },
+          "The polynomial's degree")
       .def_property_readonly(
-          "radius", [](const PyInterpolator& s) { return s.core.levels().back().radius; },
+          "radius",
+          [](py::handle self) {
+            const PyInterpolator& s = self_of(self);
+            return s.core.levels().back().radius;
+          },
           "The radius of support (of the finest level)")
       .def_property_readonly(
-          "levels", [](const PyInterpolator& s) { return s.core.levels().size(); },
+          "levels",
+          [](py::handle self) {
+            const PyInterpolator& s = self_of(self);
+            return s.core.levels().size();
+          },
           "The number of levels (1: single scale)")
-      .def("__len__", [](const PyInterpolator& s) { return s.core.size(); })
-      .def("__repr__", &repr)
-      .def(py::pickle(&get_state, &set_state));
+      .def("__len__",
+           [](py::handle self) {
+             const PyInterpolator& s = self_of(self);
+             return s.core.size();
+           })
+      .def("__repr__",
+           [](py::handle self) {
+             if (!py::isinstance<PyInterpolator>(self)) return std::string("<not a csrbf.Interpolator>");
+             try {
+               return repr(self_of(self));
+             } catch (const py::value_error&) {
+               return std::string("csrbf.Interpolator(not fitted)");
+             }
+           })
+      .def(py::pickle([](py::handle self) { return py::object(get_state(self_of(self))); }, &set_state));
 }

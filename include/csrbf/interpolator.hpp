@@ -89,7 +89,7 @@ class Interpolator {
                           std::size_t value_count, const InterpolatorOptions& options);
   /// An interpolant from its levels' coefficients (a fit stored and read back: pickling).
   static Interpolator from_levels(int dimension, std::size_t value_count, Kernel kernel, int degree,
-                                  std::vector<InterpolatorLevel> levels);
+                                  std::vector<InterpolatorLevel> levels, double seconds_fit = 0);
 
   /// s(x) for q points (q x D) into out (q x V). Float points and results are evaluated in float
   /// where each level's map trusts it (SpaceMap::float_trusted), else in double.

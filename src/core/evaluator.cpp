@@ -29,7 +29,8 @@
 
 namespace csrbf::detail {
 
-EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size_t max_bytes, int max_subdivision) {
+EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size_t max_bytes, int max_subdivision,
+                         int dims) {
   EvalGrid g;
   const std::size_t n = sources.size();
   if (n == 0) return g;
@@ -51,13 +52,23 @@ EvalGrid EvalGrid::build(std::span<const Vec3> sources, double radius, std::size
     g.h = radius / k;
     g.inv_h = 1.0 / g.h;
     g.origin = lo - Vec3::Constant(radius);
-    const Vec3 span = (hi - lo + Vec3::Constant(2 * radius)) * g.inv_h;
+    Vec3 span = (hi - lo + Vec3::Constant(2 * radius)) * g.inv_h;
+    int spanned = 3;
+    for (int a = 0; a < 3; ++a)
+      if (a >= dims && hi[a] == lo[a]) {  // one layer of cells, [lo - h/2, lo + h/2)
+        g.origin[a] = lo[a] - 0.5 * g.h;
+        span[a] = 0;
+        --spanned;
+      }
     const double cells = (std::floor(span.x()) + 1) * (std::floor(span.y()) + 1) * (std::floor(span.z()) + 1);
     // Each source is listed in about 1 + 6K + 3 pi K^2 + 4/3 pi K^3 cells (Steiner's formula for a
-    // cell grown by R = K h: 84 for K = 2, 21 for K = 1), plus padding; each entry costs 4 bytes
-    // here and 72 in the EvalData of both precisions.
+    // cell grown by R = K h: 84 for K = 2, 21 for K = 1; in a plane 1 + 4K + pi K^2, on a line
+    // 1 + 2K), plus padding; each entry costs 4 bytes here and 72 in the EvalData of both precisions.
     const double kk = k;
-    const double entries = double(n) * 1.07 * (1 + 6 * kk + 3 * M_PI * kk * kk + 4.0 / 3.0 * M_PI * kk * kk * kk);
+    const double steiner = spanned == 3   ? 1 + 6 * kk + 3 * M_PI * kk * kk + 4.0 / 3.0 * M_PI * kk * kk * kk
+                           : spanned == 2 ? 1 + 4 * kk + M_PI * kk * kk
+                                          : 1 + 2 * kk;
+    const double entries = double(n) * 1.07 * steiner;
     // A dense grid only where the sources fill their box reasonably (else the hashed NeighborIndex).
     if (!(cells * 4.0 + entries * 76.0 <= double(max_bytes)) || !(cells <= 32.0 * double(n) + 65536.0)) continue;
     g.nx = std::int64_t(span.x()) + 1;

@@ -47,8 +47,11 @@ struct EvalGrid {
   /// max_bytes: the most memory the lists and the EvalData copies of both precisions may take;
   /// max_subdivision: the finest K tried (1 for a map evaluated once over few points a source:
   /// SpaceMap::from_solution's points).
+  /// dims < 3: the axes from dims on are padding, 0 for every source and every point evaluated
+  /// (csrbf::Interpolator's 1-D and 2-D points): each gets one layer of cells around 0, not the
+  /// 2K + 1 of a volume (a quarter of the lists for 2-D points); points off it are outside the grid.
   static EvalGrid build(std::span<const Vec3> sources, double radius, std::size_t max_bytes,
-                        int max_subdivision = kMaxSubdivision);
+                        int max_subdivision = kMaxSubdivision, int dims = 3);
   /// The neighbour graph of the sources (every pair closer than R), from the cell lists: the
   /// candidates of a source are its own cell's run. Requires usable.
   void neighbor_graph(std::span<const Vec3> sources, std::vector<std::size_t>& offsets,

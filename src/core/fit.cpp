@@ -522,12 +522,17 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
 }
 
 std::shared_ptr<SpaceMap::Structure> detail::fit_structure(std::span<const Vec3> sources, const FitOptions& options,
-                                                           std::span<const double> diagonal_shift) {
+                                                           std::span<const double> diagonal_shift, int dims) {
   auto st = std::make_shared<SpaceMap::Structure>();
   st->options = options;
   st->options.polynomial = Polynomial::None;
   st->sources.assign(sources.begin(), sources.end());
   st->diagonal_shift.assign(diagonal_shift.begin(), diagonal_shift.end());
+  st->dims = dims;
+  // Cells of side R (not R/2): the interpolator's levels each build a grid and its lists, which at
+  // cells of R/2 cost more than the finer cells save (Franke's function, 1e5 points, 7 levels: fit
+  // and evaluation of 2e5 points 1.4 s against 1.7 s, of 1e6 points 1.4 against 1.9 s).
+  st->max_subdivision = 1;
   st->stats.controls = sources.size();
   FitPhases::polynomial_frame(*st);
   FitPhases::neighbour_graph_and_matrix(*st);

@@ -54,12 +54,15 @@ struct SpaceMap::Structure {
   mutable std::once_flag grid_once;
   mutable detail::EvalGrid grid_;
   int max_subdivision = detail::EvalGrid::kMaxSubdivision;  // from_solution: 1 for a map evaluated over few points
+  /// csrbf::Interpolator's points of 1 or 2 dimensions: the axes from `dims` on are 0 for every source
+  /// and every point evaluated (EvalGrid::build).
+  int dims = 3;
   double fit_bytes = 0;  // the fit's predicted memory (graph, matrix, factor), set before the grid is built
   const detail::EvalGrid& grid() const {
     std::call_once(grid_once, [this] {
       const double left = options.memory_limit_bytes - fit_bytes;
       const std::size_t budget = left >= double(kEvalListBytes) ? kEvalListBytes : left > 0 ? std::size_t(left) : 0;
-      grid_ = detail::EvalGrid::build(sources, options.radius, budget, max_subdivision);
+      grid_ = detail::EvalGrid::build(sources, options.radius, budget, max_subdivision, dims);
     });
     return grid_;
   }
@@ -283,7 +286,7 @@ namespace detail {
 /// own polynomial block), the neighbour graph, A + diag(diagonal_shift), the ordering and solver, the
 /// factorisation. The sources must have been checked (finite, radius and limit valid).
 std::shared_ptr<SpaceMap::Structure> fit_structure(std::span<const Vec3> sources, const FitOptions& options,
-                                                   std::span<const double> diagonal_shift);
+                                                   std::span<const double> diagonal_shift, int dims);
 }  // namespace detail
 
 struct SpaceMap::State {

@@ -71,11 +71,24 @@ void validate(std::span<const double> points, int dim, std::span<const double> v
       throw InvalidInput(os.str());
     }
   for (std::size_t i = 0; i < values.size(); ++i)
-    if (!std::isfinite(values[i])) {
+    if (!std::isfinite(values[i]) || std::abs(values[i]) > detail::kMaxCoordinate) {
       std::ostringstream os;
-      os << "values[" << i / v << ", " << i % v << "] is " << values[i] << " (values must be finite)";
+      os << "values[" << i / v << ", " << i % v << "] is " << values[i]
+         << (std::isfinite(values[i]) ? " (beyond 1e150: the solve's squares would overflow)"
+                                      : " (values must be finite)");
       throw InvalidInput(os.str());
     }
+  // The fit holds about eight P x V copies of the values (its right-hand sides, residuals and
+  // coefficients), counted before any is made.
+  const double value_bytes = 8.0 * 8.0 * double(values.size());
+  if (value_bytes > o.memory_limit_bytes) {
+    std::ostringstream os;
+    os.precision(3);
+    os << "values: " << n << " points of " << v << " values need about " << value_bytes / double(1ull << 30)
+       << " GiB for the fit's copies of them, above the memory limit of " << o.memory_limit_bytes / double(1ull << 30)
+       << " GiB";
+    throw ResourceLimit(os.str());
+  }
   if (!(o.radius >= 0) || !std::isfinite(o.radius) || (o.radius > 0 && (o.radius < 1e-150 || o.radius > 1e150)))
     throw InvalidInput("radius must be a positive finite number in [1e-150, 1e150] (or automatic), got " +
                        num(o.radius));
@@ -224,15 +237,6 @@ SpaceMap Interpolator::map_of(std::shared_ptr<const SpaceMap::Structure> st, con
     for (std::size_t i = 0; i < n; ++i) alpha(Eigen::Index(i), Eigen::Index(c)) = level.alpha[i * values + v];
     for (int t = 0; t < terms; ++t) beta(t, Eigen::Index(c)) = level.beta[std::size_t(t) * values + v];
   }
-  if (!st) {
-    std::vector<Vec3> pts(n, Vec3::Zero());
-    for (std::size_t i = 0; i < n; ++i)
-      for (int a = 0; a < dim; ++a) pts[i][a] = level.points[i * std::size_t(dim) + std::size_t(a)];
-    FitOptions o;
-    o.radius = level.radius;
-    o.polynomial = degree < 0 ? Polynomial::None : degree == 0 ? Polynomial::Constant : Polynomial::Linear;
-    return SpaceMap::from_solution(pts, alpha, beta, level.center, level.scale, o);
-  }
   auto s = std::make_shared<SpaceMap::State>();
   s->st = std::move(st);
   s->alpha = std::move(alpha);
@@ -315,6 +319,13 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
     const bool any_shift = std::any_of(shift.begin(), shift.end(), [](double s) { return s > 0; });
     if (!any_shift) shift.clear();
     lv.radius = std::ldexp(finest, int(levels - 1 - l));
+    if (!(lv.radius >= 1e-150 && lv.radius <= 1e150)) {
+      std::ostringstream os;
+      os << "the radius" << (levels > 1 ? " of level " + std::to_string(l + 1) : std::string()) << " would be "
+         << lv.radius << ", outside [1e-150, 1e150]"
+         << (levels > 1 ? ": use fewer levels or scale the points" : ": scale the points");
+      throw InvalidInput(os.str());
+    }
     FitOptions fo;
     fo.radius = lv.radius;
     fo.kernel = options.kernel;
@@ -328,7 +339,7 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
     NeighborIndex::check_extent(lo, hi, lv.radius, "points");
     std::shared_ptr<SpaceMap::Structure> st;
     try {
-      st = detail::fit_structure(pts, fo, shift);
+      st = detail::fit_structure(pts, fo, shift, dim);
     } catch (const DuplicateSource& e) {
       const std::size_t a = member[e.first()], b = member[e.second()];
       std::ostringstream os;
@@ -367,8 +378,11 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
           degenerate = !(sv(dim - 1) > 1e-9 * std::max(sv(0), 1e-300));
         }
         if (degenerate)
-          throw DegeneratePolynomial("degree 1 needs points that span their " + std::to_string(dim) +
-                                     "-D space, but the " + std::to_string(m) + " points are " + shape +
+          throw DegeneratePolynomial("degree 1 needs points that span their " + std::to_string(dim) + "-D space, " +
+                                     (m < std::size_t(dim) + 1
+                                          ? "at least " + std::to_string(dim + 1) + " of them, but there " +
+                                                (m == 1 ? std::string("is 1") : "are " + std::to_string(m))
+                                          : "but the " + std::to_string(m) + " points are " + shape) +
                                      "; use degree 0 or -1");
       }
       y = p;
@@ -473,7 +487,7 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
 }
 
 Interpolator Interpolator::from_levels(int dim, std::size_t value_count, Kernel kernel, int degree,
-                                       std::vector<InterpolatorLevel> levels) {
+                                       std::vector<InterpolatorLevel> levels, double seconds_fit) {
   if (dim < 1 || dim > kMaxDimension) throw InvalidInput("from_levels: dimension must be 1, 2 or 3");
   if (value_count == 0 || levels.empty() || levels.size() > std::size_t(kMaxLevels))
     throw InvalidInput("from_levels: needs 1.." + std::to_string(kMaxLevels) + " levels and at least one value");
@@ -489,10 +503,42 @@ Interpolator Interpolator::from_levels(int dim, std::size_t value_count, Kernel 
                          " coordinates, " + std::to_string(lv.alpha.size()) + " coefficients and " +
                          std::to_string(lv.beta.size()) + " polynomial terms, which do not agree with D = " +
                          std::to_string(dim) + " and " + std::to_string(value_count) + " values");
-    for (double a : lv.points)
-      if (!std::isfinite(a)) throw InvalidInput("from_levels: level " + std::to_string(l) + " has a non-finite point");
+    // A level's structure, shared by its maps: its points and radius, no matrix (evaluation only).
+    auto st = std::make_shared<SpaceMap::Structure>();
+    st->sources.assign(n, Vec3::Zero());
+    for (std::size_t i = 0; i < n; ++i)
+      for (int a = 0; a < dim; ++a) st->sources[i][a] = lv.points[i * std::size_t(dim) + std::size_t(a)];
+    const std::string where = "from_levels: level " + std::to_string(l);
+    detail::check_points(st->sources, (where + ", point").c_str());
+    const auto finite = [](const std::vector<double>& v) {
+      return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
+    };
+    bool centre_ok = lv.center.allFinite() && lv.center.cwiseAbs().maxCoeff() <= detail::kMaxCoordinate;
+    for (int a = dim; a < 3; ++a) centre_ok = centre_ok && lv.center[a] == 0;  // padding
+    if (!(lv.radius >= 1e-150 && lv.radius <= 1e150) || !(lv.scale > 0) || !(lv.scale <= 1e300) || !centre_ok ||
+        !finite(lv.alpha) || !finite(lv.beta))
+      throw InvalidInput(where +
+                         ": the radius must be in [1e-150, 1e150], the scale in (0, 1e300], the centre within "
+                         "1e150 (0 past the points' dimension) and the coefficients finite");
+    Vec3 lo = st->sources[0], hi = st->sources[0];
+    for (const Vec3& p : st->sources) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    NeighborIndex::check_extent(lo, hi, lv.radius, "points");
+    const int deg = l == 0 ? degree : -1;
+    st->options.radius = lv.radius;
+    st->options.kernel = kernel;
+    st->options.polynomial = deg < 0 ? Polynomial::None : deg == 0 ? Polynomial::Constant : Polynomial::Linear;
+    st->terms = deg < 0 ? 0 : deg == 0 ? 1 : 4;
+    st->center = lv.center;
+    st->scale = lv.scale;
+    st->stats.controls = n;
+    st->solved_elsewhere = true;
+    st->dims = dim;
+    const std::shared_ptr<const SpaceMap::Structure> shared = std::move(st);
     for (std::size_t c = 0; c < (value_count + 2) / 3; ++c)
-      (*maps)[l].push_back(map_of(nullptr, lv, dim, value_count, c, l == 0 ? degree : -1));
+      (*maps)[l].push_back(map_of(shared, lv, dim, value_count, c, deg));
   }
   Interpolator r;
   r.dim_ = dim;
@@ -501,8 +547,27 @@ Interpolator Interpolator::from_levels(int dim, std::size_t value_count, Kernel 
   r.degree_ = degree;
   r.levels_ = std::make_shared<const std::vector<InterpolatorLevel>>(std::move(levels));
   r.maps_ = std::move(maps);
+  r.seconds_fit_ = std::isfinite(seconds_fit) && seconds_fit >= 0 ? seconds_fit : 0.0;
   return r;
 }
+
+namespace {
+/// InvalidInput naming the first point whose result (q x w) is not finite: far beyond the data the
+/// polynomial can overflow; no NaN or infinity is returned silently.
+template <class T>
+void check_results(const T* x, const T* out, std::size_t q, std::size_t d, std::size_t w, std::size_t offset) {
+  for (std::size_t i = 0; i < q * w; ++i)
+    if (!std::isfinite(out[i])) {
+      const std::size_t k = i / w;
+      std::ostringstream os;
+      os << "x[" << offset + k << "] = (";
+      for (std::size_t a = 0; a < d; ++a) os << (a ? ", " : "") << x[k * d + a];
+      os << "): the interpolant overflows there (" << out[i] << "), too far beyond the points for "
+         << (sizeof(T) == 4 ? "float32" : "float64");
+      throw InvalidInput(os.str());
+    }
+}
+}  // namespace
 
 template <class T>
 void Interpolator::evaluate_impl(const T* x, std::size_t q, T* out) const {
@@ -521,6 +586,7 @@ void Interpolator::evaluate_impl(const T* x, std::size_t q, T* out) const {
         for (std::size_t i = 0; i < m; ++i)
           for (std::size_t k = 0; k < 3 && 3 * c + k < nv; ++k) o[i * nv + 3 * c + k] += part[3 * i + k];
       }
+    check_results(x + b * d, o, m, d, nv, b);
   }
 }
 
@@ -546,6 +612,7 @@ void Interpolator::gradient(const double* x, std::size_t q, double* out) const {
             for (std::size_t a = 0; a < d; ++a)
               o[(i * nv + 3 * c + k) * d + a] += jac[9 * i + 3 * k + a] - (k == a ? 1.0 : 0.0);
       }
+    check_results(x + b * d, o, m, d, nv * d, b);
   }
 }
 

@@ -147,6 +147,12 @@ class InterpolatorAgainstDenseSolve(unittest.TestCase):
         alpha, beta = dense_fit(pts, f, 0.3, smoothing=0.1)
         np.testing.assert_allclose(s(pts[:5]), dense_eval(pts, alpha, beta, 0.3, pts[:5])[:, 0], atol=1e-10)
 
+    def test_no_silent_overflow_far_beyond_the_points(self):
+        p = np.random.default_rng(1).random((50, 2)) * 1e-100
+        s = csrbf.Interpolator(p, np.ones(50), degree=0)
+        with self.assertRaisesRegex(ValueError, r"x\[0\] = \(1e\+210, 0\): the interpolant overflows there"):
+            s([1e210, 0.0])
+
     def test_strictly_local_without_a_polynomial(self):
         pts = np.random.default_rng(2).random((200, 3))
         s = csrbf.Interpolator(pts, np.ones(200), radius=0.2)
@@ -236,6 +242,21 @@ class PythonHabits(unittest.TestCase):
         self.assertEqual(t.stats["levels"], self.s.stats["levels"])
         m = csrbf.Interpolator(self.pts, self.vals[:, 0], levels=3, degree=1)
         np.testing.assert_allclose(pickle.loads(pickle.dumps(m))(self.x), m(self.x), rtol=0, atol=1e-13)
+        c4 = csrbf.Interpolator(self.pts, self.vals[:, :2], radius=0.2, kernel="c4")  # the kernel is kept
+        want4 = c4(self.x)
+        np.testing.assert_allclose(pickle.loads(pickle.dumps(c4))(self.x), want4, rtol=0,
+                                   atol=1e-12 * np.abs(want4).max())
+        for broken in (b"\x80\x02ccsrbf\nInterpolator\n)\x81.", ):  # an object without a fit: an error, not a crash
+            with self.assertRaisesRegex(ValueError, r"never fitted"):
+                pickle.loads(broken).stats
+        state = list(self.s.__getstate__())
+        state[7] = 10**6
+        with self.assertRaisesRegex(ValueError, r"Interpolator state: threads"):
+            csrbf.Interpolator.__new__(csrbf.Interpolator).__setstate__(tuple(state))
+        state = list(self.s.__getstate__())
+        state[6] = "levels"
+        with self.assertRaisesRegex(ValueError, r"Interpolator state: malformed"):
+            csrbf.Interpolator.__new__(csrbf.Interpolator).__setstate__(tuple(state))
         g = pickle.loads(pickle.dumps(m)).gradient(self.x[:10])
         np.testing.assert_allclose(g, m.gradient(self.x[:10]), atol=1e-12)
 
@@ -273,7 +294,8 @@ class PythonHabits(unittest.TestCase):
         gaps = []
         done = threading.Event()
         t0 = time.perf_counter()
-        worker = threading.Thread(target=lambda: (self.s(big), done.set()))
+        one = csrbf.Interpolator(self.pts, self.vals, radius=0.15, degree=0, threads=1)  # a core left for this thread
+        worker = threading.Thread(target=lambda: (one(big), done.set()))
         last = time.perf_counter()
         worker.start()
         while not done.is_set():
@@ -301,23 +323,36 @@ class PythonHabits(unittest.TestCase):
             (dict(points=pts, values=np.ones(100), degree=2), ValueError, r"degree must be -1"),
             (dict(points=pts, values=np.ones(100), smoothing=np.ones(5)), ValueError, r"smoothing must be a number or an array of shape \(100,\), got \(5,\)"),
             (dict(points=pts, values=np.ones(100), smoothing=-1.0), ValueError, r"smoothing is -1"),
-            (dict(points=pts, values=np.ones(100), levels=0), ValueError, r"levels must be within 1\.\.12, got 0"),
-            (dict(points=pts, values=np.ones(100), levels=2.5), TypeError, r"levels must be an integer or 'auto', got a float"),
+            (dict(points=pts, values=np.ones(100), levels=0), ValueError, r"levels must be within 1\.\.12 or 'auto', got 0"),
+            (dict(points=pts, values=np.ones(100), levels=2.5), TypeError, r"levels must be an integer 1\.\.12 or 'auto', got a float \(2\.5\)"),
+            (dict(points=pts, values=np.ones(100), threads=1.0), TypeError, r"threads must be a positive integer, got a float"),
+            (dict(points=pts, values=np.ones(100), epsilon=1.0), TypeError, r"unexpected keyword argument 'epsilon' \(SciPy's shape parameter"),
+            (dict(points=pts, values=np.ones(100), method="single", levels=3), ValueError, r"method='single' with levels=3"),
+            (dict(points=pts, values=np.ones(100), method="multiscale", levels=1), ValueError, r"method='multiscale' with levels=1"),
+            (dict(points=pts.T, values=np.ones(3)), ValueError, r"is it transposed\? \(points.T has shape \(100, 3\)\)"),
+            (dict(points=pts, values=np.ones(100), memory_limit=4e9), ValueError, r"memory_limit is in GiB.*bytes\?"),
+            (dict(points=pts, values=np.ones(100), kernel="thin_plate_spline"), ValueError, r"SciPy's global kernels"),
             (dict(points=pts, values=np.ones(100), method="fast"), ValueError, r"method must be 'single' or 'multiscale'"),
             (dict(points=[[0, 0], [1]], values=[1, 2]), TypeError, r"points must be an array of numbers"),
             (dict(points=pts, values=np.ones(100, complex)), TypeError, r"values must hold real numbers.*complex128"),
             (dict(points=np.zeros((0, 2)), values=np.zeros(0)), ValueError, r"points is empty"),
             (dict(points=pts, values=np.ones((100, 0))), ValueError, r"values has no value a point"),
-            (dict(points=pts, values=np.ones(100), memory_limit=0), ValueError, r"memory_limit must be a positive"),
+            (dict(points=pts, values=np.ones(100), memory_limit=0), ValueError, r"memory_limit is in GiB.*got 0"),
             (dict(points=pts, values=np.ones(100), threads=0), ValueError, r"threads must be a positive"),
         ]
         for kwargs, error, pattern in cases:
             with self.assertRaisesRegex(error, pattern, msg=str(pattern)):
-                csrbf.Interpolator(**kwargs)
+                csrbf.Interpolator(kwargs.pop("points"), kwargs.pop("values"), **kwargs)
+        with self.assertRaisesRegex(TypeError, r"radius and the rest are keyword-only"):
+            csrbf.Interpolator(pts, np.ones(100), 0.3)
+        # numpy integers, None for the defaults and names in any case are taken.
+        s = csrbf.Interpolator(pts, np.ones(100), levels=np.int64(2), degree=None, kernel="C2", radius="AUTO",
+                               threads=np.int32(1))
+        self.assertEqual(s.levels, 2)
         with self.assertRaisesRegex(ValueError, r"degree 1 needs points that span their 2-D space.*collinear"):
             t = np.linspace(0, 1, 50)
             csrbf.Interpolator(np.stack([t, 2 * t], axis=1), t, radius=0.1, degree=1)
-        with self.assertRaisesRegex(MemoryError, r"limit"):
+        with self.assertRaisesRegex(MemoryError, r"limit.*csrbf.Interpolator: memory_limit is"):
             csrbf.Interpolator(self.pts, self.vals, radius=5.0, memory_limit=0.001)
         with self.assertRaisesRegex(ValueError, r"x must have shape \(Q, 3\) or \(3,\).*got \(5, 2\)"):
             self.s(np.ones((5, 2)))
