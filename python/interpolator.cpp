@@ -429,7 +429,6 @@ PyInterpolator make(const py::args& args, const py::kwargs& kwargs) {
     if (!(o.neighbors > 0) || !std::isfinite(o.neighbors))
       throw py::value_error("neighbors must be a positive number, got " + py::repr(neighbors).cast<std::string>());
   }
-  s.neighbors = o.neighbors;
   std::string method;
   if (const py::object m = get("method"); !m.is_none()) {
     method = text_of(m, "method", "'single' or 'multiscale'");
@@ -530,6 +529,9 @@ PyInterpolator make(const py::args& args, const py::kwargs& kwargs) {
     run_released(s.threads, [&] {
       s.core = csrbf::Interpolator::fit({pts.data(), p * d}, int(d), {vals.data(), p * nv}, nv, o);
     });
+    s.neighbors = o.neighbors > 0              ? o.neighbors
+                  : s.core.levels().size() > 1 ? csrbf::kMultiscaleNeighbors
+                                               : csrbf::kDefaultNeighbors;
   } catch (const csrbf::ResourceLimit& e) {
     const std::string m = std::string(e.what()) + " [csrbf.Interpolator: memory_limit is " +
                           short_number(o.memory_limit_bytes / double(1ull << 30)) +
@@ -574,7 +576,7 @@ values : array_like, shape (P, ...)
 radius : float or 'auto', optional
     The radius of support R in the points' units. 'auto' (default) picks R so that a point has
     ``neighbors`` others within R on average; ``stats`` says what was chosen. With several levels,
-    the radius of the finest level (each coarser level doubles it).
+    the radius of the finest level (the thinned levels have 4 R, 8 R, ...).
 kernel : {'c0', 'c2', 'c4', 'c6'}, optional
     The Wendland function (smoothness C0 to C6). Default 'c2'.
 degree : {-1, 0, 1}, optional
@@ -585,10 +587,10 @@ smoothing : float or array_like of shape (P,), optional
     lambda >= 0 added to the diagonal: 0 interpolates, larger values smooth noisy data. The
     diagonal is phi(0) = 1 (or 3 for C4), so lambda is relative to 1, not to SciPy's kernel scale.
 neighbors : float, optional
-    The mean number of other points within the automatic radius (default 40). Not SciPy's
-    ``neighbors``: compact support is the locality, nothing is looked up a query. With several
-    levels, the thinned levels have about this many; the finest (every point) half the radius,
-    about neighbors / 2^D.
+    The mean number of other points within the automatic radius (default 40; 50 with several
+    levels). Not SciPy's ``neighbors``: compact support is the locality, nothing is looked up a
+    query. With several levels, the thinned levels have about this many; the finest (every point)
+    half the automatic radius, about neighbors / 2^D.
 levels : int or 'auto', optional
     1 (default): one radius. n > 1: the multiscale method (Floater & Iske 1996): nested subsets of
     the points, each level fitting what the coarser ones left with half their radius, the last at

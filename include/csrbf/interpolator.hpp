@@ -10,10 +10,11 @@
 // Multiscale (Floater & Iske 1996; Wendland, "Multiscale analysis in Sobolev spaces on bounded
 // domains", 2010): a single radius either leaves a large error (few neighbours) or a dense system
 // (many). With L levels, nested subsets X_1 c X_2 c ... c X_L = all points are thinned from the
-// points (one a cell, cells halving each level); level 1 fits the values on X_1 with a large radius,
-// each next level fits what is left (the residual on X_l) with a radius half the one before, and
-// s = s_1 + ... + s_L. Every level has the same mean number of neighbours, so every system is as
-// sparse as the single-scale one.
+// points (one a cell, cells halving each level, the point nearest the cell's centre, or its side on
+// the points' boundary); level 1 fits the values on X_1 with a large radius, each next level fits
+// what is left (the residual on X_l) with a radius half the one before (the finest, every point, a
+// quarter), and s = s_1 + ... + s_L. The thinned levels have the same mean number of neighbours,
+// the finest a quarter of it in 2-D, so every system is as sparse as a single-scale one.
 //
 // The Wendland functions phi_{3,k} are positive definite on R^d for d <= 3 (Wendland 1995,
 // theorem 9.13 of "Scattered Data Approximation": phi_{d,k} is positive definite on R^d and so on
@@ -33,17 +34,21 @@
 
 namespace csrbf {
 
-/// The mean number of neighbours within R that the automatic radius aims at.
+/// The mean number of neighbours within R that the automatic radius aims at: single scale, and
+/// (kMultiscaleNeighbors) the thinned levels of a multiscale fit.
 inline constexpr double kDefaultNeighbors = 40.0;
+inline constexpr double kMultiscaleNeighbors = 50.0;
 /// The most levels of a multiscale fit.
 inline constexpr int kMaxLevels = 12;
 
 struct InterpolatorOptions {
   /// The radius of support R in the points' units: of the only level, or of the finest level of a
-  /// multiscale fit (each coarser level doubles it). 0: chosen so that a point has `neighbors` other
-  /// points within R on average (suggest_radius), at every level.
+  /// multiscale fit (the thinned levels have 4 R, 8 R, ...). 0: chosen so that a point has
+  /// `neighbors` other points within R on average; with several levels, the finest has half that
+  /// radius (about neighbors / 2^D), each thinned level about `neighbors`.
   double radius = 0.0;
-  double neighbors = kDefaultNeighbors;
+  /// 0: kDefaultNeighbors single scale, kMultiscaleNeighbors with several levels.
+  double neighbors = 0.0;
   Kernel kernel = Kernel::C2;
   int degree = -1;  ///< -1: no polynomial (strictly local); 0: a constant; 1: linear
   /// lambda: empty (0, interpolation), one value for every point, or one a point; each >= 0.

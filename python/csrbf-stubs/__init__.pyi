@@ -27,7 +27,7 @@ class Interpolator:
         kernel: _Kernel = "c2",
         degree: Optional[Literal[-1, 0, 1]] = -1,
         smoothing: Union[float, npt.ArrayLike] = 0.0,
-        neighbors: float = 40.0,
+        neighbors: Optional[float] = None,
         levels: Union[int, Literal["auto"], None] = None,
         method: Optional[Literal["single", "multiscale"]] = None,
         memory_limit: Optional[float] = None,

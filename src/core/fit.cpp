@@ -533,6 +533,7 @@ std::shared_ptr<SpaceMap::Structure> detail::fit_structure(std::span<const Vec3>
   // cells of R/2 cost more than the finer cells save (Franke's function, 1e5 points, 7 levels: fit
   // and evaluation of 2e5 points 1.4 s against 1.7 s, of 1e6 points 1.4 against 1.9 s).
   st->max_subdivision = 1;
+  st->eval_list_bytes = std::size_t(std::min(options.memory_limit_bytes, 1e18));
   st->stats.controls = sources.size();
   FitPhases::polynomial_frame(*st);
   FitPhases::neighbour_graph_and_matrix(*st);

@@ -57,11 +57,15 @@ struct SpaceMap::Structure {
   /// csrbf::Interpolator's points of 1 or 2 dimensions: the axes from `dims` on are 0 for every source
   /// and every point evaluated (EvalGrid::build).
   int dims = 3;
+  /// The most the evaluation lists may take: kEvalListBytes for a SpaceMap; csrbf::Interpolator's
+  /// levels, whose lists are their evaluation, take up to what the memory limit leaves (1e6 2-D
+  /// points: 650 MB, which 512 MB sent through NeighborIndex at 40x the time).
+  std::size_t eval_list_bytes = kEvalListBytes;
   double fit_bytes = 0;  // the fit's predicted memory (graph, matrix, factor), set before the grid is built
   const detail::EvalGrid& grid() const {
     std::call_once(grid_once, [this] {
       const double left = options.memory_limit_bytes - fit_bytes;
-      const std::size_t budget = left >= double(kEvalListBytes) ? kEvalListBytes : left > 0 ? std::size_t(left) : 0;
+      const std::size_t budget = left >= double(eval_list_bytes) ? eval_list_bytes : left > 0 ? std::size_t(left) : 0;
       grid_ = detail::EvalGrid::build(sources, options.radius, budget, max_subdivision, dims);
     });
     return grid_;

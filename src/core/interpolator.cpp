@@ -92,8 +92,8 @@ void validate(std::span<const double> points, int dim, std::span<const double> v
   if (!(o.radius >= 0) || !std::isfinite(o.radius) || (o.radius > 0 && (o.radius < 1e-150 || o.radius > 1e150)))
     throw InvalidInput("radius must be a positive finite number in [1e-150, 1e150] (or automatic), got " +
                        num(o.radius));
-  if (!(o.neighbors > 0) || !std::isfinite(o.neighbors))
-    throw InvalidInput("neighbors must be a positive number, got " + num(o.neighbors));
+  if (!(o.neighbors >= 0) || !std::isfinite(o.neighbors))
+    throw InvalidInput("neighbors must be a positive number (or 0: the default), got " + num(o.neighbors));
   if (o.degree < -1 || o.degree > 1)
     throw InvalidInput("degree must be -1 (no polynomial), 0 or 1, got " + std::to_string(o.degree));
   if (!o.smoothing.empty() && o.smoothing.size() != 1 && o.smoothing.size() != n)
@@ -258,17 +258,24 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
   for (std::size_t i = 0; i < n; ++i)
     for (int a = 0; a < dim; ++a) all[i][a] = points[i * std::size_t(dim) + std::size_t(a)];
 
-  // The levels. Single scale: R, given or automatic (`neighbors` within R). Multiscale: the thinned
-  // levels have cells of side h_l and radii R_l = 2 R_f, 4 R_f, ... (coarser), a cell of side h
-  // holding one point, so that with R_l / h_l = (K / ball)^(1/D) a point has about K others within
-  // R_l; the finest level, every point, has radius R_f: the automatic radius's half (about K / 2^D
-  // neighbours, where the random points' closest pairs make the system hardest to solve: 37 + 75 CG
-  // steps on Franke's 1e5 points against CHOLMOD's 3.2 s with the finest at K), or the one given.
+  // The levels. Single scale: R, given or automatic (K = `neighbors` within R). Multiscale: the finest
+  // level, every point, has radius R_f: the given radius, or half the automatic one (about K / 2^D
+  // neighbours: random points come close in pairs, and the finest level's system, the one that
+  // holds them all, is the one that gets harder to solve as its radius grows: 100 CG steps on
+  // Franke's 1e5 points where at K CHOLMOD took 3.2 s). The thinned levels have cells of side
+  // h_l = 4 h, 8 h, ... and radii 4 R_f, 8 R_f, ... (coarser), h = R_f (ball / K)^(1/D), a cell
+  // holding one point, so that a point has about K others within its level's radius. There is no
+  // thinned level at 2 h: cells of about one point each keep 60% of the points, close pairs with
+  // them, and cost as much as the finest (1e5 points: 1.3 s against 0.9, the RMS error 1.07e-5
+  // against 1.39e-5 at K = 40, 8.7e-6 at K = 50).
   const bool multiscale = options.levels != 1 && n > 1;
+  const double neighbors = options.neighbors > 0 ? options.neighbors
+                           : multiscale          ? kMultiscaleNeighbors
+                                                 : kDefaultNeighbors;
   const double finest = options.radius > 0 ? options.radius
-                        : multiscale       ? 0.5 * auto_radius(all, dim, options.neighbors)
-                                           : auto_radius(all, dim, options.neighbors);
-  const double cell = finest * std::pow(unit_ball(dim) / options.neighbors, 1.0 / dim);
+                        : multiscale       ? 0.5 * auto_radius(all, dim, neighbors)
+                                           : auto_radius(all, dim, neighbors);
+  const double cell = finest * std::pow(unit_ball(dim) / neighbors, 1.0 / dim);
   std::vector<double> cells;  // coarsest first, without the finest level (all points)
   std::vector<std::uint8_t> first;
   if (multiscale) {
@@ -280,7 +287,7 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
     for (const Vec3& p : all) lo = lo.cwiseMin(p);
     int thinned = 0;
     for (int l = 1; l < most; ++l) {
-      const double h = cell * std::ldexp(1.0, l);
+      const double h = cell * std::ldexp(1.0, l + 1);
       std::unordered_set<Cell, CellHash> occupied;
       for (const Vec3& p : all) {
         Cell key{};
@@ -291,7 +298,7 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
       thinned = l;
       if (options.levels == 0 && double(occupied.size()) <= kCoarsestPoints) break;
     }
-    for (int l = 0; l < thinned; ++l) cells.push_back(cell * std::ldexp(1.0, thinned - l));
+    for (int l = 0; l < thinned; ++l) cells.push_back(cell * std::ldexp(1.0, thinned - l + 1));
     if (!cells.empty()) first = thin(all, dim, cells);
   }
   const std::size_t levels = cells.size() + 1;
@@ -318,7 +325,7 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
       for (std::size_t i : member) shift.push_back(options.smoothing[i]);
     const bool any_shift = std::any_of(shift.begin(), shift.end(), [](double s) { return s > 0; });
     if (!any_shift) shift.clear();
-    lv.radius = std::ldexp(finest, int(levels - 1 - l));
+    lv.radius = std::ldexp(finest, l + 1 < levels ? int(levels - l) : 0);
     if (!(lv.radius >= 1e-150 && lv.radius <= 1e150)) {
       std::ostringstream os;
       os << "the radius" << (levels > 1 ? " of level " + std::to_string(l + 1) : std::string()) << " would be "
@@ -536,6 +543,8 @@ Interpolator Interpolator::from_levels(int dim, std::size_t value_count, Kernel 
     st->stats.controls = n;
     st->solved_elsewhere = true;
     st->dims = dim;
+    st->max_subdivision = 1;  // as the fit's levels (fit.cpp, fit_structure)
+    st->eval_list_bytes = std::size_t(st->options.memory_limit_bytes);
     const std::shared_ptr<const SpaceMap::Structure> shared = std::move(st);
     for (std::size_t c = 0; c < (value_count + 2) / 3; ++c)
       (*maps)[l].push_back(map_of(shared, lv, dim, value_count, c, deg));
