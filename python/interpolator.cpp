@@ -594,7 +594,8 @@ neighbors : float, optional
 levels : int or 'auto', optional
     1 (default): one radius. n > 1: the multiscale method (Floater & Iske 1996): nested subsets of
     the points, each level fitting what the coarser ones left with half their radius, the last at
-    every point. 'auto': levels until the coarsest has at most 250 points (at most 8).
+    every point; fewer where a coarser level would have fewer than 2 points (``levels`` says how
+    many). 'auto': levels until the coarsest has at most 250 points (at most 8).
 method : {'single', 'multiscale'}, optional
     'multiscale' is ``levels='auto'``; 'single' is ``levels=1``.
 memory_limit : float, optional

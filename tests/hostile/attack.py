@@ -20,7 +20,7 @@ Beyond the inputs, one case in 14 of each of these:
 
     CSRBF_CLI=build/bin/csrbf CSRBF_SOURCE_DIR=. /usr/bin/python3 tests/hostile/attack.py [CASES] [SEED]
 
-CTest runs 250 cases; `attack.py 2000` runs the full set (about five minutes on 2 cores).
+CTest runs 200 cases (CI's 40 minutes); `attack.py 2000` runs the full set (about five minutes on 2 cores).
 """
 import hashlib
 import json
