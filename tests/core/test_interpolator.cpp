@@ -71,6 +71,44 @@ TEST(Interpolator, EqualsADenseSolveWithAPolynomialAndSmoothing) {
   for (std::size_t k = 0; k < again.size(); ++k) EXPECT_NEAR(again[k], got[k], 1e-13 * largest);
 }
 
+// Conjugate gradients and its incomplete Cholesky preconditioner with a smoothing a point (A's
+// diagonal no longer constant), over the levels of a multiscale fit: each level's system is solved
+// (residual <= 1e-6) and, without smoothing, the sum reproduces the data at every point.
+TEST(Interpolator, MultiscaleLevelsThroughConjugateGradientsWithSmoothing) {
+  std::mt19937_64 rng(341);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  constexpr std::size_t P = 4000;
+  std::vector<double> pts(2 * P), vals(P), lambda(P);
+  for (double& a : pts) a = u(rng);
+  for (std::size_t i = 0; i < P; ++i) {
+    vals[i] = std::sin(6 * pts[2 * i]) * std::cos(5 * pts[2 * i + 1]);
+    lambda[i] = i % 3 == 0 ? 1e-3 : 0.0;
+  }
+  InterpolatorOptions o;
+  o.levels = 3;
+  o.solver = Solver::Cg;
+  o.smoothing = lambda;
+  const Interpolator s = Interpolator::fit(pts, 2, vals, 1, o);
+  ASSERT_EQ(s.levels().size(), 3u);
+  for (const auto& level : s.levels()) {
+    EXPECT_EQ(level.solver, Solver::Cg);
+    EXPECT_LE(level.residual_relative, kResidualLimit);
+  }
+  // One scale at 40 neighbours: random points' close pairs make CG slow enough to take its
+  // incomplete Cholesky preconditioner, built from the shifted diagonal.
+  InterpolatorOptions one = o;
+  one.levels = 1;
+  one.neighbors = 40;
+  const Interpolator single = Interpolator::fit(pts, 2, vals, 1, one);
+  EXPECT_LE(single.levels()[0].residual_relative, kResidualLimit);
+  EXPECT_GT(single.levels()[0].iterations, 12u);  // past CG's probe, where it takes the preconditioner
+  o.smoothing = {};
+  const Interpolator exact = Interpolator::fit(pts, 2, vals, 1, o);
+  std::vector<double> at(P);
+  exact.evaluate(pts.data(), P, at.data());
+  for (std::size_t i = 0; i < P; ++i) EXPECT_NEAR(at[i], vals[i], 1e-6) << i;
+}
+
 TEST(Interpolator, RefusesWhatItCannotFit) {
   const std::vector<double> pts{0, 0, 1, 0, 0, 1, 1, 1}, vals{1, 2, 3, 4};
   InterpolatorOptions o;
