@@ -92,8 +92,8 @@ void validate(std::span<const double> points, int dim, std::span<const double> v
   if (!(o.radius >= 0) || !std::isfinite(o.radius) || (o.radius > 0 && (o.radius < 1e-150 || o.radius > 1e150)))
     throw InvalidInput("radius must be a positive finite number in [1e-150, 1e150] (or automatic), got " +
                        num(o.radius));
-  if (!(o.neighbors >= 0) || !std::isfinite(o.neighbors))
-    throw InvalidInput("neighbors must be a positive number (or 0: the default), got " + num(o.neighbors));
+  if (!(o.neighbors >= 0) || !(o.neighbors <= 1e9))
+    throw InvalidInput("neighbors must be a positive number up to 1e9 (or 0: the default), got " + num(o.neighbors));
   if (o.degree < -1 || o.degree > 1)
     throw InvalidInput("degree must be -1 (no polynomial), 0 or 1, got " + std::to_string(o.degree));
   if (!o.smoothing.empty() && o.smoothing.size() != 1 && o.smoothing.size() != n)
@@ -275,6 +275,16 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
   const double finest = options.radius > 0 ? options.radius
                         : multiscale       ? 0.5 * auto_radius(all, dim, neighbors)
                                            : auto_radius(all, dim, neighbors);
+  {
+    // The grid's rule, before the thinning's cells (at most 1e9 radii across, so that a cell of side
+    // finest (ball / K)^(1/D), K <= 1e9, is numbered within 64 bits).
+    Vec3 lo = all[0], hi = all[0];
+    for (const Vec3& p : all) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    NeighborIndex::check_extent(lo, hi, finest, "points");
+  }
   const double cell = finest * std::pow(unit_ball(dim) / neighbors, 1.0 / dim);
   std::vector<double> cells;  // coarsest first, without the finest level (all points)
   std::vector<std::uint8_t> first;
