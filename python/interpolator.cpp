@@ -4,6 +4,8 @@
 // `threads` threads where given. Pickled as its levels' coefficients (no refit).
 #include "interpolator_binding.hpp"
 
+#include "arrays.hpp"
+
 #include "csrbf/errors.hpp"
 #include "csrbf/interpolator.hpp"
 #include "csrbf/names.hpp"
@@ -19,17 +21,9 @@
 #include <sstream>
 
 namespace py = pybind11;
+using namespace csrbf_python;
 
 namespace {
-
-std::string shape_text(const std::vector<py::ssize_t>& s) {
-  std::ostringstream os;
-  os << "(";
-  for (std::size_t i = 0; i < s.size(); ++i) os << (i ? ", " : "") << s[i];
-  os << (s.size() == 1 ? ",)" : ")");
-  return os.str();
-}
-std::vector<py::ssize_t> shape_of(const py::array& a) { return {a.shape(), a.shape() + a.ndim()}; }
 
 /// obj as a numpy array of real numbers, or TypeError naming the argument.
 py::array real_array(const py::object& obj, const char* what) {
@@ -51,19 +45,6 @@ py::array real_array(const py::object& obj, const char* what) {
     throw py::type_error(std::string(what) + " has dtype " + std::string(py::str(a.dtype())) +
                          ", which float64 cannot hold exactly; convert it to float64 first");
   return a;
-}
-
-using Dbl = py::array_t<double, py::array::c_style | py::array::forcecast>;
-using Flt = py::array_t<float, py::array::c_style | py::array::forcecast>;
-
-template <class T>
-void check_finite(const T* p, std::size_t n, std::size_t width, const char* what) {
-  for (std::size_t i = 0; i < n * width; ++i)
-    if (!std::isfinite(p[i])) {
-      std::ostringstream m;
-      m << what << "[" << i / width << ", " << i % width << "] is " << p[i] << " (must be finite)";
-      throw py::value_error(m.str());
-    }
 }
 
 /// Runs f without the GIL, in an arena of `threads` threads (0: TBB's default).
@@ -99,7 +80,7 @@ std::pair<py::array, bool> query_points(const PyInterpolator& s, const py::objec
   if (x.ndim() != 2 || x.shape(1) != d)
     throw py::value_error(std::string(what) + " must have shape (Q, " + std::to_string(d) + ") or (" +
                           std::to_string(d) + ",), for this interpolant of " + std::to_string(d) + "-D points, got " +
-                          shape_text(shape_of(x)));
+                          shape_of(x));
   return {x, false};
 }
 
@@ -115,8 +96,8 @@ py::array result_for(const py::object& out, const std::vector<py::ssize_t>& shap
     << py::str(py::handle(dtype)).cast<std::string>() << " array: ";
   if (!a.dtype().is(dtype))
     m << "its dtype is " << std::string(py::str(a.dtype()));
-  else if (shape_of(a) != shape)
-    m << "its shape is " << shape_text(shape_of(a));
+  else if (dims_of(a) != shape)
+    m << "its shape is " << shape_of(a);
   else if (!(a.flags() & py::array::c_style))
     m << "it is not C-contiguous";
   else if (!a.writeable())
@@ -134,8 +115,8 @@ py::array evaluate(const PyInterpolator& s, const py::object& x_obj, const py::o
   shape.insert(shape.end(), s.value_shape.begin(), s.value_shape.end());
   py::array result = result_for(out, shape, result_dtype(s));
   if (s.single && x.dtype().is(py::dtype::of<float>())) {
-    const Flt xf = Flt::ensure(x);
-    check_finite(xf.data(), q, d, "x");
+    const Flt xf = ensure_array<Flt>(x, "x");
+    check_finite(xf.data(), q, d, "x", "must be finite");
     float* o = static_cast<float*>(result.mutable_data());
     const bool overlap = static_cast<const void*>(o) < static_cast<const void*>(xf.data() + q * d) &&
                          static_cast<const void*>(xf.data()) < static_cast<const void*>(o + q * nv);
@@ -146,9 +127,8 @@ py::array evaluate(const PyInterpolator& s, const py::object& x_obj, const py::o
     });
     return result;
   }
-  const Dbl xd = Dbl::ensure(x);
-  if (!xd) throw py::error_already_set();
-  check_finite(xd.data(), q, d, "x");
+  const Dbl xd = ensure_array<Dbl>(x, "x");
+  check_finite(xd.data(), q, d, "x", "must be finite");
   if (!s.single) {
     double* o = static_cast<double*>(result.mutable_data());
     const bool overlap = static_cast<const void*>(o) < static_cast<const void*>(xd.data() + q * d) &&
@@ -177,9 +157,8 @@ py::array gradient(const PyInterpolator& s, const py::object& x_obj, const py::o
   shape.insert(shape.end(), s.value_shape.begin(), s.value_shape.end());
   shape.push_back(py::ssize_t(d));
   py::array result = result_for(out, shape, result_dtype(s));
-  const Dbl xd = Dbl::ensure(x);
-  if (!xd) throw py::error_already_set();
-  check_finite(xd.data(), q, d, "x");
+  const Dbl xd = ensure_array<Dbl>(x, "x");
+  check_finite(xd.data(), q, d, "x", "must be finite");
   std::vector<double> g(q * nv * d);
   run_released(s.threads, [&] { s.core.gradient(xd.data(), q, g.data()); });
   if (s.single) {
@@ -482,39 +461,38 @@ PyInterpolator make(const py::args& args, const py::kwargs& kwargs) {
 
   const py::array points = real_array(points_obj, "points");
   if (points.ndim() != 2)
-    throw py::value_error("points must have shape (P, D), D = 1, 2 or 3, got " + shape_text(shape_of(points)) +
+    throw py::value_error("points must have shape (P, D), D = 1, 2 or 3, got " + shape_of(points) +
                           (points.ndim() == 1 ? " (1-D data: points[:, None])" : ""));
   if (points.shape(1) > csrbf::Interpolator::kMaxDimension && points.shape(0) >= 1 &&
       points.shape(0) <= csrbf::Interpolator::kMaxDimension)
-    throw py::value_error("points must have shape (P, D) with D = 1, 2 or 3, got " + shape_text(shape_of(points)) +
+    throw py::value_error("points must have shape (P, D) with D = 1, 2 or 3, got " + shape_of(points) +
                           ": is it transposed? (points.T has shape (" + std::to_string(points.shape(1)) + ", " +
                           std::to_string(points.shape(0)) + "))");
   if (points.shape(1) < 1 || points.shape(1) > csrbf::Interpolator::kMaxDimension)
     throw py::value_error(
-        "points must have shape (P, D) with D = 1, 2 or 3, got " + shape_text(shape_of(points)) +
+        "points must have shape (P, D) with D = 1, 2 or 3, got " + shape_of(points) +
         ": csrbf's Wendland kernels are positive definite only up to 3 dimensions (built for R^3); in "
         "higher dimensions the system can be singular");
-  if (points.shape(0) == 0) throw py::value_error("points is empty (shape " + shape_text(shape_of(points)) + ")");
+  if (points.shape(0) == 0) throw py::value_error("points is empty (shape " + shape_of(points) + ")");
   const py::array values = real_array(values_obj, "values");
   if (values.ndim() < 1 || values.shape(0) != points.shape(0))
     throw py::value_error("values must have shape (P, ...) with P = " + std::to_string(points.shape(0)) +
-                          " (one row a point), got " + shape_text(shape_of(values)));
+                          " (one row a point), got " + shape_of(values));
   s.value_shape.assign(values.shape() + 1, values.shape() + values.ndim());
   s.single = values.dtype().is(py::dtype::of<float>());
   const std::size_t p = std::size_t(points.shape(0)), d = std::size_t(points.shape(1));
   std::size_t nv = 1;
   for (py::ssize_t e : s.value_shape) nv *= std::size_t(e);
-  if (nv == 0) throw py::value_error("values has no value a point (shape " + shape_text(shape_of(values)) + ")");
-  const Dbl pts = Dbl::ensure(points), vals = Dbl::ensure(values);
-  if (!pts || !vals) throw py::error_already_set();
-  check_finite(pts.data(), p, d, "points");
-  check_finite(vals.data(), p, nv, "values");
+  if (nv == 0) throw py::value_error("values has no value a point (shape " + shape_of(values) + ")");
+  const Dbl pts = ensure_array<Dbl>(points, "points"), vals = ensure_array<Dbl>(values, "values");
+  check_finite(pts.data(), p, d, "points", "must be finite");
+  check_finite(vals.data(), p, nv, "values", "must be finite");
   if (!smoothing.is_none()) {
     const py::array sm = real_array(smoothing, "smoothing");
     if (!(sm.ndim() == 0 || (sm.ndim() == 1 && std::size_t(sm.shape(0)) == p)))
       throw py::value_error("smoothing must be a number or an array of shape (" + std::to_string(p) + ",), got " +
-                            shape_text(shape_of(sm)));
-    const Dbl sd = Dbl::ensure(sm);
+                            shape_of(sm));
+    const Dbl sd = ensure_array<Dbl>(sm, "smoothing");
     for (py::ssize_t i = 0; i < sd.size(); ++i)
       if (!(sd.data()[i] >= 0) || !std::isfinite(sd.data()[i])) {
         std::ostringstream m;

@@ -16,6 +16,7 @@
 #endif
 #include "csrbf/space_map.hpp"
 #include "csrbf/version.hpp"
+#include "arrays.hpp"
 #include "interpolator_binding.hpp"
 
 #include <nlohmann/json.hpp>
@@ -35,16 +36,9 @@
 
 namespace py = pybind11;
 using csrbf::Vec3;
+using namespace csrbf_python;
 
 namespace {
-
-std::string shape_of(const py::array& a) {
-  std::ostringstream s;
-  s << "(";
-  for (py::ssize_t i = 0; i < a.ndim(); ++i) s << (i ? ", " : "") << a.shape(i);
-  s << (a.ndim() == 1 ? ",)" : ")");
-  return s.str();
-}
 
 /// Checks an (n, 3) array of real numbers; `what` names the argument in messages.
 /// obj as a numpy array. What numpy cannot make one of (a ragged list, a list of objects) is a
@@ -86,40 +80,12 @@ void check_points(const py::array& a, const char* what, bool allow_empty = true)
                          std::string(py::str(a.dtype())));
 }
 
-template <class T>
-void check_finite(const T* p, std::size_t n, const char* what) {
-  for (std::size_t i = 0; i < 3 * n; ++i)
-    if (!std::isfinite(p[i])) {
-      std::ostringstream m;
-      m << what << "[" << i / 3 << ", " << i % 3 << "] is " << p[i] << " (points must be finite)";
-      throw py::value_error(m.str());
-    }
-}
-
-using Dbl = py::array_t<double, py::array::c_style | py::array::forcecast>;
-using Flt = py::array_t<float, py::array::c_style | py::array::forcecast>;
-
-/// A C-contiguous array of A's type, reading a in place where it already is one. A copy numpy
-/// cannot make (a broadcast view of 2**40 rows) is a MemoryError, not a null array.
-template <class A>
-A ensure_array(const py::array& a, const char* what) {
-  A r = A::ensure(a);
-  if (!r) {
-    std::ostringstream m;
-    m << what << ": cannot make a contiguous copy of " << shape_of(a) << " points ("
-      << double(a.size()) * double(sizeof(typename A::value_type)) / double(1ull << 30) << " GiB)";
-    PyErr_SetString(PyExc_MemoryError, m.str().c_str());
-    throw py::error_already_set();
-  }
-  return r;
-}
-
 std::vector<Vec3> to_vec3(const py::object& obj, const char* what, bool allow_empty = false) {
   const py::array a = as_array(obj, what);
   check_points(a, what, allow_empty);
   const Dbl d = ensure_array<Dbl>(a, what);
   const std::size_t n = std::size_t(d.shape(0));
-  check_finite(d.data(), n, what);
+  check_finite(d.data(), n, 3, what, "points must be finite");
   std::vector<Vec3> out(n);
   for (std::size_t i = 0; i < n; ++i) out[i] = Vec3(d.data()[3 * i], d.data()[3 * i + 1], d.data()[3 * i + 2]);
   return out;
@@ -416,7 +382,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
              const py::array rest = as_array(rest_obj, "rest");
              check_points(rest, "rest");
              const Dbl r = ensure_array<Dbl>(rest, "rest");
-             check_finite(r.data(), std::size_t(r.shape(0)), "rest");
+             check_finite(r.data(), std::size_t(r.shape(0)), 3, "rest", "points must be finite");
              py::gil_scoped_release release;
              return std::make_unique<csrbf::DisplacementField<double>>(map, r.data(), std::size_t(r.shape(0)));
            }),

@@ -318,6 +318,10 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
   auto maps = std::make_shared<std::vector<std::vector<SpaceMap>>>(levels);
   std::vector<double> residual(values.begin(), values.end());  // n x V: what the levels so far leave
   const std::size_t chunks = (nv + 2) / 3;
+  // Every point, interleaved, and its displacement by a level: where the residual is taken.
+  std::vector<double> x(levels > 1 ? 3 * n : 0), d(x.size());
+  for (std::size_t i = 0; i < x.size() / 3; ++i)
+    for (int a = 0; a < 3; ++a) x[3 * i + std::size_t(a)] = all[i][a];
   for (std::size_t l = 0; l < levels; ++l) {
     const auto t0 = Clock::now();
     InterpolatorLevel& lv = (*out)[l];
@@ -481,9 +485,6 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
     for (std::size_t c = 0; c < chunks; ++c) (*maps)[l].push_back(map_of(shared, lv, dim, nv, c, degree));
     // What is left for the finer levels, at every point they hold.
     if (l + 1 < levels) {
-      std::vector<double> x(3 * n), d(3 * n);
-      for (std::size_t i = 0; i < n; ++i)
-        for (int a = 0; a < 3; ++a) x[3 * i + std::size_t(a)] = all[i][a];
       for (std::size_t c = 0; c < chunks; ++c) {
         (*maps)[l][c].displacements(x.data(), d.data(), n);
         for (std::size_t i = 0; i < n; ++i)
