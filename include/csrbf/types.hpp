@@ -23,6 +23,15 @@ using RowMatrix = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::R
 /// large array that a parallel pass fills completely is then not written twice, and its pages are
 /// first touched by the threads that fill them rather than by one memset (on virtual machines page
 /// faults dominate: 0.5 s of a 1e6-control fit). Elements constructed with arguments are constructed.
+namespace detail {
+/// Arrays of at least kHugePageArray bytes are placed on 2 MiB boundaries and marked for transparent
+/// huge pages (madvise): one page fault where there were 512 (1e5 scattered points: page faults were
+/// 16% of an interpolator's fit, 10% after).
+inline constexpr std::size_t kHugePageArray = std::size_t(4) << 20;
+void* allocate_huge(std::size_t bytes);
+void free_huge(void* p) noexcept;
+}  // namespace detail
+
 template <class T>
 struct UninitializedAllocator : std::allocator<T> {
   template <class U>
@@ -32,6 +41,15 @@ struct UninitializedAllocator : std::allocator<T> {
   UninitializedAllocator() = default;
   template <class U>
   UninitializedAllocator(const UninitializedAllocator<U>&) noexcept {}
+  T* allocate(std::size_t n) {
+    if (n > std::size_t(-1) / sizeof(T)) throw std::bad_array_new_length();
+    if (n * sizeof(T) >= detail::kHugePageArray) return static_cast<T*>(detail::allocate_huge(n * sizeof(T)));
+    return std::allocator<T>::allocate(n);
+  }
+  void deallocate(T* p, std::size_t n) noexcept {
+    if (n * sizeof(T) >= detail::kHugePageArray) return detail::free_huge(p);
+    std::allocator<T>::deallocate(p, n);
+  }
   template <class U>
   void construct(U* p) noexcept {
     ::new (static_cast<void*>(p)) U;

@@ -3,6 +3,7 @@
 //   -> factorisation -> polynomial block -> solve -> residual check.
 // with_destinations() reruns only the last two.
 #include "cholmod_loader.hpp"
+#include "schwarz.hpp"
 #include "fit_state.hpp"
 
 #include <Eigen/SVD>
@@ -194,6 +195,23 @@ struct FitPhases {
     Solver solver = options.solver;
     if (solver == Solver::Cholmod && !cholmod_available())
       throw InvalidInput("solver 'cholmod': " + detail::cholmod_load_error() + "; use 'envelope' or 'eigen'");
+    if (st.cg_schwarz && (solver == Solver::Auto || solver == Solver::Cg) && st.dims >= 2 &&
+        n >= detail::kSchwarzOnlyPoints &&
+        2.0 * double(stats.neighbor_pairs) >= detail::kSchwarzOnlyNeighbors * double(n)) {
+      // csrbf::Interpolator's scattered points in 2-D or 3-D, many and well connected: the envelope
+      // cannot win (RCM's envelope work is above kEnvelopeWorkLimit there: 1.5e8 at 2e4 planar points
+      // with 6 neighbours, 2.2e9 with 40; test_schwarz.cpp checks it), so RCM and the envelope's
+      // count are not computed (10% of a fit of 1e5 points). CG's rows are in the Schwarz patches'
+      // spatial order; where Auto's probe finds CG too slow, the direct solver takes over (never the
+      // envelope: its work is counted as infinite).
+      st.order = detail::schwarz_order(st.sources, options.radius);
+      stats.ordering = Ordering::Identity;
+      stats.envelope_work = std::numeric_limits<double>::infinity();
+      stats.dense_bytes = 4 * n * n;
+      stats.solver = Solver::Cg;
+      stats.seconds_ordering = seconds_since(t0);
+      return Solver::Cg;
+    }
     std::vector<std::size_t> first;
     if (solver == Solver::Auto || solver == Solver::Cg ||
         (solver == Solver::Envelope && options.ordering != Ordering::Auto)) {
@@ -283,7 +301,7 @@ struct FitPhases {
             // fits beside A and CG (face.obj, 6158 controls at 5263 neighbours each: CG ran 1000 steps
             // and 78 s before it gave way; the envelope takes 22 s).
             const double envelope_bytes = detail::envelope_factor_bytes(double(st.stats.envelope_entries), n) +
-                                          detail::kernel_matrix_bytes(st.a) + detail::cg_bytes(st.a.values().size(), n);
+                                          detail::kernel_matrix_bytes(st.a) + st.cg_held_bytes();
             if (!std::isfinite(direct) && envelope * margin < left && envelope_bytes <= st.options.memory_limit_bytes)
               return false;
           }
@@ -291,7 +309,7 @@ struct FitPhases {
         };
       }
       // CG holds A's rows in its order beside A itself, and its vectors.
-      const double bytes = detail::kernel_matrix_bytes(st.a) + detail::cg_bytes(st.a.values().size(), n);
+      const double bytes = detail::kernel_matrix_bytes(st.a) + st.cg_held_bytes();
       if (bytes > options.memory_limit_bytes) {
         std::ostringstream os;
         os.precision(3);
@@ -302,7 +320,10 @@ struct FitPhases {
         throw ResourceLimit(os.str());
       }
       st.cg_rows = rows;
-      st.sparse = detail::conjugate_gradients(st.a, std::move(rows), kCgTolerance, kCgMaxIterations, std::move(probe));
+      detail::CgPreconditioner preconditioner;
+      if (st.cg_schwarz) preconditioner.points = st.sources;
+      st.sparse = detail::conjugate_gradients(st.a, std::move(rows), kCgTolerance, kCgMaxIterations, std::move(probe),
+                                              std::move(preconditioner));
       stats.seconds_assembly += seconds_since(t0);
     } else {
       st.sparse = detail::factor_sparse(st.a, st.sources, solver, options.memory_limit_bytes);
@@ -534,6 +555,7 @@ std::shared_ptr<SpaceMap::Structure> detail::fit_structure(std::span<const Vec3>
   // and evaluation of 2e5 points 1.4 s against 1.7 s, of 1e6 points 1.4 against 1.9 s).
   st->max_subdivision = 1;
   st->eval_list_bytes = std::size_t(std::min(options.memory_limit_bytes, 1e18));
+  st->cg_schwarz = true;
   st->stats.controls = sources.size();
   FitPhases::polynomial_frame(*st);
   FitPhases::neighbour_graph_and_matrix(*st);

@@ -62,6 +62,14 @@ struct SpaceMap::Structure {
   /// points: 650 MB, which 512 MB sent through NeighborIndex at 40x the time).
   std::size_t eval_list_bytes = kEvalListBytes;
   double fit_bytes = 0;  // the fit's predicted memory (graph, matrix, factor), set before the grid is built
+  /// CG's preconditioner, where a solve needs one: additive Schwarz over patches of the sources
+  /// (csrbf::Interpolator's scattered points, schwarz.hpp), else the incomplete Cholesky.
+  bool cg_schwarz = false;
+  /// What CG holds beside A (its rows, vectors and preconditioner; Schwarz's copy of the sources).
+  double cg_held_bytes() const {
+    const std::size_t n = sources.size();
+    return detail::cg_bytes(a.values().size(), n, cg_schwarz) + (cg_schwarz ? 24.0 * double(n) : 0.0);
+  }
   const detail::EvalGrid& grid() const {
     std::call_once(grid_once, [this] {
       const double left = options.memory_limit_bytes - fit_bytes;
@@ -149,8 +157,7 @@ struct SpaceMap::Structure {
       // two copies of A's lower triangle: the count stops where the factor passes the memory limit
       // (infinite cost).
       const std::size_t lower = a.values().size() / 2 + sources.size();
-      const double beside = detail::kernel_matrix_bytes(a) + detail::cg_bytes(a.values().size(), sources.size()) +
-                            2 * 12.0 * double(lower);
+      const double beside = detail::kernel_matrix_bytes(a) + cg_held_bytes() + 2 * 12.0 * double(lower);
       if (beside >= options.memory_limit_bytes)
         direct_cost_ = std::numeric_limits<double>::infinity();
       else

@@ -1,6 +1,7 @@
 #include "sparse_solver.hpp"
 
 #include "incomplete_cholesky.hpp"
+#include "schwarz.hpp"
 
 #include "csrbf/errors.hpp"
 #include "csrbf/names.hpp"
@@ -68,12 +69,15 @@ double envelope_factor_bytes(double off_diagonal, std::size_t n) {
   return 8.0 * (off_diagonal + double(n)) + 16.0 * double(n);  // 8-byte values, two 8-byte indices a row
 }
 
-double cg_bytes(std::size_t entries, std::size_t n) {
+double schwarz_share(std::size_t entries, std::size_t n) { return 12.0 * double(entries) + 64.0 * double(n); }
+
+double cg_bytes(std::size_t entries, std::size_t n, bool schwarz) {
   // Rows (8-byte offsets), columns (4 bytes) and values (8), its order (4 bytes a row); x, r, p, q and
   // z of up to 8 right-hand sides; the incomplete Cholesky factor (half the entries, in case a solve
   // turns to it); the residual histories of the stagnation check and the probe.
   return 12.0 * double(entries) + 12.0 * double(n + 1) + 5.0 * 8 * 8 * double(n) +
-         IncompleteCholesky::bytes(entries / 2, n) +
+         (schwarz ? std::max(schwarz_share(entries, n), IncompleteCholesky::bytes(entries / 2, n))
+                  : IncompleteCholesky::bytes(entries / 2, n)) +
          (8.0 + 128.0) * double(std::min<std::size_t>(kCgMaxIterations, 1u << 20));
 }
 
@@ -327,12 +331,17 @@ std::size_t EigenFactor<Supernodal>::count() const {
 class BatchedCg final : public SparseFactor {
  public:
   BatchedCg(const KernelMatrix& a, std::vector<std::uint32_t> order, double tolerance, std::size_t max_iterations,
-            CgProbe probe)
+            CgProbe probe, CgPreconditioner preconditioner)
       : order_(std::move(order)), tolerance_(tolerance), max_iterations_(max_iterations), probe_(std::move(probe)) {
     // A's rows copied into `order`, their columns renumbered: the entries are A's, not recomputed.
     const std::size_t n = a.size();
     std::vector<std::uint32_t> position(n);
     for (std::size_t k = 0; k < n; ++k) position[order_[k]] = std::uint32_t(k);
+    if (!preconditioner.points.empty()) {
+      points_.resize(n);
+      for (std::size_t k = 0; k < n; ++k) points_[k] = preconditioner.points[order_[k]];
+      radius_ = a.radius();
+    }
     diagonal_ = a.diagonal();
     if (!a.constant_diagonal()) {
       row_diagonal_.resize(n);
@@ -369,7 +378,9 @@ class BatchedCg final : public SparseFactor {
   bool iterative() const override { return true; }
   std::size_t nonzeros() const override { return order_.size() + val_.size(); }
   /// Its copy of A's rows, its preconditioner and the vectors of a solve of up to 8 right-hand sides.
-  double held_bytes() const override { return released_ ? 0.0 : cg_bytes(val_.size(), order_.size()); }
+  double held_bytes() const override {
+    return released_ ? 0.0 : cg_bytes(val_.size(), order_.size(), !points_.empty()) + 24.0 * double(points_.size());
+  }
   void stop_probing() const override { probing_ = false; }
   void release() override {
     std::lock_guard lock(mutex_);
@@ -378,6 +389,7 @@ class BatchedCg final : public SparseFactor {
     decltype(col_)().swap(col_);
     decltype(val_)().swap(val_);
     ic_.reset();
+    schwarz_.reset();
   }
   std::size_t iterations() const override { return iterations_; }
   double residual() const override { return residual_; }
@@ -467,22 +479,28 @@ class BatchedCg final : public SparseFactor {
     }
     // z = M^-1 r (or r itself without a preconditioner), and r . z per column.
     const auto precondition = [&]() -> Sums {
-      if (!ic_) return squares(r);
-      ic_->apply(r.data(), z.data(), m);
+      if (!preconditioned()) return squares(r);
+      if (schwarz_)
+        schwarz_->apply(r.data(), z.data(), m);
+      else
+        ic_->apply(r.data(), z.data(), m);
       return reduce([&](const tbb::blocked_range<std::size_t>& range, Sums& s) {
         for (std::size_t k = range.begin(); k < range.end(); ++k)
           for (std::size_t c = 0; c < m; ++c) s[c] += r[k * m + c] * z[k * m + c];
       });
     };
-    if (ic_) z.resize(n * m);
+    // Scattered points (Schwarz patches) begin preconditioned: plain CG on them is slow from its first
+    // step (1e5 random 2-D points: 12 plain steps were 10% of the fit).
+    if (!points_.empty() && !preconditioned()) make_preconditioner();
+    if (preconditioned()) z.resize(n * m);
     Sums rz = precondition();
-    p = ic_ ? z : r;
+    p = preconditioned() ? z : r;
     // CG begins plain (a step is then half the work) and turns to the preconditioner when, after
     // kIcProbeSteps steps, the rate its residual falls at predicts more than kIcSwitchSteps steps in
     // all: the sphere's 1e6 controls converge in 40 plain steps (28 preconditioned, each twice the
     // work); the cube's take 1805 plain and 166 preconditioned. The recurrence restarts from x.
     const auto turn_to_preconditioner = [&] {
-      ic_.emplace(row_, col_, val_, diagonal_, row_diagonal_, n);
+      make_preconditioner();
       z.resize(n * m);
       rz = precondition();
       p = z;
@@ -529,7 +547,7 @@ class BatchedCg final : public SparseFactor {
           throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
         }
       }
-      if (!ic_ && it == kIcProbeSteps && !all_done()) {
+      if (!preconditioned() && it == kIcProbeSteps && !all_done()) {
         const std::size_t mark = it / 3;
         const double fell = std::sqrt(lowest[it] / lowest[mark]), need = tolerance_ / std::sqrt(lowest[it]);
         const double predicted = fell < 1 ? double(it) + double(it - mark) * std::log(need) / std::log(fell)
@@ -548,7 +566,7 @@ class BatchedCg final : public SparseFactor {
                                                    : std::numeric_limits<double>::infinity());
         }
         // Preconditioned steps cost about twice a plain one (A's pass, then L's two): counted in plain ones.
-        if (ic_) predicted = double(it) + kIcStepCost * (predicted - double(it));
+        if (preconditioned()) predicted = double(it) + kIcStepCost * (predicted - double(it));
         if (!probe_.worth_it(predicted, double(it))) {
           iterations_ = it;
           std::ostringstream os;
@@ -567,7 +585,7 @@ class BatchedCg final : public SparseFactor {
             s[c] += r[k * m + c] * r[k * m + c];
           }
       });
-      const Sums rz_new = ic_ ? precondition() : rr_new;
+      const Sums rz_new = preconditioned() ? precondition() : rr_new;
       for (std::size_t c = 0; c < m; ++c) {
         if (done[c]) continue;
         beta[c] = rz[c] > 0 ? rz_new[c] / rz[c] : 0.0;
@@ -576,7 +594,7 @@ class BatchedCg final : public SparseFactor {
 
         if (rr[c] <= tolerance_ * tolerance_ * rr0[c] || !std::isfinite(rr[c])) done[c] = true;
       }
-      const FillVector<double>& w = ic_ ? z : r;
+      const FillVector<double>& w = preconditioned() ? z : r;
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n, 8192), [&](const tbb::blocked_range<std::size_t>& range) {
         for (std::size_t k = range.begin(); k < range.end(); ++k)
           for (std::size_t c = 0; c < m; ++c) p[k * m + c] = w[k * m + c] + beta[c] * p[k * m + c];
@@ -604,7 +622,26 @@ class BatchedCg final : public SparseFactor {
   std::vector<std::size_t> row_;
   FillVector<std::uint32_t> col_;
   FillVector<double> val_;
-  mutable std::optional<IncompleteCholesky> ic_;  // CG's preconditioner, once a solve needed it
+  bool preconditioned() const noexcept { return ic_ || schwarz_; }
+  /// Schwarz where the points are given and its patches fit their share, else the incomplete Cholesky.
+  void make_preconditioner() const {
+    const std::size_t n = order_.size();
+    if (!points_.empty()) {
+      try {
+        schwarz_.emplace(points_, radius_, row_, col_, val_, diagonal_, row_diagonal_, schwarz_share(val_.size(), n));
+        return;
+      } catch (const ResourceLimit&) {
+        // Patches too large for their share (many neighbours): the incomplete Cholesky instead.
+        schwarz_.reset();
+      }
+    }
+    ic_.emplace(row_, col_, val_, diagonal_, row_diagonal_, n);
+  }
+
+  mutable std::optional<IncompleteCholesky> ic_;          // CG's preconditioner, once a solve needed it
+  mutable std::optional<SchwarzPreconditioner> schwarz_;  // or this one, where points_ are given
+  std::vector<Vec3> points_;                              // the sources in `order` (Schwarz's patches)
+  double radius_ = 1.0;
   double diagonal_ = 1.0, tolerance_;
   std::vector<double> row_diagonal_;  // in `order`, where A's diagonal is not constant
   std::size_t max_iterations_;
@@ -619,8 +656,10 @@ class BatchedCg final : public SparseFactor {
 }  // namespace
 
 std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
-                                                  double tolerance, std::size_t max_iterations, CgProbe probe) {
-  return std::make_unique<BatchedCg>(a, std::move(order), tolerance, max_iterations, std::move(probe));
+                                                  double tolerance, std::size_t max_iterations, CgProbe probe,
+                                                  CgPreconditioner preconditioner) {
+  return std::make_unique<BatchedCg>(a, std::move(order), tolerance, max_iterations, std::move(probe),
+                                     std::move(preconditioner));
 }
 
 std::pair<double, double> lanczos_extremes(const KernelMatrix& a, unsigned seed) {

@@ -58,8 +58,13 @@ inline constexpr double kBlasAddressSpace = 192.0 * (1 << 20);
 /// Bytes of the envelope solver's factor with `off_diagonal` entries in its envelope below the
 /// diagonal, for N rows.
 double envelope_factor_bytes(double off_diagonal, std::size_t n);
-/// Bytes conjugate gradients hold beside A for `entries` off-diagonal entries of N rows.
-double cg_bytes(std::size_t entries, std::size_t n);
+/// Bytes conjugate gradients hold beside A for `entries` off-diagonal entries of N rows; with
+/// `schwarz`, room for the Schwarz preconditioner (schwarz_share) instead of the incomplete Cholesky.
+double cg_bytes(std::size_t entries, std::size_t n, bool schwarz = false);
+/// The bytes CG sets aside for a Schwarz preconditioner (schwarz.hpp) of A with `entries`
+/// off-diagonal entries of N rows: 12 a matrix entry and 64 a row. Measured: 2-D points at 40
+/// neighbours take about 300 bytes a row, 3-D ones 430; a larger one takes the incomplete Cholesky.
+double schwarz_share(std::size_t entries, std::size_t n);
 
 /// CG's preconditioner (incomplete_cholesky.hpp): taken once the residual's fall over the first
 /// kIcProbeSteps steps predicts more than kIcSwitchSteps steps; a preconditioned step costs about
@@ -103,6 +108,13 @@ struct CgProbe {
   std::function<bool(double predicted_steps, double done)> worth_it;
 };
 
+/// CG's preconditioner where a solve needs one: the incomplete Cholesky (no points), or additive
+/// Schwarz over patches of `points` (the sources, input order; schwarz.hpp), which the incomplete
+/// Cholesky replaces where the patches would take more than schwarz_share.
+struct CgPreconditioner {
+  std::vector<Vec3> points;
+};
+
 /// Conjugate gradients on A, the right-hand sides of a solve together: one parallel pass over A a
 /// step serves all of them (a block of independent recurrences, not a block-Krylov method). A's
 /// diagonal is phi(0) everywhere, so Jacobi preconditioning would change nothing. Rows are stored in
@@ -110,7 +122,8 @@ struct CgProbe {
 /// of `tolerance` per column; throws CgStagnated after `max_iterations`, or as soon as the worst
 /// column's smallest relative residual has not fallen 10x in the last kCgStagnationWindow steps.
 std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
-                                                  double tolerance, std::size_t max_iterations, CgProbe probe = {});
+                                                  double tolerance, std::size_t max_iterations, CgProbe probe = {},
+                                                  CgPreconditioner preconditioner = {});
 
 /// Estimates of A's smallest and largest eigenvalues: the extreme Ritz values of the Lanczos
 /// tridiagonal matrix after up to 300 steps from a seeded random vector (fewer where they settle to
