@@ -197,13 +197,15 @@ struct FitPhases {
       throw InvalidInput("solver 'cholmod': " + detail::cholmod_load_error() + "; use 'envelope' or 'eigen'");
     if (st.cg_schwarz && (solver == Solver::Auto || solver == Solver::Cg) && st.dims >= 2 &&
         n >= detail::kSchwarzOnlyPoints &&
-        2.0 * double(stats.neighbor_pairs) >= detail::kSchwarzOnlyNeighbors * double(n)) {
+        2.0 * double(stats.neighbor_pairs) >= detail::kSchwarzOnlyNeighbors * double(n) &&
+        detail::kernel_matrix_bytes(st.a) + st.cg_held_bytes() <= options.memory_limit_bytes) {
       // csrbf::Interpolator's scattered points in 2-D or 3-D, many and well connected: the envelope
       // cannot win (RCM's envelope work is above kEnvelopeWorkLimit there: 1.5e8 at 2e4 planar points
       // with 6 neighbours, 2.2e9 with 40; test_schwarz.cpp checks it), so RCM and the envelope's
       // count are not computed (10% of a fit of 1e5 points). CG's rows are in the Schwarz patches'
       // spatial order; where Auto's probe finds CG too slow, the direct solver takes over (never the
-      // envelope: its work is counted as infinite).
+      // envelope: its work is counted as infinite). Where CG would pass the memory limit, Auto weighs
+      // the envelope as before (points on a curve: its envelope is small).
       st.order = detail::schwarz_order(st.sources, options.radius);
       stats.ordering = Ordering::Identity;
       stats.envelope_work = std::numeric_limits<double>::infinity();

@@ -95,7 +95,8 @@ Tree bisect(std::span<const Vec3> points, double radius) {
     todo.push_back(std::size_t(t.nodes[i].child[0]));
   }
   // Leaves in the tree's left-to-right order: neighbouring patches get neighbouring numbers.
-  std::sort(t.leaves.begin(), t.leaves.end(), [&](std::size_t x, std::size_t y) { return t.nodes[x].begin < t.nodes[y].begin; });
+  std::sort(t.leaves.begin(), t.leaves.end(),
+            [&](std::size_t x, std::size_t y) { return t.nodes[x].begin < t.nodes[y].begin; });
   return t;
 }
 
@@ -160,11 +161,13 @@ SchwarzPreconditioner::SchwarzPreconditioner(std::span<const Vec3> points, doubl
       points_in_box(tree, points, lo, hi, tree.leaves[l], m, stack);
       if (m.size() > std::max(kSchwarzPatchPoints, own)) {
         near.clear();
-        for (std::size_t e = own; e < m.size(); ++e) near.emplace_back(box_distance(points[m[e]], leaf.lo, leaf.hi), m[e]);
+        for (std::size_t e = own; e < m.size(); ++e)
+          near.emplace_back(box_distance(points[m[e]], leaf.lo, leaf.hi), m[e]);
         const std::size_t keep = kSchwarzPatchPoints > own ? kSchwarzPatchPoints - own : 0;
         std::nth_element(near.begin(), near.begin() + std::ptrdiff_t(keep), near.end());
         m.resize(own);
         for (std::size_t e = 0; e < keep; ++e) m.push_back(near[e].second);
+        m.shrink_to_fit();  // the box's points are not held past the trim (200 000 points at one position: 3.2 GB)
       }
       std::sort(m.begin(), m.end());
     }
@@ -176,7 +179,7 @@ SchwarzPreconditioner::SchwarzPreconditioner(std::span<const Vec3> points, doubl
     total += m.size();
     factor_entries += 0.5 * double(m.size()) * double(m.size() + 1);
   }
-  const double need = 4.0 * factor_entries + 8.0 * double(total) + 8.0 * 8.0 * double(total) +
+  const double need = 4.0 * factor_entries + 16.0 * double(total) + 8.0 * 8.0 * double(total) +
                       8.0 * double(leaves + n) + 16.0 * double(leaves);
   if (!(need <= byte_limit)) {
     std::ostringstream os;
@@ -192,7 +195,8 @@ SchwarzPreconditioner::SchwarzPreconditioner(std::span<const Vec3> points, doubl
     factor_start_[l + 1] = factor_start_[l] + members[l].size() * (members[l].size() + 1) / 2;
   }
   member_.resize(total);
-  for (std::size_t l = 0; l < leaves; ++l) std::copy(members[l].begin(), members[l].end(), member_.begin() + std::ptrdiff_t(patch_start_[l]));
+  for (std::size_t l = 0; l < leaves; ++l)
+    std::copy(members[l].begin(), members[l].end(), member_.begin() + std::ptrdiff_t(patch_start_[l]));
   decltype(members)().swap(members);
   // Each row's slots: where its patches' results are (the sum that makes z's row).
   for (std::uint32_t k : member_) ++slot_start_[k + 1];
@@ -205,7 +209,9 @@ SchwarzPreconditioner::SchwarzPreconditioner(std::span<const Vec3> points, doubl
   // Each patch's block of A, factorised; a block that rounding leaves not positive definite is
   // factorised again from A_pp + alpha diag(A_pp), alpha = 1e-3 and doubling.
   factor_.resize(factor_start_[leaves]);
-  tbb::enumerable_thread_specific<std::vector<std::int32_t>> local_index([n] { return std::vector<std::int32_t>(n, -1); });
+  scale_.resize(total);
+  tbb::enumerable_thread_specific<std::vector<std::int32_t>> local_index(
+      [n] { return std::vector<std::int32_t>(n, -1); });
   tbb::enumerable_thread_specific<double> shifts(0.0);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, leaves, 16), [&](const tbb::blocked_range<std::size_t>& r) {
     std::vector<std::int32_t>& where = local_index.local();
@@ -222,6 +228,12 @@ SchwarzPreconditioner::SchwarzPreconditioner(std::span<const Vec3> points, doubl
           if (const std::int32_t j = where[col[e]]; j >= 0) a(i, j) = val[e];
       }
       for (Eigen::Index i = 0; i < size; ++i) where[m[i]] = -1;
+      // Scaled to a unit diagonal (S A_pp S, S = diag(A_pp)^-1/2, S kept in double): L's entries
+      // then fit a float whatever the smoothing (a diagonal of 1.2e77 made float(L_ii) infinite).
+      double* scale = scale_.data() + patch_start_[p];
+      for (Eigen::Index i = 0; i < size; ++i) scale[i] = 1.0 / std::sqrt(a(i, i));
+      for (Eigen::Index j = 0; j < size; ++j)
+        for (Eigen::Index i = 0; i < size; ++i) a(i, j) *= scale[i] * scale[j];
       Eigen::LLT<Eigen::MatrixXd> llt(a);
       double alpha = 0;
       while (llt.info() != Eigen::Success || !(llt.matrixLLT().diagonal().minCoeff() > 0)) {
@@ -242,7 +254,7 @@ SchwarzPreconditioner::SchwarzPreconditioner(std::span<const Vec3> points, doubl
 }
 
 double SchwarzPreconditioner::bytes() const noexcept {
-  return 4.0 * double(factor_.size()) + 8.0 * double(member_.size()) + 8.0 * 8.0 * double(member_.size()) +
+  return 4.0 * double(factor_.size()) + 16.0 * double(member_.size()) + 8.0 * 8.0 * double(member_.size()) +
          8.0 * double(slot_start_.size() + patch_start_.size()) + 8.0 * double(factor_start_.size());
 }
 
@@ -250,14 +262,14 @@ namespace {
 /// One patch: y = A_pp^-1 R_p r through its packed float L, for M right-hand sides (M = 0: m of
 /// them, known at run time).
 template <std::size_t M>
-void solve_patch(const std::uint32_t* member, std::size_t size, const float* l, const double* r, double* y,
-                 std::size_t m_run) {
+void solve_patch(const std::uint32_t* member, std::size_t size, const float* l, const double* scale, const double* r,
+                 double* y, std::size_t m_run) {
   const std::size_t m = M ? M : m_run;
-  // L t = R_p r, row by row (row i of L: i + 1 entries from l + i (i + 1) / 2).
+  // A_pp^-1 = S (L L^T)^-1 S. L t = S R_p r, row by row (row i of L: i + 1 entries from l + i (i + 1) / 2).
   for (std::size_t i = 0; i < size; ++i) {
     const float* li = l + i * (i + 1) / 2;
     double t[8];
-    for (std::size_t c = 0; c < m; ++c) t[c] = r[std::size_t(member[i]) * m + c];
+    for (std::size_t c = 0; c < m; ++c) t[c] = scale[i] * r[std::size_t(member[i]) * m + c];
     for (std::size_t j = 0; j < i; ++j)
       for (std::size_t c = 0; c < m; ++c) t[c] -= double(li[j]) * y[j * m + c];
     const double d = 1.0 / double(li[i]);
@@ -273,6 +285,8 @@ void solve_patch(const std::uint32_t* member, std::size_t size, const float* l, 
     for (std::size_t j = 0; j < i; ++j)
       for (std::size_t c = 0; c < m; ++c) y[j * m + c] -= double(li[j]) * x[c];
   }
+  for (std::size_t i = 0; i < size; ++i)
+    for (std::size_t c = 0; c < m; ++c) y[i * m + c] *= scale[i];
 }
 }  // namespace
 
@@ -286,8 +300,8 @@ void SchwarzPreconditioner::apply(const double* r, double* z, std::size_t m) con
     for (std::size_t p = rg.begin(); p < rg.end(); ++p) {
       const std::size_t first = patch_start_[p], size = patch_start_[p + 1] - first;
       const auto run = [&](auto fixed) {
-        solve_patch<decltype(fixed)::value>(member_.data() + first, size, factor_.data() + factor_start_[p], r,
-                                            y.data() + first * m, m);
+        solve_patch<decltype(fixed)::value>(member_.data() + first, size, factor_.data() + factor_start_[p],
+                                            scale_.data() + first, r, y.data() + first * m, m);
       };
       switch (m) {
         case 1:

@@ -3,7 +3,7 @@
 // side at its middle) into leaves of side at most kSchwarzLeafSide R holding at most
 // kSchwarzLeafPoints points; a leaf's patch is the points of its box grown by a quarter of R (of the
 // leaf's side, where that is smaller) on every side, at most kSchwarzPatchPoints of them. Each patch's block of A is
-// factorised densely (Cholesky in double, L kept in float) and
+// factorised densely (Cholesky in double of the block scaled to a unit diagonal, L kept in float) and
 //   M^-1 r = sum over patches p of R_p^T A_pp^-1 R_p r,
 // symmetric and positive definite, so CG may use it.
 //
@@ -67,10 +67,11 @@ class SchwarzPreconditioner {
   std::vector<std::size_t> patch_start_;   // patch p: member_[patch_start_[p] .. patch_start_[p + 1])
   std::vector<std::uint32_t> member_;      // rows of A, ascending within a patch
   std::vector<std::size_t> factor_start_;  // patch p's L, packed rows (row i: i + 1 entries)
-  FillVector<float> factor_;
-  std::vector<std::size_t> slot_start_;  // row k's slots: slot_[slot_start_[k] .. slot_start_[k + 1])
-  std::vector<std::uint32_t> slot_;      // positions in member_ (and in apply's patch results)
-  mutable FillVector<double> work_;      // apply's patch results, m values a slot
+  FillVector<float> factor_;               // of S A_pp S: unit diagonal
+  FillVector<double> scale_;               // S = diag(A_pp)^-1/2, beside member_
+  std::vector<std::size_t> slot_start_;    // row k's slots: slot_[slot_start_[k] .. slot_start_[k + 1])
+  std::vector<std::uint32_t> slot_;        // positions in member_ (and in apply's patch results)
+  mutable FillVector<double> work_;        // apply's patch results, m values a slot
   double shift_ = 0;
 };
 

@@ -69,7 +69,7 @@ double envelope_factor_bytes(double off_diagonal, std::size_t n) {
   return 8.0 * (off_diagonal + double(n)) + 16.0 * double(n);  // 8-byte values, two 8-byte indices a row
 }
 
-double schwarz_share(std::size_t entries, std::size_t n) { return 12.0 * double(entries) + 64.0 * double(n); }
+double schwarz_share(std::size_t entries, std::size_t n) { return 12.0 * double(entries) + 320.0 * double(n); }
 
 double cg_bytes(std::size_t entries, std::size_t n, bool schwarz) {
   // Rows (8-byte offsets), columns (4 bytes) and values (8), its order (4 bytes a row); x, r, p, q and
@@ -462,13 +462,25 @@ class BatchedCg final : public SparseFactor {
           for (std::size_t c = 0; c < m; ++c) s[c] += v[k * m + c] * v[k * m + c];
       });
     };
+    // Each column scaled by a power of two near its largest magnitude (exact: the same steps and
+    // bits): squares of values near 1e-160 underflowed to 0 and read as a zero right-hand side,
+    // whose solution is 0 (an interpolant of such values was 0 everywhere).
+    std::array<double, 8> unit;
+    unit.fill(1.0);
+    for (std::size_t c = 0; c < m; ++c) {
+      double largest = 0;
+      for (std::size_t k = 0; k < n; ++k) largest = std::max(largest, std::abs(r[k * m + c]));
+      if (largest > 0 && std::isfinite(largest)) unit[c] = std::ldexp(1.0, std::ilogb(largest));
+    }
+    for (std::size_t k = 0; k < n; ++k)
+      for (std::size_t c = 0; c < m; ++c) r[k * m + c] /= unit[c];
     const Sums rr0 = squares(r);  // ||b||^2 per column: the residual is relative to it
     if (initial) {
       // Warm start: x = the guess, r = b - A x. A guess near the solution leaves a small r, and
       // the same tolerance relative to ||b|| is reached in fewer steps.
       for (std::size_t k = 0; k < n; ++k)
         for (std::size_t c = 0; c < m; ++c)  // a zero right-hand side has the solution 0, whatever the guess
-          x[k * m + c] = rr0[c] > 0 ? (*initial)(Eigen::Index(order_[k]), Eigen::Index(c)) : 0.0;
+          x[k * m + c] = rr0[c] > 0 ? (*initial)(Eigen::Index(order_[k]), Eigen::Index(c)) / unit[c] : 0.0;
       times_a(x, q, m, reduce);
       tbb::parallel_for(tbb::blocked_range<std::size_t>(0, n * m, 1 << 15),
                         [&](const tbb::blocked_range<std::size_t>& range) {
@@ -615,7 +627,7 @@ class BatchedCg final : public SparseFactor {
       throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
     }
     for (std::size_t k = 0; k < n; ++k)
-      for (std::size_t c = 0; c < m; ++c) b(Eigen::Index(order_[k]), Eigen::Index(c)) = x[k * m + c];
+      for (std::size_t c = 0; c < m; ++c) b(Eigen::Index(order_[k]), Eigen::Index(c)) = x[k * m + c] * unit[c];
   }
 
   std::vector<std::uint32_t> order_;

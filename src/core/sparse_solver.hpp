@@ -62,8 +62,12 @@ double envelope_factor_bytes(double off_diagonal, std::size_t n);
 /// `schwarz`, room for the Schwarz preconditioner (schwarz_share) instead of the incomplete Cholesky.
 double cg_bytes(std::size_t entries, std::size_t n, bool schwarz = false);
 /// The bytes CG sets aside for a Schwarz preconditioner (schwarz.hpp) of A with `entries`
-/// off-diagonal entries of N rows: 12 a matrix entry and 64 a row. Measured: 2-D points at 40
-/// neighbours take about 300 bytes a row, 3-D ones 430; a larger one takes the incomplete Cholesky.
+/// off-diagonal entries of N rows: 12 a matrix entry and 320 a row. Measured: 2-D points at 40
+/// neighbours take 320 bytes a row, 3-D ones 370, and at 12.5 neighbours (a multiscale fit's finest
+/// level) 230 and 310 (2e4 random points); a share of 64 a row left them at the edge (before the
+/// patches kept their scaling, 8 bytes a patch's point), and from 6e4 to 2.2e5 points
+/// some fits fell back to the incomplete Cholesky (4-12x the steps). test_schwarz.cpp keeps a
+/// quarter of the share spare at 6, 12.5 and 40 neighbours. Larger patches still fall back.
 double schwarz_share(std::size_t entries, std::size_t n);
 
 /// CG's preconditioner (incomplete_cholesky.hpp): taken once the residual's fall over the first

@@ -200,11 +200,21 @@ TEST(Schwarz, PointsAtOnePositionAreSplitByCount) {
 
 // Its bytes are counted before its factors are allocated, and refused above its share.
 TEST(Schwarz, RefusesMoreBytesThanItsShare) {
+  // The share CG sets aside holds the patches at 40 neighbours and at a multiscale fit's finest level
+  // (about 12), in 2-D and 3-D, with room to spare (a fit at the edge fell back to the incomplete
+  // Cholesky at some sizes and not others).
+  for (int dims : {2, 3})
+    for (double neighbors : {6.0, 12.5, 40.0}) {
+      const Case c = make_case(20000, dims, 810, neighbors);
+      const detail::SchwarzPreconditioner s(c.pts, c.radius, c.r.row, c.r.col, c.r.val, c.a.diagonal(), {}, 1e9);
+      EXPECT_LE(s.bytes(), 0.75 * detail::schwarz_share(c.r.col.size(), c.pts.size()))
+          << dims << "-D, " << neighbors << " neighbours";
+    }
   const std::size_t n = 2000;
   const Case c = make_case(n, 3, 800);
   const auto& [pts, radius, a, r] = c;
   const detail::SchwarzPreconditioner s(pts, radius, r.row, r.col, r.val, a.diagonal(), {}, 1e9);
-  EXPECT_LE(s.bytes(), detail::schwarz_share(r.col.size(), n));  // 40 neighbours fit the share CG sets aside
+  EXPECT_LE(s.bytes(), detail::schwarz_share(r.col.size(), n));
   EXPECT_THROW(detail::SchwarzPreconditioner(pts, radius, r.row, r.col, r.val, a.diagonal(), {}, 0.5 * s.bytes()),
                ResourceLimit);
 }
@@ -287,4 +297,46 @@ TEST(Memory, LargeArraysStartOnHugePageBoundaries) {
   big.resize(2 * big.size());  // reallocation through the same allocator
   EXPECT_EQ(big[4096], 4096.0);
   EXPECT_THROW(FillVector<double>(std::size_t(-1) / 4), std::length_error);
+}
+
+// A patch is factorised scaled to a unit diagonal: a smoothing of 1e100 on some points (a diagonal
+// whose Cholesky factor a float cannot hold) leaves M^-1 finite and equal to its definition.
+TEST(Schwarz, AHugeSmoothingStaysWithinTheFloatFactors) {
+  const Case c = make_case(2000, 2, 1100);
+  const std::size_t n = c.pts.size();
+  std::vector<double> diagonal(n, c.a.diagonal());
+  for (std::size_t i = 0; i < n; i += 50) diagonal[i] = 1.2e100;
+  const detail::SchwarzPreconditioner s(c.pts, c.radius, c.r.row, c.r.col, c.r.val, c.a.diagonal(), diagonal, 1e9);
+  Eigen::MatrixXd dense = Eigen::MatrixXd::Zero(Eigen::Index(n), Eigen::Index(n));
+  for (std::size_t i = 0; i < n; ++i) {
+    dense(Eigen::Index(i), Eigen::Index(i)) = diagonal[i];
+    for (std::size_t e = c.r.row[i]; e < c.r.row[i + 1]; ++e) dense(Eigen::Index(i), c.r.col[e]) = c.r.val[e];
+  }
+  RowMatrix rhs(Eigen::Index(n), 1), z(Eigen::Index(n), 1);
+  for (std::size_t i = 0; i < n; ++i) rhs(Eigen::Index(i), 0) = std::cos(double(i));
+  s.apply(rhs.data(), z.data(), 1);
+  ASSERT_TRUE(z.allFinite());
+  const Eigen::MatrixXd exact = by_definition(s, dense, rhs);
+  EXPECT_LT((Eigen::MatrixXd(z) - exact).norm() / exact.norm(), 1e-5);
+  EXPECT_NE(z(0, 0), 0.0);  // the smoothed rows are solved, not zeroed
+}
+
+// Values near 1e-165 (sums of their squares underflow): CG scales each right-hand side first, and
+// the interpolant reproduces them (it was 0 everywhere, with a residual of 0 reported).
+TEST(Schwarz, TinyValuesAreInterpolatedThroughConjugateGradients) {
+  const std::size_t n = detail::kSchwarzOnlyPoints;
+  const auto pts3 = random_points(n, 2, 1200);
+  std::vector<double> pts(2 * n), values(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    pts[2 * i] = pts3[i].x();
+    pts[2 * i + 1] = pts3[i].y();
+    values[i] = 1e-165 * std::sin(5 * pts3[i].x());
+  }
+  const Interpolator f = Interpolator::fit(pts, 2, values, 1, InterpolatorOptions{});
+  EXPECT_EQ(f.levels()[0].solver, Solver::Cg);
+  std::vector<double> at(n);
+  f.evaluate(pts.data(), n, at.data());
+  double worst = 0;
+  for (std::size_t i = 0; i < n; ++i) worst = std::max(worst, std::abs(at[i] - values[i]));
+  EXPECT_LT(worst, 1e-9 * 1e-165);
 }

@@ -284,6 +284,16 @@ class PythonHabits(unittest.TestCase):
         for key in ("radius", "neighbors", "solver", "iterations", "residual", "levels", "seconds_fit"):
             self.assertIn(key, st)
 
+    def test_points_on_a_curve_fit_within_a_memory_limit_that_cg_would_pass(self):
+        # 1e5 2-D points on a curve: CG with Schwarz patches would hold about 0.19 GiB; the envelope
+        # (small on a curve) fits in 0.1. Auto weighs it as before instead of refusing the fit.
+        t = np.random.default_rng(25).random(100000)
+        x = np.stack([t * 10, np.sin(t * 30)], 1)
+        f = np.sin(20 * t)
+        s = csrbf.Interpolator(x, f, memory_limit=0.1)
+        self.assertEqual(s.stats["solver"], "envelope")
+        self.assertLess(np.abs(s(x[::50]) - f[::50]).max(), 1e-9)
+
     def test_threads_give_the_same_result(self):
         one = csrbf.Interpolator(self.pts, self.vals, radius=0.15, degree=0, threads=1)
         np.testing.assert_allclose(one(self.x), self.s(self.x), rtol=0, atol=1e-10)
