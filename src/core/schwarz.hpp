@@ -13,8 +13,8 @@
 // however the leaves cut the plane, and solves it exactly. In a prototype (cells of side R) that was
 // 29 steps to 1e-10 at 1e4 and 1e5 points alike; without the overlap (block Jacobi over the cells)
 // 450. Leaves of up to 1.5 R and 64 points: 30 steps to 1e-12 at 1e5 points in 2-D (46 with leaves
-// of R and 32 points), 42 in 3-D (59), in about the same time a fit (tests/core/test_schwarz.cpp
-// measures the count).
+// of R and 32 points), 42 in 3-D (59) (tests/core/test_schwarz.cpp
+// measures the count). Each fit took about the same time with either.
 #pragma once
 
 #include "csrbf/types.hpp"
