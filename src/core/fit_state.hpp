@@ -66,10 +66,7 @@ struct SpaceMap::Structure {
   /// (csrbf::Interpolator's scattered points, schwarz.hpp), else the incomplete Cholesky.
   bool cg_schwarz = false;
   /// What CG holds beside A (its rows, vectors and preconditioner; Schwarz's copy of the sources).
-  double cg_held_bytes() const {
-    const std::size_t n = sources.size();
-    return detail::cg_bytes(a.values().size(), n, cg_schwarz) + (cg_schwarz ? 24.0 * double(n) : 0.0);
-  }
+  double cg_held_bytes() const { return detail::cg_bytes(a.values().size(), sources.size(), cg_schwarz); }
   const detail::EvalGrid& grid() const {
     std::call_once(grid_once, [this] {
       const double left = options.memory_limit_bytes - fit_bytes;

@@ -63,16 +63,17 @@ Tree bisect(std::span<const Vec3> points, double radius) {
     Node a = node, b = node;
     const double mid = 0.5 * (node.lo[axis] + node.hi[axis]);
     auto first = t.perm.begin() + std::ptrdiff_t(node.begin), last = t.perm.begin() + std::ptrdiff_t(node.end);
-    auto cut = std::partition(first, last, [&](std::uint32_t k) { return points[k][axis] < mid; });
-    if (!(longest > radius * 1e-9) || !(mid > node.lo[axis] && mid < node.hi[axis]) || cut == first || cut == last) {
-      // All on one side of every cut the doubles allow: halve by count (the box stays the same).
-      if (!(longest > radius * 1e-9) || !(mid > node.lo[axis] && mid < node.hi[axis])) {
-        if (count <= kSchwarzLeafPoints) {
-          t.leaves.push_back(i);
-          continue;
-        }
-        cut = first + std::ptrdiff_t(count / 2);
-      } else {
+    auto cut = first;
+    if (!(longest > radius * 1e-9) || !(mid > node.lo[axis] && mid < node.hi[axis])) {
+      // Points closer than the doubles can cut: halved by count (the box stays the same).
+      if (count <= kSchwarzLeafPoints) {
+        t.leaves.push_back(i);
+        continue;
+      }
+      cut = first + std::ptrdiff_t(count / 2);
+    } else {
+      cut = std::partition(first, last, [&](std::uint32_t k) { return points[k][axis] < mid; });
+      if (cut == first || cut == last) {
         // The points lie in one half: the other half is empty space, and the node shrinks to this one.
         if (cut == first)
           node.lo[axis] = mid;
@@ -82,7 +83,6 @@ Tree bisect(std::span<const Vec3> points, double radius) {
         todo.push_back(i);
         continue;
       }
-    } else {
       a.hi[axis] = mid;
       b.lo[axis] = mid;
     }

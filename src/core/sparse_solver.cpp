@@ -74,9 +74,10 @@ double schwarz_share(std::size_t entries, std::size_t n) { return 12.0 * double(
 double cg_bytes(std::size_t entries, std::size_t n, bool schwarz) {
   // Rows (8-byte offsets), columns (4 bytes) and values (8), its order (4 bytes a row); x, r, p, q and
   // z of up to 8 right-hand sides; the incomplete Cholesky factor (half the entries, in case a solve
-  // turns to it); the residual histories of the stagnation check and the probe.
+  // turns to it), or with `schwarz` the larger of it and the Schwarz patches' share, and its copy of
+  // the points (24 bytes each); the residual histories of the stagnation check and the probe.
   return 12.0 * double(entries) + 12.0 * double(n + 1) + 5.0 * 8 * 8 * double(n) +
-         (schwarz ? std::max(schwarz_share(entries, n), IncompleteCholesky::bytes(entries / 2, n))
+         (schwarz ? std::max(schwarz_share(entries, n), IncompleteCholesky::bytes(entries / 2, n)) + 24.0 * double(n)
                   : IncompleteCholesky::bytes(entries / 2, n)) +
          (8.0 + 128.0) * double(std::min<std::size_t>(kCgMaxIterations, 1u << 20));
 }
@@ -379,7 +380,7 @@ class BatchedCg final : public SparseFactor {
   std::size_t nonzeros() const override { return order_.size() + val_.size(); }
   /// Its copy of A's rows, its preconditioner and the vectors of a solve of up to 8 right-hand sides.
   double held_bytes() const override {
-    return released_ ? 0.0 : cg_bytes(val_.size(), order_.size(), !points_.empty()) + 24.0 * double(points_.size());
+    return released_ ? 0.0 : cg_bytes(val_.size(), order_.size(), !points_.empty());
   }
   void stop_probing() const override { probing_ = false; }
   void release() override {
