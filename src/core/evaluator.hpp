@@ -37,8 +37,8 @@ struct EvalGrid {
   Vec3 shift = Vec3::Zero();
   double h = 0, inv_h = 0, radius = 0;
   std::int64_t nx = 0, ny = 0, nz = 0;
-  std::vector<std::uint32_t> begin;   // begin[cell] .. begin[cell+1]: the cell's entries
-  std::vector<std::uint32_t> source;  // source[entry] = input index; N (the inert source) pads
+  std::vector<std::uint32_t> begin;  // begin[cell] .. begin[cell+1]: the cell's entries
+  FillVector<std::uint32_t> source;  // source[entry] = input index; N (the inert source) pads
   static constexpr std::size_t kLanes = 8;
   // K = 2, or 1 when memory is short. K = 3 lists 17% fewer candidates a vertex but takes 2.6x the
   // memory, and measured no faster (M = 1e6, N = 1e4).
@@ -72,23 +72,24 @@ constexpr double phi_lead(Kernel k) noexcept {
 }
 
 /// An array that is not zeroed when allocated: EvalData writes each entry once, the large ones in
-/// parallel, so the pages are first touched by the threads that fill them.
+/// parallel, so the pages are first touched by the threads that fill them; large ones on huge pages
+/// (FillVector: the six arrays of 1e5 scattered 2-D points took 9000 page faults, 30% of a fit and
+/// first evaluation's, at about 18 us each on a virtual machine).
 template <class T>
 class Buffer {
  public:
   void allocate(std::size_t n) {
-    data_.reset(n > 0 ? new T[n] : nullptr);
-    size_ = n;
+    FillVector<T>().swap(data_);
+    data_.resize(n);
   }
-  T* data() noexcept { return data_.get(); }
-  const T* data() const noexcept { return data_.get(); }
+  T* data() noexcept { return data_.data(); }
+  const T* data() const noexcept { return data_.data(); }
   T& operator[](std::size_t i) noexcept { return data_[i]; }
   const T& operator[](std::size_t i) const noexcept { return data_[i]; }
-  std::size_t size() const noexcept { return size_; }
+  std::size_t size() const noexcept { return data_.size(); }
 
  private:
-  std::unique_ptr<T[]> data_;
-  std::size_t size_ = 0;
+  FillVector<T> data_;
 };
 
 /// The runs of EvalGrid copied out: coordinates in units of R relative to the grid's shift (double:
@@ -178,9 +179,10 @@ bool incoherent(const EvalGrid& g, const T* in, std::size_t n);
 /// machines: 3x the evaluation at M = 1e6 in double).
 template <class T>
 struct CellOrder {
-  std::vector<std::uint32_t> order;  ///< order[k]: the index of the k-th point in cell order
-  std::vector<std::uint32_t> cell, start;
-  std::vector<T> points;  ///< the points gathered in that order (n x 3), evaluated in place
+  FillVector<std::uint32_t> order;  ///< order[k]: the index of the k-th point in cell order
+  FillVector<std::uint32_t> cell;
+  std::vector<std::uint32_t> start;
+  FillVector<T> points;  ///< the points gathered in that order (n x 3), evaluated in place
 };
 /// Fills o.order for the n points (n x 3) sorted by cell (stable; points outside the grid last).
 template <class T>

@@ -593,7 +593,7 @@ template <class T>
 void Interpolator::evaluate_impl(const T* x, std::size_t q, T* out) const {
   if (!maps_) throw InvalidInput("Interpolator: not fitted");
   const std::size_t nv = values_, d = std::size_t(dim_);
-  std::vector<T> in(3 * std::min(q, kBatch)), part(in.size());
+  FillVector<T> in(3 * std::min(q, kBatch)), part(in.size());  // each entry written before it is read
   for (std::size_t b = 0; b < q; b += kBatch) {
     const std::size_t m = std::min(kBatch, q - b);
     for (std::size_t i = 0; i < m; ++i)

@@ -138,7 +138,7 @@ TEST(Trust, OfEightWritersOfOneNewFileExactlyOneSucceeds) {
   const std::vector<std::string> meshes{
       d + "/two.msh --motion " + d + "/motion.json",
       kExamples + "airfoil/airfoil.msh --motion " + kExamples + "airfoil/motion.json"};
-  for (int round = 0; round < 4; ++round) {
+  for (int round = 0; round < 2; ++round) {  // each mesh once (two more rounds repeated the same races)
     const std::string out = d + "/new" + std::to_string(round) + ".msh";
     const std::string& mesh = meshes[std::size_t(round) % 2];
     std::vector<ShellRun> runs(8);
