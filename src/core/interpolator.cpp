@@ -116,8 +116,13 @@ void validate(std::span<const double> points, int dim, std::span<const double> v
 /// of its ~25 steps, 0.4 s at 1e5 points), the radius being the distance that many of them fall
 /// within. The guess comes from the box's volume in the dimensions it spans and doubles until the
 /// sample has enough neighbours. Where there are too few points to have that many neighbours, the
-/// box's diagonal (every point sees every other).
+/// box's diagonal (every point sees every other). Only the distances that can still be among the
+/// `neighbors` x sample smallest are kept (a max-heap), and that count is held to kRadiusPairs by
+/// sampling fewer points for large `neighbors`: a guess far too large for clustered points (1e5
+/// points in a box of side 1e-3, 10 far away) found 4e8 distances, 3.2 GB and 30-50 s, where the
+/// memory limit allowed 0.5 GB.
 constexpr std::size_t kRadiusSample = 4096;
+constexpr double kRadiusPairs = double(std::size_t(1) << 22);
 double auto_radius(std::span<const Vec3> pts, int dim, double neighbors) {
   const std::size_t n = pts.size();
   Vec3 lo = pts[0], hi = pts[0];
@@ -137,23 +142,32 @@ double auto_radius(std::span<const Vec3> pts, int dim, double neighbors) {
     }
   double r = std::pow(2.0 * neighbors / double(n) * volume / unit_ball(spanned), 1.0 / spanned);
   r = std::clamp(r, 1e-8 * diag, diag);
-  const std::size_t samples = std::min(n, kRadiusSample);
+  const std::size_t samples =
+      std::min({n, kRadiusSample, std::max<std::size_t>(1, std::size_t(kRadiusPairs / std::max(neighbors, 1.0)))});
   std::mt19937_64 rng(20261205);
   std::vector<std::size_t> picked(samples);
   for (std::size_t k = 0; k < samples; ++k) picked[k] = samples == n ? k : std::size_t(rng() % n);
-  const auto need = std::size_t(std::ceil(neighbors * double(samples)));
-  std::vector<double> d2;
+  const auto need = std::max<std::size_t>(1, std::size_t(std::ceil(neighbors * double(samples))));
+  std::vector<double> heap;  // the need smallest squared distances found, largest first
+  heap.reserve(need);
   for (;;) {
     const NeighborIndex index(pts, r);
-    d2.clear();
+    heap.clear();
     for (std::size_t i : picked)
       index.for_each_within(pts[i], [&](std::size_t j, double dd) {
-        if (j != i) d2.push_back(dd);
+        if (j == i) return;
+        if (heap.size() < need) {
+          heap.push_back(dd);
+          std::push_heap(heap.begin(), heap.end());
+        } else if (dd < heap.front()) {
+          std::pop_heap(heap.begin(), heap.end());
+          heap.back() = dd;
+          std::push_heap(heap.begin(), heap.end());
+        }
       });
-    if (d2.size() >= need) {
-      std::nth_element(d2.begin(), d2.begin() + std::ptrdiff_t(need - 1), d2.end());
+    if (heap.size() >= need) {
       // Just past the need-th distance, so that it counts (neighbours are strictly within R).
-      return std::max(std::sqrt(d2[need - 1]) * (1 + 1e-9), 1e-8 * diag);
+      return std::max(std::sqrt(heap.front()) * (1 + 1e-9), 1e-8 * diag);
     }
     if (r >= diag) return diag * 1.0000001;
     r = std::min(2 * r, diag);

@@ -8,6 +8,7 @@
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -107,6 +108,32 @@ TEST(Interpolator, MultiscaleLevelsThroughConjugateGradientsWithSmoothing) {
   std::vector<double> at(P);
   exact.evaluate(pts.data(), P, at.data());
   for (std::size_t i = 0; i < P; ++i) EXPECT_NEAR(at[i], vals[i], 1e-6) << i;
+}
+
+// The automatic radius on clustered points (a dense cluster and a few points far away, where the
+// guess from the box's volume holds every point of the cluster): equal to its definition by brute
+// force over every pair (below 4096 points every point is sampled): just past the distance within
+// which the points have `neighbors` others on average.
+TEST(Interpolator, AutomaticRadiusOnClusteredPointsIsTheBruteForceOne) {
+  std::mt19937_64 rng(3434);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  constexpr std::size_t P = 3000, far = 6;
+  std::vector<double> pts;
+  for (std::size_t i = 0; i < P - far; ++i) pts.insert(pts.end(), {1e-3 * u(rng), 1e-3 * u(rng)});
+  for (std::size_t i = 0; i < far; ++i) pts.insert(pts.end(), {5.0 + u(rng), 5.0 * u(rng)});
+  for (const double neighbors : {10.0, 40.0}) {
+    std::vector<double> d2;
+    for (std::size_t i = 0; i < P; ++i)
+      for (std::size_t j = 0; j < P; ++j)
+        if (i != j) d2.push_back(std::pow(pts[2 * i] - pts[2 * j], 2) + std::pow(pts[2 * i + 1] - pts[2 * j + 1], 2));
+    const auto need = std::size_t(std::ceil(neighbors * double(P)));
+    std::nth_element(d2.begin(), d2.begin() + std::ptrdiff_t(need - 1), d2.end());
+    InterpolatorOptions o;
+    o.neighbors = neighbors;
+    const Interpolator s = Interpolator::fit(pts, 2, std::vector<double>(P, 1.0), 1, o);
+    EXPECT_DOUBLE_EQ(s.levels()[0].radius, std::sqrt(d2[need - 1]) * (1 + 1e-9)) << neighbors;
+    EXPECT_NEAR(s.levels()[0].mean_neighbors, neighbors, 0.01 * neighbors) << neighbors;
+  }
 }
 
 TEST(Interpolator, RefusesWhatItCannotFit) {

@@ -210,6 +210,26 @@ class Multiscale(unittest.TestCase):
             self.assertTrue(s.stats["radius_auto"])
             self.assertAlmostEqual(s.stats["neighbors"], k, delta=0.15 * k)
 
+    def test_automatic_radius_on_a_cluster_keeps_the_memory_limit(self):
+        # 1e5 points in a box of side 1e-3 and 10 far away: the guess from the box's volume holds the
+        # whole cluster, whose every distance took 4.1 GB (and 30-50 s) under a limit of 0.5 GB.
+        # In a child of its own, for its peak memory.
+        code = (
+            "import resource, numpy as np, csrbf\n"
+            "rng = np.random.default_rng(1)\n"
+            "pts = np.vstack([1e-3 * rng.random((100000, 2)), 5 + rng.random((10, 2))])\n"
+            "s = csrbf.Interpolator(pts, np.sin(1e3 * pts[:, 0]), memory_limit=0.5)\n"
+            "print(s.stats['neighbors'], resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)\n"
+        )
+        import subprocess
+        import sys
+
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        neighbours, peak_mib = map(float, r.stdout.split())
+        self.assertAlmostEqual(neighbours, 40, delta=2)
+        self.assertLess(peak_mib, 512)
+
 
 class PythonHabits(unittest.TestCase):
     def setUp(self):
