@@ -198,7 +198,7 @@ struct FitPhases {
     if (st.cg_schwarz && (solver == Solver::Auto || solver == Solver::Cg) && st.dims >= 2 &&
         n >= detail::kSchwarzOnlyPoints &&
         2.0 * double(stats.neighbor_pairs) >= detail::kSchwarzOnlyNeighbors * double(n) &&
-        detail::kernel_matrix_bytes(st.a) + st.cg_held_bytes() <= options.memory_limit_bytes) {
+        st.cg_total_bytes() <= options.memory_limit_bytes) {
       // csrbf::Interpolator's scattered points in 2-D or 3-D, many and well connected: the envelope
       // cannot win (RCM's envelope work is above kEnvelopeWorkLimit there: 1.5e8 at 2e4 planar points
       // with 6 neighbours, 2.2e9 with 40; test_schwarz.cpp checks it), so RCM and the envelope's
@@ -302,8 +302,8 @@ struct FitPhases {
             // Where the memory limit refuses the direct factor, the envelope whatever its work, where it
             // fits beside A and CG (face.obj, 6158 controls at 5263 neighbours each: CG ran 1000 steps
             // and 78 s before it gave way; the envelope takes 22 s).
-            const double envelope_bytes = detail::envelope_factor_bytes(double(st.stats.envelope_entries), n) +
-                                          detail::kernel_matrix_bytes(st.a) + st.cg_held_bytes();
+            const double envelope_bytes =
+                detail::envelope_factor_bytes(double(st.stats.envelope_entries), n) + st.cg_total_bytes();
             if (!std::isfinite(direct) && envelope * margin < left && envelope_bytes <= st.options.memory_limit_bytes)
               return false;
           }
@@ -311,7 +311,7 @@ struct FitPhases {
         };
       }
       // CG holds A's rows in its order beside A itself, and its vectors.
-      const double bytes = detail::kernel_matrix_bytes(st.a) + st.cg_held_bytes();
+      const double bytes = st.cg_total_bytes();
       if (bytes > options.memory_limit_bytes) {
         std::ostringstream os;
         os.precision(3);

@@ -65,8 +65,11 @@ struct SpaceMap::Structure {
   /// CG's preconditioner, where a solve needs one: additive Schwarz over patches of the sources
   /// (csrbf::Interpolator's scattered points, schwarz.hpp), else the incomplete Cholesky.
   bool cg_schwarz = false;
-  /// What CG holds beside A (its rows, vectors and preconditioner; Schwarz's copy of the sources).
-  double cg_held_bytes() const { return detail::cg_bytes(a.values().size(), sources.size(), cg_schwarz); }
+  /// A and what CG holds beside it (its rows, vectors and preconditioner; Schwarz's copy of the
+  /// sources): what a fit by CG holds.
+  double cg_total_bytes() const {
+    return detail::kernel_matrix_bytes(a) + detail::cg_bytes(a.values().size(), sources.size(), cg_schwarz);
+  }
   const detail::EvalGrid& grid() const {
     std::call_once(grid_once, [this] {
       const double left = options.memory_limit_bytes - fit_bytes;
@@ -154,7 +157,7 @@ struct SpaceMap::Structure {
       // two copies of A's lower triangle: the count stops where the factor passes the memory limit
       // (infinite cost).
       const std::size_t lower = a.values().size() / 2 + sources.size();
-      const double beside = detail::kernel_matrix_bytes(a) + cg_held_bytes() + 2 * 12.0 * double(lower);
+      const double beside = cg_total_bytes() + 2 * 12.0 * double(lower);
       if (beside >= options.memory_limit_bytes)
         direct_cost_ = std::numeric_limits<double>::infinity();
       else
