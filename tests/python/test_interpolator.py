@@ -8,6 +8,8 @@ import ast
 import multiprocessing
 import os
 import pickle
+import subprocess
+import sys
 import threading
 import time
 import unittest
@@ -221,9 +223,6 @@ class Multiscale(unittest.TestCase):
             "s = csrbf.Interpolator(pts, np.sin(1e3 * pts[:, 0]), memory_limit=0.5)\n"
             "print(s.stats['neighbors'], resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024)\n"
         )
-        import subprocess
-        import sys
-
         r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
         self.assertEqual(r.returncode, 0, r.stderr)
         neighbours, peak_mib = map(float, r.stdout.split())
