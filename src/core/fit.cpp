@@ -195,6 +195,7 @@ struct FitPhases {
     Solver solver = options.solver;
     if (solver == Solver::Cholmod && !cholmod_available())
       throw InvalidInput("solver 'cholmod': " + detail::cholmod_load_error() + "; use 'envelope' or 'eigen'");
+    st.cg_in_place = st.schwarz_sorted;
     if (st.cg_schwarz && (solver == Solver::Auto || solver == Solver::Cg) && st.dims >= 2 &&
         n >= detail::kSchwarzOnlyPoints &&
         2.0 * double(stats.neighbor_pairs) >= detail::kSchwarzOnlyNeighbors * double(n) &&
@@ -206,7 +207,8 @@ struct FitPhases {
       // spatial order; where Auto's probe finds CG too slow, the direct solver takes over (never the
       // envelope: its work is counted as infinite). Where CG would pass the memory limit, Auto weighs
       // the envelope as before (points on a curve: its envelope is small).
-      st.order = detail::schwarz_order(st.sources, options.radius);
+      // Sources sorted so already: CG reads A in place, in its own order.
+      st.order = st.schwarz_sorted ? identity_order(n) : detail::schwarz_order(st.sources, options.radius);
       stats.ordering = Ordering::Identity;
       stats.envelope_work = std::numeric_limits<double>::infinity();
       stats.dense_bytes = 4 * n * n;
@@ -214,6 +216,7 @@ struct FitPhases {
       stats.seconds_ordering = seconds_since(t0);
       return Solver::Cg;
     }
+    st.cg_in_place = false;  // any other path copies A's rows into CG's order (RCM)
     std::vector<std::size_t> first;
     if (solver == Solver::Auto || solver == Solver::Cg ||
         (solver == Solver::Envelope && options.ordering != Ordering::Auto)) {
@@ -545,7 +548,8 @@ SpaceMap SpaceMap::fit(std::span<const Vec3> sources, std::span<const Vec3> dest
 }
 
 std::shared_ptr<SpaceMap::Structure> detail::fit_structure(std::span<const Vec3> sources, const FitOptions& options,
-                                                           std::span<const double> diagonal_shift, int dims) {
+                                                           std::span<const double> diagonal_shift, int dims,
+                                                           bool schwarz_sorted) {
   auto st = std::make_shared<SpaceMap::Structure>();
   st->options = options;
   st->options.polynomial = Polynomial::None;
@@ -558,6 +562,7 @@ std::shared_ptr<SpaceMap::Structure> detail::fit_structure(std::span<const Vec3>
   st->max_subdivision = 1;
   st->eval_list_bytes = std::size_t(std::min(options.memory_limit_bytes, 1e18));
   st->cg_schwarz = true;
+  st->schwarz_sorted = schwarz_sorted;
   st->stats.controls = sources.size();
   FitPhases::polynomial_frame(*st);
   FitPhases::neighbour_graph_and_matrix(*st);

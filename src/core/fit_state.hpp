@@ -65,10 +65,16 @@ struct SpaceMap::Structure {
   /// CG's preconditioner, where a solve needs one: additive Schwarz over patches of the sources
   /// (csrbf::Interpolator's scattered points, schwarz.hpp), else the incomplete Cholesky.
   bool cg_schwarz = false;
-  /// A and what CG holds beside it (its rows, vectors and preconditioner; Schwarz's copy of the
-  /// sources): what a fit by CG holds.
+  /// The sources are already in the Schwarz patches' order (schwarz_order: the interpolator sorts a
+  /// level's points so before its graph is built). Where CG takes the Schwarz path, its order is
+  /// then the identity and it reads A in place (cg_in_place) instead of copying A's rows.
+  bool schwarz_sorted = false;
+  bool cg_in_place = false;
+  /// A and what CG holds beside it (its rows where it copies them, vectors and preconditioner;
+  /// Schwarz's copy of the sources): what a fit by CG holds.
   double cg_total_bytes() const {
-    return detail::kernel_matrix_bytes(a) + detail::cg_bytes(a.values().size(), sources.size(), cg_schwarz);
+    return detail::kernel_matrix_bytes(a) +
+           detail::cg_bytes(a.values().size(), sources.size(), cg_schwarz, !cg_in_place);
   }
   const detail::EvalGrid& grid() const {
     std::call_once(grid_once, [this] {
@@ -297,7 +303,8 @@ namespace detail {
 /// own polynomial block), the neighbour graph, A + diag(diagonal_shift), the ordering and solver, the
 /// factorisation. The sources must have been checked (finite, radius and limit valid).
 std::shared_ptr<SpaceMap::Structure> fit_structure(std::span<const Vec3> sources, const FitOptions& options,
-                                                   std::span<const double> diagonal_shift, int dims);
+                                                   std::span<const double> diagonal_shift, int dims,
+                                                   bool schwarz_sorted = false);
 }  // namespace detail
 
 struct SpaceMap::State {

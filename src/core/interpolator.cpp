@@ -5,6 +5,7 @@
 #include "csrbf/interpolator.hpp"
 
 #include "fit_state.hpp"
+#include "schwarz.hpp"
 
 #include <Eigen/SVD>
 
@@ -350,13 +351,6 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
     const std::size_t m = member.size();
     std::vector<Vec3> pts(m);
     for (std::size_t k = 0; k < m; ++k) pts[k] = all[member[k]];
-    std::vector<double> shift;
-    if (options.smoothing.size() == 1)
-      shift = options.smoothing;
-    else if (!options.smoothing.empty())
-      for (std::size_t i : member) shift.push_back(options.smoothing[i]);
-    const bool any_shift = std::any_of(shift.begin(), shift.end(), [](double s) { return s > 0; });
-    if (!any_shift) shift.clear();
     lv.radius = std::ldexp(finest, l + 1 < levels ? int(levels - l) : 0);
     if (!(lv.radius >= 1e-150 && lv.radius <= 1e150)) {
       std::ostringstream os;
@@ -365,20 +359,42 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
          << (levels > 1 ? ": use fewer levels or scale the points" : ": scale the points");
       throw InvalidInput(os.str());
     }
-    FitOptions fo;
-    fo.radius = lv.radius;
-    fo.kernel = options.kernel;
-    fo.solver = options.solver;
-    fo.memory_limit_bytes = options.memory_limit_bytes;
     Vec3 lo = pts[0], hi = pts[0];
     for (const Vec3& p : pts) {
       lo = lo.cwiseMin(p);
       hi = hi.cwiseMax(p);
     }
     NeighborIndex::check_extent(lo, hi, lv.radius, "points");
+    // Where CG with the Schwarz patches will solve the level (scattered points in 2-D or 3-D, many
+    // of them), its points are sorted into the patches' order first: A is then built in CG's order,
+    // and CG reads it in place rather than copying it (fit.cpp, ordering_and_solver). The level
+    // keeps its points in that order; `member` maps them back to the input.
+    const bool sorted =
+        dim >= 2 && m >= detail::kSchwarzOnlyPoints && (options.solver == Solver::Auto || options.solver == Solver::Cg);
+    if (sorted) {
+      const std::vector<std::uint32_t> perm = detail::schwarz_order(pts, lv.radius);
+      std::vector<std::size_t> by(m);
+      for (std::size_t k = 0; k < m; ++k) {
+        by[k] = member[perm[k]];
+        pts[k] = all[by[k]];
+      }
+      member = std::move(by);
+    }
+    std::vector<double> shift;
+    if (options.smoothing.size() == 1)
+      shift = options.smoothing;
+    else if (!options.smoothing.empty())
+      for (std::size_t i : member) shift.push_back(options.smoothing[i]);
+    const bool any_shift = std::any_of(shift.begin(), shift.end(), [](double s) { return s > 0; });
+    if (!any_shift) shift.clear();
+    FitOptions fo;
+    fo.radius = lv.radius;
+    fo.kernel = options.kernel;
+    fo.solver = options.solver;
+    fo.memory_limit_bytes = options.memory_limit_bytes;
     std::shared_ptr<SpaceMap::Structure> st;
     try {
-      st = detail::fit_structure(pts, fo, shift, dim);
+      st = detail::fit_structure(pts, fo, shift, dim, sorted);
     } catch (const DuplicateSource& e) {
       const std::size_t a = member[e.first()], b = member[e.second()];
       std::ostringstream os;
@@ -490,11 +506,12 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
       for (int t = 0; t < terms; ++t)
         for (std::size_t v = 0; v < nv; ++v) lv.beta[std::size_t(t) * nv + v] = beta(t, Eigen::Index(v));
     }
-    // The solver's matrix and factor are not needed to evaluate: freed, the neighbour grid kept.
-    st->a = KernelMatrix();
-    st->factor = EnvelopeMatrix();
+    // The solver's matrix and factor are not needed to evaluate: freed (the solvers first: CG may
+    // read A in place), the neighbour grid kept.
     st->sparse.reset();
     st->fallback.reset();
+    st->a = KernelMatrix();
+    st->factor = EnvelopeMatrix();
     st->solved_elsewhere = true;
     // The evaluation adds the polynomial where the structure has one (beta's rows past D are zero).
     st->options.polynomial = degree < 0 ? Polynomial::None : degree == 0 ? Polynomial::Constant : Polynomial::Linear;

@@ -60,7 +60,7 @@ inline constexpr double kBlasAddressSpace = 192.0 * (1 << 20);
 double envelope_factor_bytes(double off_diagonal, std::size_t n);
 /// Bytes conjugate gradients hold beside A for `entries` off-diagonal entries of N rows; with
 /// `schwarz`, room for the Schwarz preconditioner (schwarz_share) and its copy of the points.
-double cg_bytes(std::size_t entries, std::size_t n, bool schwarz = false);
+double cg_bytes(std::size_t entries, std::size_t n, bool schwarz = false, bool copy = true);
 /// The bytes CG sets aside for a Schwarz preconditioner (schwarz.hpp) of A with `entries`
 /// off-diagonal entries of N rows: 12 a matrix entry and 320 a row. Measured: 2-D points at 40
 /// neighbours take 320 bytes a row, 3-D ones 370, and at 12.5 neighbours (a multiscale fit's finest

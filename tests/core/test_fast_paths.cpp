@@ -747,8 +747,15 @@ TEST(FastPaths, ConjugateGradientsKeepAGoodSolutionAtTheirStepLimit) {
 // CgStagnated, so that its caller turns to the solver that took over, and never reads freed rows.
 TEST(FastPaths, ConjugateGradientsReleasedHoldNothingAndSolveNothing) {
   const auto [cloud, a] = c2_matrix_of_a_cloud(112);
+  // In A's own order CG reads A in place; in another it holds a copy of A's rows.
+  std::vector<std::uint32_t> reversed = identity_order(cloud.size());
+  std::reverse(reversed.begin(), reversed.end());
+  EXPECT_EQ(detail::conjugate_gradients(a, reversed, 1e-12, 3000)->held_bytes(),
+            detail::cg_bytes(a.values().size(), cloud.size()));
   const auto cg = detail::conjugate_gradients(a, identity_order(cloud.size()), 1e-12, 3000);
-  EXPECT_EQ(cg->held_bytes(), detail::cg_bytes(a.values().size(), cloud.size()));
+  EXPECT_EQ(cg->held_bytes(), detail::cg_bytes(a.values().size(), cloud.size(), false, false));
+  EXPECT_EQ(detail::cg_bytes(a.values().size(), cloud.size()) - cg->held_bytes(),
+            12.0 * double(a.values().size()) + 8.0 * double(cloud.size() + 1));
   const RowMatrix b = RowMatrix::Random(Eigen::Index(cloud.size()), 3);
   RowMatrix x = b;
   ASSERT_NO_THROW(cg->solve_in_place(x));

@@ -5,6 +5,8 @@
 #include "csrbf/errors.hpp"
 #include "csrbf/interpolator.hpp"
 
+#include "../../src/core/sparse_solver.hpp"
+
 #include <Eigen/Dense>
 #include <gtest/gtest.h>
 
@@ -134,6 +136,43 @@ TEST(Interpolator, AutomaticRadiusOnClusteredPointsIsTheBruteForceOne) {
     EXPECT_DOUBLE_EQ(s.levels()[0].radius, std::sqrt(d2[need - 1]) * (1 + 1e-9)) << neighbors;
     EXPECT_NEAR(s.levels()[0].mean_neighbors, neighbors, 0.01 * neighbors) << neighbors;
   }
+}
+
+// Many scattered 2-D points: their level is sorted into the Schwarz patches' order before A is
+// built, and CG reads A in place. Under a memory limit that holds A and CG without a copy of A's
+// rows, but not with one, the fit is the same as without a limit: CG with the Schwarz patches.
+TEST(Interpolator, ConjugateGradientsReadTheSortedMatrixInPlace) {
+  std::mt19937_64 rng(3435);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  constexpr std::size_t P = 20000, Q = 500;
+  std::vector<double> pts(2 * P), vals(P), x(2 * Q);
+  for (double& a : pts) a = u(rng);
+  for (std::size_t i = 0; i < P; ++i) vals[i] = std::sin(5 * pts[2 * i]) * pts[2 * i + 1];
+  for (double& a : x) a = u(rng);
+  InterpolatorOptions o;
+  const Interpolator free = Interpolator::fit(pts, 2, vals, 1, o);
+  const InterpolatorLevel& level = free.levels()[0];
+  ASSERT_EQ(level.solver, Solver::Cg);
+  ASSERT_LE(level.iterations, 60u);  // the Schwarz patches (IC(0) takes hundreds of steps here)
+  const auto entries = std::size_t(std::llround(level.mean_neighbors * double(P)));
+  const double a_bytes = 12.0 * double(entries) + 8.0 * double(P + 1);
+  const double in_place = a_bytes + detail::cg_bytes(entries, P, true, false);
+  const double copied = a_bytes + detail::cg_bytes(entries, P, true, true);
+  ASSERT_GT(copied - in_place, 12.0 * double(entries));
+  o.memory_limit_bytes = 0.5 * (in_place + copied);
+  const Interpolator tight = Interpolator::fit(pts, 2, vals, 1, o);
+  EXPECT_EQ(tight.levels()[0].solver, Solver::Cg);
+  // CG's sums are reduced in parallel, their order left to the threads: equal to rounding, not in
+  // every bit (nor always in the step that reaches the tolerance).
+  EXPECT_NEAR(double(tight.levels()[0].iterations), double(level.iterations), 1.0);
+  std::vector<double> a(Q), b(Q);
+  free.evaluate(x.data(), Q, a.data());
+  tight.evaluate(x.data(), Q, b.data());
+  for (std::size_t q = 0; q < Q; ++q) EXPECT_NEAR(a[q], b[q], 1e-9) << q;
+  // The level keeps its points in the patches' order; evaluated at them, the fit gives the values.
+  std::vector<double> at(P);
+  free.evaluate(pts.data(), P, at.data());
+  for (std::size_t i = 0; i < P; ++i) EXPECT_NEAR(at[i], vals[i], 1e-9) << i;
 }
 
 TEST(Interpolator, RefusesWhatItCannotFit) {
