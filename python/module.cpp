@@ -1,34 +1,29 @@
-// The Python module `csrbf` (pybind11 over numpy): SpaceMap, DisplacementField, mesh, controls,
-// deformation and scene files, and scene evaluation. Points are (n, 3) float64 or float32 arrays;
-// C-contiguous inputs of either type are read in place, without a copy. Fit and evaluation release
-// the GIL. docs/python.md is the tutorial.
-#include "csrbf/anim/scene.hpp"
+// The Python module `csrbf` (pybind11 over numpy): csrbf.Interpolator, SpaceMap, DisplacementField,
+// estimate and suggest_radius, linked against csrbf's core alone. The file readers and writers, the
+// morph and the scenes (module_io.cpp, which links VTK, assimp and CGNS) are a second extension,
+// _csrbf_io, loaded on first use of one of its names: `import csrbf` took 45 ms with them, most of
+// it loading 60 libraries that an interpolation never calls. Points are (n, 3) float64 or float32
+// arrays; C-contiguous inputs of either type are read in place, without a copy. Fit and evaluation
+// release the GIL. docs/python.md is the tutorial.
 #include "csrbf/displacement_field.hpp"
 #include "csrbf/errors.hpp"
 #include "csrbf/estimate.hpp"
 #include "csrbf/names.hpp"
-#include "csrbf/io/controls.hpp"
-#include "csrbf/io/deformation.hpp"
-#include "csrbf/io/mesh.hpp"
-#include "csrbf/io/scene.hpp"
-#ifdef CSRBF_HAVE_MORPH
-#include "csrbf/morph/job.hpp"
-#endif
 #include "csrbf/space_map.hpp"
 #include "csrbf/version.hpp"
 #include "arrays.hpp"
 #include "interpolator_binding.hpp"
+#include "points.hpp"
 
-#include <nlohmann/json.hpp>
 #include <pybind11/numpy.h>
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
-#include <pybind11/stl/filesystem.h>
 
 #include <algorithm>
 #include <atomic>
+#include <charconv>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -40,83 +35,27 @@ using namespace csrbf_python;
 
 namespace {
 
-/// Checks an (n, 3) array of real numbers; `what` names the argument in messages.
-/// obj as a numpy array. What numpy cannot make one of (a ragged list, a list of objects) is a
-/// TypeError naming the argument, its type and length and the first element that is not three
-/// numbers, never the whole value (pybind11 printed every element of a bad list).
-py::array as_array(const py::object& obj, const char* what) {
-  if (py::isinstance<py::array>(obj)) return py::reinterpret_borrow<py::array>(obj);
-  if (py::array a = py::array::ensure(obj)) return a;  // ensure clears numpy's error when it fails
-  std::ostringstream m;
-  m << what << " must be an array of shape (n, 3) of numbers, got a "
-    << py::str(obj.get_type().attr("__name__")).cast<std::string>();
-  if (py::hasattr(obj, "__len__") && py::hasattr(obj, "__iter__")) {
-    m << " of " << py::len(obj) << " elements";
-    std::size_t k = 0;
-    for (const py::handle item : obj) {
-      bool ok = py::hasattr(item, "__len__") && py::len(item) == 3;
-      if (ok)
-        for (const py::handle x : item) ok = ok && (py::isinstance<py::float_>(x) || py::isinstance<py::int_>(x));
-      if (!ok) {
-        std::string shown = py::repr(item).cast<std::string>();
-        if (shown.size() > 60) shown = shown.substr(0, 57) + "...";
-        m << "; element [" << k << "] is " << csrbf::printable(shown) << " ("
-          << py::str(item.get_type().attr("__name__")).cast<std::string>() << ")";
-        break;
-      }
-      ++k;
-    }
-  }
-  throw py::type_error(m.str());
+/// The names the file extension _csrbf_io defines (module_io.cpp), reached as csrbf.NAME.
+constexpr const char* kIoNames[] = {
+    "FileError",        "read_mesh",         "write_mesh",        "read_controls", "read_deformation",
+    "read_active_area", "apply_deformation", "write_deformation", "morph",         "Scene"};
+
+#ifdef CSRBF_HAVE_MORPH
+constexpr bool kHaveMorph = true;
+#else
+constexpr bool kHaveMorph = false;  // csrbf.morph needs csrbf's morph library
+#endif
+bool io_name(const std::string& name) {
+  for (const char* io : kIoNames)
+    if (name == io) return name != "morph" || kHaveMorph;
+  return false;
 }
 
-void check_points(const py::array& a, const char* what, bool allow_empty = true) {
-  if (a.ndim() != 2 || a.shape(1) != 3)
-    throw py::value_error(std::string(what) + " must have shape (n, 3), got " + shape_of(a));
-  if (!allow_empty && a.shape(0) == 0) throw py::value_error(std::string(what) + " is empty");
-  const char kind = a.dtype().kind();
-  if (kind != 'f' && kind != 'i' && kind != 'u')
-    throw py::type_error(std::string(what) + " must hold real numbers (float64 or float32), got dtype " +
-                         std::string(py::str(a.dtype())));
-}
-
-std::vector<Vec3> to_vec3(const py::object& obj, const char* what, bool allow_empty = false) {
-  const py::array a = as_array(obj, what);
-  check_points(a, what, allow_empty);
-  const Dbl d = ensure_array<Dbl>(a, what);
-  const std::size_t n = std::size_t(d.shape(0));
-  check_finite(d.data(), n, 3, what, "points must be finite");
-  std::vector<Vec3> out(n);
-  for (std::size_t i = 0; i < n; ++i) out[i] = Vec3(d.data()[3 * i], d.data()[3 * i + 1], d.data()[3 * i + 2]);
-  return out;
-}
-
-py::array_t<double> from_vec3(const std::vector<Vec3>& v) {
-  py::array_t<double> out({py::ssize_t(v.size()), py::ssize_t(3)});
-  double* p = out.mutable_data();
-  for (std::size_t i = 0; i < v.size(); ++i)
-    for (int c = 0; c < 3; ++c) p[3 * i + std::size_t(c)] = v[i][c];
-  return out;
-}
-
-/// Polygons as a list of lists of vertex indices.
-py::list polygons(const csrbf::PolygonList& list) {
-  py::list out;
-  for (const auto face : list) {
-    py::list f;
-    for (const std::uint32_t v : face) f.append(v);
-    out.append(std::move(f));
-  }
-  return out;
-}
-
-/// The value of an option enum named `text` (any case), or ValueError listing the names.
-template <class E>
-E named(const std::string& text, const char* what) {
-  const auto v = csrbf::parse_name<E>(text);
-  if (!v)
-    throw py::value_error(std::string(what) + " must be one of " + csrbf::names_text<E>() + ", got '" + text + "'");
-  return *v;
+/// The shortest text that reads back as v.
+std::string shortest(double v) {
+  char buf[64];
+  const auto r = std::to_chars(buf, buf + sizeof buf, v);
+  return std::string(buf, r.ptr);
 }
 
 /// The output array of apply_points: `out` when the caller gives one (checked: (n, 3), C-contiguous,
@@ -225,24 +164,15 @@ py::dict stats_dict(const csrbf::SpaceMap& m) {
   return d;
 }
 
-/// A scene and its player together (the player borrows the scene).
-struct ScenePlayer {
-  std::unique_ptr<csrbf::anim::Scene> scene;
-  std::unique_ptr<csrbf::anim::Player> player;
-};
-
 }  // namespace
 
 PYBIND11_MODULE(csrbf, m) {
   m.doc() = "Real-time 3D deformation by compactly supported radial basis functions (Wendland CSRBF)";
   m.attr("__version__") = csrbf::kVersion;
 
-  static py::exception<csrbf::io::FileError> file_error(m, "FileError", PyExc_OSError);
   py::register_exception_translator([](std::exception_ptr p) {
     try {
       if (p) std::rethrow_exception(p);
-    } catch (const csrbf::io::FileError& e) {
-      file_error(e.what());
     } catch (const csrbf::ResourceLimit& e) {
       PyErr_SetString(PyExc_MemoryError, e.what());
     } catch (const csrbf::Error& e) {  // bad input, a failed factorisation
@@ -251,6 +181,29 @@ PYBIND11_MODULE(csrbf, m) {
   });
 
   bind_interpolator(m);
+
+  // PEP 562: csrbf.read_mesh and the other file functions come from _csrbf_io, imported on first use
+  // and then kept in this module's namespace (a second use is a plain attribute).
+  m.def(
+      "__getattr__",
+      [](const std::string& name) -> py::object {
+        if (io_name(name)) {
+          py::object value = py::module_::import("_csrbf_io").attr(name.c_str());
+          py::module_::import("csrbf").attr(name.c_str()) = value;
+          return value;
+        }
+        PyErr_SetString(PyExc_AttributeError, ("module 'csrbf' has no attribute '" + name + "'").c_str());
+        throw py::error_already_set();
+      },
+      py::arg("name"));
+  m.def("__dir__", []() {
+    const py::object self = py::module_::import("csrbf").attr("__dict__");
+    py::list names = py::module_::import("builtins").attr("list")(self.attr("keys")());
+    for (const char* io : kIoNames)
+      if (io_name(io) && !self.contains(io)) names.append(io);
+    names.attr("sort")();
+    return names;
+  });
 
   py::class_<csrbf::SpaceMap>(m, "SpaceMap", R"doc(
 A CSRBF space mapping T(x) = x + phase * d(x), fitted to control points.
@@ -276,12 +229,11 @@ releases the GIL.)doc")
              o.ordering = named<csrbf::Ordering>(ordering, "ordering");
              // GiB, as the command line and csrbf.morph take it (it was bytes here: a value in bytes is refused).
              if (!(memory_limit > 0 && memory_limit <= 1e6))
-               throw py::value_error(
-                   "memory_limit is in GiB, as csrbf's --memory-limit: a number in (0, 1e6], got " +
-                   csrbf::io::format_number(memory_limit) +
-                   (memory_limit > 1e6
-                        ? " (bytes? " + csrbf::io::format_number(memory_limit / double(1ull << 30)) + " GiB)"
-                        : std::string()));
+               throw py::value_error("memory_limit is in GiB, as csrbf's --memory-limit: a number in (0, 1e6], got " +
+                                     shortest(memory_limit) +
+                                     (memory_limit > 1e6
+                                          ? " (bytes? " + shortest(memory_limit / double(1ull << 30)) + " GiB)"
+                                          : std::string()));
              o.memory_limit_bytes = memory_limit * double(1ull << 30);
              py::gil_scoped_release release;
              return csrbf::SpaceMap::fit(s, d, o);
@@ -409,34 +361,13 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
       .def("__len__", &csrbf::DisplacementField<double>::size);
 
   m.def(
-      "read_mesh",
-      [](const std::filesystem::path& path) {
-        const auto mesh = csrbf::io::MeshDocument::load(path);
-        return py::make_tuple(from_vec3(mesh.positions()), polygons(mesh.faces()));
-      },
-      py::arg("path"), "(positions (n, 3), faces as lists of vertex indices) of a mesh file");
-  m.def(
-      "write_mesh",
-      [](const std::filesystem::path& template_path, const py::object& positions, const std::filesystem::path& path) {
-        auto mesh = csrbf::io::MeshDocument::load(template_path);
-        const auto p = to_vec3(positions, "positions");
-        if (p.size() != mesh.positions().size())
-          throw py::value_error("positions has " + std::to_string(p.size()) + " points but " + template_path.string() +
-                                " has " + std::to_string(mesh.positions().size()));
-        mesh.positions() = p;
-        mesh.save(path);
-      },
-      py::arg("template"), py::arg("positions"), py::arg("path"),
-      "Writes the mesh of `template` with new positions to `path` (format by extension, atomically)");
-  m.def(
       "estimate",
       [](const py::object& sources, double radius, const std::string& solver, double memory_limit) {
         const auto s = to_vec3(sources, "sources");
         csrbf::FitOptions o;
         o.solver = named<csrbf::Solver>(solver, "solver");
         if (!(memory_limit > 0 && memory_limit <= 1e6))
-          throw py::value_error("memory_limit is in GiB: a number in (0, 1e6], got " +
-                                csrbf::io::format_number(memory_limit));
+          throw py::value_error("memory_limit is in GiB: a number in (0, 1e6], got " + shortest(memory_limit));
         o.memory_limit_bytes = memory_limit * double(1ull << 30);
         csrbf::FitEstimate e;
         {
@@ -472,360 +403,4 @@ whether it is within memory_limit (GiB). Example: csrbf.estimate(points, 0.05)["
       py::arg("sources"), py::arg("neighbours"),
       R"doc(The radius R at which each of the sources ((n, 3)) has `neighbours` other sources within R on
 average (from a seeded sample of 256). Example: csrbf.SpaceMap(s, d, csrbf.suggest_radius(s, 25)).)doc");
-  m.def(
-      "read_controls",
-      [](const std::filesystem::path& path) {
-        const auto c = csrbf::io::read_controls(path);
-        return py::make_tuple(from_vec3(c.sources), from_vec3(c.destinations));
-      },
-      py::arg("path"), "(sources, destinations) of a controls text file");
-  m.def(
-      "read_deformation",
-      [](const std::filesystem::path& path) {
-        const auto d = csrbf::io::read_deformation(path);
-        py::gil_scoped_release release;
-        return d.fit();
-      },
-      py::arg("path"), "The SpaceMap of a deformation JSON file (without its active area: see apply_deformation)");
-  m.def(
-      "read_active_area",
-      [](const std::filesystem::path& path) -> py::object {
-        const auto d = csrbf::io::read_deformation(path);
-        if (!d.area) return py::none();
-        py::array_t<std::uint32_t> out(py::ssize_t(d.area->vertices.size()));
-        std::copy(d.area->vertices.begin(), d.area->vertices.end(), out.mutable_data());
-        return out;
-      },
-      py::arg("path"),
-      "The active area of a deformation JSON file: the sorted vertex indices it moves, or None for every vertex");
-  m.def(
-      "apply_deformation",
-      [](const std::filesystem::path& path, const py::object& positions, double phase) {
-        csrbf::check_phase(phase);
-        const auto d = csrbf::io::read_deformation(path);
-        auto p = to_vec3(positions, "positions", true);
-        if (d.area) csrbf::io::check_active_area(*d.area, p, path.string(), "positions");  // before the fit
-        {
-          py::gil_scoped_release release;
-          csrbf::io::apply_deformation(d.fit(), d.area, p, phase);
-        }
-        return from_vec3(p);
-      },
-      py::arg("path"), py::arg("positions"), py::arg("phase") = 1.0,
-      "The (n, 3) positions of a mesh's vertices moved as `csrbf deform --deformation` moves them: by the "
-      "deformation file at `phase`, inside its active area only (the mesh must have the area's vertex count)");
-  m.def(
-      "write_deformation",
-      [](const std::filesystem::path& path, const csrbf::SpaceMap& map) {
-        csrbf::io::DeformationSpec d;
-        d.options = csrbf::FitOptions{map.radius(), map.kernel(), map.polynomial()};
-        d.sources.assign(map.sources().begin(), map.sources().end());
-        d.destinations.assign(map.destinations().begin(), map.destinations().end());
-        csrbf::io::write_deformation(path, d);
-      },
-      py::arg("path"), py::arg("map"), "Writes a SpaceMap as a deformation JSON file (atomically)");
-
-#ifdef CSRBF_HAVE_MORPH
-  m.def(
-      "morph",
-      [](const py::object& mesh, const py::object& motion, const std::optional<std::filesystem::path>& output,
-         bool in_place, const py::object& radius, std::optional<std::string> kernel,
-         std::optional<std::string> polynomial, std::optional<double> greedy, double phase, const std::string& solver,
-         bool force, double memory_limit, const std::optional<py::dict>& patches, const py::object& greedy_budget,
-         const py::object& time, const py::object& levels) {
-        namespace mo = csrbf::morph;
-        const auto is_path = [](const py::object& o) {
-          return py::isinstance<py::str>(o) || py::isinstance<py::bytes>(o) || py::hasattr(o, "__fspath__");
-        };
-        mo::MorphJob job;
-        job.in_place = in_place;
-        job.write = output.has_value() || in_place;
-        if (output) job.out = *output;
-        if (py::isinstance<py::str>(radius) && radius.cast<std::string>() == "auto")
-          job.radius_auto = true;
-        else if (!radius.is_none()) {
-          if (py::isinstance<py::bool_>(radius) ||
-              (!py::isinstance<py::float_>(radius) && !py::isinstance<py::int_>(radius) &&
-               !py::hasattr(radius, "__float__")))
-            throw py::type_error("radius must be a number > 0, \"auto\" or None, got " +
-                                 py::repr(radius).cast<std::string>().substr(0, 80));
-          try {
-            job.radius = py::float_(radius).cast<double>();
-          } catch (const py::error_already_set&) {
-            throw py::value_error("radius must be a finite number > 0, got " +
-                                  py::repr(radius).cast<std::string>().substr(0, 80));
-          }
-        }
-        if (kernel) job.kernel = named<csrbf::Kernel>(*kernel, "kernel");
-        if (polynomial) job.polynomial = named<csrbf::Polynomial>(*polynomial, "polynomial");
-        job.greedy = greedy;
-        if (!greedy_budget.is_none()) {
-          if (py::isinstance<py::bool_>(greedy_budget) ||
-              (!py::isinstance<py::float_>(greedy_budget) && !py::isinstance<py::int_>(greedy_budget)))
-            throw py::type_error("greedy_budget must be a number >= 0, got " +
-                                 py::repr(greedy_budget).cast<std::string>().substr(0, 80));
-          if (!greedy) throw py::value_error("greedy_budget: it bounds greedy's rounds, so give greedy= too");
-          job.greedy_budget = greedy_budget.cast<double>();
-        }
-        if (!time.is_none()) {
-          if (!is_path(mesh)) throw py::value_error("time: mesh is an array of points, which has no time folders");
-          if (py::isinstance<py::str>(time))
-            job.time = time.cast<std::string>();
-          else if (!py::isinstance<py::bool_>(time) &&
-                   (py::isinstance<py::int_>(time) || py::isinstance<py::float_>(time)))
-            job.time = py::str(time).cast<std::string>();
-          else
-            throw py::type_error("time must be \"latest\", a time (str or number) or None, got " +
-                                 py::repr(time).cast<std::string>().substr(0, 80));
-          if (job.time.empty()) throw py::value_error("time: '' names no time (\"latest\" or a time such as 0.5)");
-        }
-        // "auto", or an integer 1 or 2 of any integer type (numpy's too, through operator.index).
-        const std::string levels_text = py::repr(levels).cast<std::string>().substr(0, 80);
-        if (py::isinstance<py::str>(levels)) {
-          if (levels.cast<std::string>() != "auto")
-            throw py::value_error("levels must be \"auto\", 1 or 2, got " + levels_text);
-          job.levels = 0;
-        } else {
-          if (py::isinstance<py::bool_>(levels) || !py::hasattr(levels, "__index__"))
-            throw py::type_error("levels must be \"auto\", 1 or 2, got " + levels_text);
-          const py::object v = py::module_::import("operator").attr("index")(levels);
-          if (!v.equal(py::int_(1)) && !v.equal(py::int_(2)))
-            throw py::value_error("levels must be \"auto\", 1 or 2, got " + levels_text);
-          job.levels = v.cast<int>();
-        }
-        job.solver = named<csrbf::Solver>(solver, "solver");
-        job.phase = phase;
-        job.force = force;
-        job.memory_limit_bytes = memory_limit * double(1ull << 30);
-        const bool points_given = !is_path(mesh);
-        // The mesh: a file or case, or points with patches of point indices.
-        mo::VolumeMesh cloud;
-        if (points_given) {
-          if (job.write)
-            throw py::value_error(
-                "output, in_place: mesh is an array of points, which has no file to write; the "
-                "moved points are returned");
-          if (!patches || patches->empty())
-            throw py::value_error("patches: mesh is an array of points, so give patches={name: point indices}");
-          cloud.points = to_vec3(mesh, "mesh");
-          for (const auto& [key, value] : *patches) {
-            mo::Patch p;
-            if (!py::isinstance<py::str>(key))
-              throw py::type_error("patches: its keys are patch names (str), got " +
-                                   py::repr(key).cast<std::string>().substr(0, 80));
-            p.name = key.cast<std::string>();
-            p.boundary = true;
-            const py::array a = py::array::ensure(value);
-            if (!a || a.ndim() != 1 || (a.size() > 0 && a.dtype().kind() != 'i' && a.dtype().kind() != 'u'))
-              throw py::type_error("patches['" + p.name + "'] must be a 1-D array of point indices, got " +
-                                   py::repr(value).cast<std::string>().substr(0, 80));
-            if (a.size() > 0 && a.dtype().kind() == 'u' && a.itemsize() == 8) {
-              const auto big = py::array_t<unsigned long long, py::array::c_style | py::array::forcecast>::ensure(a);
-              for (py::ssize_t k = 0; k < big.size(); ++k)
-                if (big.data()[k] >= cloud.points.size())
-                  throw py::value_error("patches['" + p.name + "'][" + std::to_string(k) + "] is " +
-                                        std::to_string(big.data()[k]) + ": mesh has " +
-                                        std::to_string(cloud.points.size()) + " points");
-            }
-            const auto idx = py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure(a);
-            for (py::ssize_t k = 0; k < idx.size(); ++k) {
-              const long long i = idx.data()[k];
-              if (i < 0 || std::size_t(i) >= cloud.points.size())
-                throw py::value_error("patches['" + p.name + "'][" + std::to_string(k) + "] is " + std::to_string(i) +
-                                      ": mesh has " + std::to_string(cloud.points.size()) + " points");
-              p.points.push_back(std::uint32_t(i));
-            }
-            std::sort(p.points.begin(), p.points.end());
-            p.points.erase(std::unique(p.points.begin(), p.points.end()), p.points.end());
-            cloud.patches.push_back(std::move(p));
-          }
-        } else {
-          if (patches) throw py::value_error("patches: only for a mesh given as an array of points");
-          job.mesh = mesh.cast<std::filesystem::path>();
-        }
-        // The motion: a file, or a dict of the same form (numpy arrays allowed in it).
-        if (is_path(motion)) {
-          job.motion = motion.cast<std::filesystem::path>();
-        } else if (py::isinstance<py::dict>(motion)) {
-          const py::object dumps = py::module_::import("json").attr("dumps");
-          const py::cpp_function plain([](const py::object& o) -> py::object {
-            if (py::hasattr(o, "tolist")) return o.attr("tolist")();
-            throw py::type_error("motion: " + py::repr(o).cast<std::string>().substr(0, 80) + " is not JSON");
-          });
-          std::string text;
-          try {
-            text = dumps(motion, py::arg("default") = plain, py::arg("allow_nan") = false).cast<std::string>();
-          } catch (py::error_already_set& e) {
-            if (!e.matches(PyExc_ValueError)) throw;
-            throw py::value_error(
-                "motion: a number in it is not finite (NaN or infinity): every number of a motion "
-                "must be finite");
-          }
-          nlohmann::json j;
-          try {
-            j = nlohmann::json::parse(text);
-          } catch (const nlohmann::json::exception& e) {
-            throw py::value_error(std::string("motion: not a motion's JSON: ") + e.what());
-          }
-          // Points given: a patch's displacements may be rows (dx, dy, dz), one per index of the patch
-          // as given.
-          if (points_given && j.is_object() && j.contains("patches") && j["patches"].is_object())
-            for (auto& [name, entry] : j["patches"].items()) {
-              if (!entry.is_object() || !entry.contains("displacements") || !entry["displacements"].is_array())
-                continue;
-              auto& rows = entry["displacements"];
-              if (rows.empty() || !rows[0].is_array() || rows[0].size() != 3) continue;
-              const py::str key(name);
-              if (!patches->contains(key))
-                throw py::value_error("motion: patches." + name +
-                                      ".displacements: rows (dx, dy, dz) belong to a "
-                                      "patch given in patches=, and there is no '" +
-                                      name + "'");
-              const auto idx =
-                  py::array_t<long long, py::array::c_style | py::array::forcecast>::ensure((*patches)[key]);
-              if (!idx || std::size_t(idx.size()) != rows.size())
-                throw py::value_error("motion: patches." + name + ".displacements has " + std::to_string(rows.size()) +
-                                      " rows, patches['" + name + "'] " + std::to_string(idx ? idx.size() : 0) +
-                                      " points");
-              for (std::size_t k = 0; k < rows.size(); ++k) {
-                if (!rows[k].is_array() || rows[k].size() != 3)
-                  throw py::value_error("motion: patches." + name + ".displacements[" + std::to_string(k) +
-                                        "] is not a row (dx, dy, dz)");
-                rows[k].insert(rows[k].begin(), std::uint64_t(idx.data()[k]));  // checked >= 0 above
-              }
-            }
-          try {
-            job.motion_given = mo::motion_from_json(j, "motion", std::filesystem::current_path());
-          } catch (const csrbf::io::FileError& e) {
-            throw py::value_error(e.what());
-          }
-          job.motion = "motion (dict)";
-        } else {
-          throw py::type_error("motion must be a motion file's path or a dict of its form, got " +
-                               py::repr(motion).cast<std::string>().substr(0, 80));
-        }
-        mo::MorphOutcome o;
-        if (points_given) {
-          const mo::Motion mot = job.motion_given ? *job.motion_given : mo::read_motion(job.motion);
-          mo::check_job(job);  // the command's checks of the options (radius, phase, greedy, memory)
-          o.mesh = "points";
-          o.motion = job.motion.string();
-          o.format = "points";
-          o.points = cloud.points.size();
-          o.patches = cloud.patches.size();
-          o.options = mo::morph_options(job, mot);
-          try {
-            py::gil_scoped_release release;
-            o.result = mo::morph(cloud, mot, o.options);
-          } catch (const csrbf::io::FileError& e) {
-            throw py::value_error(e.what());
-          }
-        } else {
-          py::gil_scoped_release release;
-          o = mo::run_job(job);
-        }
-        py::object report = py::module_::import("json").attr("loads")(mo::outcome_json(o));
-        if (job.write && o.inverts && !o.written)
-          throw py::value_error(job.mesh.string() + ": the morph inverts " +
-                                std::to_string(o.after.inverted_cells() - o.before.inverted_cells()) +
-                                " cells; the largest phase that inverts none is " + std::to_string(o.safe_phase) +
-                                "; nothing written (force=True writes anyway)");
-        return py::make_tuple(from_vec3(o.result.points), report);
-      },
-      py::arg("mesh"), py::arg("motion"), py::arg("output") = py::none(), py::arg("in_place") = false,
-      py::arg("radius") = py::none(), py::arg("kernel") = py::none(), py::arg("polynomial") = py::none(),
-      py::arg("greedy") = py::none(), py::arg("phase") = 1.0, py::arg("solver") = "auto", py::arg("force") = false,
-      py::arg("memory_limit") = 4.0, py::arg("patches") = py::none(), py::arg("greedy_budget") = py::none(),
-      py::arg("time") = py::none(), py::arg("levels") = "auto",
-      R"doc(Morphs a volume mesh, or a cloud of points, as `csrbf morph` does (docs/morphing.md).
-
-Parameters
-----------
-mesh : str or os.PathLike or array_like (n, 3)
-    An OpenFOAM case folder, a .vtu, .vtk, .msh or .cgns file; or the points themselves, whose
-    boundaries ``patches`` names.
-motion : str or os.PathLike or dict
-    The motion JSON file, or a dict of its form: ``{"radius": 0.5, "patches": {"wall":
-    {"translate": [0, 0.01, 0]}, "far": "fixed"}}``. A patch's ``"displacements"`` may be a file,
-    rows ``[point, dx, dy, dz]``, or (points given) an (k, 3) array, one row per index of
-    ``patches[name]`` in its order. numpy arrays may stand anywhere in the dict.
-output : str or os.PathLike, optional
-    A new case folder or file to write (None: nothing is written).
-in_place : bool
-    Rewrite the input.
-radius : float or "auto", optional
-    Overrides the motion's; "auto" (the default where neither gives one) picks R from the largest
-    displacement, the boundary's spacing and ``memory_limit`` (``report["radius_why"]``).
-kernel, polynomial : str, optional
-    Override the motion's.
-greedy : float, optional
-    The greedy tolerance.
-greedy_budget : float, optional
-    With greedy: its rounds' budget, a share of the plain fit and evaluation (default 0.2); past
-    it every control is fitted (``report["greedy_stopped"]``).
-levels : "auto" or int
-    The fit's levels, as ``--levels``: 1, every control at R; 2, a coarse fit at R of controls R/4
-    apart, then what it leaves at every control at about 1.75 x the boundary's spacing
-    (``report["two_levels"]``); "auto", two where one level would pass its memory budget, or is
-    predicted to take 10 s or more and 4 times as long (``report["levels_why"]``).
-time : str or float, optional
-    OpenFOAM: the time whose mesh is morphed, ``"latest"`` or a time such as ``0.5``, as
-    ``-time``; the moved points are written into that time's folder.
-patches : dict of str to array_like of int, optional
-    With points: each patch's point indices.
-
-Returns
--------
-points : ndarray (n, 3)
-    The moved points.
-report : dict
-    The report of ``csrbf morph --json``: with a mesh, the quality before and after.
-
-A morph that inverts cells writes nothing and raises ValueError, unless force=True; without an
-output it only reports them (``report["safe_phase"]``). Bad arguments raise ValueError or
-TypeError naming them; a bad file raises csrbf.FileError.
-
-Examples
---------
->>> import numpy as np, csrbf
->>> g = np.stack(np.meshgrid(*[np.linspace(0, 1, 11)] * 3, indexing="ij"), -1).reshape(-1, 3)
->>> bottom, top = np.flatnonzero(g[:, 2] == 0), np.flatnonzero(g[:, 2] == 1)
->>> moved, report = csrbf.morph(g, {"radius": 0.5, "patches": {"bottom": {"translate": [0, 0, 0.05]},
-...                                 "top": "fixed"}}, patches={"bottom": bottom, "top": top})
->>> float(moved[bottom, 2].max()), bool((moved[top] == g[top]).all())
-(0.05, True)
-)doc");
-#endif
-
-  py::class_<ScenePlayer>(m, "Scene", "An animation scene file (docs/scene-format.md), evaluated at any time")
-      .def(py::init([](const std::filesystem::path& path) {
-             auto sp = std::make_unique<ScenePlayer>();
-             sp->scene = std::make_unique<csrbf::anim::Scene>(csrbf::io::read_scene(path));
-             sp->player = std::make_unique<csrbf::anim::Player>(*sp->scene);
-             return sp;
-           }),
-           py::arg("path"))
-      .def_property_readonly("duration", [](const ScenePlayer& s) { return s.scene->duration; })
-      .def_property_readonly("fps", [](const ScenePlayer& s) { return s.scene->fps; })
-      .def_property_readonly("objects",
-                             [](const ScenePlayer& s) {
-                               std::vector<std::string> names;
-                               for (const auto& o : s.scene->objects) names.push_back(o.name);
-                               return names;
-                             })
-      .def(
-          "positions",
-          [](ScenePlayer& s, double t) {
-            {
-              py::gil_scoped_release release;
-              s.player->evaluate(t);
-            }
-            py::list out;
-            for (std::size_t o = 0; o < s.scene->objects.size(); ++o) out.append(from_vec3(s.player->positions(o)));
-            return out;
-          },
-          py::arg("t"), "World positions of every object's vertices at time t: a list of (n, 3) arrays")
-      .def(
-          "faces", [](const ScenePlayer& s, std::size_t o) { return polygons(s.scene->objects.at(o).faces); },
-          py::arg("object"));
 }

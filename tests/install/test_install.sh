@@ -31,6 +31,18 @@ done
 module=$(find "$tmp/prefix/lib" -name 'csrbf*.so' -path '*dist-packages*' | head -n1)
 test -n "$module" || { echo "missing the Python module under lib/python3.*/dist-packages"; exit 1; }
 PYTHONPATH=$(dirname "$module") "$python" -c "import csrbf, numpy as np; m = csrbf.SpaceMap(np.eye(3), np.eye(3) + 0.1, 2.0); assert abs(m(np.eye(3))[0, 0] - 1.1) < 1e-12"
+# The file functions are a second extension (_csrbf_io), installed beside csrbf and loaded on first use.
+printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' > "$tmp/tri.obj"
+PYTHONPATH=$(dirname "$module") "$python" -c "
+import sys, csrbf
+assert '_csrbf_io' not in sys.modules
+p, f = csrbf.read_mesh(sys.argv[1])
+assert p.shape == (3, 3) and f == [[0, 1, 2]], (p, f)
+try:
+    csrbf.read_mesh(sys.argv[1] + '.missing.obj')
+    raise SystemExit('no FileError')
+except csrbf.FileError:
+    pass" "$tmp/tri.obj"
 vtkpkg=$(dirname "$module")/csrbf_vtk
 if [ -f "$vtkpkg/__init__.py" ]; then
   PYTHONPATH=$(dirname "$module") "$python" -c "import vtk; from csrbf_vtk import vtkCSRBFTransform; t = vtkCSRBFTransform(); t.SetRadius(2.0); assert t.GetRadius() == 2.0"
@@ -65,7 +77,7 @@ wheel=$(ls -t "$build"/dist/csrbf-*.whl 2> /dev/null | head -n1)
 "$python" -m venv --system-site-packages "$tmp/venv"
 (cd "$tmp" && PYTHONPATH= PIP_ROOT_USER_ACTION=ignore "$tmp/venv/bin/python" -m pip install --disable-pip-version-check \
   --no-index --quiet "$wheel")
-(cd "$tmp" && PYTHONPATH= "$tmp/venv/bin/python" - <<'PY'
+(cd "$tmp" && PYTHONPATH= TMPDIR_TEST="$tmp" "$tmp/venv/bin/python" - <<'PY'
 import multiprocessing, os, pickle, site
 import numpy as np
 import csrbf
@@ -77,6 +89,8 @@ t = pickle.loads(pickle.dumps(s))
 with multiprocessing.Pool(2) as pool:
     got = pool.map(t, [xy[:10], xy[10:20]])
 assert np.allclose(np.concatenate(got), np.sin(4 * xy[:20, 0]), atol=1e-9)
+points, faces = csrbf.read_mesh(os.path.join(os.environ["TMPDIR_TEST"], "tri.obj"))  # _csrbf_io, from the wheel
+assert points.shape == (3, 3) and faces == [[0, 1, 2]]
 print("wheel", csrbf.__version__, "in a venv:", repr(s))
 PY
 )

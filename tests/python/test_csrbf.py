@@ -7,6 +7,7 @@ import json
 import os
 import shutil
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -68,6 +69,27 @@ class SameAsTheCommandLine(unittest.TestCase):
         out = subprocess.run([CLI, "--version"], check=True, capture_output=True, text=True).stdout.strip()
         self.assertEqual(out, "csrbf " + csrbf.__version__)
         self.assertRegex(csrbf.__version__, r"^\d+\.\d+\.\d+$")
+
+    def test_import_loads_the_file_libraries_on_first_use(self):
+        # `import csrbf` is the core alone; the file functions' extension (_csrbf_io, with VTK, assimp
+        # and CGNS) is loaded by the first use of one of its names, and then stays.
+        code = """
+import sys, csrbf
+maps = lambda: open("/proc/self/maps").read()
+assert "_csrbf_io" not in sys.modules and "libvtk" not in maps() and "libassimp" not in maps(), maps()
+assert "read_mesh" in dir(csrbf) and "Scene" in dir(csrbf)
+read = csrbf.read_mesh
+assert "_csrbf_io" in sys.modules and "libvtk" in maps()
+assert csrbf.read_mesh is read and csrbf.FileError.__module__ == "csrbf" and issubclass(csrbf.FileError, OSError)
+try:
+    csrbf.not_a_name
+except AttributeError as e:
+    assert "module 'csrbf' has no attribute 'not_a_name'" in str(e), e
+else:
+    raise AssertionError("no AttributeError")
+"""
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
 
     def test_deformation_file_round_trip(self):
         s, d = csrbf.read_controls(os.path.join(EXAMPLES, "face.controls"))
