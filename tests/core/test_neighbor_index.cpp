@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <random>
 
 using csrbf::InvalidInput;
@@ -36,6 +38,30 @@ TEST(NeighborIndex, MatchesBruteForceOnRandomSets) {
       const auto queries = random_points(300, seed + 100, 1.3);
       for (const auto& q : queries) ASSERT_EQ(index.query(q), brute_force(pts, q, r)) << "seed " << seed << " r " << r;
       for (std::size_t i = 0; i < pts.size(); i += 7) ASSERT_EQ(index.query(pts[i]), brute_force(pts, pts[i], r));
+    }
+  }
+}
+
+// The points sorted by cell (z, then y, then x), by index within a cell: by a counting sort where
+// the box holds few cells for its points (r = 0.2: 1e3 cells for 800 points), by a comparison sort
+// where it holds many (r = 0.05: 6.4e4), the same order either way.
+TEST(NeighborIndex, PointsAreSortedByCellThenIndex) {
+  const auto pts = random_points(800, 5);
+  for (double r : {0.05, 0.2, 3.0}) {
+    const NeighborIndex index(pts, r);
+    Vec3 lo = pts[0];
+    for (const Vec3& p : pts) lo = lo.cwiseMin(p);
+    std::vector<std::array<long, 4>> expected;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const Vec3 c = ((pts[i] - lo) / r).array().floor();
+      expected.push_back({long(c.z()), long(c.y()), long(c.x()), long(i)});
+    }
+    std::sort(expected.begin(), expected.end());
+    const auto ids = index.sorted_ids();
+    ASSERT_EQ(ids.size(), pts.size());
+    for (std::size_t k = 0; k < pts.size(); ++k) {
+      ASSERT_EQ(long(ids[k]), expected[k][3]) << "r " << r << " slot " << k;
+      ASSERT_EQ(index.point(k), pts[ids[k]]);
     }
   }
 }
