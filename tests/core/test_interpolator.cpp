@@ -136,6 +136,23 @@ TEST(Interpolator, AutomaticRadiusOnClusteredPointsIsTheBruteForceOne) {
     EXPECT_DOUBLE_EQ(s.levels()[0].radius, std::sqrt(d2[need - 1]) * (1 + 1e-9)) << neighbors;
     EXPECT_NEAR(s.levels()[0].mean_neighbors, neighbors, 0.01 * neighbors) << neighbors;
   }
+  // 3-D points in a slab 1e-7 thick: the guess from the box's volume is a radius of 3e-4 of its
+  // side, more cells than a grid of the points may hold (NeighborIndex searches them), and the
+  // guess doubles until the points have enough neighbours, on a grid of few cells by then.
+  std::vector<double> slab;
+  for (std::size_t i = 0; i < P; ++i) slab.insert(slab.end(), {u(rng), u(rng), 1e-7 * u(rng)});
+  std::vector<double> d2;
+  for (std::size_t i = 0; i < P; ++i)
+    for (std::size_t j = 0; j < P; ++j)
+      if (i != j)
+        d2.push_back(std::pow(slab[3 * i] - slab[3 * j], 2) + std::pow(slab[3 * i + 1] - slab[3 * j + 1], 2) +
+                     std::pow(slab[3 * i + 2] - slab[3 * j + 2], 2));
+  const auto need = std::size_t(std::ceil(20.0 * double(P)));
+  std::nth_element(d2.begin(), d2.begin() + std::ptrdiff_t(need - 1), d2.end());
+  InterpolatorOptions o;
+  o.neighbors = 20;
+  const Interpolator s = Interpolator::fit(slab, 3, std::vector<double>(P, 1.0), 1, o);
+  EXPECT_NEAR(s.levels()[0].radius, std::sqrt(d2[need - 1]) * (1 + 1e-9), 1e-12);
 }
 
 // Many scattered 2-D points: their level is sorted into the Schwarz patches' order before A is
