@@ -326,7 +326,7 @@ struct FitPhases {
       }
       st.cg_rows = rows;
       detail::CgPreconditioner preconditioner;
-      if (st.cg_schwarz) preconditioner.points = st.sources;
+      if (st.cg_schwarz) preconditioner.points = st.sources;  // borrowed: st outlives st.sparse
       st.sparse = detail::conjugate_gradients(st.a, std::move(rows), kCgTolerance, kCgMaxIterations, std::move(probe),
                                               std::move(preconditioner));
       stats.seconds_assembly += seconds_since(t0);

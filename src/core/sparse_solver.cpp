@@ -73,12 +73,13 @@ double schwarz_share(std::size_t entries, std::size_t n) { return 12.0 * double(
 
 double cg_bytes(std::size_t entries, std::size_t n, bool schwarz, bool copy) {
   // Rows (8-byte offsets), columns (4 bytes) and values (8) where A is copied into CG's order, its
-  // order (4 bytes a row); x, r, p, q and
-  // z of up to 8 right-hand sides; the incomplete Cholesky factor (half the entries, in case a solve
-  // turns to it), or with `schwarz` the larger of it and the Schwarz patches' share, and its copy of
-  // the points (24 bytes each); the residual histories of the stagnation check and the probe.
+  // order (4 bytes a row); x, r, p, q and z of up to 8 right-hand sides; the incomplete Cholesky
+  // factor (half the entries, in case a solve turns to it), or with `schwarz` the larger of it and
+  // the Schwarz patches' share, and its copy of the points (24 bytes each) where it copies A; the
+  // residual histories of the stagnation check and the probe.
   return (copy ? 12.0 * double(entries) + 8.0 * double(n + 1) : 0.0) + 4.0 * double(n + 1) + 5.0 * 8 * 8 * double(n) +
-         (schwarz ? std::max(schwarz_share(entries, n), IncompleteCholesky::bytes(entries / 2, n)) + 24.0 * double(n)
+         (schwarz ? std::max(schwarz_share(entries, n), IncompleteCholesky::bytes(entries / 2, n)) +
+                        (copy ? 24.0 * double(n) : 0.0)
                   : IncompleteCholesky::bytes(entries / 2, n)) +
          (8.0 + 128.0) * double(std::min<std::size_t>(kCgMaxIterations, 1u << 20));
 }
@@ -339,9 +340,17 @@ class BatchedCg final : public SparseFactor {
     const std::size_t n = a.size();
     std::vector<std::uint32_t> position(n);
     for (std::size_t k = 0; k < n; ++k) position[order_[k]] = std::uint32_t(k);
+    bool identity = true;
+    for (std::size_t k = 0; k < n && identity; ++k) identity = order_[k] == k;
     if (!preconditioner.points.empty()) {
-      points_.resize(n);
-      for (std::size_t k = 0; k < n; ++k) points_[k] = preconditioner.points[order_[k]];
+      // The points in CG's order: the caller's where that is their order, else a copy.
+      if (identity) {
+        points_ = preconditioner.points;
+      } else {
+        own_points_.resize(n);
+        for (std::size_t k = 0; k < n; ++k) own_points_[k] = preconditioner.points[order_[k]];
+        points_ = own_points_;
+      }
       radius_ = a.radius();
     }
     diagonal_ = a.diagonal();
@@ -349,8 +358,6 @@ class BatchedCg final : public SparseFactor {
       row_diagonal_.resize(n);
       for (std::size_t k = 0; k < n; ++k) row_diagonal_[k] = a.diagonal(order_[k]);
     }
-    bool identity = true;
-    for (std::size_t k = 0; k < n && identity; ++k) identity = order_[k] == k;
     if (identity) {
       // A's rows are already in CG's order (the interpolator's points, sorted into the Schwarz
       // patches' order before their graph was built): read in place, not copied (1e5 points in 2-D
@@ -408,6 +415,8 @@ class BatchedCg final : public SparseFactor {
     decltype(own_row_)().swap(own_row_);
     decltype(own_col_)().swap(own_col_);
     decltype(own_val_)().swap(own_val_);
+    points_ = {};
+    decltype(own_points_)().swap(own_points_);
     ic_.reset();
     schwarz_.reset();
   }
@@ -676,7 +685,8 @@ class BatchedCg final : public SparseFactor {
 
   mutable std::optional<IncompleteCholesky> ic_;          // CG's preconditioner, once a solve needed it
   mutable std::optional<SchwarzPreconditioner> schwarz_;  // or this one, where points_ are given
-  std::vector<Vec3> points_;                              // the sources in `order` (Schwarz's patches)
+  std::span<const Vec3> points_;  // the sources in `order` (Schwarz's patches): the caller's, or own_points_
+  std::vector<Vec3> own_points_;
   double radius_ = 1.0;
   double diagonal_ = 1.0, tolerance_;
   std::vector<double> row_diagonal_;  // in `order`, where A's diagonal is not constant

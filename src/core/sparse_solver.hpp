@@ -59,7 +59,8 @@ inline constexpr double kBlasAddressSpace = 192.0 * (1 << 20);
 /// diagonal, for N rows.
 double envelope_factor_bytes(double off_diagonal, std::size_t n);
 /// Bytes conjugate gradients hold beside A for `entries` off-diagonal entries of N rows; with
-/// `schwarz`, room for the Schwarz preconditioner (schwarz_share) and its copy of the points.
+/// `schwarz`, room for the Schwarz preconditioner (schwarz_share); with `copy` (CG's order is not
+/// A's), A's rows and the points copied into CG's order.
 double cg_bytes(std::size_t entries, std::size_t n, bool schwarz = false, bool copy = true);
 /// The bytes CG sets aside for a Schwarz preconditioner (schwarz.hpp) of A with `entries`
 /// off-diagonal entries of N rows: 12 a matrix entry and 320 a row. Measured: 2-D points at 40
@@ -114,9 +115,10 @@ struct CgProbe {
 
 /// CG's preconditioner where a solve needs one: the incomplete Cholesky (no points), or additive
 /// Schwarz over patches of `points` (the sources, input order; schwarz.hpp), which the incomplete
-/// Cholesky replaces where the patches would take more than schwarz_share.
+/// Cholesky replaces where the patches would take more than schwarz_share. The points are borrowed:
+/// they must outlive the solver (SpaceMap::Structure holds both).
 struct CgPreconditioner {
-  std::vector<Vec3> points;
+  std::span<const Vec3> points;
 };
 
 /// Conjugate gradients on A, the right-hand sides of a solve together: one parallel pass over A a
