@@ -124,7 +124,8 @@ struct CgPreconditioner {
 /// Conjugate gradients on A, the right-hand sides of a solve together: one parallel pass over A a
 /// step serves all of them (a block of independent recurrences, not a block-Krylov method). A's
 /// diagonal is phi(0) everywhere, so Jacobi preconditioning would change nothing. Rows are stored in
-/// `order` (a bandwidth-reducing ordering of the sources) for locality. Stops at a relative residual
+/// `order` (a bandwidth-reducing ordering of the sources) for locality: a copy of A's rows, or A's
+/// own where `order` is the identity (A must then outlive the solver). Stops at a relative residual
 /// of `tolerance` per column; throws CgStagnated after `max_iterations`, or as soon as the worst
 /// column's smallest relative residual has not fallen 10x in the last kCgStagnationWindow steps.
 std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
