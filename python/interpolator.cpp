@@ -407,6 +407,11 @@ PyInterpolator make(const py::args& args, const py::kwargs& kwargs) {
     o.neighbors = number_of(neighbors, "neighbors", "a positive number");
     if (!(o.neighbors > 0) || !std::isfinite(o.neighbors))
       throw py::value_error("neighbors must be a positive number, got " + py::repr(neighbors).cast<std::string>());
+    // neighbors chooses the automatic radius: beside a given radius it would be ignored.
+    if (!s.radius_auto)
+      throw py::value_error("neighbors=" + py::repr(neighbors).cast<std::string>() +
+                            " chooses the automatic radius, but radius=" + shortest(o.radius) +
+                            " is given: give one of them (radius='auto' with neighbors)");
   }
   std::string method;
   if (const py::object m = get("method"); !m.is_none()) {
@@ -558,7 +563,8 @@ radius : float or 'auto', optional
 kernel : {'c0', 'c2', 'c4', 'c6'}, optional
     The Wendland function (smoothness C0 to C6). Default 'c2'.
 degree : {-1, 0, 1}, optional
-    The polynomial: -1 none (default; strictly local: s = 0 farther than R from every point),
+    The polynomial: -1 none (default; strictly local: s = 0 farther than R from every point, or
+    with several levels farther than the coarsest level's radius from every point of that level),
     0 a constant, 1 linear (as SciPy's thin-plate spline: data with an offset or a trend, and
     points evaluated between sparse data, want 1). None is the default.
 smoothing : float or array_like of shape (P,), optional

@@ -23,7 +23,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <charconv>
 #include <cmath>
 #include <memory>
 #include <optional>
@@ -49,13 +48,6 @@ bool io_name(const std::string& name) {
   for (const char* io : kIoNames)
     if (name == io) return name != "morph" || kHaveMorph;
   return false;
-}
-
-/// The shortest text that reads back as v.
-std::string shortest(double v) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
 }
 
 /// The output array of apply_points: `out` when the caller gives one (checked: (n, 3), C-contiguous,

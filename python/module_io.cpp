@@ -443,5 +443,11 @@ Examples
       .def(
           "faces", [](const ScenePlayer& s, std::size_t o) { return polygons(s.scene->objects.at(o).faces); },
           py::arg("object"));
-  m.attr("Scene").attr("__module__") = "csrbf";
+  // Named as users reach them (help(csrbf.read_mesh) says "in module csrbf", as pickle looks them up).
+  for (const char* name : {"read_mesh", "write_mesh", "read_controls", "read_deformation", "read_active_area",
+                           "apply_deformation", "write_deformation", "Scene"})
+    m.attr(name).attr("__module__") = "csrbf";
+#ifdef CSRBF_HAVE_MORPH
+  m.attr("morph").attr("__module__") = "csrbf";
+#endif
 }

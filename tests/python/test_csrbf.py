@@ -81,6 +81,7 @@ assert "read_mesh" in dir(csrbf) and "Scene" in dir(csrbf)
 read = csrbf.read_mesh
 assert "_csrbf_io" in sys.modules and "libvtk" in maps()
 assert csrbf.read_mesh is read and csrbf.FileError.__module__ == "csrbf" and issubclass(csrbf.FileError, OSError)
+assert read.__module__ == "csrbf" and csrbf.Scene.__module__ == "csrbf", (read.__module__, csrbf.Scene.__module__)
 try:
     csrbf.not_a_name
 except AttributeError as e:

@@ -368,6 +368,8 @@ class PythonHabits(unittest.TestCase):
             (dict(points=pts, values=np.ones((100, 0))), ValueError, r"values has no value a point"),
             (dict(points=pts, values=np.ones(100), memory_limit=0), ValueError, r"memory_limit is in GiB.*got 0"),
             (dict(points=pts, values=np.ones(100), threads=0), ValueError, r"threads must be a positive"),
+            (dict(points=pts, values=np.ones(100), radius=0.5, neighbors=10), ValueError,
+             r"neighbors=10 chooses the automatic radius, but radius=0\.5 is given"),
         ]
         for kwargs, error, pattern in cases:
             with self.assertRaisesRegex(error, pattern, msg=str(pattern)):
