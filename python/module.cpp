@@ -180,7 +180,20 @@ PYBIND11_MODULE(csrbf, m) {
       "__getattr__",
       [](const std::string& name) -> py::object {
         if (io_name(name)) {
-          py::object value = py::module_::import("_csrbf_io").attr(name.c_str());
+          py::object io;
+          try {
+            io = py::module_::import("_csrbf_io");
+          } catch (py::error_already_set& e) {
+            // An AttributeError (hasattr is then False), naming what could not be loaded.
+            const std::string why = py::str(e.value()).cast<std::string>();
+            PyErr_SetString(PyExc_AttributeError, ("csrbf." + name +
+                                                   " is in csrbf's file extension _csrbf_io, which could not be "
+                                                   "loaded: " +
+                                                   why)
+                                                      .c_str());
+            throw py::error_already_set();
+          }
+          py::object value = io.attr(name.c_str());
           py::module_::import("csrbf").attr(name.c_str()) = value;
           return value;
         }
@@ -395,4 +408,14 @@ whether it is within memory_limit (GiB). Example: csrbf.estimate(points, 0.05)["
       py::arg("sources"), py::arg("neighbours"),
       R"doc(The radius R at which each of the sources ((n, 3)) has `neighbours` other sources within R on
 average (from a seeded sample of 256). Example: csrbf.SpaceMap(s, d, csrbf.suggest_radius(s, 25)).)doc");
+  // `from csrbf import *` takes the file functions too (through __getattr__, as any other use).
+  py::list all;
+  for (const auto& item : m.attr("__dict__").cast<py::dict>()) {
+    const std::string name = py::str(item.first).cast<std::string>();
+    if (!name.empty() && name[0] != '_') all.append(name);
+  }
+  for (const char* io : kIoNames)
+    if (io_name(io)) all.append(io);
+  all.attr("sort")();
+  m.attr("__all__") = all;
 }

@@ -196,10 +196,12 @@ struct FitPhases {
     if (solver == Solver::Cholmod && !cholmod_available())
       throw InvalidInput("solver 'cholmod': " + detail::cholmod_load_error() + "; use 'envelope' or 'eigen'");
     st.cg_in_place = st.schwarz_sorted;
+    st.schwarz_bytes = 0;
     if (st.cg_schwarz && (solver == Solver::Auto || solver == Solver::Cg) && st.dims >= 2 &&
         n >= detail::kSchwarzOnlyPoints &&
-        2.0 * double(stats.neighbor_pairs) >= detail::kSchwarzOnlyNeighbors * double(n) &&
-        st.cg_total_bytes() <= options.memory_limit_bytes) {
+        2.0 * double(stats.neighbor_pairs) >= detail::kSchwarzOnlyNeighbors * double(n))
+      st.schwarz_bytes = st.cg_total_bytes();  // what the Schwarz path would hold, A in place where sorted
+    if (st.schwarz_bytes > 0 && st.schwarz_bytes <= options.memory_limit_bytes) {
       // csrbf::Interpolator's scattered points in 2-D or 3-D, many and well connected: the envelope
       // cannot win (RCM's envelope work is above kEnvelopeWorkLimit there: 1.5e8 at 2e4 planar points
       // with 6 neighbours, 2.2e9 with 40; test_schwarz.cpp checks it), so RCM and the envelope's
@@ -319,9 +321,13 @@ struct FitPhases {
         std::ostringstream os;
         os.precision(3);
         os << "conjugate gradients would hold " << gib(bytes) << " for A's " << st.a.values().size() + n
-           << " entries, their copy in CG's order and their vectors, above the limit of "
-           << gib(options.memory_limit_bytes)
-           << " (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius";
+           << (st.cg_in_place ? " entries (read in place)" : " entries, their copy in CG's order")
+           << " and their vectors, above the limit of " << gib(options.memory_limit_bytes)
+           << " (FitOptions::memory_limit_bytes, `--memory-limit`)";
+        // The interpolator's sorted points: the Schwarz path, refused for its bytes alone, needs less.
+        if (!st.cg_in_place && st.schwarz_bytes > 0 && st.schwarz_bytes < bytes)
+          os << "; with the Schwarz patches, which read A in place, " << gib(st.schwarz_bytes);
+        os << ". Use a smaller radius";
         throw ResourceLimit(os.str());
       }
       st.cg_rows = rows;

@@ -70,6 +70,7 @@ struct SpaceMap::Structure {
   /// then the identity and it reads A in place (cg_in_place) instead of copying A's rows.
   bool schwarz_sorted = false;
   bool cg_in_place = false;
+  double schwarz_bytes = 0;  // what CG with the Schwarz patches would hold, where they apply (0: they do not)
   /// A and what CG holds beside it (its rows where it copies them, vectors and preconditioner;
   /// Schwarz's copy of the sources): what a fit by CG holds.
   double cg_total_bytes() const {

@@ -438,7 +438,8 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
     try {
       st = detail::fit_structure(pts, fo, shift, dim, sorted);
     } catch (const DuplicateSource& e) {
-      const std::size_t a = member[e.first()], b = member[e.second()];
+      const std::size_t a = std::min(member[e.first()], member[e.second()]),
+                        b = std::max(member[e.first()], member[e.second()]);  // sorted levels: any order
       std::ostringstream os;
       os << "points " << a << " and " << b << " are at the same position (";
       for (int d = 0; d < dim; ++d) os << (d ? ", " : "") << all[a][d];

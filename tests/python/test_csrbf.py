@@ -91,6 +91,25 @@ else:
 """
         r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
         self.assertEqual(r.returncode, 0, r.stderr)
+        # `from csrbf import *` brings the file functions (csrbf.__all__ names them).
+        code = "from csrbf import *\nassert callable(read_mesh) and issubclass(FileError, OSError) and Interpolator"
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        # Where the file extension cannot be loaded, its names are missing attributes that say why;
+        # the rest of csrbf works.
+        code = """
+import sys
+sys.modules["_csrbf_io"] = None
+import csrbf, numpy as np
+assert not hasattr(csrbf, "read_mesh")
+try:
+    csrbf.read_mesh
+except AttributeError as e:
+    assert "csrbf.read_mesh is in csrbf's file extension _csrbf_io, which could not be loaded" in str(e), e
+assert csrbf.Interpolator(np.eye(3)[:, :2], np.ones(3), radius=2.0)(np.zeros(2)) > 0
+"""
+        r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        self.assertEqual(r.returncode, 0, r.stderr)
 
     def test_deformation_file_round_trip(self):
         s, d = csrbf.read_controls(os.path.join(EXAMPLES, "face.controls"))

@@ -8,6 +8,7 @@ import ast
 import multiprocessing
 import os
 import pickle
+import re
 import subprocess
 import sys
 import threading
@@ -312,6 +313,21 @@ class PythonHabits(unittest.TestCase):
         s = csrbf.Interpolator(x, f, memory_limit=0.1)
         self.assertEqual(s.stats["solver"], "envelope")
         self.assertLess(np.abs(s(x[::50]) - f[::50]).max(), 1e-9)
+
+    def test_memory_refusal_names_what_the_schwarz_patches_need(self):
+        # 3e4 scattered points: CG with the Schwarz patches reads A in place, a copy of A's rows is the
+        # other path's. Under a limit between the two, the refusal says what the patches would need,
+        # and that limit fits.
+        x = np.random.default_rng(6).random((30000, 2))
+        f = np.sin(5 * x[:, 0])
+        with self.assertRaisesRegex(MemoryError, r"their copy in CG's order.*with the Schwarz patches, which read A in place, ([0-9.]+) GiB") as cm:
+            csrbf.Interpolator(x, f, memory_limit=0.044)
+        need = float(re.search(r"read A in place, ([0-9.]+) GiB", str(cm.exception)).group(1))
+        copied = float(re.search(r"would hold ([0-9.]+) GiB", str(cm.exception)).group(1))
+        self.assertLess(need, 0.8 * copied)
+        s = csrbf.Interpolator(x, f, memory_limit=need + 1e-3)
+        self.assertEqual(s.stats["solver"], "cg")
+        self.assertLess(s.stats["levels"][0]["iterations"], 60)
 
     def test_threads_give_the_same_result(self):
         one = csrbf.Interpolator(self.pts, self.vals, radius=0.15, degree=0, threads=1)
