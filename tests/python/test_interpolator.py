@@ -314,6 +314,22 @@ class PythonHabits(unittest.TestCase):
         self.assertEqual(s.stats["solver"], "envelope")
         self.assertLess(np.abs(s(x[::50]) - f[::50]).max(), 1e-9)
 
+    def test_points_on_a_line_that_the_envelope_refuses(self):
+        # 5e4 random points in 1-D at the defaults: close pairs make A nearly singular, and the envelope
+        # solver Auto picks refuses a pivot of 1e-14. The general direct solver takes over and fits
+        # the values to 1e-9, as CG and a solver asked for by name do.
+        x = np.random.default_rng(0).random((50000, 1))
+        f = np.sin(6 * x[:, 0])
+        with self.assertRaisesRegex(ValueError, r"not positive definite"):
+            csrbf.Interpolator(x, f, solver="envelope")
+        s = csrbf.Interpolator(x, f)
+        self.assertIn(s.stats["solver"], ("cholmod", "eigen"))
+        self.assertLess(np.abs(s(x) - f).max(), 1e-9)
+        cg = csrbf.Interpolator(x, f, solver="cg")
+        probe = np.random.default_rng(1).random((1000, 1))
+        # Between the closest pairs the system's condition (about 1e14) leaves the two solutions 1e-5 apart.
+        self.assertLess(np.abs(s(probe) - cg(probe)).max(), 1e-4)
+
     def test_memory_refusal_names_what_the_schwarz_patches_need(self):
         # 3e4 scattered points: CG with the Schwarz patches reads A in place, a copy of A's rows is the
         # other path's. Under a limit between the two, the refusal says what the patches would need,
