@@ -57,7 +57,6 @@ PYBIND11_MODULE(_csrbf_io, m) {
   // csrbf registers SpaceMap (read_deformation returns one) and the translation of its errors.
   py::module_::import("csrbf");
   static py::exception<csrbf::io::FileError> file_error(m, "FileError", PyExc_OSError);
-  file_error.attr("__module__") = "csrbf";
   // Tried before csrbf's own translator (registered later): a bad file is csrbf.FileError, an OSError.
   py::register_exception_translator([](std::exception_ptr p) {
     try {
@@ -444,10 +443,8 @@ Examples
           "faces", [](const ScenePlayer& s, std::size_t o) { return polygons(s.scene->objects.at(o).faces); },
           py::arg("object"));
   // Named as users reach them (help(csrbf.read_mesh) says "in module csrbf", as pickle looks them up).
-  for (const char* name : {"read_mesh", "write_mesh", "read_controls", "read_deformation", "read_active_area",
-                           "apply_deformation", "write_deformation", "Scene"})
-    m.attr(name).attr("__module__") = "csrbf";
-#ifdef CSRBF_HAVE_MORPH
-  m.attr("morph").attr("__module__") = "csrbf";
-#endif
+  for (const auto& item : m.attr("__dict__").cast<py::dict>()) {
+    const std::string name = py::str(item.first).cast<std::string>();
+    if (!name.empty() && name[0] != '_') py::reinterpret_borrow<py::object>(item.second).attr("__module__") = "csrbf";
+  }
 }

@@ -156,10 +156,6 @@ double auto_radius(std::span<const Vec3> pts, int dim, double neighbors) {
   std::vector<double> d2;
   d2.reserve(2 * need);
   const auto smallest = [&] { std::nth_element(d2.begin(), d2.begin() + std::ptrdiff_t(need - 1), d2.end()); };
-  // The points' cells of side r, where the box holds few of them for its points: a counting sort
-  // of the points' indices by cell (0.8 MB at 1e5 points, where NeighborIndex copies the points:
-  // 5 MB of fresh pages, which cost more here than the search).
-  std::vector<std::uint32_t> start, sorted, cell_of;
   for (;;) {
     d2.clear();
     double bound = std::numeric_limits<double>::infinity();  // the need-th smallest after a cut
@@ -172,46 +168,8 @@ double auto_radius(std::span<const Vec3> pts, int dim, double neighbors) {
         bound = d2[need - 1];
       }
     };
-    const double inv = 1.0 / r, r2 = r * r;
-    std::array<std::int64_t, 3> cells{1, 1, 1};
-    for (int a = 0; a < 3; ++a) cells[std::size_t(a)] = std::int64_t(std::floor((hi[a] - lo[a]) * inv)) + 1;
-    const double total = double(cells[0]) * double(cells[1]) * double(cells[2]);
-    if (total <= 4.0 * double(n) + 4096.0) {
-      const auto key = [&](const Vec3& p, int dx, int dy, int dz) -> std::int64_t {
-        const std::int64_t c[3] = {std::int64_t(std::floor((p.x() - lo.x()) * inv)) + dx,
-                                   std::int64_t(std::floor((p.y() - lo.y()) * inv)) + dy,
-                                   std::int64_t(std::floor((p.z() - lo.z()) * inv)) + dz};
-        for (int a = 0; a < 3; ++a)
-          if (c[a] < 0 || c[a] >= cells[std::size_t(a)]) return -1;
-        return (c[2] * cells[1] + c[1]) * cells[0] + c[0];
-      };
-      start.assign(std::size_t(total) + 1, 0);
-      cell_of.resize(n);
-      sorted.resize(n);
-      for (std::size_t i = 0; i < n; ++i) {
-        cell_of[i] = std::uint32_t(key(pts[i], 0, 0, 0));
-        ++start[cell_of[i] + 1];
-      }
-      for (std::size_t c = 0; c + 1 < start.size(); ++c) start[c + 1] += start[c];
-      for (std::size_t i = 0; i < n; ++i) sorted[start[cell_of[i]]++] = std::uint32_t(i);
-      for (std::size_t c = start.size() - 1; c > 0; --c) start[c] = start[c - 1];
-      start[0] = 0;
-      const int reach[3] = {1, cells[1] > 1 ? 1 : 0, cells[2] > 1 ? 1 : 0};
-      for (std::size_t i : picked)
-        for (int dz = -reach[2]; dz <= reach[2]; ++dz)
-          for (int dy = -reach[1]; dy <= reach[1]; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
-              const std::int64_t c = key(pts[i], dx, dy, dz);
-              if (c < 0) continue;
-              for (std::uint32_t e = start[std::size_t(c)]; e < start[std::size_t(c) + 1]; ++e) {
-                const double dd = (pts[sorted[e]] - pts[i]).squaredNorm();
-                if (dd < r2) take(i, sorted[e], dd);
-              }
-            }
-    } else {
-      const NeighborIndex index(pts, r);
-      for (std::size_t i : picked) index.for_each_within(pts[i], [&](std::size_t j, double dd) { take(i, j, dd); });
-    }
+    const NeighborIndex index(pts, r);  // its points sorted by cell by a counting sort (neighbor_index.cpp)
+    for (std::size_t i : picked) index.for_each_within(pts[i], [&](std::size_t j, double dd) { take(i, j, dd); });
     if (d2.size() >= need) {
       smallest();
       // Just past the need-th distance, so that it counts (neighbours are strictly within R).

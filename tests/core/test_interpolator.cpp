@@ -137,8 +137,8 @@ TEST(Interpolator, AutomaticRadiusOnClusteredPointsIsTheBruteForceOne) {
     EXPECT_NEAR(s.levels()[0].mean_neighbors, neighbors, 0.01 * neighbors) << neighbors;
   }
   // 3-D points in a slab 1e-7 thick: the guess from the box's volume is a radius of 3e-4 of its
-  // side, more cells than a grid of the points may hold (NeighborIndex searches them), and the
-  // guess doubles until the points have enough neighbours, on a grid of few cells by then.
+  // side, more cells than NeighborIndex's counting sort takes (its comparison sort does), and the
+  // guess doubles until the points have enough neighbours, few cells by then (the counting sort).
   std::vector<double> slab;
   for (std::size_t i = 0; i < P; ++i) slab.insert(slab.end(), {u(rng), u(rng), 1e-7 * u(rng)});
   std::vector<double> d2;
