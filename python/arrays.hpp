@@ -4,6 +4,7 @@
 #pragma once
 
 #include <pybind11/numpy.h>
+#include "csrbf/units.hpp"
 
 #include <charconv>
 #include <cmath>
@@ -44,7 +45,7 @@ A ensure_array(const py::array& a, const char* what) {
   if (!r) {
     std::ostringstream m;
     m << what << ": cannot make a contiguous copy of " << shape_of(a) << " points ("
-      << double(a.size()) * double(sizeof(typename A::value_type)) / double(1ull << 30) << " GiB)";
+      << double(a.size()) * double(sizeof(typename A::value_type)) / csrbf::kGiB << " GiB)";
     PyErr_SetString(PyExc_MemoryError, m.str().c_str());
     throw py::error_already_set();
   }

@@ -9,6 +9,7 @@
 #include "csrbf/errors.hpp"
 #include "csrbf/interpolator.hpp"
 #include "csrbf/names.hpp"
+#include "csrbf/units.hpp"
 
 #include <pybind11/numpy.h>
 #include <pybind11/stl.h>
@@ -453,8 +454,8 @@ PyInterpolator make(const py::args& args, const py::kwargs& kwargs) {
     if (!(gib > 0 && gib <= 1e6))
       throw py::value_error("memory_limit is in GiB, as csrbf's --memory-limit: a number in (0, 1e6], got " +
                             py::repr(memory_limit).cast<std::string>() +
-                            (gib > 1e6 ? " (bytes? that is " + short_number(gib / double(1ull << 30)) + " GiB)" : ""));
-    o.memory_limit_bytes = gib * double(1ull << 30);
+                            (gib > 1e6 ? " (bytes? that is " + short_number(gib / csrbf::kGiB) + " GiB)" : ""));
+    o.memory_limit_bytes = gib * csrbf::kGiB;
   }
   if (const py::object threads = get("threads"); !threads.is_none()) {
     const long t = integer_of(threads, "threads", "a positive integer");
@@ -517,7 +518,7 @@ PyInterpolator make(const py::args& args, const py::kwargs& kwargs) {
                                                : csrbf::kDefaultNeighbors;
   } catch (const csrbf::ResourceLimit& e) {
     const std::string m = std::string(e.what()) + " [csrbf.Interpolator: memory_limit is " +
-                          short_number(o.memory_limit_bytes / double(1ull << 30)) +
+                          short_number(o.memory_limit_bytes / csrbf::kGiB) +
                           " GiB; raise it, or ask for fewer neighbors or a smaller radius]";
     PyErr_SetString(PyExc_MemoryError, m.c_str());
     throw py::error_already_set();

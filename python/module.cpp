@@ -11,6 +11,7 @@
 #include "csrbf/names.hpp"
 #include "csrbf/space_map.hpp"
 #include "csrbf/version.hpp"
+#include "csrbf/units.hpp"
 #include "arrays.hpp"
 #include "interpolator_binding.hpp"
 #include "points.hpp"
@@ -234,12 +235,11 @@ releases the GIL.)doc")
              o.ordering = named<csrbf::Ordering>(ordering, "ordering");
              // GiB, as the command line and csrbf.morph take it (it was bytes here: a value in bytes is refused).
              if (!(memory_limit > 0 && memory_limit <= 1e6))
-               throw py::value_error("memory_limit is in GiB, as csrbf's --memory-limit: a number in (0, 1e6], got " +
-                                     shortest(memory_limit) +
-                                     (memory_limit > 1e6
-                                          ? " (bytes? " + shortest(memory_limit / double(1ull << 30)) + " GiB)"
-                                          : std::string()));
-             o.memory_limit_bytes = memory_limit * double(1ull << 30);
+               throw py::value_error(
+                   "memory_limit is in GiB, as csrbf's --memory-limit: a number in (0, 1e6], got " +
+                   shortest(memory_limit) +
+                   (memory_limit > 1e6 ? " (bytes? " + shortest(memory_limit / csrbf::kGiB) + " GiB)" : std::string()));
+             o.memory_limit_bytes = memory_limit * csrbf::kGiB;
              py::gil_scoped_release release;
              return csrbf::SpaceMap::fit(s, d, o);
            }),
@@ -373,7 +373,7 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
         o.solver = named<csrbf::Solver>(solver, "solver");
         if (!(memory_limit > 0 && memory_limit <= 1e6))
           throw py::value_error("memory_limit is in GiB: a number in (0, 1e6], got " + shortest(memory_limit));
-        o.memory_limit_bytes = memory_limit * double(1ull << 30);
+        o.memory_limit_bytes = memory_limit * csrbf::kGiB;
         csrbf::FitEstimate e;
         {
           py::gil_scoped_release release;

@@ -12,6 +12,7 @@
 #include "csrbf/morph/job.hpp"
 #endif
 #include "csrbf/space_map.hpp"
+#include "csrbf/units.hpp"
 #include "arrays.hpp"
 #include "points.hpp"
 
@@ -210,7 +211,7 @@ PYBIND11_MODULE(_csrbf_io, m) {
         job.solver = named<csrbf::Solver>(solver, "solver");
         job.phase = phase;
         job.force = force;
-        job.memory_limit_bytes = memory_limit * double(1ull << 30);
+        job.memory_limit_bytes = memory_limit * csrbf::kGiB;
         const bool points_given = !is_path(mesh);
         // The mesh: a file or case, or points with patches of point indices.
         mo::VolumeMesh cloud;

@@ -26,6 +26,7 @@ packages=(
   python3-matplotlib python3-venv   # bench/python_interpolation.py's plot; the wheel tried in a venv (tests/install)
   clang libclang-rt-14-dev   # scripts/fuzz.sh: libFuzzer targets (not needed to build or test)
   clang-format           # scripts/check-format.sh: CI checks the tree's formatting
+  universal-ctags        # scripts/function-lengths.sh: the test function_lengths measures every function
   gnuplot-nox            # scripts/plot_performance.sh: docs/performance.png
   zlib1g-dev             # morph: gzip'd OpenFOAM meshes
   libgmsh-dev libcgns-dev   # morph: Gmsh .msh and CGNS meshes

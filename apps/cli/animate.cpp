@@ -9,6 +9,7 @@
 #include "csrbf/render/movie_writer.hpp"
 #include "csrbf/render/process.hpp"
 #include "csrbf/render/scene_renderer.hpp"
+#include "csrbf/units.hpp"
 
 #include <charconv>
 #include <chrono>
@@ -93,8 +94,7 @@ int run_animate(const AnimateOptions& o) {
   if (render::movie_format_for(o.out) == render::MovieFormat::Mp4 && (width % 2 || height % 2))
     throw UsageError("--size: H.264 (.mp4) needs an even width and height, got '" + o.size + "'");
   {
-    const std::vector<std::filesystem::path> inputs =
-        io::referenced_files(o.scene, o.memory_limit_gib * double(1ull << 30));
+    const std::vector<std::filesystem::path> inputs = io::referenced_files(o.scene, o.memory_limit_gib * kGiB);
     check_not_an_input("-o", o.out, inputs);
     // A folder of PNG frames replaces the frame files in it: none of them may be an input, by
     // device and inode (an input reached through a symbolic or hard link to a frame file was deleted).
@@ -109,7 +109,7 @@ int run_animate(const AnimateOptions& o) {
                            "'; csrbf never writes an input: choose another folder");
       }
   }
-  anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * double(1ull << 30));
+  anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * kGiB);
   if (o.fps) scene.fps = *o.fps;
   const double from = o.from.value_or(0.0), to = o.to.value_or(scene.duration);
   if (!(to >= from)) {
@@ -130,16 +130,15 @@ int run_animate(const AnimateOptions& o) {
   // pixels and each mesh's copies), predicted before either is made.
   const double player_bytes = anim::Player::bytes(scene),
                renderer_bytes = render::SceneRenderer::bytes(scene, width, height);
-  const double limit = o.memory_limit_gib * double(1ull << 30), left = io::memory_left(limit);
+  const double limit = o.memory_limit_gib * kGiB, left = io::memory_left(limit);
   if (player_bytes + renderer_bytes > left) {
     std::ostringstream m;
     m.precision(3);
-    m << "--size " << o.size << ": the movie takes about " << (player_bytes + renderer_bytes) / double(1ull << 30)
-      << " GiB (the player " << player_bytes / double(1ull << 30) << ", the renderer "
-      << renderer_bytes / double(1ull << 30)
-      << ": 96 MiB, 64 bytes a pixel, the meshes' copies and the textures), more than the " << left / double(1ull << 30)
+    m << "--size " << o.size << ": the movie takes about " << (player_bytes + renderer_bytes) / kGiB
+      << " GiB (the player " << player_bytes / kGiB << ", the renderer " << renderer_bytes / kGiB
+      << ": 96 MiB, 64 bytes a pixel, the meshes' copies and the textures), more than the " << left / kGiB
       << " GiB that --memory-limit leaves after the scene; give --memory-limit "
-      << std::ceil(100 * (limit - left + player_bytes + renderer_bytes) / double(1ull << 30)) / 100 << " or more"
+      << std::ceil(100 * (limit - left + player_bytes + renderer_bytes) / kGiB) / 100 << " or more"
       << (64.0 * double(width) * double(height) > 0.25 * renderer_bytes ? ", or a smaller --size" : "");
     throw io::FileError(m.str());
   }

@@ -1,16 +1,16 @@
 #pragma once
 
+#include "csrbf/errors.hpp"
+
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 namespace csrbf::cli {
 
-/// A bad option value found after parsing (its message names the option): exit status 2.
-class UsageError : public std::invalid_argument {
- public:
-  using std::invalid_argument::invalid_argument;
-};
+/// A bad option value found after parsing (its message names the option): exit status 2. csrbf's
+/// one usage error (csrbf/errors.hpp).
+using csrbf::UsageError;
 
 struct AnimateOptions {
   std::string scene, out;

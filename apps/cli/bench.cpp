@@ -562,7 +562,7 @@ void peers_scenario(const BenchOptions& o, const Printer& out) {
 #ifndef CSRBF_HAVE_VTK
   (void)o;
   (void)out;
-  throw std::runtime_error("scenario 'peers' needs VTK: this csrbf was built without it (install libvtk9-dev)");
+  throw csrbf::Error("scenario 'peers' needs VTK: this csrbf was built without it (install libvtk9-dev)");
 #else
   const std::size_t n = o.quick ? 200 : 1000, m = o.quick ? 20000 : 1000000;
   const std::vector<Vec3> s = sphere_points(n);
@@ -667,7 +667,7 @@ void run_bench(const BenchOptions& o) {
   else if (o.loop == "avx512")
     set_evaluation_loop(EvaluationLoop::Avx512);
   else if (o.loop != "auto")
-    throw std::invalid_argument("unknown evaluation loop '" + o.loop + "'");
+    throw csrbf::InvalidInput("unknown evaluation loop '" + o.loop + "'");
   const Printer out(o.json);
   const auto run_one = [&](const std::string& name) {
     if (name == "fish")
@@ -683,7 +683,7 @@ void run_bench(const BenchOptions& o) {
     else if (name == "peers")
       peers_scenario(o, out);
     else
-      throw std::invalid_argument("unknown scenario '" + name + "'");
+      throw csrbf::InvalidInput("unknown scenario '" + name + "'");
   };
   if (o.scenario == "all")
     for (const auto& name : bench_scenarios()) run_one(name);

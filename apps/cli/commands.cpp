@@ -3,6 +3,7 @@
 #include "animate.hpp"
 #include "csrbf/io/inputs.hpp"
 #include "csrbf/names.hpp"
+#include "csrbf/units.hpp"
 
 #include <charconv>
 #include <cmath>
@@ -200,7 +201,7 @@ std::string estimate_text(const nlohmann::json& j) {
       std::snprintf(buf, sizeof buf, "%.3g s", s["seconds"].get<double>());
       return std::string(buf);
     }();
-    std::snprintf(buf, sizeof buf, "%.3g GiB, %s%s; %s", s["bytes"].get<double>() / double(1ull << 30), secs.c_str(),
+    std::snprintf(buf, sizeof buf, "%.3g GiB, %s%s; %s", s["bytes"].get<double>() / kGiB, secs.c_str(),
                   s["within_limit"].get<bool>() ? "" : " (beyond --memory-limit)",
                   s["note"].get<std::string>().c_str());
     line(s["solver"].get<std::string>(), buf);

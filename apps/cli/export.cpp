@@ -7,6 +7,7 @@
 #include "csrbf/io/inputs.hpp"
 #include "csrbf/io/scene.hpp"
 #include "csrbf/render/gltf_export.hpp"
+#include "csrbf/units.hpp"
 #include "page_html.hpp"
 
 #include <nlohmann/json.hpp>
@@ -91,7 +92,7 @@ std::string kib(std::size_t bytes) {
 
 int run_export(const ExportOptions& o) {
   render::GltfOptions go;
-  go.memory_limit_bytes = o.memory_limit_gib * double(1ull << 30);
+  go.memory_limit_bytes = o.memory_limit_gib * kGiB;
   if (o.bake == "auto")
     go.bake = render::Bake::Auto;
   else if (o.bake == "always")
@@ -138,12 +139,12 @@ int run_export(const ExportOptions& o) {
   }
   std::error_code ec;
   {
-    check_not_an_input("-o", out, io::referenced_files(o.scene, o.memory_limit_gib * double(1ull << 30)));
+    check_not_an_input("-o", out, io::referenced_files(o.scene, o.memory_limit_gib * kGiB));
     io::must_be_new(io::resolve_output(out));
   }
   if (!page.empty() && fs::absolute(page).lexically_normal() == fs::absolute(out).lexically_normal())
     throw UsageError("--html '" + o.html + "' and -o name the same path");
-  anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * double(1ull << 30));
+  anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * kGiB);
   if (o.fps) go.fps = *o.fps;
   for (const auto& obj : scene.objects)
     for (const anim::Material* m : [&] {

@@ -23,6 +23,7 @@
 #ifdef CSRBF_WITH_MPI
 #include "csrbf/mpi/backends.hpp"
 #include "csrbf/mpi/runtime.hpp"
+#include "csrbf/units.hpp"
 #endif
 
 #include <cerrno>
@@ -54,10 +55,10 @@ struct FitArgs {
 /// The files deform reads: the mesh, the controls or the deformation and the files it names.
 std::vector<std::filesystem::path> deform_inputs(const FitArgs& a, const std::string& mesh) {
   std::vector<std::filesystem::path> in{mesh};
-  for (auto& f : csrbf::io::mesh_side_files(mesh, a.memory_limit_gib * double(1ull << 30))) in.push_back(std::move(f));
+  for (auto& f : csrbf::io::mesh_side_files(mesh, a.memory_limit_gib * csrbf::kGiB)) in.push_back(std::move(f));
   if (!a.controls.empty()) in.emplace_back(a.controls);
   if (!a.deformation.empty())
-    for (auto& f : csrbf::io::referenced_files(a.deformation, a.memory_limit_gib * double(1ull << 30)))
+    for (auto& f : csrbf::io::referenced_files(a.deformation, a.memory_limit_gib * csrbf::kGiB))
       in.push_back(std::move(f));
   return in;
 }
@@ -143,7 +144,7 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
   std::optional<double> phase;
   if (!a.deformation.empty()) {
     // Parsed JSON takes about 16 times its text: the text within a sixteenth of the memory limit.
-    auto spec = csrbf::io::read_deformation(a.deformation, a.memory_limit_gib * double(1ull << 30) / 16.0);
+    auto spec = csrbf::io::read_deformation(a.deformation, a.memory_limit_gib * csrbf::kGiB / 16.0);
     area = std::move(spec.area);
     phase = spec.phase;
     if (area && mesh) csrbf::io::check_active_area(*area, mesh->positions(), a.deformation, mesh_name);
@@ -153,7 +154,7 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
     o = spec.options;
   } else {
     // A control's text (about 100 bytes) takes less once parsed: the text within the memory limit.
-    controls = csrbf::io::read_controls(a.controls, a.memory_limit_gib * double(1ull << 30));
+    controls = csrbf::io::read_controls(a.controls, a.memory_limit_gib * csrbf::kGiB);
     o.radius = a.radius;
     o.kernel = *csrbf::parse_kernel(a.kernel);
     o.polynomial = *csrbf::parse_polynomial(a.polynomial);
@@ -163,8 +164,8 @@ FitInput read_fit_input(const FitArgs& a, const csrbf::io::MeshDocument* mesh, c
   // --memory-limit bounds the whole process: the fit gets what the program, the mesh and the
   // controls leave of it.
   o.memory_limit_bytes =
-      distributed ? a.memory_limit_gib * double(1ull << 30)
-                  : std::max(1.0, csrbf::io::memory_left(a.memory_limit_gib * double(1ull << 30)) - a.reserve_bytes);
+      distributed ? a.memory_limit_gib * csrbf::kGiB
+                  : std::max(1.0, csrbf::io::memory_left(a.memory_limit_gib * csrbf::kGiB) - a.reserve_bytes);
   o.solver = distributed && a.solver == "mumps" ? csrbf::Solver::Auto : csrbf::cli::serial_solver(a.solver);
   if (o.ordering != csrbf::Ordering::Auto && (o.solver == csrbf::Solver::Eigen || o.solver == csrbf::Solver::Cholmod))
     throw csrbf::cli::UsageError("--ordering " + a.ordering + ": solver '" + a.solver +
@@ -196,7 +197,7 @@ Fitted fit(const FitArgs& a, const csrbf::io::MeshDocument* mesh = nullptr, cons
         csrbf::io::format_number(o.radius) + ": merge or separate them, or use a smaller radius");
   } catch (const csrbf::ResourceLimit& e) {
     throw csrbf::io::FileError(controls.name + ": " + e.what() +
-                               csrbf::io::memory_share(a.memory_limit_gib * double(1ull << 30), o.memory_limit_bytes));
+                               csrbf::io::memory_share(a.memory_limit_gib * csrbf::kGiB, o.memory_limit_bytes));
   } catch (const csrbf::Error& e) {  // bad input
     throw csrbf::io::FileError(controls.name + ": " + e.what());
   }
@@ -228,7 +229,7 @@ int deform_distributed(csrbf::mpi::Runtime& rt, const FitArgs& fa, const DeformA
                                    std::filesystem::path(da.mesh_out).extension().string() +
                                    "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
     const auto t0 = std::chrono::steady_clock::now();
-    auto mesh = csrbf::io::MeshDocument::load(da.mesh_in, fa.memory_limit_gib * double(1ull << 30));
+    auto mesh = csrbf::io::MeshDocument::load(da.mesh_in, fa.memory_limit_gib * csrbf::kGiB);
     FitInput in = read_fit_input(fa, &mesh, da.mesh_in, true);
     const double phase = !da.phase_given && in.phase ? *in.phase : da.phase;
     auto& p = mesh.positions();
@@ -469,7 +470,7 @@ int main(int argc, char** argv) {
                                      std::filesystem::path(mesh_out).extension().string() +
                                      "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
       const auto t0 = std::chrono::steady_clock::now();
-      auto mesh = csrbf::io::MeshDocument::load(mesh_in, deform_args.memory_limit_gib * double(1ull << 30));
+      auto mesh = csrbf::io::MeshDocument::load(mesh_in, deform_args.memory_limit_gib * csrbf::kGiB);
       {
         // assimp's writers build the scene again and copy it (measured, 500k vertices and 1M
         // faces, and 1M and 200k: glTF 290 bytes a vertex and 270 a face, STL 25 and 210), with a
@@ -480,15 +481,15 @@ int main(int argc, char** argv) {
                              : out_format == csrbf::io::MeshFormat::Gltf || out_format == csrbf::io::MeshFormat::Glb
                                  ? 1.1 * (290 * v + 270 * fc)
                                  : 0.0;
-        const double limit = deform_args.memory_limit_gib * double(1ull << 30);
+        const double limit = deform_args.memory_limit_gib * csrbf::kGiB;
         if (write > 0 && write > csrbf::io::memory_left(limit)) {
           std::ostringstream m;
           m.precision(3);
           m << csrbf::printable(mesh_out) << ": writing " << mesh.positions().size() << " vertices and "
             << mesh.faces().size() << " faces as " << csrbf::io::format_name(out_format) << " takes about "
-            << write / double(1ull << 30) << " GiB (assimp's copies of the mesh), more than --memory-limit "
+            << write / csrbf::kGiB << " GiB (assimp's copies of the mesh), more than --memory-limit "
             << deform_args.memory_limit_gib << " GiB leaves after the mesh; give --memory-limit "
-            << std::ceil(100 * (write + csrbf::io::resident_bytes()) / double(1ull << 30)) / 100
+            << std::ceil(100 * (write + csrbf::io::resident_bytes()) / csrbf::kGiB) / 100
             << " or more, or write .ply or .obj";
           throw csrbf::io::FileError(m.str());
         }
@@ -555,8 +556,7 @@ int main(int argc, char** argv) {
         return 0;
       }
       std::optional<csrbf::io::MeshDocument> mesh;
-      if (check_folds)
-        mesh.emplace(csrbf::io::MeshDocument::load(info_mesh, info_args.memory_limit_gib * double(1ull << 30)));
+      if (check_folds) mesh.emplace(csrbf::io::MeshDocument::load(info_mesh, info_args.memory_limit_gib * csrbf::kGiB));
       Fitted f = fit(info_args, mesh ? &*mesh : nullptr, info_mesh);
       std::optional<csrbf::FoldReport> folds;
       if (check_folds) {

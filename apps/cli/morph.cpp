@@ -13,6 +13,7 @@
 #ifdef CSRBF_WITH_MPI
 #include "csrbf/mpi/backends.hpp"
 #include "csrbf/mpi/runtime.hpp"
+#include "csrbf/units.hpp"
 
 #include <filesystem>
 #endif
@@ -131,7 +132,7 @@ morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
         "run it without mpirun");
   job.solver = distributed && a.solver == "mumps" ? Solver::Auto : serial_solver(a.solver);
   job.phase = a.phase;
-  job.memory_limit_bytes = a.memory_limit_gib * double(1ull << 30);
+  job.memory_limit_bytes = a.memory_limit_gib * kGiB;
   job.force = a.force;
   job.time = a.time;
   return job;

@@ -4,6 +4,7 @@
 #pragma once
 
 #include "csrbf/anim/scene.hpp"
+#include "csrbf/errors.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -13,9 +14,9 @@
 namespace csrbf::composer {
 
 /// An edit that the scene cannot take (a key time out of order, a missing file); the message says why.
-class EditError : public std::runtime_error {
+class EditError : public csrbf::Error {
  public:
-  using std::runtime_error::runtime_error;
+  using csrbf::Error::Error;
 };
 
 class Document {

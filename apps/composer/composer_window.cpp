@@ -74,7 +74,7 @@ bool ComposerWindow::recover() {
     j = json::parse(recovery_.read());
     if (!j.is_object() || j.value("format", "") != "csrbf-composer-recovery" || !j.contains("scene") ||
         !j["scene"].is_object())
-      throw std::runtime_error("not a Composer recovery file");
+      throw csrbf::Error("not a Composer recovery file");
     Document next;
     next.adopt(j["scene"], j.value("base", ""), j.value("path", ""));
     next.build();  // the whole check, before it replaces anything

@@ -81,7 +81,7 @@ bool PickerWindow::recover() {
   try {
     const nlohmann::json j = nlohmann::json::parse(recovery_.read());
     if (!j.is_object() || j.value("format", "") != "csrbf-picker-recovery")
-      throw std::runtime_error("not a Picker recovery file");
+      throw csrbf::Error("not a Picker recovery file");
     const auto spec = io::read_deformation(j.value("deformation", ""));
     if (!open_mesh(QString::fromStdString(j.value("mesh", "")))) return false;
     if (!edit(doc_.state_from(spec, j.value("deformation", "")), "Recover unsaved work")) return false;

@@ -11,7 +11,7 @@
 // those meshes at time T (past the animation's end: its last key). Meshes without the extension
 // (rigid ones) are left out; a file without any is an error.
 #include <csrbf/io/atomic_file.hpp>
-#include <csrbf/render/gltf_runtime.hpp>
+#include <csrbf/gltf/runtime.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -92,7 +92,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   try {
-    const csrbf::render::GltfRuntime runtime(glb);
+    const csrbf::gltf::GltfRuntime runtime(glb);
     std::size_t compact = 0;
     for (std::size_t m = 0; m < runtime.meshes(); ++m) compact += runtime.compact(m);
     if (compact == 0) {
@@ -124,7 +124,7 @@ int main(int argc, char** argv) {
       }
       const double size = (hi - lo).norm();
       const double duration = runtime.duration(m);
-      if (!(duration * fps <= 100000)) {
+      if (!(duration >= 0 && duration * fps <= 100000)) {
         std::cerr << "csrbf-play-glb: " << file << ": mesh '" << runtime.name(m) << "' is animated for " << duration
                   << " s: more than 100000 frames at " << fps << " fps\n";
         return 1;

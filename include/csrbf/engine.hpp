@@ -14,15 +14,17 @@
 // Normals are taken through the map exactly, n' = J^-T n with J = dT/dx at the vertex (scaled to
 // the length n had), not blended. Float buffers are deformed in float where the map's float check
 // passes (normals within 1e-5 rad of double's for the smooth kernels C2-C6), else in double.
+//
+// Header-only over the C API (csrbf/csrbf.h), whose functions csrbf::core exports: the types below
+// have the C structs' layouts, and a Deformer owns a csrbf_deformer handle (copies share it).
 #pragma once
+
+#include "csrbf/csrbf.h"
 
 #include <cstddef>
 #include <cstdint>
-#include <memory>
-
-namespace csrbf {
-class SpaceMap;
-}
+#include <cstring>
+#include <utility>
 
 namespace csrbf::engine {
 
@@ -42,7 +44,7 @@ enum class Status : int {
 
 struct Result {
   Status status = Status::Ok;
-  char message[480] = {};  ///< empty on success; otherwise NUL-terminated, in English
+  char message[CSRBF_MESSAGE_SIZE] = {};  ///< empty on success; otherwise NUL-terminated, in English
   explicit operator bool() const noexcept { return status == Status::Ok; }
 };
 
@@ -60,7 +62,7 @@ struct Settings {
 /// `count` vertices at `base`, each `stride` bytes after the one before; a vertex's position (3
 /// scalars) at `position_offset` bytes from its start, its normal at `normal_offset` (kNoNormal: the
 /// buffer has none). Scalars in native byte order.
-inline constexpr std::size_t kNoNormal = ~std::size_t(0);
+inline constexpr std::size_t kNoNormal = CSRBF_NO_NORMAL;
 struct VertexBuffer {
   void* base = nullptr;
   std::size_t count = 0;
@@ -75,26 +77,62 @@ struct VertexBuffer {
 class Deformer {
  public:
   Deformer() noexcept = default;
+  Deformer(const Deformer& other) noexcept : handle_(csrbf_share(other.handle_)) {}
+  Deformer(Deformer&& other) noexcept : handle_(std::exchange(other.handle_, nullptr)) {}
+  Deformer& operator=(Deformer other) noexcept {
+    std::swap(handle_, other.handle_);
+    return *this;
+  }
+  ~Deformer() { csrbf_destroy(handle_); }
 
   /// Fits n controls: sources and destinations as n x 3 doubles (x y z, one control after another).
   static Result fit(const double* sources, const double* destinations, std::size_t n, const Settings& settings,
-                    Deformer& out) noexcept;
+                    Deformer& out) noexcept {
+    const csrbf_settings s{settings.radius, int(settings.kernel), int(settings.polynomial), settings.memory_limit_gib};
+    csrbf_deformer* h = nullptr;
+    csrbf_result r;
+    if (csrbf_fit(sources, destinations, n, &s, &h, &r) == CSRBF_OK) out = Deformer(h);
+    return result_of(r);
+  }
   /// The same sources and settings with new destinations (n x 3, n as fitted): only the solve is
   /// redone (an animation's frame).
-  Result refit(const double* destinations, Deformer& out) const noexcept;
+  Result refit(const double* destinations, Deformer& out) const noexcept {
+    csrbf_deformer* h = nullptr;
+    csrbf_result r;
+    if (csrbf_refit(handle_, destinations, &h, &r) == CSRBF_OK) out = Deformer(h);
+    return result_of(r);
+  }
 
   /// Deforms the vertices of `in` into `out` at `phase` (normally in [0, 1]): positions T(x), normals
   /// J^-T n. in and out have the same count and scalar; they may be the same buffer with one base
   /// and stride (in place; the offsets may differ), or separate buffers of any layout. Buffers that
   /// overlap otherwise are refused (InvalidInput), as is a layout past the end of the address space. Where in has
   /// normals, out must have them too. An unfitted Deformer is the identity.
-  Result deform(const VertexBuffer& in, const VertexBuffer& out, double phase = 1.0) const noexcept;
+  Result deform(const VertexBuffer& in, const VertexBuffer& out, double phase = 1.0) const noexcept {
+    const csrbf_vertex_buffer i = buffer_of(in), o = buffer_of(out);
+    csrbf_result r;
+    csrbf_deform(handle_, &i, &o, phase, &r);
+    return result_of(r);
+  }
 
-  std::size_t size() const noexcept;  ///< the number of controls (0 before a fit)
-  bool fitted() const noexcept { return map_ != nullptr; }
+  std::size_t size() const noexcept { return csrbf_size(handle_); }  ///< the number of controls (0 before a fit)
+  bool fitted() const noexcept { return handle_ != nullptr; }
+  /// The C handle (for code that mixes the two APIs); owned by this Deformer.
+  const csrbf_deformer* handle() const noexcept { return handle_; }
 
  private:
-  std::shared_ptr<const SpaceMap> map_;
+  explicit Deformer(csrbf_deformer* handle) noexcept : handle_(handle) {}
+  static Result result_of(const csrbf_result& r) noexcept {
+    Result out;
+    out.status = Status(r.status);
+    static_assert(sizeof out.message == sizeof r.message);
+    std::memcpy(out.message, r.message, sizeof out.message);
+    return out;
+  }
+  static csrbf_vertex_buffer buffer_of(const VertexBuffer& b) noexcept {
+    return {b.base, b.count, b.stride, b.position_offset, b.normal_offset, int(b.scalar)};
+  }
+  csrbf_deformer* handle_ = nullptr;
 };
 
 }  // namespace csrbf::engine

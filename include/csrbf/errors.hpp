@@ -6,9 +6,14 @@
 //   |  +- DuplicateSource      two sources at one position
 //   |  +- DegeneratePolynomial the sources do not determine the polynomial
 //   |  +- IllConditioned       the fit cannot reach its accuracy
+//   |  +- UsageError           options that contradict each other or lack a value (exit status 2)
 //   +- NotPositiveDefinite     a factorisation met a pivot <= 0
 //   +- ResourceLimit           more memory than allowed would be needed
 //   +- io::FileError           a file cannot be read or written, or is malformed (csrbf/io/error.hpp)
+//   +- render::RenderError     a movie cannot be rendered or encoded (csrbf/render/process.hpp)
+//   +- mpi::Failure            an error agreed by every MPI rank (csrbf/mpi/runtime.hpp)
+// Nothing else is thrown on purpose (std::bad_alloc aside): programs map UsageError to exit status 2
+// and every other Error to 1.
 #pragma once
 
 #include <cstddef>
@@ -75,6 +80,13 @@ class DegeneratePolynomial : public InvalidInput {
 /// sources too close together for the radius make the matrix nearly singular. The message names
 /// the closest pair and the condition estimate.
 class IllConditioned : public InvalidInput {
+ public:
+  using InvalidInput::InvalidInput;
+};
+
+/// A usage error: options or arguments that contradict each other or lack a value (no radius anywhere,
+/// an output of another format, an unknown scenario). The programs exit with status 2 on it.
+class UsageError : public InvalidInput {
  public:
   using InvalidInput::InvalidInput;
 };

@@ -5,6 +5,7 @@
 #include "csrbf/kernels.hpp"
 #include "csrbf/ordering.hpp"
 #include "csrbf/types.hpp"
+#include "csrbf/units.hpp"
 
 #include <cstddef>
 #include <optional>
@@ -90,7 +91,7 @@ struct FitOptions {
   /// large is built, then from the exact envelope of the chosen ordering or the factor size the
   /// sparse solver's symbolic analysis predicts, before the factorisation. A radius near the
   /// model's size makes the matrix dense, N^2 entries. Must be > 0 (NaN is refused).
-  double memory_limit_bytes = 4.0 * (1ull << 30);
+  double memory_limit_bytes = 4.0 * kGiB;
 };
 
 /// Estimated memory (bytes) of a fit's neighbour graph and factor, and the mean number of other

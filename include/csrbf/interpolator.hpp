@@ -25,6 +25,7 @@
 #include "csrbf/fit_options.hpp"
 #include "csrbf/kernels.hpp"
 #include "csrbf/space_map.hpp"
+#include "csrbf/units.hpp"
 
 #include <cstddef>
 #include <memory>
@@ -57,7 +58,7 @@ struct InterpolatorOptions {
   /// kCoarsestPoints points, at most kAutoLevels).
   int levels = 1;
   Solver solver = Solver::Auto;
-  double memory_limit_bytes = 4.0 * (1ull << 30);
+  double memory_limit_bytes = 4.0 * kGiB;
 };
 /// The automatic multiscale choice: levels until the coarsest has at most this many points...
 inline constexpr double kCoarsestPoints = 250.0;

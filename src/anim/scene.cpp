@@ -174,7 +174,7 @@ std::optional<SpaceMap> Player::contact_fit(std::size_t o, std::size_t p, std::s
                                             std::vector<Vec3>& d) const {
   const Object& obj = scene_->objects.at(o);
   const Deformation& def = obj.parts.at(p).deformations.at(k);
-  if (!def.contact) throw std::invalid_argument("Player::contact_map: the deformation is not a contact");
+  if (!def.contact) throw InvalidInput("Player::contact_map: the deformation is not a contact");
   const PartState& ps = impl_->objects[o].parts[p];
   const Pose pose = pose_at(obj, t);
   const Pose cp = pose_at(scene_->objects[def.contact->collider], t);

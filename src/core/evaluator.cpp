@@ -3,6 +3,7 @@
 #include "eval_kernel.hpp"
 
 #include "csrbf/errors.hpp"
+#include "csrbf/units.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -131,8 +132,7 @@ void check_graph_entries(double entries, double max_entries, std::size_t n) {
   std::ostringstream os;
   os.precision(3);
   os << "the neighbour graph of the " << n << " sources has " << entries << " entries ("
-     << entries / double(std::max<std::size_t>(n, 1)) << " neighbours a source), "
-     << entries * 12.0 / double(1ull << 30)
+     << entries / double(std::max<std::size_t>(n, 1)) << " neighbours a source), " << entries * 12.0 / kGiB
      << " GiB, above what the memory limit leaves it (FitOptions::memory_limit_bytes, `--memory-limit`): some "
         "sources are far denser than the rest; use a smaller radius";
   throw ResourceLimit(os.str());

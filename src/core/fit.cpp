@@ -3,6 +3,7 @@
 //   -> factorisation -> polynomial block -> solve -> residual check.
 // with_destinations() reruns only the last two.
 #include "cholmod_loader.hpp"
+#include "csrbf/units.hpp"
 #include "schwarz.hpp"
 #include "fit_state.hpp"
 
@@ -30,7 +31,7 @@ int polynomial_terms(Polynomial p) { return p == Polynomial::None ? 0 : p == Pol
 std::string gib(double bytes) {
   std::ostringstream os;
   os.precision(3);
-  os << bytes / double(1ull << 30) << " GiB";
+  os << bytes / kGiB << " GiB";
   return os.str();
 }
 

@@ -3,6 +3,7 @@
 // through SpaceMap's loops, three values a map, points padded to 3-D with zeros (the distances are
 // the same).
 #include "csrbf/interpolator.hpp"
+#include "csrbf/units.hpp"
 
 #include "fit_state.hpp"
 #include "schwarz.hpp"
@@ -87,9 +88,8 @@ void validate(std::span<const double> points, int dim, std::span<const double> v
   if (value_bytes > o.memory_limit_bytes) {
     std::ostringstream os;
     os.precision(3);
-    os << "values: " << n << " points of " << v << " values need about " << value_bytes / double(1ull << 30)
-       << " GiB for the fit's copies of them, above the memory limit of " << o.memory_limit_bytes / double(1ull << 30)
-       << " GiB";
+    os << "values: " << n << " points of " << v << " values need about " << value_bytes / kGiB
+       << " GiB for the fit's copies of them, above the memory limit of " << o.memory_limit_bytes / kGiB << " GiB";
     throw ResourceLimit(os.str());
   }
   if (!(o.radius >= 0) || !std::isfinite(o.radius) || (o.radius > 0 && (o.radius < 1e-150 || o.radius > 1e150)))

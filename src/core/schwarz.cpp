@@ -1,5 +1,7 @@
 #include "schwarz.hpp"
 
+#include "csrbf/units.hpp"
+
 #include "csrbf/errors.hpp"
 
 #include <Eigen/Cholesky>
@@ -184,8 +186,8 @@ SchwarzPreconditioner::SchwarzPreconditioner(std::span<const Vec3> points, doubl
   if (!(need <= byte_limit)) {
     std::ostringstream os;
     os.precision(3);
-    os << "the Schwarz preconditioner would take " << need / double(1 << 30) << " GiB, above its share of "
-       << byte_limit / double(1 << 30) << " GiB";
+    os << "the Schwarz preconditioner would take " << need / kGiB << " GiB, above its share of " << byte_limit / kGiB
+       << " GiB";
     throw ResourceLimit(os.str());
   }
   patch_start_.resize(leaves + 1);

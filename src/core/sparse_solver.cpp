@@ -5,6 +5,7 @@
 
 #include "csrbf/errors.hpp"
 #include "csrbf/names.hpp"
+#include "csrbf/units.hpp"
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
@@ -59,8 +60,8 @@ void check_address_space(double need, const char* what, const char* instead) {
   if (room >= need) return;
   std::ostringstream os;
   os.precision(3);
-  os << "CHOLMOD needs about " << need / double(1ull << 30) << " GiB of address space for " << what
-     << ", and the address-space limit (ulimit -v) leaves " << std::max(room, 0.0) / double(1ull << 30)
+  os << "CHOLMOD needs about " << need / kGiB << " GiB of address space for " << what
+     << ", and the address-space limit (ulimit -v) leaves " << std::max(room, 0.0) / kGiB
      << " GiB of it: raise that limit, or " << instead;
   throw ResourceLimit(os.str());
 }
@@ -141,8 +142,8 @@ class Supernodal;  // CHOLMOD's supernodal LLT (below, where CHOLMOD is built in
 [[noreturn]] void refuse_memory(const char* name, double bytes, const std::string& what, double memory_limit_bytes) {
   std::ostringstream os;
   os.precision(3);
-  os << name << " needs about " << bytes / double(1ull << 30) << " GiB for " << what << ", above the limit of "
-     << memory_limit_bytes / double(1ull << 30)
+  os << name << " needs about " << bytes / kGiB << " GiB for " << what << ", above the limit of "
+     << memory_limit_bytes / kGiB
      << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use a smaller radius: the compact support "
         "is what keeps the system sparse";
   throw ResourceLimit(os.str());
@@ -788,10 +789,9 @@ void check_envelope_size(std::span<const std::size_t> first_columns, double memo
     std::ostringstream os;
     os.precision(3);
     os << "the envelope of the " << ordering << " ordering holds " << std::llround(entries) << " entries, about "
-       << bytes / double(1ull << 30) << " GiB";
-    if (held_bytes > 0)
-      os << " (with A and what the fit holds beside it, " << (bytes + held_bytes) / double(1ull << 30) << " GiB)";
-    os << ", above the limit of " << memory_limit_bytes / double(1ull << 30)
+       << bytes / kGiB << " GiB";
+    if (held_bytes > 0) os << " (with A and what the fit holds beside it, " << (bytes + held_bytes) / kGiB << " GiB)";
+    os << ", above the limit of " << memory_limit_bytes / kGiB
        << " GiB (FitOptions::memory_limit_bytes, `--memory-limit`). Use another ordering or solver, or a smaller "
           "radius";
     throw ResourceLimit(os.str());

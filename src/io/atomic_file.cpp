@@ -1,6 +1,7 @@
 #include "csrbf/io/atomic_file.hpp"
 
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/input_file.hpp"
 
 #include <algorithm>
 #include <atomic>

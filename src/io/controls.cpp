@@ -1,7 +1,9 @@
 #include "csrbf/io/controls.hpp"
+#include "csrbf/io/input_file.hpp"
 #include "csrbf/io/memory.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
+#include "csrbf/units.hpp"
 #include "text.hpp"
 
 #include <algorithm>
@@ -157,7 +159,7 @@ Controls read_controls(const std::filesystem::path& path, double memory_limit_by
   // The text within what the limit leaves (1 GiB at most, about 1.5e7 controls), then the controls
   // within what is left beside it: a line is at most one control of 52 bytes (source, destination,
   // line number), and the duplicate check's 4-byte index and 1-byte mark.
-  const double text_room = std::min(memory_left(memory_limit_bytes), double(1ull << 30));
+  const double text_room = std::min(memory_left(memory_limit_bytes), kGiB);
   std::string text = read_input(path, "a controls file", text_room);
   const std::size_t lines = std::size_t(std::count(text.begin(), text.end(), '\n')) + 1;
   const double need = 57.0 * double(lines);
@@ -167,8 +169,7 @@ Controls read_controls(const std::filesystem::path& path, double memory_limit_by
     std::snprintf(m, sizeof m,
                   ": %zu lines would take about %.3g GiB as controls, more than the %.3g GiB that --memory-limit "
                   "leaves beside the file's text; give --memory-limit %.2f or more",
-                  lines, need / double(1ull << 30), left / double(1ull << 30),
-                  std::ceil(100 * (memory_limit_bytes - left + need) / double(1ull << 30)) / 100);
+                  lines, need / kGiB, left / kGiB, std::ceil(100 * (memory_limit_bytes - left + need) / kGiB) / 100);
     throw FileError(path.string() + m);
   }
   ViewBuffer buffer(text);

@@ -4,6 +4,8 @@
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/controls.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/input_file.hpp"
+#include "csrbf/gltf/glb.hpp"
 #include "text.hpp"
 
 #include <nlohmann/json.hpp>
@@ -32,6 +34,11 @@ constexpr int kMaxJsonDepth = 256;
 constexpr std::size_t kMaxNodeDepth = 1000;
 /// Bytes a vertex costs once read (positions, normals, colours, texture coordinates, indices).
 constexpr double kBytesPerVertex = 64;
+/// The component types assimp is given: float positions and normals, unsigned indices.
+constexpr std::uint64_t kFloat = gltf::code(gltf::ComponentType::Float),
+                        kUnsignedByte = gltf::code(gltf::ComponentType::UnsignedByte),
+                        kUnsignedShort = gltf::code(gltf::ComponentType::UnsignedShort),
+                        kUnsignedInt = gltf::code(gltf::ComponentType::UnsignedInt);
 
 struct DepthLimit {};
 
@@ -252,19 +259,7 @@ class Checker {
     return 0;
   }
   static int component_bytes(std::uint64_t t) {
-    switch (t) {
-      case 5120:
-      case 5121:
-        return 1;
-      case 5122:
-      case 5123:
-        return 2;
-      case 5125:
-      case 5126:
-        return 4;
-      default:
-        return 0;
-    }
+    return t > 0xffffffffu ? 0 : int(gltf::component_size(std::size_t(t)));
   }
 
   /// `count` elements of `bytes` each from byte `offset` of bufferViews[view] fit in it.
@@ -317,7 +312,7 @@ class Checker {
           double bytes = element;
           if (std::string(part) == "indices") {
             const std::uint64_t t = integer(p, "componentType", pw, 1e9);
-            if (t != 5121 && t != 5123 && t != 5125)
+            if (!gltf::is_unsigned_integer(std::size_t(t)))
               fail(pw + ".componentType", std::to_string(t) + " is not an unsigned integer type");
             bytes = component_bytes(t);
           }
@@ -362,14 +357,14 @@ class Checker {
           fail(pw, "has no attributes.POSITION");
         const json& at = pr["attributes"];
         const std::size_t pos =
-            typed(at, "POSITION", pw + ".attributes", "VEC3", {5126}, "positions are VEC3 of floats (5126)");
+            typed(at, "POSITION", pw + ".attributes", "VEC3", {kFloat}, "positions are VEC3 of floats (5126)");
         if (at.contains("NORMAL"))
-          typed(at, "NORMAL", pw + ".attributes", "VEC3", {5126}, "normals are VEC3 of floats (5126)");
+          typed(at, "NORMAL", pw + ".attributes", "VEC3", {kFloat}, "normals are VEC3 of floats (5126)");
         vertices += count_[pos];
         double elements = count_[pos];
         if (pr.contains("indices")) {
-          const std::size_t ix =
-              typed(pr, "indices", pw, "SCALAR", {5121, 5123, 5125}, "indices are SCALAR unsigned integers");
+          const std::size_t ix = typed(pr, "indices", pw, "SCALAR", {kUnsignedByte, kUnsignedShort, kUnsignedInt},
+                                       "indices are SCALAR unsigned integers");
           elements = count_[ix];
           check_indices(ix, count_[pos], pw);
         }
@@ -392,7 +387,7 @@ class Checker {
             const std::string tw = pw + ".targets[" + std::to_string(t) + "]";
             if (!target.is_object()) fail(tw, "is not an object");
             if (target.contains("POSITION"))
-              typed(target, "POSITION", tw, "VEC3", {5126}, "positions are VEC3 of floats (5126)");
+              typed(target, "POSITION", tw, "VEC3", {kFloat}, "positions are VEC3 of floats (5126)");
           }
         }
       }

@@ -1,4 +1,6 @@
 #include "json_reader.hpp"
+#include "csrbf/io/input_file.hpp"
+#include "csrbf/units.hpp"
 
 #include "text.hpp"
 
@@ -53,7 +55,7 @@ nlohmann::json parse_json(const std::string& text, const std::string& name) {
 
 nlohmann::json read_json_file(const std::filesystem::path& path, double max_bytes) {
   // csrbf's documents are small (controls inline take about 100 bytes each): 1 GiB at most.
-  return parse_json(read_input(path, "a JSON file", std::min(max_bytes, double(1ull << 30))), path.string());
+  return parse_json(read_input(path, "a JSON file", std::min(max_bytes, kGiB)), path.string());
 }
 
 namespace {

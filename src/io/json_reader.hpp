@@ -6,6 +6,7 @@
 #include "csrbf/io/deformation.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/neighbor_index.hpp"
+#include "csrbf/units.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -22,7 +23,7 @@ constexpr int kMaxJsonDepth = 64;
 /// Parses a whole file; a syntax error names the line and column; nesting deeper than
 /// kMaxJsonDepth is refused.
 /// At most max_bytes of text (and 1 GiB), also from a pipe.
-nlohmann::json read_json_file(const std::filesystem::path& path, double max_bytes = double(1ull << 30));
+nlohmann::json read_json_file(const std::filesystem::path& path, double max_bytes = kGiB);
 /// Parses text; name is the file name used in messages.
 nlohmann::json parse_json(const std::string& text, const std::string& name);
 

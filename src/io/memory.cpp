@@ -1,6 +1,7 @@
 #include "csrbf/io/memory.hpp"
 
 #include "csrbf/io/error.hpp"
+#include "csrbf/units.hpp"
 
 #include <cmath>
 #include <cstdio>
@@ -31,8 +32,8 @@ double memory_left(double limit_bytes, const std::string& option) {
     std::snprintf(text, sizeof text,
                   "%s %.3g GiB is too small: csrbf already holds %.3g GiB (the program, its libraries and what it "
                   "read), which leaves less than the 5 %% of it that the work needs at least; give %s %.2g or more",
-                  option.c_str(), limit_bytes / double(1ull << 30), held / double(1ull << 30), option.c_str(),
-                  std::ceil(100 * 1.25 * held / double(1ull << 30)) / 100);
+                  option.c_str(), limit_bytes / kGiB, held / kGiB, option.c_str(),
+                  std::ceil(100 * 1.25 * held / kGiB) / 100);
     throw FileError(text);
   }
   return left;
@@ -42,8 +43,7 @@ std::string memory_share(double limit_bytes, double left, const std::string& opt
   char text[200];
   std::snprintf(text, sizeof text,
                 " (%s %.3g GiB: csrbf and what it read hold %.3g GiB of it, leaving %.3g GiB for the fit)",
-                option.c_str(), limit_bytes / double(1ull << 30), (limit_bytes - left) / double(1ull << 30),
-                left / double(1ull << 30));
+                option.c_str(), limit_bytes / kGiB, (limit_bytes - left) / kGiB, left / kGiB);
   return text;
 }
 

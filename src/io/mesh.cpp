@@ -2,12 +2,14 @@
 // numbers of positions and normals) or another (through the writers of mesh_assimp.cpp), accessors.
 // Each format's reader is in its own file (mesh_impl.hpp lists them).
 #include "mesh_impl.hpp"
+#include "csrbf/io/input_file.hpp"
 
 #include "csrbf/io/controls.hpp"
 #include "text.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/memory.hpp"
+#include "csrbf/units.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -157,8 +159,8 @@ MeshDocument MeshDocument::load(const fs::path& path, double memory_limit_bytes)
       std::snprintf(text, sizeof text,
                     ": %.0f bytes; a mesh may take 12 times its file's size once read, more than --memory-limit "
                     "%.3g GiB allows: give --memory-limit %.2f or more",
-                    double(size), memory_limit_bytes / double(1ull << 30),
-                    std::ceil(100 * (12.0 * double(size) + resident_bytes()) / double(1ull << 30)) / 100);
+                    double(size), memory_limit_bytes / kGiB,
+                    std::ceil(100 * (12.0 * double(size) + resident_bytes()) / kGiB) / 100);
       throw FileError(path.string() + text);
     }
   }

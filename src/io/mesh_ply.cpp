@@ -3,6 +3,7 @@
 #include "mesh_impl.hpp"
 
 #include "csrbf/io/controls.hpp"
+#include "csrbf/units.hpp"
 #include "text.hpp"
 
 #include <algorithm>
@@ -279,7 +280,7 @@ void MeshDocument::Impl::load_ply(const std::string& text) {
       std::ostringstream os;
       os.precision(3);
       os << name << ": its " << vertex->count << " vertices and " << face_count << " faces would take about "
-         << predicted / double(1ull << 30) << " GiB once read, more than the " << read_budget / double(1ull << 30)
+         << predicted / kGiB << " GiB once read, more than the " << read_budget / kGiB
          << " GiB that --memory-limit leaves (give a larger --memory-limit)";
       throw FileError(os.str());
     }

@@ -5,6 +5,7 @@
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/input_file.hpp"
 #include "csrbf/morph/quality.hpp"
 
 #include <cgnslib.h>

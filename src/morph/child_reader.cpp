@@ -2,6 +2,7 @@
 
 #include "csrbf/io/error.hpp"
 #include "csrbf/io/memory.hpp"
+#include "csrbf/units.hpp"
 
 #include <algorithm>
 #include <cerrno>
@@ -55,7 +56,7 @@ std::string read_in_child(const std::filesystem::path& file, const std::string& 
   // OpenCASCADE) maps hundreds of MB of code, and under a small --memory-limit the loader's "failed
   // to map segment" hid the limit. The back-stop is for runaway allocations; the readers' own checks
   // of stated counts against the file's size bound what a file may ask for.
-  const double as_limit = io::address_space_bytes() + std::max(memory_limit_bytes, double(1ull << 30));
+  const double as_limit = io::address_space_bytes() + std::max(memory_limit_bytes, kGiB);
   const pid_t parent = ::getpid();
   const pid_t pid = ::fork();
   if (pid < 0) {
@@ -92,10 +93,6 @@ std::string read_in_child(const std::filesystem::path& file, const std::string& 
     } catch (const std::exception& e) {
       out = "E";
       out += e.what();
-      status = 3;
-    } catch (const std::string& e) {
-      out = "E";
-      out += e.empty() ? library + " gave no reason" : e;
       status = 3;
     } catch (...) {
       out = "E";

@@ -6,6 +6,7 @@
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/input_file.hpp"
 #include "csrbf/morph/quality.hpp"
 
 #include <dlfcn.h>
@@ -65,10 +66,10 @@ const Api& api() {
       x.lib = ::dlopen(name, RTLD_NOW | RTLD_LOCAL);
       if (x.lib) break;
     }
-    if (!x.lib) throw std::string("cannot load Gmsh's library (" CSRBF_GMSH_LIBRARY "): ") + ::dlerror();
+    if (!x.lib) throw io::FileError(std::string("cannot load Gmsh's library (" CSRBF_GMSH_LIBRARY "): ") + ::dlerror());
     const auto get = [&](auto& f, const char* symbol) {
       f = reinterpret_cast<std::remove_reference_t<decltype(f)>>(::dlsym(x.lib, symbol));
-      if (!f) throw std::string("Gmsh's library has no ") + symbol;
+      if (!f) throw io::FileError(std::string("Gmsh's library has no ") + symbol);
     };
     get(x.free_, "gmshFree");
     get(x.initialize, "gmshInitialize");

@@ -7,6 +7,7 @@
 #include "csrbf/morph/volume_file.hpp"
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/space_map.hpp"
+#include "csrbf/units.hpp"
 #include "patch_kinds.hpp"
 #include "radius.hpp"
 
@@ -543,9 +544,9 @@ MorphResult morph(const VolumeMesh& mesh, const Motion& motion_in, const MorphOp
       std::ostringstream os;
       os.precision(3);
       os << "predicted: " << all_sources.size() << " controls with " << p.neighbours_per_control
-         << " neighbours each and " << p.neighbours_per_point << " per point; the fit about "
-         << p.bytes / double(1ull << 30) << " GiB (of " << fit.memory_limit_bytes / double(1ull << 30)
-         << " GiB left to it) and " << p.seconds_fit << " s, the evaluation " << p.seconds_evaluate << " s";
+         << " neighbours each and " << p.neighbours_per_point << " per point; the fit about " << p.bytes / kGiB
+         << " GiB (of " << fit.memory_limit_bytes / kGiB << " GiB left to it) and " << p.seconds_fit
+         << " s, the evaluation " << p.seconds_evaluate << " s";
       note(os.str());
       first_fit = false;
     }

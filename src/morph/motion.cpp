@@ -3,6 +3,7 @@
 #include "../io/json_reader.hpp"
 #include "../io/text.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/input_file.hpp"
 #include "csrbf/names.hpp"
 
 #include <Eigen/Geometry>

@@ -2,6 +2,7 @@
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/input_file.hpp"
 
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_invoke.h>

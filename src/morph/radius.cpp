@@ -3,6 +3,7 @@
 #include "csrbf/fit_options.hpp"
 #include "csrbf/io/error.hpp"
 #include "csrbf/neighbor_index.hpp"
+#include "csrbf/units.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -167,8 +168,8 @@ RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> s
   FitMemoryEstimate at;
   const bool ok = fits(c.radius, &at);
   if (ok && (at.bytes > budget || at.mean_neighbors > kMostNeighbours)) {
-    c.why += ", in two levels (one would need about " + num(at.bytes / double(1ull << 30)) + " GiB and " +
-             num(at.mean_neighbors) + " neighbours a control)";
+    c.why += ", in two levels (one would need about " + num(at.bytes / kGiB) + " GiB and " + num(at.mean_neighbors) +
+             " neighbours a control)";
   } else if (!ok) {
     const bool memory = at.bytes > budget;
     double lo = std::min(c.radius, std::max(h, 1e-9 * size)), hi = c.radius;
@@ -176,9 +177,8 @@ RadiusChoice choose_radius(std::span<const Vec3> moving, std::span<const Vec3> s
       const double mid = 0.5 * (lo + hi);
       (fits(mid) ? lo : hi) = mid;
     }
-    c.why += memory ? ", reduced from " + num(c.radius) + " where the fit would need about " +
-                          num(at.bytes / double(1ull << 30)) + " GiB, above what --memory-limit leaves it (" +
-                          num(budget / double(1ull << 30)) + " GiB)"
+    c.why += memory ? ", reduced from " + num(c.radius) + " where the fit would need about " + num(at.bytes / kGiB) +
+                          " GiB, above what --memory-limit leaves it (" + num(budget / kGiB) + " GiB)"
                     : ", reduced from " + num(c.radius) + " where each control would have " + num(at.mean_neighbors) +
                           " neighbours (at most " + num(kMostNeighbours) + ")";
     c.radius = lo;

@@ -6,6 +6,8 @@
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/input_file.hpp"
+#include "csrbf/units.hpp"
 
 #include <vtkCellData.h>
 #include <SMP/Common/vtkSMPToolsAPI.h>  // vtkSMPTools.h does not compile as C++20 (VTK 9.1)
@@ -301,12 +303,11 @@ class VtkFile final : public VolumeFile {
       check_cells(g);
       if (g && ((points_stated >= 0 && g->GetNumberOfPoints() != points_stated) ||
                 (cells_stated >= 0 && g->GetNumberOfCells() != cells_stated)))
-        throw std::runtime_error("the file states " + std::to_string(points_stated) + " points and " +
-                                 std::to_string(cells_stated) + " cells, but VTK read " +
-                                 std::to_string(g->GetNumberOfPoints()) + " and " +
-                                 std::to_string(g->GetNumberOfCells()) +
-                                 " (a cell it cannot read, such as a polyhedron without its faces, or a count that "
-                                 "lies)");
+        throw io::FileError("the file states " + std::to_string(points_stated) + " points and " +
+                            std::to_string(cells_stated) + " cells, but VTK read " +
+                            std::to_string(g->GetNumberOfPoints()) + " and " + std::to_string(g->GetNumberOfCells()) +
+                            " (a cell it cannot read, such as a polyhedron without its faces, or a count that "
+                            "lies)");
       return serialize_grid(g);
     }));
     if (!grid_ || !grid_->GetPoints() || grid_->GetNumberOfPoints() == 0)
@@ -402,8 +403,8 @@ class VtkFile final : public VolumeFile {
       reader->Update();
       grid = reader->GetOutput();
     }
-    if (!errors->message.empty()) throw std::runtime_error(vtk_said(errors->message));
-    if (!text.window->message.empty()) throw std::runtime_error(vtk_said(text.window->message));
+    if (!errors->message.empty()) throw io::FileError(vtk_said(errors->message));
+    if (!text.window->message.empty()) throw io::FileError(vtk_said(text.window->message));
     return grid;
   }
 
@@ -418,26 +419,25 @@ class VtkFile final : public VolumeFile {
       const int type = g->GetCellType(c);
       if (type <= VTK_EMPTY_CELL || type >= VTK_NUMBER_OF_CELL_TYPES ||
           std::string(vtkCellTypes::GetClassNameFromTypeId(type)) == "UnknownClass")
-        throw std::runtime_error("cell " + std::to_string(c) + " has type " + std::to_string(type) +
-                                 ", which is not a VTK cell type");
+        throw io::FileError("cell " + std::to_string(c) + " has type " + std::to_string(type) +
+                            ", which is not a VTK cell type");
       vtkIdType npts = 0;
       const vtkIdType* ids = nullptr;
       g->GetCellPoints(c, npts, ids);
       const int need = fixed_points(type);
       if (need > 0 && npts != need)
-        throw std::runtime_error("cell " + std::to_string(c) + " of type " + std::to_string(type) + " (" +
-                                 vtkCellTypes::GetClassNameFromTypeId(type) + ") has " + std::to_string(npts) +
-                                 " points; its type has " + std::to_string(need));
+        throw io::FileError("cell " + std::to_string(c) + " of type " + std::to_string(type) + " (" +
+                            vtkCellTypes::GetClassNameFromTypeId(type) + ") has " + std::to_string(npts) +
+                            " points; its type has " + std::to_string(need));
       if (type == VTK_POLYHEDRON) {
         vtkIdType* faces = g->GetFaces(c);
         if (!faces || faces[0] < 4)
-          throw std::runtime_error("cell " + std::to_string(c) + " is a polyhedron (type 42) without its faces");
+          throw io::FileError("cell " + std::to_string(c) + " is a polyhedron (type 42) without its faces");
       }
       for (vtkIdType k = 0; k < npts; ++k)
         if (ids[k] < 0 || ids[k] >= n)
-          throw std::runtime_error("cell " + std::to_string(c) + " uses point " + std::to_string(ids[k]) +
-                                   ", but there are " + std::to_string(n) +
-                                   " points (truncated, or a count that lies)");
+          throw io::FileError("cell " + std::to_string(c) + " uses point " + std::to_string(ids[k]) +
+                              ", but there are " + std::to_string(n) + " points (truncated, or a count that lies)");
     }
     for (vtkFieldData* d :
          {static_cast<vtkFieldData*>(g->GetPointData()), static_cast<vtkFieldData*>(g->GetCellData())})
@@ -445,10 +445,9 @@ class VtkFile final : public VolumeFile {
         vtkAbstractArray* a = d->GetAbstractArray(i);
         const vtkIdType want = d == g->GetPointData() ? n : cells;
         if (a && a->GetNumberOfTuples() != want)
-          throw std::runtime_error(std::string(d == g->GetPointData() ? "point" : "cell") + " data array '" +
-                                   (a->GetName() ? a->GetName() : "") + "' has " +
-                                   std::to_string(a->GetNumberOfTuples()) + " values for " + std::to_string(want) +
-                                   (d == g->GetPointData() ? " points" : " cells"));
+          throw io::FileError(std::string(d == g->GetPointData() ? "point" : "cell") + " data array '" +
+                              (a->GetName() ? a->GetName() : "") + "' has " + std::to_string(a->GetNumberOfTuples()) +
+                              " values for " + std::to_string(want) + (d == g->GetPointData() ? " points" : " cells"));
       }
   }
 
@@ -504,7 +503,7 @@ class VtkFile final : public VolumeFile {
     w->EncodeAppendedDataOff();
     w->SetCompressorTypeToNone();
     w->SetHeaderTypeToUInt64();
-    if (!w->Write()) throw std::runtime_error("the grid read could not be passed back");
+    if (!w->Write()) throw io::FileError("the grid read could not be passed back");
     return w->GetOutputString();
   }
   static vtkSmartPointer<vtkUnstructuredGrid> parse_grid(const std::string& xml) {
@@ -678,7 +677,7 @@ class VtkFile final : public VolumeFile {
   }
 
   fs::path path_;
-  double memory_limit_ = 4.0 * (1ull << 30);
+  double memory_limit_ = 4.0 * kGiB;
   bool xml_;
   bool ascii_ = false, appended_ = false, uint64_headers_ = false, legacy_42_ = false;
   std::string compressor_;

@@ -2,6 +2,7 @@
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/input_file.hpp"
 #include "csrbf/morph/job.hpp"
 #include "csrbf/morph/openfoam.hpp"
 #include "csrbf/morph/volume_file.hpp"
@@ -170,7 +171,7 @@ class ScatterMapping final : public morph::FittedMapping {
  private:
   void run(int op, std::span<const Vec3> in, std::span<Vec3> out, double phase) {
     if (generation_ != b_.generation_ || !b_.map_)
-      throw std::logic_error("csrbf::mpi: a mapping used after a later fit replaced it");
+      throw csrbf::Error("csrbf::mpi: a mapping used after a later fit replaced it");
     int size = 1;
     MPI_Comm_size(b_.comm_, &size);
     // The points by part (a counting sort by the partition's regions).
@@ -299,7 +300,7 @@ int serve(MPI_Comm comm) {
         case kApply:
         case kDisplacements: {
           std::vector<Vec3> none;
-          if (!map) throw std::logic_error("an evaluation without a fit");
+          if (!map) throw csrbf::Error("an evaluation without a fit");
           try {
             evaluate_share(comm, *map, c.op, c.phase, {}, {}, none);
           } catch (const Failure&) {
@@ -312,7 +313,7 @@ int serve(MPI_Comm comm) {
         case kDone:
           return c.code;
         default:
-          throw std::logic_error("unknown command " + std::to_string(c.op) + " from rank 0");
+          throw csrbf::Error("unknown command " + std::to_string(c.op) + " from rank 0");
       }
     } catch (const std::exception& e) {
       // Not agreed with the other ranks: they may wait for this one in a collective. Report, then

@@ -6,6 +6,7 @@
 #include "csrbf/kernel_matrix.hpp"
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/ordering.hpp"
+#include "csrbf/units.hpp"
 #include "sparse_solver.hpp"
 
 #include <Eigen/Cholesky>
@@ -564,10 +565,9 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
     // factor, at least as large again: refused before anything is allocated.
     const double need = 48.0 * double(nnz);
     if (need > options.memory_limit_bytes)
-      throw ResourceLimit(
-          "the matrix rows of rank " + std::to_string(rank) + " hold " + std::to_string(nnz) + " entries (" +
-          num(need / double(1ull << 30)) + " GiB with the factor), more than the limit of " +
-          num(options.memory_limit_bytes / double(1ull << 30)) + " GiB: use a smaller radius or more ranks");
+      throw ResourceLimit("the matrix rows of rank " + std::to_string(rank) + " hold " + std::to_string(nnz) +
+                          " entries (" + num(need / kGiB) + " GiB with the factor), more than the limit of " +
+                          num(options.memory_limit_bytes / kGiB) + " GiB: use a smaller radius or more ranks");
     cols.reserve(nnz);
     vals.reserve(nnz);
     for (std::size_t i = 0; i < n; ++i) {

@@ -153,8 +153,8 @@ void check_petsc(int code, const char* what) {
   if (code == 0) return;
   const char* text = nullptr;
   PetscErrorMessage(code, &text, nullptr);
-  throw std::runtime_error(std::string("PETSc: ") + what + " failed (error " + std::to_string(code) +
-                           (text ? std::string(": ") + text : std::string()) + ")");
+  throw csrbf::Error(std::string("PETSc: ") + what + " failed (error " + std::to_string(code) +
+                     (text ? std::string(": ") + text : std::string()) + ")");
 }
 
 }  // namespace csrbf::mpi

@@ -1,5 +1,8 @@
 // glTF 2.0 export of a scene: see gltf_export.hpp for what is exact and what is sampled.
 #include "csrbf/render/gltf_export.hpp"
+
+#include "csrbf/gltf/detail/meshopt_compress.hpp"
+#include "csrbf/gltf/glb.hpp"
 #include "csrbf/io/memory.hpp"
 
 #include "csrbf/io/atomic_file.hpp"
@@ -7,8 +10,7 @@
 #include "csrbf/io/scene.hpp"
 #include "csrbf/kernels.hpp"
 #include "csrbf/space_map.hpp"
-#include "glb_internal.hpp"
-#include "gltf_meshopt_internal.hpp"
+#include "csrbf/units.hpp"
 #include "texture_coordinates.hpp"
 
 #include <nlohmann/json.hpp>
@@ -28,11 +30,16 @@
 namespace csrbf::render {
 namespace {
 
+using gltf::MeshoptView;
 using nlohmann::json;
 namespace fs = std::filesystem;
 
-constexpr int kByte = 5120, kShort = 5122, kFloat = 5126, kUnsignedShort = 5123, kUnsignedInt = 5125,
-              kArrayBuffer = 34962, kElementArrayBuffer = 34963;
+// Component types as the JSON holds them (gltf::ComponentType); buffer view targets.
+constexpr int kByte = int(gltf::code(gltf::ComponentType::Byte)), kShort = int(gltf::code(gltf::ComponentType::Short)),
+              kFloat = int(gltf::code(gltf::ComponentType::Float)),
+              kUnsignedShort = int(gltf::code(gltf::ComponentType::UnsignedShort)),
+              kUnsignedInt = int(gltf::code(gltf::ComponentType::UnsignedInt)), kArrayBuffer = 34962,
+              kElementArrayBuffer = 34963;
 
 /// A buffer view's bytes for indices below `limit`: 16-bit where every index fits, else 32-bit.
 struct Indices {
@@ -192,8 +199,8 @@ struct Builder {
       value.assign(3, 0.0f);
     }
     const Indices ix(index, count);
-    const std::size_t iv =
-        view(ix.bytes.data(), ix.bytes.size(), 0, {MeshoptView::Mode::Indices, ix.component == 5123 ? 2u : 4u});
+    const std::size_t iv = view(ix.bytes.data(), ix.bytes.size(), 0,
+                                {MeshoptView::Mode::Indices, ix.component == kUnsignedShort ? 2u : 4u});
     const std::vector<unsigned char> packed = pack(value, component, false);
     const std::size_t vb = element_bytes(component, false);
     const std::size_t vv =
@@ -439,7 +446,7 @@ SpaceMap float_form(const SpaceMap& map, double scale = 1.0) {
 
 std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptions& options, GltfReport& report) {
   if (options.quantize && options.compact != Compact::Off)
-    throw std::invalid_argument(
+    throw InvalidInput(
         "gltf_binary: quantize with compact: CSRBF_deformation's sources and radius are in float coordinates");
   const double fps = options.fps > 0 ? options.fps : scene.fps;
   if (!(fps > 0) || !std::isfinite(fps)) throw InvalidInput("export: the frame rate must be > 0");
@@ -505,7 +512,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         candidates[o] += scene.objects[o].parts[p].deformations.size();
     }
   const ExportMemory planned = export_memory(scene, candidates, baked, frames, 0.0);
-  if (planned.targets > 2.0 * (1ull << 30))
+  if (planned.targets > 2.0 * kGiB)
     throw InvalidInput("export: the morph targets would take " +
                        std::to_string(std::llround(planned.targets / double(1 << 20))) +
                        " MiB (at most 2048): fewer deformations or smaller meshes");
@@ -514,9 +521,9 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     // advice is not followed by another.
     std::ostringstream m;
     m.precision(3);
-    m << "export: the morph targets would take " << planned.targets / double(1ull << 30) << " GiB, more than the "
-      << plan_left / double(1ull << 30) << " GiB that --memory-limit leaves after the scene; give --memory-limit "
-      << std::ceil(100 * (options.memory_limit_bytes - plan_left + planned.total()) / double(1ull << 30)) / 100
+    m << "export: the morph targets would take " << planned.targets / kGiB << " GiB, more than the " << plan_left / kGiB
+      << " GiB that --memory-limit leaves after the scene; give --memory-limit "
+      << std::ceil(100 * (options.memory_limit_bytes - plan_left + planned.total()) / kGiB) / 100
       << " or more (the whole glTF's, as planned)";
     throw InvalidInput(m.str());
   }
@@ -590,7 +597,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         for (const auto& def : part.deformations) times += double(def.schedule.keys().size());
       weight_bytes += times * targets * 12.0;
     }
-    if (weight_bytes > 0.5 * (1ull << 30))
+    if (weight_bytes > 0.5 * kGiB)
       throw InvalidInput("export: the morph weights would take " +
                          std::to_string(std::llround(weight_bytes / double(1 << 20))) +
                          " MiB (at most 512): fewer deformations, a lower --fps, or less baking");
@@ -606,7 +613,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     baked[o] = plans[o].any_baked();  // auto-baking may have baked more
   }
   const ExportMemory need = export_memory(scene, exact, baked, frames, weight_bytes);
-  if (need.baked > 4.0 * (1ull << 30))
+  if (need.baked > 4.0 * kGiB)
     throw InvalidInput("export: baking " + std::to_string(frames) + " frames would take " +
                        std::to_string(std::llround(need.baked / double(1 << 20))) +
                        " MiB (at most 4096): lower --fps, or bake less (--bake auto or never)");
@@ -616,14 +623,12 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     if (need.total() > left) {
       std::ostringstream m;
       m.precision(3);
-      m << "export: writing the glTF takes about " << need.total() / double(1ull << 30) << " GiB (the player "
-        << need.player / double(1ull << 30) << ", the buffer " << need.buffer / double(1ull << 30)
-        << ", morph targets and baked frames " << (need.targets + need.baked) / double(1ull << 30)
-        << (need.textures > 0 ? ", a texture decoded " : "");
-      if (need.textures > 0) m << need.textures / double(1ull << 30);
-      m << "), more than the " << left / double(1ull << 30)
-        << " GiB that --memory-limit leaves after the scene; give --memory-limit "
-        << std::ceil(100 * (options.memory_limit_bytes - left + need.total()) / double(1ull << 30)) / 100 << " or more"
+      m << "export: writing the glTF takes about " << need.total() / kGiB << " GiB (the player " << need.player / kGiB
+        << ", the buffer " << need.buffer / kGiB << ", morph targets and baked frames "
+        << (need.targets + need.baked) / kGiB << (need.textures > 0 ? ", a texture decoded " : "");
+      if (need.textures > 0) m << need.textures / kGiB;
+      m << "), more than the " << left / kGiB << " GiB that --memory-limit leaves after the scene; give --memory-limit "
+        << std::ceil(100 * (options.memory_limit_bytes - left + need.total()) / kGiB) / 100 << " or more"
         << (need.baked > 0 ? ", a lower --fps, or bake less (--bake auto or never)" : "");
       throw InvalidInput(m.str());
     }
@@ -1089,7 +1094,8 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
         const std::size_t view =
             b.view(packed.data(), packed.size() * 2, kArrayBuffer, {MeshoptView::Mode::Attributes, 4});
         b.doc["bufferViews"][view]["byteStride"] = 4;
-        group_accessor = b.accessor({{"bufferView", view}, {"componentType", 5123}, {"count", nv}, {"type", "SCALAR"}});
+        group_accessor =
+            b.accessor({{"bufferView", view}, {"componentType", kUnsignedShort}, {"count", nv}, {"type", "SCALAR"}});
         report.compact_bytes += packed.size() * 2;
         orep.groups = ids.size();
       }
@@ -1222,7 +1228,7 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
       // 16-bit where every vertex index fits (65535 is primitive restart in some APIs: kept out).
       const Indices ix(tri, nv <= 65535 ? nv : std::size_t(65537));
       const std::size_t iv = b.view(ix.bytes.data(), ix.bytes.size(), kElementArrayBuffer,
-                                    {MeshoptView::Mode::Triangles, ix.component == 5123 ? 2u : 4u});
+                                    {MeshoptView::Mode::Triangles, ix.component == kUnsignedShort ? 2u : 4u});
       const std::size_t ia = b.accessor({{"bufferView", iv},
                                          {"componentType", ix.component},
                                          {"count", tri.size()},
@@ -1493,10 +1499,10 @@ std::vector<unsigned char> gltf_binary(const anim::Scene& scene, const GltfOptio
     if (b.doc[key].empty()) b.doc.erase(key);
   while (b.bin.size() % 4) b.bin.push_back(0);
   b.doc["buffers"] = json::array({json{{"byteLength", b.bin.size()}}});
-  if (options.meshopt) meshopt_compress(b.doc, b.bin, b.hints);
+  if (options.meshopt) gltf::meshopt_compress(b.doc, b.bin, b.hints);
 
   // The glb: header, the JSON chunk (padded with spaces), the binary chunk.
-  const std::vector<unsigned char> head = glb_head(b.doc, b.bin.size(), "export");
+  const std::vector<unsigned char> head = gltf::glb_head(b.doc.dump(), b.bin.size(), "export");
   // In front of the binary chunk, in place where the reserve has room (no second copy of the buffer).
   std::vector<unsigned char> glb = std::move(b.bin);
   glb.insert(glb.begin(), head.begin(), head.end());
@@ -1533,19 +1539,17 @@ namespace {
 /// glb as .gltf text, streamed: its JSON with the binary chunk as a base64 data URI, written where
 /// a placeholder stands in the JSON's text (so that neither the base64 nor the text is held whole).
 std::size_t write_gltf_text(std::ostream& out, const std::vector<unsigned char>& glb) {
-  std::uint32_t json_len = 0;
-  std::memcpy(&json_len, glb.data() + 12, 4);
-  json doc = json::parse(glb.begin() + 20, glb.begin() + 20 + json_len);
-  const std::size_t bin_at = 20 + json_len + 8;
+  const gltf::GlbChunks chunks = gltf::split_glb(glb);
+  json doc = json::parse(chunks.json.begin(), chunks.json.end());
   const std::string mark = "@CSRBF-BASE64@";
   doc["buffers"][0]["uri"] = "data:application/octet-stream;base64," + mark;
   std::string text = doc.dump(1);
   text.push_back('\n');
   const std::size_t at = text.find(mark);
   out.write(text.data(), std::streamsize(at));
-  write_base64(out, glb.data() + bin_at, glb.size() - bin_at);
+  write_base64(out, chunks.bin.data(), chunks.bin.size());
   out.write(text.data() + at + mark.size(), std::streamsize(text.size() - at - mark.size()));
-  return text.size() - mark.size() + (glb.size() - bin_at + 2) / 3 * 4;
+  return text.size() - mark.size() + (chunks.bin.size() + 2) / 3 * 4;
 }
 }  // namespace
 

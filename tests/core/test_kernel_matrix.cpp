@@ -1,10 +1,7 @@
 // The CSRBF matrix A built once from the neighbour graph, against a dense matrix computed from the
-// points; the name tables; the polygon list; the exception hierarchy.
-#include "csrbf/errors.hpp"
+// points (csrbf/kernel_matrix.hpp).
 #include "csrbf/kernel_matrix.hpp"
-#include "csrbf/names.hpp"
 #include "csrbf/space_map.hpp"
-#include "csrbf/types.hpp"
 
 #include <gtest/gtest.h>
 
@@ -67,55 +64,4 @@ TEST(KernelMatrix, AFitSharesItsMatrix) {
   for (std::size_t i = 0; i < s.size(); ++i)
     EXPECT_LT((av.row(Eigen::Index(i)).transpose() - (d[i] - s[i])).norm(), 1e-9);
   EXPECT_EQ(m.matrix().values().size(), 2 * m.stats().neighbor_pairs);
-}
-
-TEST(Names, OneTablePerEnum) {
-  for (const auto& e : NameTable<Kernel>::entries) {
-    EXPECT_EQ(parse_name<Kernel>(e.name), e.value);
-    EXPECT_EQ(parse_name<Kernel>(e.alias), e.value);
-    EXPECT_EQ(kernel_name(e.value), e.name);
-  }
-  EXPECT_EQ(parse_kernel("PSI31"), Kernel::C2);
-  EXPECT_EQ(parse_ordering("Reverse-Cuthill-McKee"), Ordering::ReverseCuthillMcKee);
-  EXPECT_EQ(ordering_name(Ordering::BreadthFirst), "breadth-first");
-  EXPECT_EQ(parse_solver("CG"), Solver::Cg);
-  EXPECT_FALSE(parse_name<Polynomial>("").has_value());  // an empty alias matches nothing
-  EXPECT_FALSE(parse_name<Polynomial>("quadratic").has_value());
-  EXPECT_EQ(names<Polynomial>(), (std::vector<std::string>{"none", "constant", "linear"}));
-  EXPECT_EQ(names_text<Kernel>(), "'c0', 'c2', 'c4' or 'c6'");
-  EXPECT_EQ(names_text<Solver>("\""), "\"auto\", \"envelope\", \"eigen\", \"cholmod\" or \"cg\"");
-  EXPECT_EQ(table_index(Polynomial::Linear), 2u);
-}
-
-TEST(Types, PolygonListHoldsFacesInTwoArrays) {
-  PolygonList faces{{0, 1, 2}, {2, 1, 3, 4}};
-  faces.push_back({4, 5, 6});
-  ASSERT_EQ(faces.size(), 3u);
-  EXPECT_EQ(faces[1].size(), 4u);
-  EXPECT_EQ(faces[1][3], 4u);
-  EXPECT_EQ(faces.indices().size(), 10u);
-  std::size_t corners = 0;
-  for (auto f : faces) corners += f.size();
-  EXPECT_EQ(corners, 10u);
-  faces[0][0] = 9;
-  EXPECT_EQ(faces[0][0], 9u);
-  faces.clear();
-  EXPECT_TRUE(faces.empty());
-}
-
-TEST(Errors, OneHierarchy) {
-  // Every csrbf exception is a csrbf::Error; a resource limit is not bad input.
-  const ResourceLimit limit("too big");
-  EXPECT_EQ(dynamic_cast<const InvalidInput*>(static_cast<const Error*>(&limit)), nullptr);
-  const IllConditioned ill("close");
-  EXPECT_NE(dynamic_cast<const InvalidInput*>(static_cast<const Error*>(&ill)), nullptr);
-  const NotPositiveDefinite npd(3, -1.0);
-  EXPECT_NE(dynamic_cast<const Error*>(&npd), nullptr);
-  EXPECT_EQ(npd.row(), 3u);
-  // The memory limit raises ResourceLimit from a fit.
-  std::mt19937 rng(303);
-  const auto s = test::random_points(2000, rng);
-  FitOptions o{0.9, Kernel::C2, Polynomial::None};
-  o.memory_limit_bytes = 1e6;
-  EXPECT_THROW(SpaceMap::fit(s, s, o), ResourceLimit);
 }

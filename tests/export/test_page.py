@@ -30,6 +30,7 @@ CLI = os.environ["CSRBF_CLI"]
 SOURCE = os.environ["CSRBF_SOURCE_DIR"]
 SHOTS = os.environ.get("CSRBF_SCREENSHOT_DIR", "")
 PLAY = os.environ["CSRBF_PLAY_GLB"]  # examples/engine/play_glb.cpp
+WEB = os.environ["CSRBF_WEB_DIR"]  # the built three.js plugin (build/web/csrbf_deformation.js)
 EXAMPLES = os.path.join(SOURCE, "examples")
 SIZE = (640, 480)
 
@@ -308,11 +309,14 @@ class Page(unittest.TestCase):
             self.assertIn(says, html.unescape(error.group(1)) if error else "", says)
 
     def test_the_shader_file_is_the_modules_shader(self):
-        # web/csrbf_deformation.glsl (for engines) is the text csrbf_deformation.js runs.
+        # web/csrbf_deformation.glsl (for engines) is the text the built csrbf_deformation.js runs: the
+        # module is made of web/csrbf_deformation.js.in and the shader's one source when csrbf is built.
         with open(os.path.join(SOURCE, "web", "csrbf_deformation.glsl")) as f:
             glsl = f.read()
-        with open(os.path.join(SOURCE, "web", "csrbf_deformation.js")) as f:
+        with open(os.path.join(WEB, "csrbf_deformation.js")) as f:
             js = f.read()
+        with open(os.path.join(SOURCE, "web", "csrbf_deformation.js.in")) as f:
+            self.assertEqual(f.read().count("@CSRBF_GLSL@"), 1)
         m = re.search(r"// BEGIN CSRBF_GLSL\nexport const CSRBF_GLSL = `(.*?)`;\n// END CSRBF_GLSL", js, re.S)
         self.assertIsNotNone(m)
         self.assertEqual(m.group(1), glsl)

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # csrbf's core alone, as a game engine takes it:
 # 1. a top-level configure with every optional part off defines csrbf::core and the core tests only
+#    (test_core, and the engine's and the C API's consumers)
 #    (configured, not built: step 2 builds the core alone, and the main build builds and runs the
 #    core tests; building both here took 1.5 minutes of CI in a test that holds the whole machine);
 # 2. a project that adds csrbf with add_subdirectory (nothing set) builds the core only and runs a fit,
@@ -13,12 +14,13 @@ set -euo pipefail
 src=$1 build=$2
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-cmake -S "$src" -B "$tmp/core" -G Ninja -DCSRBF_BUILD_IO=OFF -DCSRBF_BUILD_RENDER=OFF -DCSRBF_BUILD_VTK=OFF \
+cmake -S "$src" -B "$tmp/core" -G Ninja -DCSRBF_BUILD_IO=OFF -DCSRBF_BUILD_GLTF=OFF -DCSRBF_BUILD_RENDER=OFF -DCSRBF_BUILD_VTK=OFF \
   -DCSRBF_BUILD_PYTHON=OFF -DCSRBF_BUILD_APPS=OFF -DCSRBF_BUILD_GUI=OFF -DCSRBF_BUILD_BENCH=OFF \
   -DCSRBF_BUILD_TESTS=ON -DCMAKE_DISABLE_FIND_PACKAGE_VTK=ON -DCMAKE_DISABLE_FIND_PACKAGE_MPI=ON \
   -DCMAKE_DISABLE_FIND_PACKAGE_assimp=ON > "$tmp/core.log" 2>&1 || { cat "$tmp/core.log"; exit 1; }
 programs=$(cd "$tmp/core" && ninja -t targets all | grep -oE '^bin/[^:]+' | sort -u | tr '\n' ' ')
-[ "$programs" = "bin/engine_consumer bin/test_core " ] || { echo "a core-only configure defines other programs than test_core and engine_consumer: $programs"; exit 1; }
+[ "$programs" = "bin/c_api_consumer bin/engine_consumer bin/test_core " ] ||
+  { echo "a core-only configure defines other programs than test_core, engine_consumer and c_api_consumer: $programs"; exit 1; }
 echo "core-only configure: $programs"
 
 cmake -S "$src/tests/install/subdirectory" -B "$tmp/sub" -G Ninja -DCSRBF_SOURCE_DIR="$src" \

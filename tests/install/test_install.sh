@@ -21,6 +21,8 @@ done
 for f in lib/cmake/csrbf/csrbfConfig.cmake lib/cmake/csrbf/csrbfConfigVersion.cmake \
          lib/cmake/csrbf/csrbf-core-targets.cmake lib/cmake/csrbf/csrbf-anim-targets.cmake \
          lib/cmake/csrbf/csrbf-io-targets.cmake lib/cmake/csrbf/csrbf-render-targets.cmake \
+         lib/cmake/csrbf/csrbf-gltf-targets.cmake include/csrbf/gltf/runtime.hpp include/csrbf/gltf/glb.hpp lib/libcsrbf_gltf.a \
+         include/csrbf/csrbf.h include/csrbf/units.hpp lib/pkgconfig/csrbf.pc \
          lib/cmake/csrbf/csrbf-vtk-targets.cmake lib/cmake/csrbf/csrbf-morph-targets.cmake lib/cmake/csrbf/FindCGNS.cmake \
          lib/cmake/csrbf/csrbf-mpi-targets.cmake include/csrbf/mpi/distributed.hpp lib/libcsrbf_mpi.a \
          include/csrbf/space_map.hpp include/csrbf/version.hpp include/csrbf/vtk/vtkCSRBFTransform.h include/csrbf/anim/scene.hpp \
@@ -28,6 +30,14 @@ for f in lib/cmake/csrbf/csrbfConfig.cmake lib/cmake/csrbf/csrbfConfigVersion.cm
          lib/libcsrbf_core.a lib/libcsrbf_vtk.a; do
   test -f "$tmp/prefix/$f" || { echo "missing $f"; exit 1; }
 done
+# The three.js plugin, made at build time with the shader's one source inside it, beside that source.
+web="$tmp/prefix/share/csrbf/web"
+grep -q 'void csrbfDeform(' "$web/csrbf_deformation.js" && ! grep -q '@CSRBF_GLSL@' "$web/csrbf_deformation.js" &&
+  test -f "$web/csrbf_deformation.glsl" || { echo "the installed three.js plugin lacks its shader"; exit 1; }
+# The licence: installed beside the documentation and named by the CMake package.
+grep -q '^BSD 3-Clause License' "$tmp/prefix/share/doc/csrbf/LICENSE" || { echo "LICENSE not installed"; exit 1; }
+grep -q 'set(csrbf_LICENSE "BSD-3-Clause")' "$tmp/prefix/lib/cmake/csrbf/csrbfConfig.cmake" ||
+  { echo "csrbfConfig.cmake does not name the licence"; exit 1; }
 module=$(find "$tmp/prefix/lib" -name 'csrbf*.so' -path '*dist-packages*' | head -n1)
 test -n "$module" || { echo "missing the Python module under lib/python3.*/dist-packages"; exit 1; }
 PYTHONPATH=$(dirname "$module") "$python" -c "import csrbf, numpy as np; m = csrbf.SpaceMap(np.eye(3), np.eye(3) + 0.1, 2.0); assert abs(m(np.eye(3))[0, 0] - 1.1) < 1e-12"
@@ -55,9 +65,9 @@ echo "installed: programs, headers, libraries, CMake config and version, Python 
 if grep -qi 'cholmod' "$tmp/prefix/lib/cmake/csrbf/csrbf-core-targets.cmake"; then
   echo "csrbf-core-targets.cmake names CHOLMOD"; exit 1
 fi
-for c in core engine anim io morph mpi render vtk; do
+for c in core engine anim io morph mpi gltf render vtk; do
   extra=()
-  if [ "$c" = core ] || [ "$c" = engine ]; then
+  if [ "$c" = core ] || [ "$c" = engine ] || [ "$c" = gltf ]; then
     extra=(-DCMAKE_DISABLE_FIND_PACKAGE_VTK=ON -DCMAKE_DISABLE_FIND_PACKAGE_MPI=ON -DCMAKE_DISABLE_FIND_PACKAGE_assimp=ON)
   fi
   cmake -S "$src/tests/install/consumers" -B "$tmp/consumer-$c" -G Ninja -DCMAKE_BUILD_TYPE=Release \
@@ -66,7 +76,27 @@ for c in core engine anim io morph mpi render vtk; do
   cmake --build "$tmp/consumer-$c" > "$tmp/consumer-$c-build.log" 2>&1 || { cat "$tmp/consumer-$c-build.log"; exit 1; }
   echo -n "consumer of csrbf::$c: "
   "$tmp/consumer-$c/consumer"
+  if [ "$c" = gltf ] && ldd "$tmp/consumer-$c/consumer" | grep -Ei 'libvtk|libX11|libassimp|libmpi'; then
+    echo "the consumer of csrbf::gltf loads the libraries above"; exit 1
+  fi
 done
+
+# The C API from C alone: deform_fish.c (tests/capi) in a CMake project of the C language only, and
+# with the installed csrbf.pc and the system's C compiler, as a build without CMake does.
+cmake -S "$src/tests/install/consumer-c" -B "$tmp/consumer-c" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+  -DCSRBF_SOURCE_DIR="$src" -DCMAKE_PREFIX_PATH="$tmp/prefix" > "$tmp/consumer-c.log" 2>&1 || { cat "$tmp/consumer-c.log"; exit 1; }
+cmake --build "$tmp/consumer-c" > "$tmp/consumer-c-build.log" 2>&1 || { cat "$tmp/consumer-c-build.log"; exit 1; }
+flags=$(PKG_CONFIG_PATH="$tmp/prefix/lib/pkgconfig" pkg-config --cflags --libs csrbf)
+# shellcheck disable=SC2086
+cc -std=c11 -Wall -Wextra -Werror -pedantic "$src/tests/capi/deform_fish.c" -o "$tmp/deform_fish-pc" $flags ||
+  { echo "cc with pkg-config's flags ($flags) failed"; exit 1; }
+for p in "$tmp/consumer-c/consumer" "$tmp/deform_fish-pc"; do
+  "$p" "$src/examples/fish.obj" "$src/examples/fish.controls" 0.3 > "$tmp/c.obj"
+  [ "$(grep -c '^v ' "$tmp/c.obj")" = 977 ] || { echo "$p did not deform the fish's 977 vertices"; exit 1; }
+done
+cmp "$tmp/c.obj" <("$tmp/consumer-c/consumer" "$src/examples/fish.obj" "$src/examples/fish.controls" 0.3) ||
+  { echo "the C consumers built by CMake and by pkg-config differ"; exit 1; }
+echo "C API: a C-only CMake project and cc with pkg-config ($flags) deform the fish"
 
 # The default build made the wheel (python/CMakeLists.txt): this test builds nothing in the build folder.
 wheel=$(ls -t "$build"/dist/csrbf-*.whl 2> /dev/null | head -n1)
@@ -74,6 +104,8 @@ wheel=$(ls -t "$build"/dist/csrbf-*.whl 2> /dev/null | head -n1)
 # As a Python user installs it: a venv that sees Debian's numpy, pip offline, the wheel's stated
 # dependency (numpy) resolved against it (no --no-deps), the type stubs beside the module.
 "$python" -c "import sys, zipfile; z = zipfile.ZipFile(sys.argv[1]); sys.exit(not any(l.startswith('Requires-Dist: numpy') for n in z.namelist() if n.endswith('.dist-info/METADATA') for l in z.read(n).decode().splitlines()))" "$wheel" || { echo "the wheel does not state numpy"; exit 1; }
+"$python" -c "import sys, zipfile; z = zipfile.ZipFile(sys.argv[1]); m = [z.read(n).decode() for n in z.namelist() if n.endswith('.dist-info/METADATA')][0]; sys.exit(not ('License: BSD-3-Clause' in m.splitlines() and any(n.endswith('LICENSE') for n in z.namelist())))" "$wheel" ||
+  { echo "the wheel's metadata does not name BSD-3-Clause or carry LICENSE"; exit 1; }
 "$python" -m venv --system-site-packages "$tmp/venv"
 (cd "$tmp" && PYTHONPATH= PIP_ROOT_USER_ACTION=ignore "$tmp/venv/bin/python" -m pip install --disable-pip-version-check \
   --no-index --quiet "$wheel")

@@ -1,5 +1,6 @@
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/io/input_file.hpp"
 
 #include "io/test_helpers.hpp"
 

@@ -4,6 +4,7 @@
 
 #include "csrbf/io/error.hpp"
 #include "csrbf/neighbor_index.hpp"
+#include "csrbf/units.hpp"
 
 #include <filesystem>
 #include <istream>
@@ -26,7 +27,7 @@ Controls parse_controls(std::istream& in, const std::string& name);
 /// memory_limit_bytes bounds the whole process (--memory-limit): the file's text (also from a pipe)
 /// is read within what the process leaves of it (and 1 GiB, about 1.5e7 controls), and the controls
 /// within what is left beside the text (57 bytes a line, counted before they are parsed).
-Controls read_controls(const std::filesystem::path& path, double memory_limit_bytes = 4.0 * (1ull << 30));
+Controls read_controls(const std::filesystem::path& path, double memory_limit_bytes = 4.0 * kGiB);
 /// Writes controls atomically (temporary file, then rename).
 void write_controls(const std::filesystem::path& path, const std::vector<Vec3>& sources,
                     const std::vector<Vec3>& destinations);

@@ -10,6 +10,7 @@
 
 #include "csrbf/io/error.hpp"
 #include "csrbf/space_map.hpp"
+#include "csrbf/units.hpp"
 
 #include <array>
 #include <cstdint>
@@ -55,7 +56,7 @@ void apply_deformation(const SpaceMap& map, const std::optional<ActiveArea>& are
 /// Throws FileError naming the file and the JSON path of a bad or unknown value.
 /// max_bytes bounds the JSON text (also from a pipe; parsed JSON takes about 16 times its text):
 /// at most 1 GiB.
-DeformationSpec read_deformation(const std::filesystem::path& path, double max_bytes = double(1ull << 30));
+DeformationSpec read_deformation(const std::filesystem::path& path, double max_bytes = kGiB);
 /// The same from JSON text: name is used in messages, base resolves a "controls" file.
 DeformationSpec read_deformation_text(const std::string& text, const std::string& name,
                                       const std::filesystem::path& base);

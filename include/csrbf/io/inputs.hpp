@@ -3,6 +3,7 @@
 #pragma once
 
 #include <filesystem>
+#include "csrbf/units.hpp"
 #include <string>
 #include <vector>
 
@@ -17,7 +18,7 @@ namespace csrbf::io {
 /// what the process leaves of the limit (its tree takes about 7 times its text: a 50 MB deformation
 /// peaked at 357 MB before the limit of 0.1 GiB refused it); a larger one is left to its reader.
 std::vector<std::filesystem::path> referenced_files(const std::filesystem::path& json,
-                                                    double memory_limit_bytes = 4.0 * (1ull << 30));
+                                                    double memory_limit_bytes = 4.0 * kGiB);
 
 /// An eighth of what the process leaves of a whole-process limit: the most JSON text it parses (a
 /// JSON tree takes about 7 times its text).
@@ -26,7 +27,7 @@ double json_bytes_within(double memory_limit_bytes) noexcept;
 /// The files a mesh file reads besides itself: a .gltf's buffers and images named by a relative or
 /// absolute URI (not data: URIs); nothing for other formats, or when the file cannot be read.
 std::vector<std::filesystem::path> mesh_side_files(const std::filesystem::path& mesh,
-                                                   double memory_limit_bytes = 4.0 * (1ull << 30));
+                                                   double memory_limit_bytes = 4.0 * kGiB);
 
 /// The first input that is the same file as output (the same device and inode once links are
 /// followed), or empty. An output that does not exist yet is no input.

@@ -7,6 +7,7 @@
 
 #include "csrbf/io/error.hpp"
 #include "csrbf/neighbor_index.hpp"
+#include "csrbf/units.hpp"
 
 #include <cstdint>
 #include <filesystem>
@@ -29,7 +30,7 @@ class MeshDocument {
  public:
   /// Throws FileError naming the file, the line (for text formats) and the bad text.
   /// memory_limit_bytes: a file that would take more once read is refused before it is read.
-  static MeshDocument load(const std::filesystem::path& path, double memory_limit_bytes = 4.0 * (1ull << 30));
+  static MeshDocument load(const std::filesystem::path& path, double memory_limit_bytes = 4.0 * kGiB);
   MeshDocument(MeshDocument&&) noexcept;
   MeshDocument& operator=(MeshDocument&&) noexcept;
   ~MeshDocument();

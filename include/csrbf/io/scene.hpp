@@ -5,6 +5,7 @@
 
 #include "csrbf/anim/scene.hpp"
 #include "csrbf/io/error.hpp"
+#include "csrbf/units.hpp"
 
 #include <cstdint>
 #include <vector>
@@ -21,11 +22,11 @@ namespace csrbf::io {
 /// memory_limit_bytes bounds the whole process as --memory-limit does: each mesh is read within it,
 /// deformation files within a sixteenth of it, and each fit gets what the program, the meshes and
 /// the fits before it leave of it (FitOptions::memory_limit_bytes, also for contacts' fits).
-anim::Scene read_scene(const std::filesystem::path& path, double memory_limit_bytes = 4.0 * (1ull << 30));
+anim::Scene read_scene(const std::filesystem::path& path, double memory_limit_bytes = 4.0 * kGiB);
 /// The same from JSON text (an editor's scene before it is saved): name is used in messages, base
 /// resolves relative paths.
 anim::Scene read_scene_text(const std::string& text, const std::string& name, const std::filesystem::path& base,
-                            double memory_limit_bytes = 4.0 * (1ull << 30));
+                            double memory_limit_bytes = 4.0 * kGiB);
 
 /// What is wrong with a PNG or JPEG texture file as a whole, or empty when it is sound: a PNG's
 /// every chunk with its CRC, IHDR first and IEND last, its image data inflating to the rows IHDR

@@ -6,6 +6,7 @@
 #include "csrbf/morph/morph.hpp"
 #include "csrbf/morph/motion.hpp"
 #include "csrbf/morph/quality.hpp"
+#include "csrbf/units.hpp"
 
 #include <filesystem>
 #include <optional>
@@ -15,11 +16,8 @@
 namespace csrbf::morph {
 
 /// A job whose options contradict each other or lack a value (no radius anywhere, an output of
-/// another format, neither an output nor in place): a usage error, exit status 2.
-class JobError : public InvalidInput {
- public:
-  using InvalidInput::InvalidInput;
-};
+/// another format, neither an output nor in place): csrbf's one usage error, exit status 2.
+using JobError = UsageError;
 
 struct MorphJob {
   std::filesystem::path mesh, motion;
@@ -40,7 +38,7 @@ struct MorphJob {
   int levels = 0;              ///< MorphOptions::levels: 0 auto, 1 or 2
   Solver solver = Solver::Auto;
   double phase = 1.0;
-  double memory_limit_bytes = 4.0 * (1ull << 30);
+  double memory_limit_bytes = 4.0 * kGiB;
   bool force = false;  ///< write even if cells invert
   /// OpenFOAM: the time whose mesh is morphed ("latest" or a time, as `-time`; empty: constant),
   /// and whose polyMesh gets the moved points (openfoam.hpp).

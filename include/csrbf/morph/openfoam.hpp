@@ -5,6 +5,7 @@
 
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/morph/volume_mesh.hpp"
+#include "csrbf/units.hpp"
 
 #include <filesystem>
 #include <memory>
@@ -47,7 +48,7 @@ bool is_openfoam(const std::filesystem::path& path);
 /// by value as OpenFOAM matches it): that time's polyMesh where it has one, file by file (points
 /// from TIME/polyMesh/points when there, faces and the rest from TIME/polyMesh when it has faces),
 /// else constant's, as OpenFOAM falls back. The moved points are written to TIME/polyMesh.
-FoamCase read_openfoam(const std::filesystem::path& path, double max_file_bytes = 8.0 * (1ull << 30),
+FoamCase read_openfoam(const std::filesystem::path& path, double max_file_bytes = 8.0 * kGiB,
                        const std::string& time = {});
 
 /// The case's time folders (names that are numbers, "0" included), in increasing time.

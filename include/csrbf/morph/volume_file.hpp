@@ -8,6 +8,7 @@
 
 #include "csrbf/morph/quality.hpp"
 #include "csrbf/morph/volume_mesh.hpp"
+#include "csrbf/units.hpp"
 
 #include <filesystem>
 #include <memory>
@@ -20,7 +21,7 @@ struct OpenOptions {
   /// VTK: the integer point or cell data array whose values name the patches ("patch_array" in
   /// the motion file).
   std::string patch_array;
-  double max_file_bytes = 8.0 * (1ull << 30);
+  double max_file_bytes = 8.0 * kGiB;
   /// OpenFOAM: the time folder's mesh ("latest" or a time; empty: constant). Other formats refuse it.
   std::string time;
 };

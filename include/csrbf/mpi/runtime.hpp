@@ -3,6 +3,8 @@
 // at the step's end, so that no rank waits forever in a collective the failed rank never reaches.
 #pragma once
 
+#include "csrbf/errors.hpp"
+
 #include <mpi.h>
 
 #include <cstddef>
@@ -37,10 +39,10 @@ class Runtime {
 
 /// An error agreed by every rank: the message of the lowest rank that failed, with its rank, and
 /// the exit code it asked for (1: bad data or a failure; 2: a usage error).
-class Failure : public std::runtime_error {
+class Failure : public csrbf::Error {
  public:
   Failure(const std::string& message, int rank, int exit_code)
-      : std::runtime_error(message), rank_(rank), exit_code_(exit_code) {}
+      : csrbf::Error(message), rank_(rank), exit_code_(exit_code) {}
   int rank() const noexcept { return rank_; }
   int exit_code() const noexcept { return exit_code_; }
 

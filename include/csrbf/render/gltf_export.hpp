@@ -19,6 +19,7 @@
 #pragma once
 
 #include "csrbf/anim/scene.hpp"
+#include "csrbf/units.hpp"
 
 #include <cstddef>
 #include <filesystem>
@@ -57,7 +58,7 @@ struct GltfOptions {
   std::size_t max_active = 8;  ///< morph targets active at once in an object (three.js: 8)
   /// The whole process's limit (--memory-limit): baked frames are refused beyond what the program
   /// leaves of it.
-  double memory_limit_bytes = 4.0 * (1ull << 30);
+  double memory_limit_bytes = 4.0 * kGiB;
 };
 
 struct GltfPartReport {

@@ -1,6 +1,8 @@
 // GltfRuntime: a glb's meshes as a client of CSRBF_deformation plays them (gltf_runtime.hpp).
-#include "csrbf/render/gltf_runtime.hpp"
-#include "csrbf/render/gltf_meshopt.hpp"
+#include "csrbf/gltf/runtime.hpp"
+
+#include "csrbf/gltf/glb.hpp"
+#include "csrbf/gltf/meshopt.hpp"
 
 #include "csrbf/errors.hpp"
 #include "csrbf/kernels.hpp"
@@ -17,7 +19,7 @@
 #include <cstring>
 #include <string>
 
-namespace csrbf::render {
+namespace csrbf::gltf {
 namespace {
 
 using nlohmann::json;
@@ -107,7 +109,7 @@ class Accessors {
       const json& ix = sp["indices"];
       const json& vs = sp["values"];
       const std::size_t ict = index_of(ix, "componentType", sw + ".indices");
-      if (ict != 5121 && ict != 5123 && ict != 5125)
+      if (!is_unsigned_integer(ict))
         throw InvalidInput("glTF: " + sw + ".indices.componentType " + std::to_string(ict) +
                            " is not an unsigned integer type");
       const std::size_t isize = component_size(ict, sw + ".indices");
@@ -166,31 +168,24 @@ class Accessors {
                          "-byte element");
     return {bin_.data() + start + offset, stride ? stride : element, length - offset};
   }
+  /// The components read here: unsigned integers and floats.
   static std::size_t component_size(std::size_t ct, const std::string& where) {
-    switch (ct) {
-      case 5121:
-        return 1;
-      case 5123:
-        return 2;
-      case 5125:
-      case 5126:
-        return 4;
-      default:
-        throw InvalidInput("glTF: " + where + ".componentType " + std::to_string(ct) + " is not read here");
-    }
+    if (!is_unsigned_integer(ct) && ct != code(ComponentType::Float))
+      throw InvalidInput("glTF: " + where + ".componentType " + std::to_string(ct) + " is not read here");
+    return gltf::component_size(ct);
   }
   static double value(const unsigned char* p, std::size_t ct) {
-    if (ct == 5126) {
+    if (ct == code(ComponentType::Float)) {
       float f;
       std::memcpy(&f, p, 4);
       return double(f);
     }
-    if (ct == 5125) {
+    if (ct == code(ComponentType::UnsignedInt)) {
       std::uint32_t u;
       std::memcpy(&u, p, 4);
       return double(u);
     }
-    if (ct == 5123) {
+    if (ct == code(ComponentType::UnsignedShort)) {
       std::uint16_t u;
       std::memcpy(&u, p, 2);
       return double(u);
@@ -229,181 +224,199 @@ struct Mesh {
   std::string interpolation;
 };
 
-/// The meshes of a glb's JSON and binary chunk (GltfRuntime's constructor).
-void load(const json& doc, std::span<const unsigned char> bin, std::vector<Mesh>& result) {
-  const Accessors acc(doc, bin);
-  const json& meshes = array_of(doc, "meshes");
-  for (std::size_t mi = 0; mi < meshes.size(); ++mi) {
-    const json& m = meshes[mi];
-    const std::string where = field("meshes", mi);
-    if (!m.is_object()) throw InvalidInput("glTF: " + where + " is not an object");
-    Mesh out;
-    out.name = m.contains("name") && m["name"].is_string() ? m["name"].get<std::string>() : "";
-    const json& prims = array_of(m, "primitives");
-    if (prims.empty() || !prims[0].is_object()) throw InvalidInput("glTF: " + where + " has no primitives");
-    // Every primitive of a csrbf mesh shares its attributes and targets: the first stands for all.
-    const json& prim = prims[0];
-    if (!prim.contains("attributes") || !prim["attributes"].is_object())
-      throw InvalidInput("glTF: " + where + ".primitives[0] has no attributes");
-    const json& attrs = prim["attributes"];
-    const std::string aw = where + ".primitives[0].attributes";
-    out.rest = vec3s(acc.read(index_of(attrs, "POSITION", aw), 3, "POSITION"));
-    const std::size_t nv = out.rest.size();
-    out.normal = attrs.contains("NORMAL") ? vec3s(acc.read(index_of(attrs, "NORMAL", aw), 3, "NORMAL", nv))
-                                          : std::vector<Vec3>(nv, Vec3::Zero());
-    for (std::size_t pi = 0; pi < prims.size(); ++pi) {
-      const json& pr = prims[pi];
-      const std::string pw = where + ".primitives[" + std::to_string(pi) + "]";
-      if (!pr.is_object()) throw InvalidInput("glTF: " + pw + " is not an object");
-      if (pr.contains("mode") && !(pr["mode"].is_number_unsigned() && pr["mode"].get<std::uint64_t>() == 4))
-        throw InvalidInput("glTF: " + pw + ".mode " + pr["mode"].dump() + " is not 4 (triangles)");
-      std::vector<double> idx;
-      if (!pr.contains("attributes") || !pr["attributes"].is_object() ||
-          index_of(pr["attributes"], "POSITION", pw + ".attributes") != index_of(attrs, "POSITION", aw))
-        throw InvalidInput("glTF: " + pw +
-                           ": its POSITION is not the first primitive's (a csrbf mesh's primitives "
-                           "share their vertices)");
-      if (pr.contains("indices")) {
-        const std::size_t ia = index_of(pr, "indices", pw);
-        if (const std::size_t ct = acc.component_type(ia); ct != 5121 && ct != 5123 && ct != 5125)
-          throw InvalidInput("glTF: " + pw + ".indices: componentType " + std::to_string(ct) +
-                             " is not an unsigned integer type");
-        idx = acc.read(ia, 1, "indices");
-      } else {
-        idx.resize(nv);
-        for (std::size_t i = 0; i < nv; ++i) idx[i] = double(i);
-      }
-      if (idx.size() % 3 != 0)
-        throw InvalidInput("glTF: " + pw + " draws " + std::to_string(idx.size()) + " vertices" +
-                           (pr.contains("indices") ? " (indices)" : " (no indices: every vertex)") +
-                           ", not whole triangles");
-      for (std::size_t i = 0; i < idx.size(); ++i) {
-        if (!(idx[i] >= 0 && idx[i] < double(nv)))
-          throw InvalidInput("glTF: " + pw + ": index " + std::to_string(i) + " is " + std::to_string(idx[i]) +
-                             ", past the " + std::to_string(nv) + " vertices");
-        out.triangles.push_back(std::uint32_t(idx[i]));
-      }
+/// A mesh's rest positions, normals and every primitive's triangles (load's first phase). Every
+/// primitive of a csrbf mesh shares its attributes and targets: the first stands for all.
+void load_geometry(const Accessors& acc, const json& m, const std::string& where, Mesh& out) {
+  const json& prims = array_of(m, "primitives");
+  if (prims.empty() || !prims[0].is_object()) throw InvalidInput("glTF: " + where + " has no primitives");
+  const json& prim = prims[0];
+  if (!prim.contains("attributes") || !prim["attributes"].is_object())
+    throw InvalidInput("glTF: " + where + ".primitives[0] has no attributes");
+  const json& attrs = prim["attributes"];
+  const std::string aw = where + ".primitives[0].attributes";
+  out.rest = vec3s(acc.read(index_of(attrs, "POSITION", aw), 3, "POSITION"));
+  const std::size_t nv = out.rest.size();
+  out.normal = attrs.contains("NORMAL") ? vec3s(acc.read(index_of(attrs, "NORMAL", aw), 3, "NORMAL", nv))
+                                        : std::vector<Vec3>(nv, Vec3::Zero());
+  for (std::size_t pi = 0; pi < prims.size(); ++pi) {
+    const json& pr = prims[pi];
+    const std::string pw = where + ".primitives[" + std::to_string(pi) + "]";
+    if (!pr.is_object()) throw InvalidInput("glTF: " + pw + " is not an object");
+    if (pr.contains("mode") && !(pr["mode"].is_number_unsigned() && pr["mode"].get<std::uint64_t>() == 4))
+      throw InvalidInput("glTF: " + pw + ".mode " + pr["mode"].dump() + " is not 4 (triangles)");
+    std::vector<double> idx;
+    if (!pr.contains("attributes") || !pr["attributes"].is_object() ||
+        index_of(pr["attributes"], "POSITION", pw + ".attributes") != index_of(attrs, "POSITION", aw))
+      throw InvalidInput("glTF: " + pw +
+                         ": its POSITION is not the first primitive's (a csrbf mesh's primitives "
+                         "share their vertices)");
+    if (pr.contains("indices")) {
+      const std::size_t ia = index_of(pr, "indices", pw);
+      if (const std::size_t ct = acc.component_type(ia); !is_unsigned_integer(ct))
+        throw InvalidInput("glTF: " + pw + ".indices: componentType " + std::to_string(ct) +
+                           " is not an unsigned integer type");
+      idx = acc.read(ia, 1, "indices");
+    } else {
+      idx.resize(nv);
+      for (std::size_t i = 0; i < nv; ++i) idx[i] = double(i);
     }
-    const json& targets = array_of(prim, "targets");
-    for (std::size_t ti = 0; ti < targets.size(); ++ti) {
-      const json& t = targets[ti];
-      const std::string tw = where + ".primitives[0].targets[" + std::to_string(ti) + "]";
-      if (!t.is_object()) throw InvalidInput("glTF: " + tw + " is not an object");
-      // Empty: a target without data (all zero), as --compact=only writes the replaced ones.
-      out.target_position.push_back(
-          t.contains("POSITION") ? vec3s(acc.read(index_of(t, "POSITION", tw), 3, "a target's POSITION", nv, true))
-                                 : std::vector<Vec3>{});
-      out.target_normal.push_back(t.contains("NORMAL")
-                                      ? vec3s(acc.read(index_of(t, "NORMAL", tw), 3, "a target's NORMAL", nv, true))
-                                      : std::vector<Vec3>{});
+    if (idx.size() % 3 != 0)
+      throw InvalidInput("glTF: " + pw + " draws " + std::to_string(idx.size()) + " vertices" +
+                         (pr.contains("indices") ? " (indices)" : " (no indices: every vertex)") +
+                         ", not whole triangles");
+    for (std::size_t i = 0; i < idx.size(); ++i) {
+      if (!(idx[i] >= 0 && idx[i] < double(nv)))
+        throw InvalidInput("glTF: " + pw + ": index " + std::to_string(i) + " is " + std::to_string(idx[i]) +
+                           ", past the " + std::to_string(nv) + " vertices");
+      out.triangles.push_back(std::uint32_t(idx[i]));
     }
-    const std::size_t nt = out.target_position.size();
-    out.default_weights.assign(nt, 0.0);
-    if (m.contains("weights")) {
-      const json& w = m["weights"];
-      if (!w.is_array() || w.size() != nt)
-        throw InvalidInput("glTF: " + where + ".weights is not an array of " + std::to_string(nt) +
-                           " numbers (one a morph target)");
-      for (std::size_t j = 0; j < nt; ++j) {
-        if (!w[j].is_number())
-          throw InvalidInput("glTF: " + where + ".weights[" + std::to_string(j) + "] is not a number");
-        out.default_weights[j] = w[j].get<double>();
-      }
-    }
-    out.replaced.assign(nt, 0);
-    const json* ext = nullptr;
-    if (m.contains("extensions") && m["extensions"].is_object() && m["extensions"].contains("CSRBF_deformation"))
-      ext = &m["extensions"]["CSRBF_deformation"];
-    if (ext) {
-      const std::string ew = where + ".extensions.CSRBF_deformation";
-      std::vector<double> group;
-      if (attrs.contains("_CSRBF_GROUP")) {
-        const std::size_t ga = index_of(attrs, "_CSRBF_GROUP", aw);
-        group = acc.read(ga, 1, "_CSRBF_GROUP", nv);
-        if (const std::size_t ct = acc.component_type(ga); ct != 5121 && ct != 5123)
-          throw InvalidInput("glTF: " + aw + "._CSRBF_GROUP's componentType " + std::to_string(ct) +
-                             " is not UNSIGNED_BYTE or UNSIGNED_SHORT");
-      }
-      const json& defs = array_of(*ext, "deformations");
-      if (defs.empty()) throw InvalidInput("glTF: " + ew + " has no deformations");
-      for (std::size_t di = 0; di < defs.size(); ++di) {
-        const json& d = defs[di];
-        const std::string dw = ew + ".deformations[" + std::to_string(di) + "]";
-        if (!d.is_object()) throw InvalidInput("glTF: " + dw + " is not an object");
-        const std::string given = d.contains("kernel") && d["kernel"].is_string() ? d["kernel"].get<std::string>() : "";
-        std::string kname = given;
-        for (char& ch : kname) ch = char(std::tolower(static_cast<unsigned char>(ch)));
-        const auto kernel = parse_kernel(kname);
-        if (!kernel || kname.size() != 2)
-          throw InvalidInput("glTF: " + dw + ".kernel '" + given + "' is not C0, C2, C4 or C6");
-        const double radius = d.contains("radius") && d["radius"].is_number() ? d["radius"].get<double>() : 0.0;
-        // Clients evaluate in single precision: R, 1/R and R^2 must be normal floats.
-        if (!(radius >= 1e-18 && radius <= 1e18))
-          throw InvalidInput("glTF: " + dw + ".radius " + (d.contains("radius") ? d["radius"].dump() : "(none)") +
-                             " is not a number in [1e-18, 1e18]");
-        const json& terms = array_of(d, "terms");
-        if (terms.empty()) throw InvalidInput("glTF: " + dw + " has no terms");
-        const std::vector<Vec3> sources = vec3s(acc.read(index_of(d, "sources", dw), 3, "sources"));
-        Deformation def;
-        def.stage = index_of(d, "stage", dw, 0);
-        if (def.stage > 65535)
-          throw InvalidInput("glTF: " + dw + ".stage " + std::to_string(def.stage) + " is past 65535");
-        if (d.contains("groups")) {
-          const json& g = d["groups"];
-          if (!g.is_array() || g.empty()) throw InvalidInput("glTF: " + dw + ".groups is not a non-empty array");
-          if (group.empty()) throw InvalidInput("glTF: " + dw + " has groups but the mesh has no _CSRBF_GROUP");
-          std::vector<char> in(65536, 0);
-          for (const json& x : g) {
-            if (!x.is_number_unsigned() || x.get<std::size_t>() > 65535)
-              throw InvalidInput("glTF: " + dw + ".groups holds " + x.dump().substr(0, 40) + ", not a group number");
-            in[x.get<std::size_t>()] = 1;
-          }
-          for (std::size_t v = 0; v < nv; ++v)
-            if (in[std::size_t(group[v])]) def.vertices.push_back(std::uint32_t(v));
-        } else {
-          for (std::size_t v = 0; v < nv; ++v) def.vertices.push_back(std::uint32_t(v));
-        }
-        for (std::size_t ti = 0; ti < terms.size(); ++ti) {
-          const json& t = terms[ti];
-          const std::string tw = dw + ".terms[" + std::to_string(ti) + "]";
-          if (!t.is_object()) throw InvalidInput("glTF: " + tw + " is not an object");
-          const std::size_t w = index_of(t, "weight", tw);
-          if (w >= nt)
-            throw InvalidInput("glTF: " + tw + ": weight " + std::to_string(w) + " is not below the mesh's " +
-                               std::to_string(nt) + " weights");
-          const std::vector<double> c = acc.read(index_of(t, "coefficients", tw), 3, "coefficients", sources.size());
-          Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(sources.size()), 3);
-          for (std::size_t i = 0; i < sources.size(); ++i)
-            for (int k = 0; k < 3; ++k) alpha(Eigen::Index(i), k) = c[3 * i + std::size_t(k)];
-          Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
-          FitOptions fo;
-          fo.radius = radius;
-          fo.kernel = *kernel;
-          fo.polynomial = Polynomial::None;
-          if (t.contains("polynomial")) {
-            const json& p = t["polynomial"];
-            if (!p.is_array() || p.size() != 12)
-              throw InvalidInput("glTF: " + tw + ".polynomial is not an array of 12 numbers");
-            for (int r = 0; r < 4; ++r)
-              for (int k = 0; k < 3; ++k) {
-                const json& x = p[std::size_t(3 * r + k)];
-                if (!x.is_number() || !std::isfinite(x.get<double>()))
-                  throw InvalidInput("glTF: " + tw + ".polynomial holds " + x.dump().substr(0, 40) + ", not a number");
-                beta(r, k) = x.get<double>();
-              }
-            fo.polynomial = Polynomial::Linear;
-          }
-          def.terms.push_back({w, SpaceMap::from_solution(sources, alpha, beta, Vec3::Zero(), 1.0, fo)});
-          out.replaced[w] = 1;
-        }
-        out.deformations.push_back(std::move(def));
-      }
-      std::stable_sort(out.deformations.begin(), out.deformations.end(),
-                       [](const Deformation& a, const Deformation& b) { return a.stage < b.stage; });
-    }
-    result.push_back(std::move(out));
   }
-  // The weights channels of the nodes that hold each mesh.
+}
+
+/// The first primitive's morph targets and the mesh's default weights (load's second phase).
+void load_targets(const Accessors& acc, const json& m, const std::string& where, Mesh& out) {
+  const json& prim = array_of(m, "primitives")[0];
+  const std::size_t nv = out.rest.size();
+  const json& targets = array_of(prim, "targets");
+  for (std::size_t ti = 0; ti < targets.size(); ++ti) {
+    const json& t = targets[ti];
+    const std::string tw = where + ".primitives[0].targets[" + std::to_string(ti) + "]";
+    if (!t.is_object()) throw InvalidInput("glTF: " + tw + " is not an object");
+    // Empty: a target without data (all zero), as --compact=only writes the replaced ones.
+    out.target_position.push_back(t.contains("POSITION")
+                                      ? vec3s(acc.read(index_of(t, "POSITION", tw), 3, "a target's POSITION", nv, true))
+                                      : std::vector<Vec3>{});
+    out.target_normal.push_back(t.contains("NORMAL")
+                                    ? vec3s(acc.read(index_of(t, "NORMAL", tw), 3, "a target's NORMAL", nv, true))
+                                    : std::vector<Vec3>{});
+  }
+  const std::size_t nt = out.target_position.size();
+  out.default_weights.assign(nt, 0.0);
+  if (m.contains("weights")) {
+    const json& w = m["weights"];
+    if (!w.is_array() || w.size() != nt)
+      throw InvalidInput("glTF: " + where + ".weights is not an array of " + std::to_string(nt) +
+                         " numbers (one a morph target)");
+    for (std::size_t j = 0; j < nt; ++j) {
+      if (!w[j].is_number())
+        throw InvalidInput("glTF: " + where + ".weights[" + std::to_string(j) + "] is not a number");
+      out.default_weights[j] = w[j].get<double>();
+    }
+  }
+  out.replaced.assign(nt, 0);
+}
+
+/// A deformation's term: its weight's index (below nt) and its map from the sources, the term's
+/// coefficients and its polynomial.
+Term read_term(const Accessors& acc, const json& t, const std::string& tw, std::size_t nt,
+               const std::vector<Vec3>& sources, double radius, Kernel kernel) {
+  if (!t.is_object()) throw InvalidInput("glTF: " + tw + " is not an object");
+  const std::size_t w = index_of(t, "weight", tw);
+  if (w >= nt)
+    throw InvalidInput("glTF: " + tw + ": weight " + std::to_string(w) + " is not below the mesh's " +
+                       std::to_string(nt) + " weights");
+  const std::vector<double> c = acc.read(index_of(t, "coefficients", tw), 3, "coefficients", sources.size());
+  Eigen::Matrix<double, Eigen::Dynamic, 3> alpha(Eigen::Index(sources.size()), 3);
+  for (std::size_t i = 0; i < sources.size(); ++i)
+    for (int k = 0; k < 3; ++k) alpha(Eigen::Index(i), k) = c[3 * i + std::size_t(k)];
+  Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
+  FitOptions fo;
+  fo.radius = radius;
+  fo.kernel = kernel;
+  fo.polynomial = Polynomial::None;
+  if (t.contains("polynomial")) {
+    const json& p = t["polynomial"];
+    if (!p.is_array() || p.size() != 12)
+      throw InvalidInput("glTF: " + tw + ".polynomial is not an array of 12 numbers");
+    for (int r = 0; r < 4; ++r)
+      for (int k = 0; k < 3; ++k) {
+        const json& x = p[std::size_t(3 * r + k)];
+        if (!x.is_number() || !std::isfinite(x.get<double>()))
+          throw InvalidInput("glTF: " + tw + ".polynomial holds " + x.dump().substr(0, 40) + ", not a number");
+        beta(r, k) = x.get<double>();
+      }
+    fo.polynomial = Polynomial::Linear;
+  }
+  return {w, SpaceMap::from_solution(sources, alpha, beta, Vec3::Zero(), 1.0, fo)};
+}
+
+/// One deformation of CSRBF_deformation: its kernel, radius, stage, the vertices its groups move
+/// (group: each vertex's _CSRBF_GROUP, empty where the mesh has none) and its terms, each marked
+/// in out.replaced.
+Deformation read_deformation(const Accessors& acc, const json& d, const std::string& dw,
+                             const std::vector<double>& group, Mesh& out) {
+  const std::size_t nv = out.rest.size(), nt = out.target_position.size();
+  if (!d.is_object()) throw InvalidInput("glTF: " + dw + " is not an object");
+  const std::string given = d.contains("kernel") && d["kernel"].is_string() ? d["kernel"].get<std::string>() : "";
+  std::string kname = given;
+  for (char& ch : kname) ch = char(std::tolower(static_cast<unsigned char>(ch)));
+  const auto kernel = parse_kernel(kname);
+  if (!kernel || kname.size() != 2)
+    throw InvalidInput("glTF: " + dw + ".kernel '" + given + "' is not C0, C2, C4 or C6");
+  const double radius = d.contains("radius") && d["radius"].is_number() ? d["radius"].get<double>() : 0.0;
+  // Clients evaluate in single precision: R, 1/R and R^2 must be normal floats.
+  if (!(radius >= 1e-18 && radius <= 1e18))
+    throw InvalidInput("glTF: " + dw + ".radius " + (d.contains("radius") ? d["radius"].dump() : "(none)") +
+                       " is not a number in [1e-18, 1e18]");
+  const json& terms = array_of(d, "terms");
+  if (terms.empty()) throw InvalidInput("glTF: " + dw + " has no terms");
+  const std::vector<Vec3> sources = vec3s(acc.read(index_of(d, "sources", dw), 3, "sources"));
+  Deformation def;
+  def.stage = index_of(d, "stage", dw, 0);
+  if (def.stage > 65535) throw InvalidInput("glTF: " + dw + ".stage " + std::to_string(def.stage) + " is past 65535");
+  if (d.contains("groups")) {
+    const json& g = d["groups"];
+    if (!g.is_array() || g.empty()) throw InvalidInput("glTF: " + dw + ".groups is not a non-empty array");
+    if (group.empty()) throw InvalidInput("glTF: " + dw + " has groups but the mesh has no _CSRBF_GROUP");
+    std::vector<char> in(65536, 0);
+    for (const json& x : g) {
+      if (!x.is_number_unsigned() || x.get<std::size_t>() > 65535)
+        throw InvalidInput("glTF: " + dw + ".groups holds " + x.dump().substr(0, 40) + ", not a group number");
+      in[x.get<std::size_t>()] = 1;
+    }
+    for (std::size_t v = 0; v < nv; ++v)
+      if (in[std::size_t(group[v])]) def.vertices.push_back(std::uint32_t(v));
+  } else {
+    for (std::size_t v = 0; v < nv; ++v) def.vertices.push_back(std::uint32_t(v));
+  }
+  for (std::size_t ti = 0; ti < terms.size(); ++ti) {
+    def.terms.push_back(
+        read_term(acc, terms[ti], dw + ".terms[" + std::to_string(ti) + "]", nt, sources, radius, *kernel));
+    out.replaced[def.terms.back().weight] = 1;
+  }
+  return def;
+}
+
+/// The mesh's CSRBF_deformation, where it has one (load's third phase): its deformations in the
+/// order of their stages.
+void load_extension(const Accessors& acc, const json& m, const std::string& where, Mesh& out) {
+  if (!m.contains("extensions") || !m["extensions"].is_object() || !m["extensions"].contains("CSRBF_deformation"))
+    return;
+  const json& ext = m["extensions"]["CSRBF_deformation"];
+  const json& attrs = array_of(m, "primitives")[0]["attributes"];
+  const std::string aw = where + ".primitives[0].attributes";
+  const std::string ew = where + ".extensions.CSRBF_deformation";
+  std::vector<double> group;
+  if (attrs.contains("_CSRBF_GROUP")) {
+    const std::size_t ga = index_of(attrs, "_CSRBF_GROUP", aw);
+    group = acc.read(ga, 1, "_CSRBF_GROUP", out.rest.size());
+    if (const std::size_t ct = acc.component_type(ga);
+        ct != code(ComponentType::UnsignedByte) && ct != code(ComponentType::UnsignedShort))
+      throw InvalidInput("glTF: " + aw + "._CSRBF_GROUP's componentType " + std::to_string(ct) +
+                         " is not UNSIGNED_BYTE or UNSIGNED_SHORT");
+  }
+  const json& defs = array_of(ext, "deformations");
+  if (defs.empty()) throw InvalidInput("glTF: " + ew + " has no deformations");
+  for (std::size_t di = 0; di < defs.size(); ++di)
+    out.deformations.push_back(
+        read_deformation(acc, defs[di], ew + ".deformations[" + std::to_string(di) + "]", group, out));
+  std::stable_sort(out.deformations.begin(), out.deformations.end(),
+                   [](const Deformation& a, const Deformation& b) { return a.stage < b.stage; });
+}
+
+/// The weights channels of the nodes that hold each mesh (load's last phase): the first channel
+/// that animates a mesh is its.
+void load_channels(const Accessors& acc, const json& doc, std::vector<Mesh>& result) {
   const json& nodes = array_of(doc, "nodes");
   const json& animations = array_of(doc, "animations");
   for (std::size_t ai = 0; ai < animations.size(); ++ai) {
@@ -441,11 +454,32 @@ void load(const json& doc, std::span<const unsigned char> bin, std::vector<Mesh>
       if (per == 0)
         throw InvalidInput("glTF: " + sw + " animates the weights of mesh '" + m.name + "', which has no targets");
       m.values = acc.read(index_of(sampler, "output", sw), 1, "an animation's weights", m.times.size() * per);
+      if (!(m.times[0] >= 0))
+        throw InvalidInput("glTF: " + sw + ": its first time is " + std::to_string(m.times[0]) +
+                           "; an animation's times are >= 0");
       for (std::size_t k = 1; k < m.times.size(); ++k)
         if (!(m.times[k] > m.times[k - 1]))
           throw InvalidInput("glTF: " + sw + ": its times do not increase at key " + std::to_string(k));
     }
   }
+}
+
+/// The meshes of a glb's JSON and binary chunk (GltfRuntime's constructor), phase by phase.
+void load(const json& doc, std::span<const unsigned char> bin, std::vector<Mesh>& result) {
+  const Accessors acc(doc, bin);
+  const json& meshes = array_of(doc, "meshes");
+  for (std::size_t mi = 0; mi < meshes.size(); ++mi) {
+    const json& m = meshes[mi];
+    const std::string where = field("meshes", mi);
+    if (!m.is_object()) throw InvalidInput("glTF: " + where + " is not an object");
+    Mesh out;
+    out.name = m.contains("name") && m["name"].is_string() ? m["name"].get<std::string>() : "";
+    load_geometry(acc, m, where, out);
+    load_targets(acc, m, where, out);
+    load_extension(acc, m, where, out);
+    result.push_back(std::move(out));
+  }
+  load_channels(acc, doc, result);
 }
 
 }  // namespace
@@ -459,35 +493,15 @@ namespace {
 /// The meshes of a glb (GltfRuntime's constructor). One whose views EXT_meshopt_compression
 /// compresses is decoded first (gltf_without_meshopt) and read again; others are read in place.
 void load_glb(const std::vector<unsigned char>& glb, std::vector<Mesh>& meshes) {
-  const auto u32 = [&](std::size_t at) {
-    if (at + 4 > glb.size())
-      throw InvalidInput("glTF: the glb ends at byte " + std::to_string(glb.size()) + " inside its header");
-    std::uint32_t v;
-    std::memcpy(&v, glb.data() + at, 4);
-    return std::size_t(v);
-  };
-  if (u32(0) != 0x46546C67u) throw InvalidInput("glTF: not a glb (its first four bytes are not 'glTF')");
-  if (u32(4) != 2) throw InvalidInput("glTF: glb version " + std::to_string(u32(4)) + ", expected 2");
-  if (u32(8) != glb.size())
-    throw InvalidInput("glTF: the glb's header says " + std::to_string(u32(8)) + " bytes, the file has " +
-                       std::to_string(glb.size()));
-  const std::size_t jl = u32(12);
-  if (u32(16) != 0x4E4F534Au || jl > glb.size() - 20) throw InvalidInput("glTF: the glb's first chunk is not its JSON");
-  const json doc = json::parse(glb.begin() + 20, glb.begin() + 20 + std::ptrdiff_t(jl), nullptr, false);
+  const GlbChunks chunks = split_glb(glb);
+  const json doc = json::parse(chunks.json.begin(), chunks.json.end(), nullptr, false);
   if (doc.is_discarded() || !doc.is_object()) throw InvalidInput("glTF: the glb's JSON chunk does not parse");
   if (doc.contains("extensionsUsed") && doc["extensionsUsed"].is_array()) {
     const json& used = doc["extensionsUsed"];
     if (std::find(used.begin(), used.end(), "EXT_meshopt_compression") != used.end())
       return load_glb(gltf_without_meshopt(glb), meshes);  // the decoded file lists it no more
   }
-  std::span<const unsigned char> bin;
-  const std::size_t b0 = 20 + jl;
-  if (b0 + 8 <= glb.size()) {
-    const std::size_t bl = u32(b0);
-    if (u32(b0 + 4) != 0x004E4942u || bl > glb.size() - b0 - 8)
-      throw InvalidInput("glTF: the glb's second chunk is not a binary chunk within the file");
-    bin = std::span<const unsigned char>(glb.data() + b0 + 8, bl);
-  }
+  const std::span<const unsigned char> bin = chunks.bin;
   try {
     load(doc, bin, meshes);
   } catch (const json::exception& e) {
@@ -616,4 +630,4 @@ void GltfRuntime::deform(std::size_t mesh, std::span<const double> weights, std:
   }
 }
 
-}  // namespace csrbf::render
+}  // namespace csrbf::gltf

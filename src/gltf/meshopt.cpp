@@ -1,8 +1,8 @@
-#include "csrbf/render/gltf_meshopt.hpp"
+#include "csrbf/gltf/meshopt.hpp"
 
 #include "csrbf/errors.hpp"
-#include "glb_internal.hpp"
-#include "gltf_meshopt_internal.hpp"
+#include "csrbf/gltf/detail/meshopt_compress.hpp"
+#include "csrbf/gltf/glb.hpp"
 
 #include <meshoptimizer.h>
 #include <nlohmann/json.hpp>
@@ -12,7 +12,7 @@
 #include <cstring>
 #include <string>
 
-namespace csrbf::render {
+namespace csrbf::gltf {
 
 using json = nlohmann::json;
 
@@ -133,24 +133,21 @@ void meshopt_compress(json& doc, std::vector<unsigned char>& bin, const std::vec
 
 std::vector<unsigned char> gltf_without_meshopt(const std::vector<unsigned char>& glb) {
   // A header or JSON that does not read is returned as it is: its reader names what is wrong.
-  const auto u32 = [&](std::size_t at) {
-    std::uint32_t v = 0;
-    if (at + 4 <= glb.size()) std::memcpy(&v, glb.data() + at, 4);
-    return std::size_t(v);
-  };
-  if (glb.size() < 20 || u32(0) != 0x46546C67u || u32(4) != 2 || u32(8) != glb.size()) return glb;
-  const std::size_t jl = u32(12);
-  if (u32(16) != 0x4E4F534Au || jl > glb.size() - 20) return glb;
-  json doc = json::parse(glb.begin() + 20, glb.begin() + 20 + std::ptrdiff_t(jl), nullptr, false);
+  GlbChunks chunks;
+  try {
+    chunks = split_glb(glb, false);
+  } catch (const InvalidInput&) {
+    return glb;
+  }
+  json doc = json::parse(chunks.json.begin(), chunks.json.end(), nullptr, false);
   if (doc.is_discarded() || !doc.is_object()) return glb;
   const auto& used =
       doc.contains("extensionsUsed") && doc["extensionsUsed"].is_array() ? doc["extensionsUsed"] : json();
   if (used.is_null() || std::find(used.begin(), used.end(), "EXT_meshopt_compression") == used.end()) return glb;
-  const std::size_t b0 = 20 + jl;
-  if (b0 + 8 > glb.size() || u32(b0 + 4) != 0x004E4942u || u32(b0) > glb.size() - b0 - 8)
+  if (!chunks.has_bin || !chunks.bin_valid)
     throw InvalidInput("glTF: the glb's second chunk is not a binary chunk within the file");
-  const unsigned char* bin = glb.data() + b0 + 8;
-  const std::size_t bin_length = u32(b0);
+  const unsigned char* bin = chunks.bin.data();
+  const std::size_t bin_length = chunks.bin.size();
   std::vector<unsigned char> out;
   try {
     json& list = doc.at("bufferViews");
@@ -179,6 +176,14 @@ std::vector<unsigned char> gltf_without_meshopt(const std::vector<unsigned char>
         if (mode == MeshoptView::Mode::None) throw InvalidInput("glTF: " + where + ": mode '" + m + "' is not known");
         if (mode != MeshoptView::Mode::Attributes && stride != 2 && stride != 4)
           throw InvalidInput("glTF: " + where + ": indices of " + std::to_string(stride) + " bytes");
+        // EXT_meshopt_compression: ATTRIBUTES elements are a multiple of 4 bytes, TRIANGLES whole
+        // triangles (meshoptimizer's decoders assert both).
+        if (mode == MeshoptView::Mode::Attributes && stride % 4 != 0)
+          throw InvalidInput("glTF: " + where + ": byteStride " + std::to_string(stride) +
+                             " of ATTRIBUTES is not a multiple of 4");
+        if (mode == MeshoptView::Mode::Triangles && count % 3 != 0)
+          throw InvalidInput("glTF: " + where + ": count " + std::to_string(count) +
+                             " of TRIANGLES is not a multiple of 3");
         out.resize(at + length);
         if (!decode(mode, count, stride, bin + off, n, out.data() + at))
           throw InvalidInput("glTF: " + where + ": its EXT_meshopt_compression data does not decode");
@@ -206,9 +211,9 @@ std::vector<unsigned char> gltf_without_meshopt(const std::vector<unsigned char>
       doc[key] = kept;
       if (kept.empty()) doc.erase(key);
     }
-  std::vector<unsigned char> result = glb_head(doc, out.size(), "glTF: EXT_meshopt_compression decoded");
+  std::vector<unsigned char> result = glb_head(doc.dump(), out.size(), "glTF: EXT_meshopt_compression decoded");
   result.insert(result.end(), out.begin(), out.end());
   return result;
 }
 
-}  // namespace csrbf::render
+}  // namespace csrbf::gltf
