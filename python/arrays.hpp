@@ -20,11 +20,7 @@ using Dbl = py::array_t<double, py::array::c_style | py::array::forcecast>;
 using Flt = py::array_t<float, py::array::c_style | py::array::forcecast>;
 
 /// The shortest text that reads back as v.
-inline std::string shortest(double v) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
+inline std::string shortest(double v) { return csrbf::format_shortest(v); }
 
 /// A shape as numpy prints it: (3,), (2, 3), ().
 inline std::string shape_text(const std::vector<py::ssize_t>& s) {

@@ -310,12 +310,7 @@ PyInterpolator set_state(const py::object& state) {
   }
 }
 
-std::string short_number(double v) {
-  std::ostringstream os;
-  os.precision(3);
-  os << v;
-  return os.str();
-}
+std::string short_number(double v) { return csrbf::format_significant(v, 3); }
 
 std::string type_name(const py::handle& h) { return py::str(h.get_type().attr("__name__")).cast<std::string>(); }
 

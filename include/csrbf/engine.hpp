@@ -1,7 +1,7 @@
 // csrbf for game engines and other code built without exceptions (-fno-exceptions): a deformer that
 // is fitted once and then deforms vertex buffers as engines keep them, positions and normals
 // interleaved in one buffer at any stride, float or double. Nothing here throws: every call returns a
-// Result (a status and a message), and this header includes the standard library only.
+// Result (a status and a message), and this header includes csrbf.h and the standard library only.
 //
 //   csrbf::engine::Deformer d;
 //   csrbf::engine::Settings s;

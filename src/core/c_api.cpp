@@ -112,11 +112,7 @@ csrbf_status guarded(csrbf_result* r, F&& f) noexcept {
 }
 
 /// A number as a message shows it (6 significant digits, not std::to_string's 300-digit %f).
-std::string num(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", v);
-  return buf;
-}
+std::string num(double v) { return format_significant(v, 6); }
 
 std::vector<Vec3> points(const double* xyz, std::size_t n, const char* what) {
   if (n > 0 && !xyz) throw InvalidInput(std::string(what) + " is null for " + std::to_string(n) + " controls");

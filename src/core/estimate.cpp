@@ -5,6 +5,7 @@
 #include "csrbf/kernel_matrix.hpp"
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/ordering.hpp"
+#include "csrbf/units.hpp"
 #include "fit_state.hpp"
 #include "incomplete_cholesky.hpp"
 #include "sparse_solver.hpp"
@@ -22,12 +23,7 @@
 namespace csrbf {
 namespace {
 
-std::string format(double v) {
-  std::ostringstream os;
-  os.precision(3);
-  os << v;
-  return os.str();
-}
+std::string format(double v) { return format_significant(v, 3); }
 
 }  // namespace
 

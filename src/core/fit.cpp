@@ -28,12 +28,7 @@ double seconds_since(Clock::time_point t0) { return std::chrono::duration<double
 
 int polynomial_terms(Polynomial p) { return p == Polynomial::None ? 0 : p == Polynomial::Constant ? 1 : 4; }
 
-std::string gib(double bytes) {
-  std::ostringstream os;
-  os.precision(3);
-  os << bytes / kGiB << " GiB";
-  return os.str();
-}
+std::string gib(double bytes) { return format_gib(bytes); }
 
 }  // namespace
 

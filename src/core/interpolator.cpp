@@ -36,12 +36,7 @@ constexpr std::size_t kBatch = std::size_t(1) << 17;
 
 int terms_of(int degree, int dim) { return degree < 0 ? 0 : degree == 0 ? 1 : 1 + dim; }
 
-std::string num(double v) {
-  std::ostringstream os;
-  os.precision(6);
-  os << v;
-  return os.str();
-}
+std::string num(double v) { return format_significant(v, 6); }
 
 /// The volume of the unit ball in D dimensions.
 double unit_ball(int dim) { return dim == 1 ? 2.0 : dim == 2 ? std::numbers::pi : 4.0 / 3.0 * std::numbers::pi; }

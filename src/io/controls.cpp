@@ -17,11 +17,7 @@
 
 namespace csrbf::io {
 
-std::string format_number(double v) {
-  char buf[64];
-  const auto r = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, r.ptr);
-}
+std::string format_number(double v) { return format_shortest(v); }
 
 namespace {
 constexpr std::size_t kMaxLine = 1 << 16;  // a control line is about 100 bytes

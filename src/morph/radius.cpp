@@ -34,12 +34,7 @@ std::vector<std::size_t> sample(std::size_t n, std::size_t most) {
   return s;
 }
 
-std::string num(double v) {
-  std::ostringstream os;
-  os.precision(4);
-  os << v;
-  return os.str();
-}
+std::string num(double v) { return format_significant(v, 4); }
 
 }  // namespace
 

@@ -32,12 +32,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
 
-std::string num(double v) {
-  std::ostringstream os;
-  os.precision(10);
-  os << v;
-  return os.str();
-}
+std::string num(double v) { return format_significant(v, 10); }
 
 struct Box {
   Vec3 lo = Vec3::Constant(std::numeric_limits<double>::infinity());
