@@ -7,7 +7,6 @@
 #include "csrbf/space_map.hpp"
 #include "csrbf/units.hpp"
 #include "csrbf/version.hpp"
-#include "csrbf/units.hpp"
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
