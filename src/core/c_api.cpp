@@ -198,10 +198,11 @@ void deform_as(const SpaceMap* map, const csrbf_vertex_buffer& in, const csrbf_v
 }
 
 /// A new handle owning map.
-csrbf_deformer* make_handle(std::shared_ptr<const SpaceMap> map) {
+csrbf_deformer* make_handle(SpaceMap&& map) {
+  auto shared = std::make_shared<const SpaceMap>(std::move(map));
   void* p = allocate(sizeof(csrbf_deformer));
   auto* h = new (p) csrbf_deformer;
-  h->map = std::move(map);
+  h->map = std::move(shared);
   return h;
 }
 
@@ -264,8 +265,7 @@ csrbf_status csrbf_fit(const double* sources, const double* destinations, size_t
     if (!(settings->memory_limit_gib > 0) || !(settings->memory_limit_gib <= 1e6))
       throw InvalidInput("settings.memory_limit_gib must be in (0, 1e6], got " + num(settings->memory_limit_gib));
     o.memory_limit_bytes = settings->memory_limit_gib * csrbf::kGiB;
-    auto map = std::make_shared<const SpaceMap>(SpaceMap::fit(s, d, o));
-    *out = make_handle(std::move(map));
+    *out = make_handle(SpaceMap::fit(s, d, o));
   });
 }
 
@@ -275,8 +275,7 @@ csrbf_status csrbf_refit(const csrbf_deformer* deformer, const double* destinati
     if (!deformer) throw InvalidInput("refit: the deformer is null (this Deformer has not been fitted)");
     if (!out) throw InvalidInput("out is null");
     const auto d = points(destinations, deformer->map->size(), "destinations");
-    auto map = std::make_shared<const SpaceMap>(deformer->map->with_destinations(d));
-    *out = make_handle(std::move(map));
+    *out = make_handle(deformer->map->with_destinations(d));
   });
 }
 

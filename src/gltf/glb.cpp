@@ -30,7 +30,6 @@ GlbChunks split_glb(std::span<const unsigned char> glb, bool check_bin) {
     const std::size_t bl = u32(b0);
     if (u32(b0 + 4) != kGlbBinChunk || bl > glb.size() - b0 - 8) {
       if (check_bin) throw InvalidInput("glTF: the glb's second chunk is not a binary chunk within the file");
-      out.bin_valid = false;
       return out;
     }
     out.bin = glb.subspan(b0 + 8, bl);

@@ -144,8 +144,7 @@ std::vector<unsigned char> gltf_without_meshopt(const std::vector<unsigned char>
   const auto& used =
       doc.contains("extensionsUsed") && doc["extensionsUsed"].is_array() ? doc["extensionsUsed"] : json();
   if (used.is_null() || std::find(used.begin(), used.end(), "EXT_meshopt_compression") == used.end()) return glb;
-  if (!chunks.has_bin || !chunks.bin_valid)
-    throw InvalidInput("glTF: the glb's second chunk is not a binary chunk within the file");
+  if (!chunks.has_bin) throw InvalidInput("glTF: the glb's second chunk is not a binary chunk within the file");
   const unsigned char* bin = chunks.bin.data();
   const std::size_t bin_length = chunks.bin.size();
   std::vector<unsigned char> out;

@@ -91,10 +91,10 @@ flags=$(PKG_CONFIG_PATH="$tmp/prefix/lib/pkgconfig" pkg-config --cflags --libs c
 cc -std=c11 -Wall -Wextra -Werror -pedantic "$src/tests/capi/deform_fish.c" -o "$tmp/deform_fish-pc" $flags ||
   { echo "cc with pkg-config's flags ($flags) failed"; exit 1; }
 for p in "$tmp/consumer-c/consumer" "$tmp/deform_fish-pc"; do
-  "$p" "$src/examples/fish.obj" "$src/examples/fish.controls" 0.3 > "$tmp/c.obj"
-  [ "$(grep -c '^v ' "$tmp/c.obj")" = 977 ] || { echo "$p did not deform the fish's 977 vertices"; exit 1; }
+  "$p" "$src/examples/fish.obj" "$src/examples/fish.controls" 0.3 > "$p.obj"
+  [ "$(grep -c '^v ' "$p.obj")" = 977 ] || { echo "$p did not deform the fish's 977 vertices"; exit 1; }
 done
-cmp "$tmp/c.obj" <("$tmp/consumer-c/consumer" "$src/examples/fish.obj" "$src/examples/fish.controls" 0.3) ||
+cmp "$tmp/consumer-c/consumer.obj" "$tmp/deform_fish-pc.obj" ||
   { echo "the C consumers built by CMake and by pkg-config differ"; exit 1; }
 echo "C API: a C-only CMake project and cc with pkg-config ($flags) deform the fish"
 

@@ -51,10 +51,9 @@ inline constexpr std::uint32_t kGlbBinChunk = 0x004E4942u;   ///< "BIN\0"
 struct GlbChunks {
   std::string_view json;
   std::span<const unsigned char> bin;  ///< empty where the glb has no binary chunk
+  /// Whether the glb has a binary chunk within the file. With split_glb's check_bin false, a second
+  /// chunk that is not one leaves this false; with check_bin true, it throws.
   bool has_bin = false;
-  /// false where the glb has a second chunk that is not a binary chunk within the file (only with
-  /// split_glb's check_bin false; with it true, that throws).
-  bool bin_valid = true;
 };
 
 /// The chunks of a glb. Throws InvalidInput ("glTF: ...") naming what is wrong: a header cut short, a
