@@ -1,13 +1,14 @@
-// The Python module `csrbf` (pybind11 over numpy): csrbf.Interpolator, SpaceMap, DisplacementField,
-// estimate and suggest_radius, linked against csrbf's core alone. The file readers and writers, the
-// morph and the scenes (module_io.cpp, which links VTK, assimp and CGNS) are a second extension,
-// _csrbf_io, loaded on first use of one of its names: `import csrbf` took 45 ms with them, most of
-// it loading 60 libraries that an interpolation never calls. Points are (n, 3) float64 or float32
-// arrays; C-contiguous inputs of either type are read in place, without a copy. Fit and evaluation
-// release the GIL. docs/python.md is the tutorial.
+// csrbf._core (pybind11 over numpy): SpaceMap, DisplacementField, estimate and suggest_radius, and the
+// fitted interpolant under csrbf.Interpolator (interpolator.cpp; csrbf/_interpolate.py checks its
+// arguments), linked against csrbf's core alone. The file readers and writers, the morph and the scenes
+// are csrbf._io (module_io.cpp, which links VTK, assimp and CGNS), which csrbf/__init__.py imports on
+// first use of one of its names. Points are (n, 3) float64 or float32 arrays; C-contiguous inputs of
+// either type are read in place, without a copy. Fit and evaluation release the GIL. docs/python.md is
+// the tutorial.
 #include "csrbf/displacement_field.hpp"
 #include "csrbf/errors.hpp"
 #include "csrbf/estimate.hpp"
+#include "csrbf/interpolator.hpp"
 #include "csrbf/names.hpp"
 #include "csrbf/space_map.hpp"
 #include "csrbf/version.hpp"
@@ -34,22 +35,6 @@ using csrbf::Vec3;
 using namespace csrbf_python;
 
 namespace {
-
-/// The names the file extension _csrbf_io defines (module_io.cpp), reached as csrbf.NAME.
-constexpr const char* kIoNames[] = {
-    "FileError",        "read_mesh",         "write_mesh",        "read_controls", "read_deformation",
-    "read_active_area", "apply_deformation", "write_deformation", "morph",         "Scene"};
-
-#ifdef CSRBF_HAVE_MORPH
-constexpr bool kHaveMorph = true;
-#else
-constexpr bool kHaveMorph = false;  // csrbf.morph needs csrbf's morph library
-#endif
-bool io_name(const std::string& name) {
-  for (const char* io : kIoNames)
-    if (name == io) return name != "morph" || kHaveMorph;
-  return false;
-}
 
 /// The output array of apply_points: `out` when the caller gives one (checked: (n, 3), C-contiguous,
 /// writeable, of the result's type), else a new one.
@@ -157,60 +142,7 @@ py::dict stats_dict(const csrbf::SpaceMap& m) {
   return d;
 }
 
-}  // namespace
-
-PYBIND11_MODULE(csrbf, m) {
-  m.doc() = "Real-time 3D deformation by compactly supported radial basis functions (Wendland CSRBF)";
-  m.attr("__version__") = csrbf::kVersion;
-
-  py::register_exception_translator([](std::exception_ptr p) {
-    try {
-      if (p) std::rethrow_exception(p);
-    } catch (const csrbf::ResourceLimit& e) {
-      PyErr_SetString(PyExc_MemoryError, e.what());
-    } catch (const csrbf::Error& e) {  // bad input, a failed factorisation
-      PyErr_SetString(PyExc_ValueError, e.what());
-    }
-  });
-
-  bind_interpolator(m);
-
-  // PEP 562: csrbf.read_mesh and the other file functions come from _csrbf_io, imported on first use
-  // and then kept in this module's namespace (a second use is a plain attribute).
-  m.def(
-      "__getattr__",
-      [](const std::string& name) -> py::object {
-        if (io_name(name)) {
-          py::object io;
-          try {
-            io = py::module_::import("_csrbf_io");
-          } catch (py::error_already_set& e) {
-            // An AttributeError (hasattr is then False), naming what could not be loaded.
-            const std::string why = py::str(e.value()).cast<std::string>();
-            PyErr_SetString(PyExc_AttributeError, ("csrbf." + name +
-                                                   " is in csrbf's file extension _csrbf_io, which could not be "
-                                                   "loaded: " +
-                                                   why)
-                                                      .c_str());
-            throw py::error_already_set();
-          }
-          py::object value = io.attr(name.c_str());
-          py::module_::import("csrbf").attr(name.c_str()) = value;
-          return value;
-        }
-        PyErr_SetString(PyExc_AttributeError, ("module 'csrbf' has no attribute '" + name + "'").c_str());
-        throw py::error_already_set();
-      },
-      py::arg("name"));
-  m.def("__dir__", []() {
-    const py::object self = py::module_::import("csrbf").attr("__dict__");
-    py::list names = py::module_::import("builtins").attr("list")(self.attr("keys")());
-    for (const char* io : kIoNames)
-      if (io_name(io) && !self.contains(io)) names.append(io);
-    names.attr("sort")();
-    return names;
-  });
-
+void bind_space_map(py::module_& m) {
   py::class_<csrbf::SpaceMap>(m, "SpaceMap", R"doc(
 A CSRBF space mapping T(x) = x + phase * d(x), fitted to control points.
 
@@ -331,7 +263,9 @@ releases the GIL.)doc")
           << csrbf::kernel_name(m.kernel()) << "', polynomial='" << csrbf::polynomial_name(m.polynomial()) << "')";
         return s.str();
       });
+}
 
+void bind_displacement_field(py::module_& m) {
   py::class_<csrbf::DisplacementField<double>>(m, "DisplacementField", R"doc(
 Per-vertex displacements of one point set under a SpaceMap, kept so that a new phase costs one pass
 over memory: field(phase) = rest + phase * d(rest).)doc")
@@ -364,7 +298,10 @@ over memory: field(phase) = rest + phase * d(rest).)doc")
                                return out;
                              })
       .def("__len__", &csrbf::DisplacementField<double>::size);
+}
 
+/// estimate and suggest_radius.
+void bind_estimates(py::module_& m) {
   m.def(
       "estimate",
       [](const py::object& sources, double radius, const std::string& solver, double memory_limit) {
@@ -408,14 +345,54 @@ whether it is within memory_limit (GiB). Example: csrbf.estimate(points, 0.05)["
       py::arg("sources"), py::arg("neighbours"),
       R"doc(The radius R at which each of the sources ((n, 3)) has `neighbours` other sources within R on
 average (from a seeded sample of 256). Example: csrbf.SpaceMap(s, d, csrbf.suggest_radius(s, 25)).)doc");
-  // `from csrbf import *` takes the file functions too (through __getattr__, as any other use).
-  py::list all;
-  for (const auto& item : m.attr("__dict__").cast<py::dict>()) {
-    const std::string name = py::str(item.first).cast<std::string>();
-    if (!name.empty() && name[0] != '_') all.append(name);
-  }
-  for (const char* io : kIoNames)
-    if (io_name(io)) all.append(io);
-  all.attr("sort")();
-  m.attr("__all__") = all;
+}
+
+/// Option names as csrbf::parse_name reads them, for csrbf/_interpolate.py.
+template <class E>
+void bind_names(py::dict& table, const char* kind) {
+  table[kind] =
+      py::make_tuple(py::cpp_function([](const std::string& text) -> py::object {
+                       const auto v = csrbf::parse_name<E>(text);
+                       return v ? py::object(py::str(std::string(csrbf::name_of(*v)))) : py::object(py::none());
+                     }),
+                     csrbf::names_text<E>());
+}
+
+}  // namespace
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() =
+      "csrbf's compiled core (SpaceMap, DisplacementField, estimate, suggest_radius, the interpolant): use it as csrbf";
+  m.attr("__version__") = csrbf::kVersion;
+
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const csrbf::ResourceLimit& e) {
+      PyErr_SetString(PyExc_MemoryError, e.what());
+    } catch (const csrbf::Error& e) {  // bad input, a failed factorisation
+      PyErr_SetString(PyExc_ValueError, e.what());
+    }
+  });
+
+  bind_space_map(m);
+  bind_displacement_field(m);
+  bind_estimates(m);
+  bind_interpolator(m);
+  py::dict names;
+  bind_names<csrbf::Kernel>(names, "kernel");
+  bind_names<csrbf::Solver>(names, "solver");
+  m.attr("_names") = names;  // kind: (canonical name of a text or None, the names as messages list them)
+  m.attr("_DEFAULT_NEIGHBORS") = csrbf::kDefaultNeighbors;
+  m.attr("_MULTISCALE_NEIGHBORS") = csrbf::kMultiscaleNeighbors;
+  m.attr("_MAX_LEVELS") = csrbf::kMaxLevels;
+  m.attr("_MAX_DIMENSION") = csrbf::Interpolator::kMaxDimension;
+#ifdef CSRBF_HAVE_MORPH
+  m.attr("_HAVE_MORPH") = true;  // csrbf._io has morph
+#else
+  m.attr("_HAVE_MORPH") = false;
+#endif
+  // Named as users reach them (help(csrbf.SpaceMap) says "in module csrbf", as pickle looks them up).
+  for (const char* name : {"SpaceMap", "DisplacementField", "estimate", "suggest_radius"})
+    m.attr(name).attr("__module__") = "csrbf";
 }

@@ -38,14 +38,15 @@ grep -q 'void csrbfDeform(' "$web/csrbf_deformation.js" && ! grep -q '@CSRBF_GLS
 grep -q '^BSD 3-Clause License' "$tmp/prefix/share/doc/csrbf/LICENSE" || { echo "LICENSE not installed"; exit 1; }
 grep -q 'set(csrbf_LICENSE "BSD-3-Clause")' "$tmp/prefix/lib/cmake/csrbf/csrbfConfig.cmake" ||
   { echo "csrbfConfig.cmake does not name the licence"; exit 1; }
-module=$(find "$tmp/prefix/lib" -name 'csrbf*.so' -path '*dist-packages*' | head -n1)
-test -n "$module" || { echo "missing the Python module under lib/python3.*/dist-packages"; exit 1; }
+package=$(find "$tmp/prefix/lib" -name '__init__.py' -path '*dist-packages/csrbf/*' | head -n1)
+test -n "$package" || { echo "missing the Python package under lib/python3.*/dist-packages/csrbf"; exit 1; }
+module=$(dirname "$package")  # the package directory; its parent goes on PYTHONPATH
 PYTHONPATH=$(dirname "$module") "$python" -c "import csrbf, numpy as np; m = csrbf.SpaceMap(np.eye(3), np.eye(3) + 0.1, 2.0); assert abs(m(np.eye(3))[0, 0] - 1.1) < 1e-12"
-# The file functions are a second extension (_csrbf_io), installed beside csrbf and loaded on first use.
+# The file functions are a second extension (csrbf._io), installed beside csrbf._core and loaded on first use.
 printf 'v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n' > "$tmp/tri.obj"
 PYTHONPATH=$(dirname "$module") "$python" -c "
 import sys, csrbf
-assert '_csrbf_io' not in sys.modules
+assert 'csrbf._io' not in sys.modules
 p, f = csrbf.read_mesh(sys.argv[1])
 assert p.shape == (3, 3) and f == [[0, 1, 2]], (p, f)
 try:
@@ -114,16 +115,36 @@ import multiprocessing, os, pickle, site
 import numpy as np
 import csrbf
 assert csrbf.__file__.startswith(site.getsitepackages()[0]), csrbf.__file__
-assert os.path.exists(os.path.join(site.getsitepackages()[0], "csrbf-stubs", "__init__.pyi"))
+for f in ("_interpolate.py", "_core.pyi", "_io.pyi", "py.typed"):
+    assert os.path.exists(os.path.join(site.getsitepackages()[0], "csrbf", f)), f
 xy = np.random.default_rng(0).random((2000, 2))
 s = csrbf.Interpolator(xy, np.sin(4 * xy[:, 0]), neighbors=20)
 t = pickle.loads(pickle.dumps(s))
 with multiprocessing.Pool(2) as pool:
     got = pool.map(t, [xy[:10], xy[10:20]])
 assert np.allclose(np.concatenate(got), np.sin(4 * xy[:20, 0]), atol=1e-9)
-points, faces = csrbf.read_mesh(os.path.join(os.environ["TMPDIR_TEST"], "tri.obj"))  # _csrbf_io, from the wheel
+points, faces = csrbf.read_mesh(os.path.join(os.environ["TMPDIR_TEST"], "tri.obj"))  # csrbf._io, from the wheel
 assert points.shape == (3, 3) and faces == [[0, 1, 2]]
 print("wheel", csrbf.__version__, "in a venv:", repr(s))
 PY
 )
-echo "a consumer per component built with find_package(csrbf); wheel installs offline into a venv"
+
+# `pip install .` from the sources, as from a checkout: pip's isolated build with the in-tree backend
+# (pyproject.toml), offline, into a fresh venv that sees Debian's numpy. The build folder is this one
+# (already built: the backend only packs); a build from nothing is what `pip install .` does without it.
+"$python" -m venv --system-site-packages "$tmp/venv-source"
+(cd "$src" && PYTHONPATH= PIP_ROOT_USER_ACTION=ignore "$tmp/venv-source/bin/python" -m pip install \
+  --disable-pip-version-check --no-index --quiet --config-settings build-dir="$build" . ) ||
+  { echo "pip install . failed"; exit 1; }
+(cd "$tmp" && PYTHONPATH= "$tmp/venv-source/bin/python" - <<'PY'
+import os, site
+import numpy as np
+import csrbf
+(path,) = csrbf.__path__
+assert path == os.path.join(site.getsitepackages()[0], "csrbf") and os.path.isfile(os.path.join(path, "_interpolate.py")), path
+s = csrbf.Interpolator(np.eye(3)[:, :2], np.arange(3.0), radius=2.0)
+assert np.allclose(s(np.eye(3)[:, :2]), np.arange(3.0), atol=1e-12)
+print("pip install . into a venv:", path)
+PY
+) || exit 1
+echo "a consumer per component built with find_package(csrbf); wheel and pip install . install offline into a venv"

@@ -71,15 +71,15 @@ class SameAsTheCommandLine(unittest.TestCase):
         self.assertRegex(csrbf.__version__, r"^\d+\.\d+\.\d+$")
 
     def test_import_loads_the_file_libraries_on_first_use(self):
-        # `import csrbf` is the core alone; the file functions' extension (_csrbf_io, with VTK, assimp
+        # `import csrbf` is the core alone; the file functions' extension (csrbf._io, with VTK, assimp
         # and CGNS) is loaded by the first use of one of its names, and then stays.
         code = """
 import sys, csrbf
 maps = lambda: open("/proc/self/maps").read()
-assert "_csrbf_io" not in sys.modules and "libvtk" not in maps() and "libassimp" not in maps(), maps()
+assert "csrbf._io" not in sys.modules and "libvtk" not in maps() and "libassimp" not in maps(), maps()
 assert "read_mesh" in dir(csrbf) and "Scene" in dir(csrbf)
 read = csrbf.read_mesh
-assert "_csrbf_io" in sys.modules and "libvtk" in maps()
+assert "csrbf._io" in sys.modules and "libvtk" in maps()
 assert csrbf.read_mesh is read and csrbf.FileError.__module__ == "csrbf" and issubclass(csrbf.FileError, OSError)
 assert read.__module__ == "csrbf" and csrbf.Scene.__module__ == "csrbf", (read.__module__, csrbf.Scene.__module__)
 try:
@@ -99,13 +99,13 @@ else:
         # the rest of csrbf works.
         code = """
 import sys
-sys.modules["_csrbf_io"] = None
+sys.modules["csrbf._io"] = None
 import csrbf, numpy as np
 assert not hasattr(csrbf, "read_mesh")
 try:
     csrbf.read_mesh
 except AttributeError as e:
-    assert "csrbf.read_mesh is in csrbf's file extension _csrbf_io, which could not be loaded" in str(e), e
+    assert "csrbf.read_mesh is in csrbf's file extension csrbf._io, which could not be loaded" in str(e), e
 assert csrbf.Interpolator(np.eye(3)[:, :2], np.ones(3), radius=2.0)(np.zeros(2)) > 0
 """
         r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
