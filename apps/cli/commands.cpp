@@ -1,6 +1,6 @@
 #include "commands.hpp"
 
-#include "animate.hpp"
+#include "commands/animate.hpp"
 #include "csrbf/io/inputs.hpp"
 #include "csrbf/names.hpp"
 #include "csrbf/units.hpp"

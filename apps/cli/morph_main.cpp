@@ -4,7 +4,7 @@
 // one process; for any other mesh (a file) it runs csrbf-cli in its place, with the same argv.
 // The standard formats' table is this program's own, empty (detail::StandardFormats), so that
 // csrbf::morph's readers of those formats are not linked.
-#include "morph.hpp"
+#include "commands/morph.hpp"
 #include "program.hpp"
 #include "csrbf/morph/openfoam.hpp"
 #include "csrbf/morph/volume_file.hpp"

@@ -1,6 +1,6 @@
 #include "program.hpp"
 
-#include "animate.hpp"
+#include "commands/animate.hpp"
 #include "commands.hpp"
 #include "process_limits.hpp"
 #include "standard_streams.hpp"

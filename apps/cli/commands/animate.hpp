@@ -1,5 +1,7 @@
 #pragma once
 
+#include <CLI/CLI.hpp>
+
 #include "csrbf/errors.hpp"
 
 #include <optional>
@@ -24,5 +26,8 @@ struct AnimateOptions {
 /// signal when interrupted); throws for bad input (the caller prints it and exits 1, or 2 for a
 /// UsageError).
 int run_animate(const AnimateOptions& o);
+
+/// `csrbf animate` and its options, into o.
+CLI::App* add_animate_command(CLI::App& app, AnimateOptions& o);
 
 }  // namespace csrbf::cli

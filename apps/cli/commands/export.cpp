@@ -1,4 +1,6 @@
 #include "export.hpp"
+#include "commands.hpp"
+#include "fit_input.hpp"
 
 #include "animate.hpp"
 #include "commands.hpp"
@@ -90,7 +92,10 @@ std::string kib(std::size_t bytes) {
 
 }  // namespace
 
-int run_export(const ExportOptions& o) {
+namespace {
+
+/// The exporter's options from the command's.
+render::GltfOptions gltf_options(const ExportOptions& o) {
   render::GltfOptions go;
   go.memory_limit_bytes = o.memory_limit_gib * kGiB;
   if (o.bake == "auto")
@@ -116,12 +121,12 @@ int run_export(const ExportOptions& o) {
       throw UsageError("--compact: expected no value (the morph targets kept as fallback) or 'only', got '" +
                        o.compact + "'");
   }
-  const fs::path out = o.out;
-  const std::string ext = out.extension().string();
-  if (ext != ".glb" && ext != ".gltf")
-    throw UsageError("-o: the output must end in .glb or .gltf, got '" + o.out + "'");
-  // Check the targets before the (slow) scene load, so that a typo fails at once.
-  io::check_output_path(out);
+  if (o.fps) go.fps = *o.fps;
+  return go;
+}
+
+/// --html's new folder (empty without --html), checked before the scene is read.
+fs::path page_folder(const ExportOptions& o) {
   fs::path page;
   if (o.html_given && o.html.empty()) throw UsageError("--html: the folder name is empty");
   if (!o.html.empty()) {
@@ -137,15 +142,12 @@ int run_export(const ExportOptions& o) {
       if (!fs::is_regular_file(web_dir() / f, ec))
         throw io::FileError((web_dir() / f).string() + ": not found; " + kWebMissing);
   }
+  return page;
+}
+
+/// -o is not the scene's texture.
+void check_textures(const ExportOptions& o, const fs::path& out, const anim::Scene& scene) {
   std::error_code ec;
-  {
-    check_not_an_input("-o", out, io::referenced_files(o.scene, o.memory_limit_gib * kGiB));
-    io::must_be_new(io::resolve_output(out));
-  }
-  if (!page.empty() && fs::absolute(page).lexically_normal() == fs::absolute(out).lexically_normal())
-    throw UsageError("--html '" + o.html + "' and -o name the same path");
-  anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * kGiB);
-  if (o.fps) go.fps = *o.fps;
   for (const auto& obj : scene.objects)
     for (const anim::Material* m : [&] {
            std::vector<const anim::Material*> v{&obj.material};
@@ -154,9 +156,12 @@ int run_export(const ExportOptions& o) {
          }())
       if (!m->texture.empty() && fs::equivalent(out, m->texture, ec))
         throw UsageError("-o '" + o.out + "' is the scene's texture '" + m->texture + "'");
+}
 
-  render::GltfReport r;
-  const std::vector<unsigned char> glb = render::gltf_binary(scene, go, r);
+/// The .glb or .gltf, and with --html the page's folder: all or nothing.
+void write_outputs(const ExportOptions& o, const std::vector<unsigned char>& glb, const fs::path& out,
+                   const fs::path& page, render::GltfReport& r) {
+  std::error_code ec;
   if (page.empty()) {
     r.bytes = render::write_gltf(glb, out);
   } else {
@@ -191,46 +196,49 @@ int run_export(const ExportOptions& o) {
       throw;
     }
   }
+}
 
-  if (o.json) {
-    nlohmann::json j;
-    j["output"] = o.out;
-    j["bytes"] = r.bytes;
-    j["frames"] = r.frames;
-    j["fps"] = r.fps;
-    j["scene_size"] = r.scene_size;
-    j["frame_vertex_bytes"] = r.frame_bytes;
-    j["csrbf_bytes"] = r.csrbf_bytes;
-    j["targets"] = r.targets;
-    j["max_active_targets"] = r.max_active;
-    j["shared_targets"] = r.shared_targets;
-    for (const auto& ob : r.objects)
-      j["objects"].push_back({{"name", ob.name},
-                              {"vertices", ob.vertices},
-                              {"targets", ob.targets},
-                              {"max_active_targets", ob.max_active},
-                              {"rotation_deviation_deg", ob.rotation_deviation_deg},
-                              {"max_deviation", ob.max_deviation},
-                              {"quantization_error", ob.quantization_error},
-                              {"normal_error_deg", ob.normal_error_deg},
-                              {"normal_error_endpoint_deg", ob.normal_error_endpoint_deg}});
-    if (o.compact_given) {
-      j["compact"] = {{"replaced_target_bytes", r.replaced_target_bytes},
-                      {"compact_bytes", r.compact_bytes},
-                      {"left_as_targets", r.compact_left_out}};
-      for (std::size_t k = 0; k < r.objects.size(); ++k)
-        j["objects"][k]["compact"] = {{"deformations", r.objects[k].compact_deformations},
-                                      {"groups", r.objects[k].groups},
-                                      {"max_error", r.objects[k].compact_error}};
-    }
-    j["parts"] = nlohmann::json::array();
-    for (const auto& p : r.parts)
-      j["parts"].push_back(
-          {{"object", p.object}, {"part", p.part}, {"targets", p.targets}, {"baked", p.baked}, {"why", p.why}});
-    if (!page.empty()) j["html"] = (page / "index.html").string();
-    std::cout << j.dump(2) << "\n";
-    return 0;
+nlohmann::json report_json(const ExportOptions& o, const render::GltfReport& r, const fs::path& page) {
+  nlohmann::json j;
+  j["output"] = o.out;
+  j["bytes"] = r.bytes;
+  j["frames"] = r.frames;
+  j["fps"] = r.fps;
+  j["scene_size"] = r.scene_size;
+  j["frame_vertex_bytes"] = r.frame_bytes;
+  j["csrbf_bytes"] = r.csrbf_bytes;
+  j["targets"] = r.targets;
+  j["max_active_targets"] = r.max_active;
+  j["shared_targets"] = r.shared_targets;
+  for (const auto& ob : r.objects)
+    j["objects"].push_back({{"name", ob.name},
+                            {"vertices", ob.vertices},
+                            {"targets", ob.targets},
+                            {"max_active_targets", ob.max_active},
+                            {"rotation_deviation_deg", ob.rotation_deviation_deg},
+                            {"max_deviation", ob.max_deviation},
+                            {"quantization_error", ob.quantization_error},
+                            {"normal_error_deg", ob.normal_error_deg},
+                            {"normal_error_endpoint_deg", ob.normal_error_endpoint_deg}});
+  if (o.compact_given) {
+    j["compact"] = {{"replaced_target_bytes", r.replaced_target_bytes},
+                    {"compact_bytes", r.compact_bytes},
+                    {"left_as_targets", r.compact_left_out}};
+    for (std::size_t k = 0; k < r.objects.size(); ++k)
+      j["objects"][k]["compact"] = {{"deformations", r.objects[k].compact_deformations},
+                                    {"groups", r.objects[k].groups},
+                                    {"max_error", r.objects[k].compact_error}};
   }
+  j["parts"] = nlohmann::json::array();
+  for (const auto& p : r.parts)
+    j["parts"].push_back(
+        {{"object", p.object}, {"part", p.part}, {"targets", p.targets}, {"baked", p.baked}, {"why", p.why}});
+  if (!page.empty()) j["html"] = (page / "index.html").string();
+  return j;
+}
+
+void report_text(const ExportOptions& o, const render::GltfOptions& go, const render::GltfReport& r,
+                 const fs::path& page) {
   std::cout << "csrbf export: " << printable(o.scene) << " -> " << printable(o.out) << " (" << kib(r.bytes) << "), "
             << r.frames << " frames at " << r.fps << " fps\n";
   for (const auto& ob : r.objects) {
@@ -270,7 +278,66 @@ int run_export(const ExportOptions& o) {
             ob.groups == 1 ? "" : "s", ob.compact_error);
   }
   if (!page.empty()) std::cout << "  page: " << printable((page / "index.html").string()) << "\n";
+}
+
+}  // namespace
+
+int run_export(const ExportOptions& o) {
+  const render::GltfOptions go = gltf_options(o);
+  const fs::path out = o.out;
+  const std::string ext = out.extension().string();
+  if (ext != ".glb" && ext != ".gltf")
+    throw UsageError("-o: the output must end in .glb or .gltf, got '" + o.out + "'");
+  // Check the targets before the (slow) scene load, so that a typo fails at once.
+  io::check_output_path(out);
+  const fs::path page = page_folder(o);
+  check_not_an_input("-o", out, io::referenced_files(o.scene, o.memory_limit_gib * kGiB));
+  io::must_be_new(io::resolve_output(out));
+  if (!page.empty() && fs::absolute(page).lexically_normal() == fs::absolute(out).lexically_normal())
+    throw UsageError("--html '" + o.html + "' and -o name the same path");
+  const anim::Scene scene = io::read_scene(o.scene, o.memory_limit_gib * kGiB);
+  check_textures(o, out, scene);
+  render::GltfReport r;
+  const std::vector<unsigned char> glb = render::gltf_binary(scene, go, r);
+  write_outputs(o, glb, out, page, r);
+  if (o.json)
+    std::cout << report_json(o, r, page).dump(2) << "\n";
+  else
+    report_text(o, go, r, page);
   return 0;
+}
+
+CLI::App* add_export_command(CLI::App& app, ExportOptions& o) {
+  auto* exporter = app.add_subcommand(
+      "export", "Write a scene as glTF 2.0 for game engines, Blender and web pages (docs/export.md)");
+  exporter->add_option("scene", o.scene, "Scene JSON file")->required();
+  exporter->add_option("-o,--output", o.out, "OUT.glb (binary) or OUT.gltf (one JSON file)")->required();
+  exporter->add_option("--fps", o.fps, "Sampling rate of what is sampled or baked (default: the scene's)")
+      ->check(finite_in(0.1, 1000.0, "--fps"));
+  exporter
+      ->add_option("--bake", o.bake,
+                   "auto: bake what morph targets cannot hold exactly; always: every deforming part; never: refuse")
+      ->capture_default_str();
+  exporter->add_option("--html", o.html,
+                       "Also write a new folder DIR with index.html, the .glb and three.js: a page that plays it");
+  exporter
+      ->add_option("--compact", o.compact,
+                   "Also write each exactly held deformation as CSRBF_deformation (docs/gltf/CSRBF_deformation.md): "
+                   "--compact keeps the morph targets as fallback, --compact=only replaces them")
+      ->expected(0, 1);
+  exporter->add_flag("--meshopt", o.meshopt,
+                     "Compress vertex, index and animation data with meshoptimizer (EXT_meshopt_compression, "
+                     "required: three.js, Babylon.js and gltfpack read it, Blender 3.4 does not)");
+  exporter->add_flag("--quantize", o.quantize,
+                     "Positions and displacements as 16-bit, normals as 8-bit integers (KHR_mesh_quantization, "
+                     "required); not with --compact");
+  exporter->add_flag("--json", o.json, "Print the report as one JSON object");
+  add_scene_memory_limit(exporter, o.memory_limit_gib);
+  exporter->parse_complete_callback([&o, exporter] {
+    o.html_given = exporter->count("--html") > 0;
+    o.compact_given = exporter->count("--compact") > 0;
+  });
+  return exporter;
 }
 
 }  // namespace csrbf::cli

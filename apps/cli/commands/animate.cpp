@@ -1,5 +1,7 @@
 #include "animate.hpp"
 #include "commands.hpp"
+#include "fit_input.hpp"
+#include "commands.hpp"
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/inputs.hpp"
 #include "csrbf/io/memory.hpp"
@@ -184,6 +186,26 @@ int run_animate(const AnimateOptions& o) {
       frames, 1e3 * st.compute_seconds / n, 1e3 * st.render_seconds / n, 1e3 * st.encode_seconds / n,
       printable(o.out).c_str());
   return 0;
+}
+
+CLI::App* add_animate_command(CLI::App& app, AnimateOptions& o) {
+  auto* animate =
+      app.add_subcommand("animate", "Render a scene file to a movie, without a display (docs/scene-format.md)");
+  animate->add_option("scene", o.scene, "Scene JSON file")->required();
+  animate
+      ->add_option("-o,--output", o.out,
+                   "Movie: .mp4 (H.264), .avi (full uncompressed frames) or a folder of numbered PNG frames")
+      ->required();
+  animate->add_option("--fps", o.fps, "Frames per second (default: the scene's)")
+      ->check(finite_in(0.1, 1000.0, "--fps"));
+  animate->add_option("--size", o.size, "Frame size WIDTHxHEIGHT")->capture_default_str();
+  animate->add_option("--from", o.from, "Start time in seconds (default 0)")->check(finite_in(-1e6, 1e6, "--from"));
+  animate->add_option("--to", o.to, "End time in seconds (default: the scene's duration)")
+      ->check(finite_in(-1e6, 1e6, "--to"));
+  animate->add_flag("--private-display", o.private_display,
+                    "Render on a private Xvfb even when DISPLAY is set (one is started anyway when it is not)");
+  add_scene_memory_limit(animate, o.memory_limit_gib);
+  return animate;
 }
 
 }  // namespace csrbf::cli

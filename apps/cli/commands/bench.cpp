@@ -1,4 +1,6 @@
 #include "bench.hpp"
+#include "commands.hpp"
+#include "fit_input.hpp"
 
 #include "csrbf/anim/scene.hpp"
 
@@ -689,6 +691,31 @@ void run_bench(const BenchOptions& o) {
     for (const auto& name : bench_scenarios()) run_one(name);
   else
     run_one(o.scenario);
+}
+
+CLI::App* add_bench_command(CLI::App& app, BenchOptions& o) {
+  auto* bench = app.add_subcommand("bench", "Run a benchmark scenario and print medians (docs/PERFORMANCE.md)");
+  std::vector<std::string> scenario_names = bench_scenarios();
+  scenario_names.push_back("all");
+  bench->add_option("--scenario,-s", o.scenario, "fish, face, ball, scale, solvers, peers or all")
+      ->required()
+      ->check(CLI::IsMember(scenario_names));
+  bench->add_flag("--json", o.json, "One JSON object a line");
+  bench->add_flag("--quick", o.quick, "Smaller sweeps (scale, solvers, peers)");
+  bench->add_option("--controls", o.controls, "solvers: only these N (e.g. --controls 1e5), default 1e3 ... 1e6")
+      ->check(CLI::Range(10.0, 1e7));
+  bench->add_option("--geometry", o.geometry, "solvers: only 'sphere' or 'cube' (default both)")
+      ->check(CLI::IsMember({"sphere", "cube"}));
+  bench->add_option("--threads", o.threads, "Threads (default: 1 for fish/face/ball, all for scale/solvers/peers)")
+      ->check(CLI::Range(1, 1024));
+  bench->add_option("--seconds", o.seconds, "Time spent on each measured quantity")
+      ->check(finite_in(0.0, 60.0, "--seconds"))
+      ->capture_default_str();
+  bench->add_option("--loop", o.loop, "Evaluation loop: auto, portable or avx512 (each row names the one used)")
+      ->check(CLI::IsMember({"auto", "portable", "avx512"}))
+      ->capture_default_str();
+  bench->add_option("--data", o.data_dir, "Folder with fish.obj, face.obj and their .controls (default: bundled)");
+  return bench;
 }
 
 }  // namespace csrbf::cli

@@ -1,5 +1,7 @@
 #pragma once
 
+#include <CLI/CLI.hpp>
+
 #include <optional>
 #include <string>
 
@@ -20,5 +22,8 @@ struct ExportOptions {
 /// `csrbf export`: the scene as glTF 2.0 (and, with --html, a page that plays it). Returns the exit
 /// status; throws for bad input (UsageError: exit 2).
 int run_export(const ExportOptions& o);
+
+/// `csrbf export` and its options, into o.
+CLI::App* add_export_command(CLI::App& app, ExportOptions& o);
 
 }  // namespace csrbf::cli

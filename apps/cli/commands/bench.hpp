@@ -1,6 +1,8 @@
 // `csrbf bench`: the benchmark scenarios of docs/PERFORMANCE.md, timed in this process.
 #pragma once
 
+#include <CLI/CLI.hpp>
+
 #include <string>
 #include <vector>
 
@@ -23,5 +25,8 @@ void run_bench(const BenchOptions& options);
 
 /// The scenario names, "all" excluded.
 const std::vector<std::string>& bench_scenarios();
+
+/// `csrbf bench` and its options, into o.
+CLI::App* add_bench_command(CLI::App& app, BenchOptions& o);
 
 }  // namespace csrbf::cli
