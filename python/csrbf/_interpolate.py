@@ -83,7 +83,10 @@ def _number(obj: Any, what: str, expected: str) -> float:
     """A real number (a Python or numpy number, not a bool or a string)."""
     if isinstance(obj, (bool, np.bool_, str)) or not hasattr(obj, "__float__"):
         raise TypeError(f"{what} must be {expected}, got a {_type_name(obj)}")
-    return float(obj)
+    try:
+        return float(obj)
+    except OverflowError:
+        raise ValueError(f"{what} must be {expected}, got {obj!r:.40}, beyond a float") from None
 
 
 def _integer(obj: Any, what: str, expected: str) -> int:
@@ -130,8 +133,8 @@ class _Options:
         self.neighbors = 0.0  # the default for the levels
         if neighbors is not None:
             n = _number(neighbors, "neighbors", "a positive number")
-            if not (n > 0 and np.isfinite(n)):
-                raise ValueError(f"neighbors must be a positive number, got {neighbors!r}")
+            if not 0 < n <= 1e9:
+                raise ValueError(f"neighbors must be a positive number (at most 1e9), got {neighbors!r}")
             if self.radius > 0:  # it chooses the automatic radius: beside a given radius it would be ignored
                 raise ValueError(f"neighbors={neighbors!r} chooses the automatic radius, but "
                                  f"radius={_shortest(self.radius)} is given: give one of them (radius='auto' with "
@@ -194,6 +197,8 @@ def _data(points: Any, values: Any) -> Tuple[np.ndarray, np.ndarray, Tuple[int, 
     if d > most and 1 <= p <= most:
         raise ValueError(f"points must have shape (P, D) with D = 1, 2 or 3, got {pts.shape}: is it transposed? "
                          f"(points.T has shape {(d, p)})")
+    if d == 0:
+        raise ValueError(f"points must have shape (P, D) with D = 1, 2 or 3, got {pts.shape}: no coordinates")
     if not 1 <= d <= most:
         raise ValueError(f"points must have shape (P, D) with D = 1, 2 or 3, got {pts.shape}: csrbf's Wendland "
                          "kernels are positive definite only up to 3 dimensions (built for R^3); in higher dimensions "
@@ -217,6 +222,8 @@ def _smoothing(smoothing: Any, p: int) -> np.ndarray:
     if smoothing is None:
         return np.zeros(0)
     sm = _real_array(smoothing, "smoothing")
+    if sm.dtype.kind == "b":
+        raise TypeError("smoothing must be a number >= 0 or an array of them, got booleans")
     if not (sm.ndim == 0 or (sm.ndim == 1 and sm.shape[0] == p)):
         raise ValueError(f"smoothing must be a number or an array of shape ({p},), got {sm.shape}")
     flat = np.ascontiguousarray(sm, dtype=np.float64).reshape(-1)
@@ -226,6 +233,17 @@ def _smoothing(smoothing: Any, p: int) -> np.ndarray:
         where = f"[{i}]" if sm.ndim else ""
         raise ValueError(f"smoothing{where} is {flat[i]:g} (must be finite and >= 0)")
     return np.zeros(0) if not flat.any() else flat
+
+
+def _into_float32(result: np.ndarray, computed: np.ndarray, what: str, one: bool) -> None:
+    """result (float32) = computed (float64), or ValueError where a number is beyond float32."""
+    big = np.abs(computed) > np.finfo(np.float32).max
+    if big.any():
+        index = np.unravel_index(int(np.argmax(big.reshape(-1))), computed.shape)
+        at = "" if one else f" at x[{int(index[0])}]"
+        raise ValueError(f"the interpolant's {what}{at} is {float(computed[index]):g}, beyond float32 (the values' "
+                         "dtype): evaluate an interpolant of float64 values")
+    result[...] = computed
 
 
 def _output(out: Any, shape: Tuple[int, ...], dtype: np.dtype) -> np.ndarray:
@@ -334,7 +352,7 @@ class Interpolator(metaclass=_Signature):
     def __new__(cls, *args: Any, **kwargs: Any) -> "Interpolator":
         # Positional and keyword mistakes are reported here, with what the user may have meant
         # (SciPy's names); with no arguments at all (pickle's protocol 2), an unfitted object.
-        if args or kwargs:
+        if cls is Interpolator and (args or kwargs):  # a subclass's __init__ takes what it takes
             if len(args) != 2:
                 rest = "; radius and the rest are keyword-only" if len(args) > 2 else ""
                 raise TypeError("Interpolator() takes points and values as its two positional arguments, got "
@@ -442,7 +460,7 @@ class Interpolator(metaclass=_Signature):
         else:  # float32 values at float64 points: evaluated in double
             staging = np.empty(shape, np.float64)
             fitted.evaluate(np.ascontiguousarray(q, dtype=np.float64), staging, self._threads)
-            result[...] = staging
+            _into_float32(result, staging, "value", one)
         return result
 
     def gradient(self, x: npt.ArrayLike, *, out: Optional[FloatArray] = None) -> FloatArray:
@@ -470,8 +488,11 @@ class Interpolator(metaclass=_Signature):
         q, one = self._query(x)
         shape = (() if one else (len(q),)) + self._value_shape + (fitted.dimension,)
         result = _output(out, shape, self.dtype)
-        g = fitted.gradient(np.ascontiguousarray(q, dtype=np.float64), self._threads)
-        result[...] = g.reshape(shape)
+        g = fitted.gradient(np.ascontiguousarray(q, dtype=np.float64), self._threads).reshape(shape)
+        if self._single:
+            _into_float32(result, g, "derivative", one)
+        else:
+            result[...] = g
         return result
 
     # -- what was fitted --------------------------------------------------------------------------
@@ -564,7 +585,7 @@ class Interpolator(metaclass=_Signature):
     def __getstate__(self) -> Dict[str, Any]:
         """The fit as plain data: each level's points and coefficients (no refit on loading)."""
         fitted = self._fit()
-        return {
+        state = {
             "format": "csrbf.Interpolator",
             "version": _STATE_VERSION,
             "dimension": fitted.dimension,
@@ -579,58 +600,108 @@ class Interpolator(metaclass=_Signature):
             "solver": self._solver,
             "seconds_fit": fitted.seconds_fit,
         }
+        extra = getattr(self, "__dict__", None)  # a subclass's own attributes
+        if extra:
+            state["attributes"] = dict(extra)
+        return state
 
     def __setstate__(self, state: Any) -> None:
-        # Every malformed state is a ValueError naming the state, whatever the part that is wrong.
+        # Every malformed state is a ValueError naming the state, whatever the part that is wrong,
+        # and a state that fails leaves the object as it was.
         try:
-            self._restore(_state_v2(state))
+            checked = _checked_state(_state_v2(state))
         except ValueError as e:
             if str(e).startswith("Interpolator state:"):
                 raise
             raise ValueError(f"Interpolator state: malformed ({e})") from None
-        except (TypeError, KeyError, IndexError, OverflowError, AttributeError) as e:
+        except (TypeError, KeyError, IndexError, OverflowError, AttributeError, RuntimeError, MemoryError) as e:
             raise ValueError(f"Interpolator state: malformed ({type(e).__name__}: {e})") from None
+        (self._fitted, self._value_shape, self._single, self._threads, self._radius_auto, self._neighbors,
+         self._solver, attributes) = checked
+        if attributes:
+            self.__dict__.update(attributes)
 
     def __reduce__(self) -> Tuple[Any, ...]:
-        return (_restore, (self.__getstate__(),))
+        return (_restore, (self.__getstate__(), type(self)))
 
-    def _restore(self, s: Dict[str, Any]) -> None:
-        if s.get("format") != "csrbf.Interpolator" or s.get("version") != _STATE_VERSION:
-            raise ValueError("Interpolator state: not a state of this version of csrbf")
-        value_shape = tuple(operator.index(e) for e in s["value_shape"])
-        if len(value_shape) > 32:
-            raise ValueError("Interpolator state: value shape of too many dimensions")
-        count = 1
-        for e in value_shape:
-            if not 1 <= e <= 1 << 40 or count > 1 << 40:
-                raise ValueError(f"Interpolator state: value shape {value_shape}")
-            count *= e
-        threads = operator.index(s["threads"])
-        if not 0 <= threads <= 4096:
-            raise ValueError(f"Interpolator state: threads {threads}")
-        if s["dtype"] not in ("float32", "float64"):
-            raise ValueError(f"Interpolator state: dtype {s['dtype']!r}")
-        if not isinstance(s["levels"], list):
-            raise ValueError(f"Interpolator state: levels is a {_type_name(s['levels'])}, not a list")
-        fitted = _core._interpolator_from_levels(operator.index(s["dimension"]), count, str(s["kernel"]),
-                                                 operator.index(s["degree"]), s["levels"], float(s["seconds_fit"]))
-        self._fitted = fitted
-        self._value_shape = value_shape
-        self._single = s["dtype"] == "float32"
-        self._threads = threads
-        self._radius_auto = bool(s["radius_auto"])
-        self._neighbors = float(s["neighbors"])
-        self._solver = str(s["solver"])
+
+def _exactly(value: Any, kind: type, what: str) -> Any:
+    """value if it is of exactly this type (an int is not a bool, a float not an int), else ValueError."""
+    if type(value) is not kind and not (kind is float and type(value) in (int, np.float64)):
+        raise ValueError(f"Interpolator state: {what} is a {_type_name(value)}, not a {kind.__name__}")
+    return value
+
+
+def _checked_level(level: Any, k: int) -> Dict[str, Any]:
+    """A level of a state as _core._interpolator_from_levels takes it, each field checked."""
+    if not isinstance(level, dict):
+        raise ValueError(f"Interpolator state: levels[{k}] is a {_type_name(level)}, not a dict")
+    out: Dict[str, Any] = {}
+    for key in ("points", "alpha", "beta"):
+        out[key] = np.ascontiguousarray(np.asarray(level[key], dtype=np.float64))
+    center = tuple(float(_exactly(c, float, f"levels[{k}].center")) for c in level["center"])
+    if len(center) != 3:
+        raise ValueError(f"Interpolator state: levels[{k}].center has {len(center)} numbers, not 3")
+    out["center"] = center
+    for key in ("radius", "scale", "neighbors", "residual", "rms_before", "seconds"):
+        out[key] = float(_exactly(level[key], float, f"levels[{k}].{key}"))
+    iterations = _exactly(level["iterations"], int, f"levels[{k}].iterations")
+    if iterations < 0:
+        raise ValueError(f"Interpolator state: levels[{k}].iterations is {iterations}")
+    out["iterations"] = iterations
+    solver = level["solver"]
+    if not isinstance(solver, str) or _core._names["solver"][0](solver) != solver:
+        raise ValueError(f"Interpolator state: levels[{k}].solver is {solver!r}")
+    out["solver"] = solver
+    return out
+
+
+def _checked_state(s: Dict[str, Any]) -> Tuple[Any, ...]:
+    """The parts of an Interpolator from a state of this version, every field checked."""
+    if s.get("format") != "csrbf.Interpolator" or type(s.get("version")) is not int or s["version"] != _STATE_VERSION:
+        raise ValueError("Interpolator state: not a state of this version of csrbf")
+    value_shape = tuple(_exactly(e, int, "value_shape") for e in s["value_shape"])
+    if len(value_shape) > 32:
+        raise ValueError("Interpolator state: value shape of too many dimensions")
+    count = 1
+    for e in value_shape:
+        count *= e
+        if not 1 <= e <= 1 << 40 or count > 1 << 40:
+            raise ValueError(f"Interpolator state: value shape {value_shape}")
+    threads = _exactly(s["threads"], int, "threads")
+    if not 0 <= threads <= 4096:
+        raise ValueError(f"Interpolator state: threads {threads}")
+    if s["dtype"] not in ("float32", "float64"):
+        raise ValueError(f"Interpolator state: dtype {s['dtype']!r}")
+    radius_auto = _exactly(s["radius_auto"], bool, "radius_auto")
+    neighbors = float(_exactly(s["neighbors"], float, "neighbors"))
+    if not 0 < neighbors <= 1e9:
+        raise ValueError(f"Interpolator state: neighbors {neighbors}")
+    solver = s["solver"]
+    if not isinstance(solver, str) or _core._names["solver"][0](solver) != solver:
+        raise ValueError(f"Interpolator state: solver {solver!r}")
+    if not isinstance(s["levels"], list):
+        raise ValueError(f"Interpolator state: levels is a {_type_name(s['levels'])}, not a list")
+    levels = [_checked_level(level, k) for k, level in enumerate(s["levels"])]
+    attributes = s.get("attributes") or {}
+    if not isinstance(attributes, dict):
+        raise ValueError(f"Interpolator state: attributes is a {_type_name(attributes)}, not a dict")
+    fitted = _core._interpolator_from_levels(_exactly(s["dimension"], int, "dimension"), count,
+                                             _exactly(s["kernel"], str, "kernel"),
+                                             _exactly(s["degree"], int, "degree"), levels,
+                                             float(_exactly(s["seconds_fit"], float, "seconds_fit")))
+    return fitted, value_shape, s["dtype"] == "float32", threads, radius_auto, neighbors, solver, attributes
 
 
 def _state_v2(state: Any) -> Dict[str, Any]:
     """A state of this version; a version-1 state (csrbf 0.1's 12-tuple) is read into one."""
     if isinstance(state, dict):
         return state
-    if not isinstance(state, tuple) or len(state) != 12 or state[0] != 1:
+    if not isinstance(state, tuple) or len(state) != 12 or type(state[0]) is not int or state[0] != 1:
         raise ValueError("Interpolator state: not a state of this version of csrbf")
     (_, dimension, value_shape, single, kernel, degree, levels, threads, radius_auto, neighbors, solver,
      seconds_fit) = state
+    _exactly(single, bool, "single")
     keys = ("neighbors", "solver", "iterations", "residual", "rms_before", "seconds")
     v2_levels = [dict(radius=l[0], points=l[1], alpha=l[2], beta=l[3], center=l[4], scale=l[5], **dict(zip(keys, l[6])))
                  for l in levels]
@@ -640,8 +711,12 @@ def _state_v2(state: Any) -> Dict[str, Any]:
             "neighbors": neighbors, "solver": solver, "seconds_fit": seconds_fit}
 
 
-def _restore(state: Dict[str, Any]) -> Interpolator:
-    """An Interpolator from its pickled state (Interpolator.__reduce__)."""
-    s = Interpolator.__new__(Interpolator)
+def _restore(state: Dict[str, Any], cls: type = None) -> Interpolator:  # type: ignore[assignment]
+    """An Interpolator (or an instance of its subclass cls) from its pickled state (__reduce__)."""
+    if cls is None or not (isinstance(cls, type) and issubclass(cls, Interpolator)):
+        if cls is not None:
+            raise ValueError(f"Interpolator state: {cls!r} is not an Interpolator")
+        cls = Interpolator
+    s = cls.__new__(cls)
     s.__setstate__(state)
     return s

@@ -564,8 +564,10 @@ Interpolator Interpolator::from_levels(int dim, std::size_t value_count, Kernel 
     const InterpolatorLevel& lv = levels[l];
     const std::size_t n = lv.points.size() / std::size_t(dim);
     const int terms = terms_of(l == 0 ? degree : -1, dim);
-    if (n == 0 || lv.points.size() != n * std::size_t(dim) || lv.alpha.size() != n * value_count ||
-        lv.beta.size() != std::size_t(terms) * value_count)
+    // By division, not multiplication: a value_count of 2^62 must not wrap n * value_count to 0.
+    if (n == 0 || lv.points.size() != n * std::size_t(dim) || lv.alpha.size() % value_count != 0 ||
+        lv.alpha.size() / value_count != n || lv.beta.size() % value_count != 0 ||
+        lv.beta.size() / value_count != std::size_t(terms))
       throw InvalidInput("from_levels: level " + std::to_string(l) + " has " + std::to_string(lv.points.size()) +
                          " coordinates, " + std::to_string(lv.alpha.size()) + " coefficients and " +
                          std::to_string(lv.beta.size()) + " polynomial terms, which do not agree with D = " +

@@ -72,6 +72,14 @@ TEST(Interpolator, EqualsADenseSolveWithAPolynomialAndSmoothing) {
   std::vector<double> again(Q * V);
   t.evaluate(x.data(), Q, again.data());
   for (std::size_t k = 0; k < again.size(); ++k) EXPECT_NEAR(again[k], got[k], 1e-13 * largest);
+
+  // A value count whose product with the points wraps size_t (a forged pickle: 2^62 values, no
+  // coefficients) is refused, not read past the coefficients' end.
+  auto forged = s.levels();
+  forged[0].alpha.clear();
+  EXPECT_THROW(Interpolator::from_levels(2, std::size_t(1) << 62, s.kernel(), s.degree(), forged), InvalidInput);
+  forged[0].alpha.assign(4, 0.0);
+  EXPECT_THROW(Interpolator::from_levels(2, (std::size_t(1) << 62) + 1, s.kernel(), s.degree(), forged), InvalidInput);
 }
 
 // Conjugate gradients and its incomplete Cholesky preconditioner with a smoothing a point (A's

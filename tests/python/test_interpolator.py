@@ -88,6 +88,14 @@ def franke(x, y):
     )
 
 
+class Named(csrbf.Interpolator):
+    """A subclass with an argument and an attribute of its own (pickled by name, so at module level)."""
+
+    def __init__(self, points, values, name="f", **kwargs):
+        super().__init__(points, values, **kwargs)
+        self.name = name
+
+
 def evaluate_in_child(args):
     s, x = args
     return s(x)
@@ -274,7 +282,11 @@ class PythonHabits(unittest.TestCase):
         for key, value, pattern in (("threads", 10**6, r"Interpolator state: threads"),
                                     ("levels", "levels", r"Interpolator state: levels is a str"),
                                     ("version", 3, r"not a state of this version"),
-                                    ("dimension", "3", r"Interpolator state: malformed \(TypeError"),
+                                    ("dimension", "3", r"Interpolator state: dimension is a str"),
+                                    ("value_shape", (2**31, 2**31), r"Interpolator state: value shape"),
+                                    ("radius_auto", "x", r"Interpolator state: radius_auto is a str"),
+                                    ("solver", 5, r"Interpolator state: solver 5"),
+                                    ("neighbors", float("nan"), r"Interpolator state: neighbors nan"),
                                     ("kernel", "c3", r"Interpolator state: malformed \(kernel must be one of")):
             state = self.s.__getstate__()
             state[key] = value
@@ -284,6 +296,18 @@ class PythonHabits(unittest.TestCase):
         state["levels"][0]["alpha"] = state["levels"][0]["alpha"][:-1]
         with self.assertRaisesRegex(ValueError, r"Interpolator state: malformed"):
             csrbf.Interpolator.__new__(csrbf.Interpolator).__setstate__(state)
+        for key, value in (("solver", "bogus"), ("radius", "x"), ("center", None), ("iterations", 1.5)):
+            state = self.s.__getstate__()
+            state["levels"][0][key] = value
+            with self.assertRaisesRegex(ValueError, r"Interpolator state: (levels\[0\]|malformed)", msg=key):
+                csrbf.Interpolator.__new__(csrbf.Interpolator).__setstate__(state)
+        # A state that fails leaves the object as it was.
+        before = self.s(self.x)
+        state = m.__getstate__()
+        state["neighbors"] = "x"
+        with self.assertRaises(ValueError):
+            self.s.__setstate__(state)
+        np.testing.assert_array_equal(self.s(self.x), before)
         # A pickle of csrbf 0.1 (its state a 12-tuple of version 1) still loads, with the same values.
         v2 = m.__getstate__()
         keys = ("neighbors", "solver", "iterations", "residual", "rms_before", "seconds")
@@ -297,6 +321,24 @@ class PythonHabits(unittest.TestCase):
         self.assertEqual(repr(old), repr(m))
         g = pickle.loads(pickle.dumps(m)).gradient(self.x[:10])
         np.testing.assert_allclose(g, m.gradient(self.x[:10]), atol=1e-12)
+
+    def test_subclasses_pickle_as_themselves(self):
+        n = Named(self.pts, self.vals[:, 0], "temperature", radius=0.2)
+        for copied in (pickle.loads(pickle.dumps(n)), __import__("copy").deepcopy(n)):
+            self.assertIs(type(copied), Named)
+            self.assertEqual(copied.name, "temperature")
+            np.testing.assert_array_equal(copied(self.x), n(self.x))
+
+    def test_float32_values_beyond_float32_are_an_error(self):
+        p = np.linspace(0, 1, 50)[:, None]
+        s = csrbf.Interpolator(p, (p[:, 0] * 3e38).astype(np.float32), radius=0.2, degree=1)
+        for x in (np.array([[2.0]]), np.array([[2.0]], np.float32)):
+            with self.assertRaisesRegex(ValueError, r"overflows|beyond float32"):
+                s(x)
+        steep = csrbf.Interpolator(p * 0.1, (p[:, 0] * 3e38).astype(np.float32), radius=0.02, degree=1)
+        with self.assertRaisesRegex(ValueError, r"derivative at x\[0\] is .*beyond float32"):
+            steep.gradient(np.array([[0.05]]))
+        self.assertTrue(np.isfinite(s(np.array([[0.5]]))).all())
 
     def test_pool_of_processes(self):
         want = self.s(self.x)
@@ -418,6 +460,9 @@ class PythonHabits(unittest.TestCase):
             (dict(points=pts, values=np.ones((100, 0))), ValueError, r"values has no value a point"),
             (dict(points=pts, values=np.ones(100), memory_limit=0), ValueError, r"memory_limit is in GiB.*got 0"),
             (dict(points=pts, values=np.ones(100), threads=0), ValueError, r"threads must be a positive"),
+            (dict(points=pts, values=np.ones(100), smoothing=True), TypeError, r"smoothing must be a number"),
+            (dict(points=pts, values=np.ones(100), radius=10**400), ValueError, r"radius must be .*beyond a float"),
+            (dict(points=np.ones((50, 0)), values=np.ones(50)), ValueError, r"no coordinates"),
             (dict(points=pts, values=np.ones(100), radius=0.5, neighbors=10), ValueError,
              r"neighbors=10 chooses the automatic radius, but radius=0\.5 is given"),
         ]
