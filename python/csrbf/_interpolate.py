@@ -33,6 +33,7 @@ _STATE_VERSION = 2
 _KEYWORDS = ("radius", "kernel", "degree", "smoothing", "neighbors", "levels", "method", "memory_limit", "threads",
              "solver")
 _SCIPY_KERNELS = ("thin_plate_spline", "gaussian", "multiquadric")
+_DTYPES = (np.dtype(np.float64), np.dtype(np.float32))  # the results' dtype, by "single"
 
 
 def _type_name(obj: object) -> str:
@@ -347,7 +348,8 @@ class Interpolator(metaclass=_Signature):
     True
     """
 
-    __slots__ = ("_fitted", "_value_shape", "_single", "_threads", "_radius_auto", "_neighbors", "_solver")
+    __slots__ = ("_fitted", "_dimension", "_value_shape", "_single", "_threads", "_radius_auto", "_neighbors",
+                 "_solver")
 
     def __new__(cls, *args: Any, **kwargs: Any) -> "Interpolator":
         # Positional and keyword mistakes are reported here, with what the user may have meant
@@ -396,6 +398,7 @@ class Interpolator(metaclass=_Signature):
             raise MemoryError(f"{e} [csrbf.Interpolator: memory_limit is {o.memory_limit:.3g} GiB; raise it, or ask "
                               "for fewer neighbors or a smaller radius]") from None
         self._fitted = fitted
+        self._dimension = int(fitted.dimension)
         self._value_shape = value_shape
         self._single = single
         self._threads = o.threads
@@ -418,7 +421,8 @@ class Interpolator(metaclass=_Signature):
 
     def _query(self, x: Any) -> Tuple[np.ndarray, bool]:
         """The evaluation points as (Q, D) and whether one point (D,) was given."""
-        d = self._fit().dimension
+        self._fit()
+        d = self._dimension
         a = _real_array(x, "x")
         if (a.ndim == 1 and a.shape[0] == d) or (a.ndim == 0 and d == 1):
             return a.reshape(1, d), True
@@ -452,7 +456,7 @@ class Interpolator(metaclass=_Signature):
         fitted = self._fit()
         q, one = self._query(x)
         shape = (() if one else (len(q),)) + self._value_shape
-        result = _output(out, shape, self.dtype)
+        result = _output(out, shape, _DTYPES[self._single])
         if self._single and q.dtype == np.float32:
             fitted.evaluate(np.ascontiguousarray(q), result, self._threads)  # float32 throughout
         elif not self._single:
@@ -542,7 +546,7 @@ class Interpolator(metaclass=_Signature):
     def dtype(self) -> np.dtype:
         """The dtype of the results (the values')"""
         self._fit()
-        return np.dtype(np.float32 if self._single else np.float64)
+        return _DTYPES[self._single]
 
     @property
     def kernel(self) -> str:
@@ -618,6 +622,7 @@ class Interpolator(metaclass=_Signature):
             raise ValueError(f"Interpolator state: malformed ({type(e).__name__}: {e})") from None
         (self._fitted, self._value_shape, self._single, self._threads, self._radius_auto, self._neighbors,
          self._solver, attributes) = checked
+        self._dimension = int(self._fitted.dimension)
         if attributes:
             self.__dict__.update(attributes)
 
