@@ -420,8 +420,7 @@ class Interpolator(metaclass=_Signature):
         return fitted
 
     def _query(self, x: Any) -> Tuple[np.ndarray, bool]:
-        """The evaluation points as (Q, D) and whether one point (D,) was given."""
-        self._fit()
+        """The evaluation points as (Q, D) and whether one point (D,) was given (of a fitted object)."""
         d = self._dimension
         a = _real_array(x, "x")
         if (a.ndim == 1 and a.shape[0] == d) or (a.ndim == 0 and d == 1):
@@ -534,7 +533,8 @@ class Interpolator(metaclass=_Signature):
     @property
     def dimension(self) -> int:
         """D, the dimension of the points"""
-        return int(self._fit().dimension)
+        self._fit()
+        return self._dimension
 
     @property
     def value_shape(self) -> Tuple[int, ...]:
@@ -618,7 +618,7 @@ class Interpolator(metaclass=_Signature):
             if str(e).startswith("Interpolator state:"):
                 raise
             raise ValueError(f"Interpolator state: malformed ({e})") from None
-        except (TypeError, KeyError, IndexError, OverflowError, AttributeError, RuntimeError, MemoryError) as e:
+        except (TypeError, KeyError, IndexError, OverflowError, AttributeError) as e:
             raise ValueError(f"Interpolator state: malformed ({type(e).__name__}: {e})") from None
         (self._fitted, self._value_shape, self._single, self._threads, self._radius_auto, self._neighbors,
          self._solver, attributes) = checked
