@@ -46,7 +46,20 @@ void PickerWindow::build_ui() {
   auto* panel = new QWidget(dock);
   panel->setMinimumWidth(560);
   auto* layout = new QVBoxLayout(panel);
+  build_control_table(panel, layout);
+  build_area_buttons(panel, layout);
+  build_fit_options(panel, layout);
+  build_display_switches(panel, layout);
+  build_messages(panel, layout);
 
+  dock->setWidget(panel);
+  addDockWidget(Qt::RightDockWidgetArea, dock);
+  timing_ = new QLabel(this);
+  statusBar()->addPermanentWidget(timing_);
+  statusBar()->showMessage("Open a mesh (ctrl+O or drop a file here)");
+}
+
+void PickerWindow::build_control_table(QWidget* panel, QVBoxLayout* layout) {
   table_ = new QTableWidget(0, 7, panel);
   table_->setObjectName("controls");
   table_->setHorizontalHeaderLabels({"sx", "sy", "sz", "dx", "dy", "dz", "pin"});
@@ -94,7 +107,9 @@ void PickerWindow::build_ui() {
     }
     edit(next, "Edit coordinates");
   });
+}
 
+void PickerWindow::build_area_buttons(QWidget* panel, QVBoxLayout* layout) {
   auto* del = new QPushButton("Delete", panel);
   del->setObjectName("delete");
   connect(del, &QPushButton::clicked, this, [this] { delete_selected(); });
@@ -112,7 +127,9 @@ void PickerWindow::build_ui() {
   layout->addLayout(row);
   region_label_ = new QLabel(panel);
   layout->addWidget(region_label_);
+}
 
+void PickerWindow::build_fit_options(QWidget* panel, QVBoxLayout* layout) {
   auto* form = new QFormLayout;
   const auto refused = [this](const QString& m) { show_error(m); };
   radius_ = gui::number_box(panel, "radius", 1e-9, 1e12, "Radius R", refused);
@@ -168,7 +185,9 @@ void PickerWindow::build_ui() {
   form->addRow("Phase", phase_row);
   connect(phase_, &QSlider::valueChanged, this, [this] { options_changed(kMergePhase, "Phase"); });
   layout->addLayout(form);
+}
 
+void PickerWindow::build_display_switches(QWidget* panel, QVBoxLayout* layout) {
   show_supports_ = new QCheckBox("Show support spheres (S)", panel);
   show_supports_->setObjectName("supports");
   colour_displacement_ = new QCheckBox("Colour by displacement (D)", panel);
@@ -177,7 +196,9 @@ void PickerWindow::build_ui() {
   connect(colour_displacement_, &QCheckBox::toggled, this, [this] { refresh_view(); });
   layout->addWidget(show_supports_);
   layout->addWidget(colour_displacement_);
+}
 
+void PickerWindow::build_messages(QWidget* panel, QVBoxLayout* layout) {
   auto* messages = gui::make_message_box(panel, 170);
   error_ = gui::add_message(messages, "error", "#b03030");
   fold_warning_ = gui::add_message(messages, "foldWarning", "#f0c040");
@@ -187,12 +208,6 @@ void PickerWindow::build_ui() {
       "Click the mesh to add a control, then drag its handle to where it goes; Shift + click pins a point, Ctrl + "
       "drag selects the active area. F1 lists every key.");
   layout->addWidget(messages);
-
-  dock->setWidget(panel);
-  addDockWidget(Qt::RightDockWidgetArea, dock);
-  timing_ = new QLabel(this);
-  statusBar()->addPermanentWidget(timing_);
-  statusBar()->showMessage("Open a mesh (ctrl+O or drop a file here)");
 }
 
 void PickerWindow::options_changed(int merge_id, const QString& what) {

@@ -20,6 +20,7 @@ class QDoubleSpinBox;
 class QLabel;
 class QSlider;
 class QTableWidget;
+class QVBoxLayout;
 class QVTKOpenGLNativeWidget;
 class QAction;
 class vtkActor;
@@ -106,6 +107,12 @@ class PickerWindow : public QMainWindow {
   friend class PickerStyle;
   friend class StateCommand;
   void build_ui();
+  // build_ui's parts, in the panel's order: each adds its widgets to the panel's layout.
+  void build_control_table(QWidget* panel, QVBoxLayout* layout);
+  void build_area_buttons(QWidget* panel, QVBoxLayout* layout);
+  void build_fit_options(QWidget* panel, QVBoxLayout* layout);
+  void build_display_switches(QWidget* panel, QVBoxLayout* layout);
+  void build_messages(QWidget* panel, QVBoxLayout* layout);
   void build_menus();
   void build_scene();
   /// Shows state s (already applied to the document) everywhere: 3D view, table, option widgets.

@@ -623,7 +623,16 @@ bool has_file(const fs::path& dir, const char* name) {
 
 }  // namespace
 
-FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::string& time) {
+namespace {
+
+// Where read_openfoam's phases find the files, and the files they name in later messages.
+struct CaseFiles {
+  fs::path points_dir, target_dir;  // where the points are read, and where the moved ones go
+  fs::path owner, neighbour;
+};
+
+/// The case's folders: its polyMesh, and with a time, the time's folders the files come from.
+FoamCase locate_case(const fs::path& path, const std::string& time, CaseFiles& files) {
   std::error_code ec;
   if (!fs::is_directory(path, ec))
     throw FileError(path.string() + ": not a folder (an OpenFOAM case, or its constant/polyMesh, is a folder)");
@@ -632,15 +641,14 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::s
   c.poly_mesh = find_poly_mesh(path);
   if (c.poly_mesh.empty())
     throw FileError(path.string() + ": not an OpenFOAM case: no constant/polyMesh, and no faces or owner file");
-  VolumeMesh& m = c.mesh;
-  fs::path points_dir = c.poly_mesh, target_dir = c.poly_mesh;
+  files.points_dir = files.target_dir = c.poly_mesh;
   if (!time.empty()) {
     if (c.poly_mesh != path / "constant" / "polyMesh")
       throw FileError(path.string() +
                       ": -time needs the case folder (holding constant/ and the time folders), "
                       "not a polyMesh folder");
     c.time = find_time(path, time);
-    target_dir = path / c.time / "polyMesh";
+    files.target_dir = path / c.time / "polyMesh";
     // As OpenFOAM's findInstance: the points of the latest time up to this one whose polyMesh holds
     // them (a solver writes times without a mesh after a morph wrote one), else constant's; the
     // faces (and their owner, neighbour and boundary) likewise, where the topology changed.
@@ -648,18 +656,22 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::s
     bool points_found = false, faces_found = false;
     for (auto it = std::find(times.rbegin(), times.rend(), c.time); it != times.rend(); ++it) {
       const fs::path dir = path / *it / "polyMesh";
-      if (!points_found && has_file(dir, "points")) points_dir = dir, points_found = true;
+      if (!points_found && has_file(dir, "points")) files.points_dir = dir, points_found = true;
       if (!faces_found && has_file(dir, "faces")) c.poly_mesh = dir, faces_found = true;
       if (points_found && faces_found) break;
     }
   }
+  return c;
+}
 
-  // The four files are read and parsed at once (a task each; the faces, the largest, first). Each
-  // task keeps its own error, and the errors are told in the order a serial read meets them:
-  // points, faces, owner, neighbour, whatever the threads' timing. A face's point labels are
-  // checked against the points' count when both are read: where one is out of range (or the faces
-  // failed), the faces are parsed again with the bound, which names the face and its line as the
-  // serial read did.
+// The four files are read and parsed at once (a task each; the faces, the largest, first). Each
+// task keeps its own error, and the errors are told in the order a serial read meets them:
+// points, faces, owner, neighbour, whatever the threads' timing. A face's point labels are
+// checked against the points' count when both are read: where one is out of range (or the faces
+// failed), the faces are parsed again with the bound, which names the face and its line as the
+// serial read did.
+void read_mesh_files(FoamCase& c, CaseFiles& files, double max_file_bytes) {
+  VolumeMesh& m = c.mesh;
   Loaded faces_file, owner_file, neighbour_file;
   std::uint32_t largest_label = 0;
   std::exception_ptr points_failed, faces_failed, owner_failed, neighbour_failed;
@@ -685,11 +697,11 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::s
     for (const std::uint32_t v : m.poly.face_points) largest_label = std::max(largest_label, v);
   };
   const auto read_points_file = [&] {
-    Loaded l = load(points_dir, "points", max_file_bytes);
+    Loaded l = load(files.points_dir, "points", max_file_bytes);
     Parser p(l.text, l.path.string());
     const Header h = read_header(p);
     c.points_file.path = l.path;
-    c.points_file.target = target_dir / l.path.filename();
+    c.points_file.target = files.target_dir / l.path.filename();
     c.points_file.gzip = l.gz;
     c.points_file.binary = h.binary;
     c.points_file.scalar_bytes = h.scalar_bytes;
@@ -721,15 +733,21 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::s
   }
   if (owner_failed) std::rethrow_exception(owner_failed);
   if (neighbour_failed) std::rethrow_exception(neighbour_failed);
-  faces_file.text = std::string();
+  files.owner = owner_file.path;
+  files.neighbour = neighbour_file.path;
+}
+
+/// Owner and neighbour against the faces; the number of cells they name.
+void check_cells(FoamCase& c, const CaseFiles& files) {
+  VolumeMesh& m = c.mesh;
   const std::size_t nf = m.poly.face_start.size() - 1;
   if (nf >= kMaxFaces)
     throw FileError(c.poly_mesh.string() + ": " + std::to_string(nf) + " faces: more than csrbf reads (2^31)");
   if (m.poly.owner.size() != nf)
-    throw FileError(owner_file.path.string() + ": " + std::to_string(m.poly.owner.size()) +
-                    " owner cells, but faces has " + std::to_string(nf) + " faces");
+    throw FileError(files.owner.string() + ": " + std::to_string(m.poly.owner.size()) + " owner cells, but faces has " +
+                    std::to_string(nf) + " faces");
   if (m.poly.neighbour.size() > nf)
-    throw FileError(neighbour_file.path.string() + ": " + std::to_string(m.poly.neighbour.size()) +
+    throw FileError(files.neighbour.string() + ": " + std::to_string(m.poly.neighbour.size()) +
                     " neighbour cells, more than the " + std::to_string(nf) + " faces");
   std::uint64_t cells = 0;
   for (const auto o : m.poly.owner) cells = std::max<std::uint64_t>(cells, o + 1ull);
@@ -749,68 +767,89 @@ FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::s
                         " faces in owner and neighbour (a cell has 4 or more)");
   }
   m.poly.cells = cells;
-  {
-    Loaded l = load(c.poly_mesh, "boundary", max_file_bytes);
-    Parser p(l.text, l.path.string());
-    read_header(p);
-    std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges;
-    read_boundary(p, m.patches, ranges);
-    std::uint64_t next = m.poly.internal_faces();
-    std::vector<std::uint32_t> stamp(np, 0);
-    for (std::size_t i = 0; i < ranges.size(); ++i) {
-      const auto [start, count] = ranges[i];
-      const std::string name = "patch '" + m.patches[i].name + "'";
-      if (start + count > nf)
-        throw FileError(l.path.string() + ": " + name + ": startFace " + std::to_string(start) + " + nFaces " +
-                        std::to_string(count) + " passes the " + std::to_string(nf) + " faces");
-      if (start != next)
-        throw FileError(l.path.string() + ": " + name + ": startFace " + std::to_string(start) + ", expected " +
-                        std::to_string(next) + " (patches follow the internal faces and each other)");
-      next = start + count;
-      m.patches[i].face_begin = start;
-      m.patches[i].face_end = start + count;
-      m.patches[i].boundary = m.patches[i].type != "processor" && m.patches[i].type != "processorCyclic";
-      // The patch's points, each once (a stamp per point), ascending: sorted when few, else
-      // gathered by one pass over the stamps.
-      std::vector<std::uint32_t>& pts = m.patches[i].points;
-      const auto mark = std::uint32_t(i + 1);
-      for (std::uint64_t k = m.poly.face_start[start]; k < m.poly.face_start[start + count]; ++k) {
-        const std::uint32_t v = m.poly.face_points[k];
-        if (stamp[v] != mark) {
-          stamp[v] = mark;
-          pts.push_back(v);
-        }
-      }
-      if (pts.size() > np / 8) {
-        pts.clear();
-        for (std::uint32_t v = 0; v < np; ++v)
-          if (stamp[v] == mark) pts.push_back(v);
-      } else {
-        std::sort(pts.begin(), pts.end());
+}
+
+/// The boundary file: the patches, which follow the internal faces and each other, with their points.
+void read_patches(FoamCase& c, double max_file_bytes) {
+  VolumeMesh& m = c.mesh;
+  const std::size_t np = m.points.size();
+  const std::size_t nf = m.poly.face_start.size() - 1;
+  Loaded l = load(c.poly_mesh, "boundary", max_file_bytes);
+  Parser p(l.text, l.path.string());
+  read_header(p);
+  std::vector<std::pair<std::uint64_t, std::uint64_t>> ranges;
+  read_boundary(p, m.patches, ranges);
+  std::uint64_t next = m.poly.internal_faces();
+  std::vector<std::uint32_t> stamp(np, 0);
+  for (std::size_t i = 0; i < ranges.size(); ++i) {
+    const auto [start, count] = ranges[i];
+    const std::string name = "patch '" + m.patches[i].name + "'";
+    if (start + count > nf)
+      throw FileError(l.path.string() + ": " + name + ": startFace " + std::to_string(start) + " + nFaces " +
+                      std::to_string(count) + " passes the " + std::to_string(nf) + " faces");
+    if (start != next)
+      throw FileError(l.path.string() + ": " + name + ": startFace " + std::to_string(start) + ", expected " +
+                      std::to_string(next) + " (patches follow the internal faces and each other)");
+    next = start + count;
+    m.patches[i].face_begin = start;
+    m.patches[i].face_end = start + count;
+    m.patches[i].boundary = m.patches[i].type != "processor" && m.patches[i].type != "processorCyclic";
+    // The patch's points, each once (a stamp per point), ascending: sorted when few, else
+    // gathered by one pass over the stamps.
+    std::vector<std::uint32_t>& pts = m.patches[i].points;
+    const auto mark = std::uint32_t(i + 1);
+    for (std::uint64_t k = m.poly.face_start[start]; k < m.poly.face_start[start + count]; ++k) {
+      const std::uint32_t v = m.poly.face_points[k];
+      if (stamp[v] != mark) {
+        stamp[v] = mark;
+        pts.push_back(v);
       }
     }
-    if (next != nf)
-      throw FileError(l.path.string() + ": the patches end at face " + std::to_string(next) + ", but there are " +
-                      std::to_string(nf) + " faces (" + std::to_string(m.poly.internal_faces()) + " internal)");
+    if (pts.size() > np / 8) {
+      pts.clear();
+      for (std::uint32_t v = 0; v < np; ++v)
+        if (stamp[v] == mark) pts.push_back(v);
+    } else {
+      std::sort(pts.begin(), pts.end());
+    }
   }
-  // A processor folder of a decomposed case (decomposePar): its points are numbered as in the whole
-  // mesh (pointProcAddressing), which displacement files and messages use.
-  std::error_code ec2;
-  if (fs::exists(c.poly_mesh / "pointProcAddressing", ec2) || fs::exists(c.poly_mesh / "pointProcAddressing.gz", ec2)) {
-    Loaded l = load(c.poly_mesh, "pointProcAddressing", max_file_bytes);
-    Parser p(l.text, l.path.string());
-    const std::vector<std::uint32_t> global = read_labels(p, read_header(p), "point labels", kNoBound);
-    if (global.size() != np)
-      throw FileError(l.path.string() + ": " + std::to_string(global.size()) + " point labels, but points has " +
-                      std::to_string(np) + " points");
-    std::vector<std::uint32_t> sorted(global);
-    std::sort(sorted.begin(), sorted.end());
-    const auto twice = std::adjacent_find(sorted.begin(), sorted.end());
-    if (twice != sorted.end())
-      throw FileError(l.path.string() + ": point label " + std::to_string(*twice) +
-                      " is given twice (each of the processor's points is one point of the whole mesh)");
-    m.point_ids.assign(global.begin(), global.end());
-  }
+  if (next != nf)
+    throw FileError(l.path.string() + ": the patches end at face " + std::to_string(next) + ", but there are " +
+                    std::to_string(nf) + " faces (" + std::to_string(m.poly.internal_faces()) + " internal)");
+}
+
+// A processor folder of a decomposed case (decomposePar): its points are numbered as in the whole
+// mesh (pointProcAddressing), which displacement files and messages use.
+void read_point_addressing(FoamCase& c, double max_file_bytes) {
+  VolumeMesh& m = c.mesh;
+  const std::size_t np = m.points.size();
+  std::error_code ec;
+  if (!fs::exists(c.poly_mesh / "pointProcAddressing", ec) && !fs::exists(c.poly_mesh / "pointProcAddressing.gz", ec))
+    return;
+  Loaded l = load(c.poly_mesh, "pointProcAddressing", max_file_bytes);
+  Parser p(l.text, l.path.string());
+  const std::vector<std::uint32_t> global = read_labels(p, read_header(p), "point labels", kNoBound);
+  if (global.size() != np)
+    throw FileError(l.path.string() + ": " + std::to_string(global.size()) + " point labels, but points has " +
+                    std::to_string(np) + " points");
+  std::vector<std::uint32_t> sorted(global);
+  std::sort(sorted.begin(), sorted.end());
+  const auto twice = std::adjacent_find(sorted.begin(), sorted.end());
+  if (twice != sorted.end())
+    throw FileError(l.path.string() + ": point label " + std::to_string(*twice) +
+                    " is given twice (each of the processor's points is one point of the whole mesh)");
+  m.point_ids.assign(global.begin(), global.end());
+}
+
+}  // namespace
+
+FoamCase read_openfoam(const fs::path& path, double max_file_bytes, const std::string& time) {
+  CaseFiles files;
+  FoamCase c = locate_case(path, time, files);
+  read_mesh_files(c, files, max_file_bytes);
+  check_cells(c, files);
+  read_patches(c, max_file_bytes);
+  read_point_addressing(c, max_file_bytes);
   return c;
 }
 

@@ -62,34 +62,44 @@ void face_geometry(const PolyTopology& t, std::span<const Vec3> p, std::size_t f
 
 namespace detail {
 
-PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, PolyBuffers& b, const Dirty* dirty) {
-  PolyQuality q;
-  const std::size_t nf = t.faces(), ni = t.internal_faces(), nc = t.cells;
-  q.cells = nc;
-  q.faces = nf;
-  q.internal_faces = ni;
-  // Each face's and cell's figures are kept (b.cosine, b.skew, b.vol, b.det, b.bad): a later
-  // measure recomputes only what its dirty flags name, and the reductions below run over the whole
-  // arrays in one fixed order, so that its result equals a whole measure's bit for bit.
-  const auto face_dirty = [&](std::size_t f) { return !dirty || dirty->face[f]; };
-  const auto cell_dirty = [&](std::size_t c) { return !dirty || dirty->cell[c]; };
-  const auto face_measured = [&](std::size_t f) {
+namespace {
+
+// What the phases of a measure share: the mesh, the buffers they fill, and what they recompute.
+// Each face's and cell's figures are kept (b.cosine, b.skew, b.vol, b.det, b.bad): a later
+// measure recomputes only what its dirty flags name, and the reductions run over the whole
+// arrays in one fixed order, so that its result equals a whole measure's bit for bit.
+struct QualityPass {
+  const PolyTopology& t;
+  std::span<const Vec3> points;
+  PolyBuffers& b;
+  const Dirty* dirty;
+  std::size_t nf, ni, nc;
+
+  bool face_dirty(std::size_t f) const { return !dirty || dirty->face[f]; }
+  bool cell_dirty(std::size_t c) const { return !dirty || dirty->cell[c]; }
+  bool face_measured(std::size_t f) const {
     return !dirty || dirty->cell[t.owner[f]] || (f < ni && dirty->cell[t.neighbour[f]]);
-  };
-  auto& fc = b.fc;
-  auto& fa = b.fa;
-  fc.resize(nf);
-  fa.resize(nf);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+  }
+};
+
+void face_centres_and_areas(const QualityPass& pass) {
+  auto& fc = pass.b.fc;
+  auto& fa = pass.b.fa;
+  fc.resize(pass.nf);
+  fa.resize(pass.nf);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pass.nf, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t f = r.begin(); f < r.end(); ++f)
-      if (face_dirty(f)) face_geometry(t, points, f, fc[f], fa[f]);
+      if (pass.face_dirty(f)) face_geometry(pass.t, pass.points, f, fc[f], fa[f]);
   });
-  // Cell centres and volumes (primitiveMeshCellCentresAndVols): an estimated centre, the mean of
-  // the cell's face centres, then pyramids from it to each face. Each cell's faces by a counting
-  // sort, so that the cells are computed in parallel.
-  auto& first = b.first;
-  auto& faces_of = b.faces_of;   // a face, with its top bit set where the cell is its neighbour
-  if (first.size() != nc + 1) {  // the topology's index, once
+}
+
+// Each cell's faces by a counting sort, so that the cells are computed in parallel.
+void index_cell_faces(const QualityPass& pass) {
+  const PolyTopology& t = pass.t;
+  const std::size_t nf = pass.nf, ni = pass.ni, nc = pass.nc;
+  auto& first = pass.b.first;
+  auto& faces_of = pass.b.faces_of;  // a face, with its top bit set where the cell is its neighbour
+  if (first.size() != nc + 1) {      // the topology's index, once
     first.assign(nc + 1, 0);
     for (std::size_t f = 0; f < nf; ++f) ++first[t.owner[f] + 1];
     for (std::size_t f = 0; f < ni; ++f) ++first[t.neighbour[f] + 1];
@@ -99,6 +109,17 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
     for (std::size_t f = 0; f < nf; ++f) faces_of[next[t.owner[f]]++] = std::uint32_t(f);
     for (std::size_t f = 0; f < ni; ++f) faces_of[next[t.neighbour[f]]++] = std::uint32_t(f) | 0x80000000u;
   }
+}
+
+// Cell centres and volumes (primitiveMeshCellCentresAndVols): an estimated centre, the mean of
+// the cell's face centres, then pyramids from it to each face.
+void cell_centres_and_volumes(const QualityPass& pass) {
+  PolyBuffers& b = pass.b;
+  const std::size_t nf = pass.nf, nc = pass.nc;
+  const auto& first = b.first;
+  const auto& faces_of = b.faces_of;
+  const auto& fc = b.fc;
+  const auto& fa = b.fa;
   auto& cc = b.cc;
   auto& vol = b.vol;
   cc.resize(nc);
@@ -109,7 +130,7 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
   b.bad.resize(nc);
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nc, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t c = r.begin(); c < r.end(); ++c) {
-      if (!cell_dirty(c)) continue;
+      if (!pass.cell_dirty(c)) continue;
       const std::uint64_t b = first[c], e = first[c + 1];
       Vec3 est = Vec3::Zero();
       for (std::uint64_t k = b; k < e; ++k) est += fc[faces_of[k] & 0x7fffffffu];
@@ -126,12 +147,21 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
       vol[c] = v / 3.0;
     }
   });
-  // Non-orthogonality: the angle between the face's area vector and the line between the centres
-  // of its cells (internal faces). Skewness: how far the face centre lies from where that line
-  // crosses the face, over the distance from the face centre to its edge in that direction.
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nf, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+}
+
+// Non-orthogonality: the angle between the face's area vector and the line between the centres
+// of its cells (internal faces). Skewness: how far the face centre lies from where that line
+// crosses the face, over the distance from the face centre to its edge in that direction.
+void orthogonality_and_skewness(const QualityPass& pass) {
+  const PolyTopology& t = pass.t;
+  PolyBuffers& b = pass.b;
+  const std::size_t ni = pass.ni;
+  const auto& fc = b.fc;
+  const auto& fa = b.fa;
+  const auto& cc = b.cc;
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pass.nf, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t f = r.begin(); f < r.end(); ++f) {
-      if (!face_measured(f)) continue;
+      if (!pass.face_measured(f)) continue;
       const Vec3& own = cc[t.owner[f]];
       const Vec3 cpf = fc[f] - own;
       Vec3 d;
@@ -149,15 +179,25 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
       const Vec3 sv_hat = sv / (sv.norm() + kRootVSmall);
       double fd = fd0 + kRootVSmall;
       for (std::uint64_t k = t.face_start[f]; k < t.face_start[f + 1]; ++k)
-        fd = std::max(fd, std::abs(sv_hat.dot(points[t.face_points[k]] - fc[f])));
+        fd = std::max(fd, std::abs(sv_hat.dot(pass.points[t.face_points[k]] - fc[f])));
       b.skew[f] = sv.norm() / fd;
     }
   });
-  // Face pyramids (checkFacePyramids): the pyramid from each face to its owner's centre, and to
-  // its neighbour's, must not have negative volume (below -1e-15, checkMesh's threshold), the
-  // face's normal pointing away from the cell. Each bad pyramid counts, as in checkMesh; a cell
-  // with one is inverted. Cell determinant (primitiveMeshTools::cellDeterminant): how well a
-  // cell's faces span space.
+}
+
+// Face pyramids (checkFacePyramids): the pyramid from each face to its owner's centre, and to
+// its neighbour's, must not have negative volume (below -1e-15, checkMesh's threshold), the
+// face's normal pointing away from the cell. Each bad pyramid counts, as in checkMesh; a cell
+// with one is inverted. Cell determinant (primitiveMeshTools::cellDeterminant): how well a
+// cell's faces span space.
+void pyramids_and_determinants(const QualityPass& pass) {
+  PolyBuffers& b = pass.b;
+  const std::size_t ni = pass.ni;
+  const auto& first = b.first;
+  const auto& faces_of = b.faces_of;
+  const auto& fc = b.fc;
+  const auto& fa = b.fa;
+  const auto& cc = b.cc;
   constexpr double kMinPyramid = -1e-15;
   const auto counted = [&](std::uint32_t f) {
     if (f < ni) return true;
@@ -165,9 +205,9 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
       if (f >= begin && f < end) return true;
     return false;
   };
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, nc, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pass.nc, 4096), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t c = r.begin(); c < r.end(); ++c) {
-      if (!cell_dirty(c)) continue;
+      if (!pass.cell_dirty(c)) continue;
       std::uint32_t bad = 0;
       double mean_area = 0;
       int n = 0;
@@ -197,7 +237,13 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
       b.det[c] = value;
     }
   });
-  // The reductions, over every face and cell.
+}
+
+// The reductions, over every face and cell.
+void reduce_figures(const QualityPass& pass, PolyQuality& q) {
+  const PolyBuffers& b = pass.b;
+  const std::size_t ni = pass.ni, nc = pass.nc;
+  const auto& vol = b.vol;
   q.min_volume = nc ? std::numeric_limits<double>::infinity() : 0.0;
   for (std::size_t c = 0; c < nc; ++c) {
     q.min_volume = std::min(q.min_volume, vol[c]);
@@ -210,7 +256,7 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
     double min_cos = 1, sum_cos = 0, max_skew = 0;
   };
   const Acc acc = tbb::parallel_deterministic_reduce(
-      tbb::blocked_range<std::size_t>(0, nf, 4096), Acc{},
+      tbb::blocked_range<std::size_t>(0, pass.nf, 4096), Acc{},
       [&](const tbb::blocked_range<std::size_t>& r, Acc a) {
         for (std::size_t f = r.begin(); f < r.end(); ++f) {
           if (f < ni) {
@@ -251,6 +297,22 @@ PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, Po
       });
   q.min_determinant = nc ? det.min : 0.0;
   q.mean_determinant = nc ? det.sum / double(nc) : 0.0;
+}
+
+}  // namespace
+
+PolyQuality poly_quality(const PolyTopology& t, std::span<const Vec3> points, PolyBuffers& b, const Dirty* dirty) {
+  PolyQuality q;
+  const QualityPass pass{t, points, b, dirty, t.faces(), t.internal_faces(), t.cells};
+  q.cells = pass.nc;
+  q.faces = pass.nf;
+  q.internal_faces = pass.ni;
+  face_centres_and_areas(pass);
+  index_cell_faces(pass);
+  cell_centres_and_volumes(pass);
+  orthogonality_and_skewness(pass);
+  pyramids_and_determinants(pass);
+  reduce_figures(pass, q);
   return q;
 }
 
