@@ -235,6 +235,331 @@ std::vector<std::uint8_t> thin(std::span<const Vec3> pts, int dim, std::span<con
   return first;
 }
 
+/// A fit's levels: the finest level's radius, the thinned levels' cells and each point's first level.
+struct LevelPlan {
+  double finest = 0;                // R_f, the radius of the finest level (every point)
+  std::vector<double> cells;        // coarsest first, without the finest level (all points)
+  std::vector<std::uint8_t> first;  // for each point, the first level that holds it
+  std::size_t levels() const { return cells.size() + 1; }
+};
+
+/// The levels. Single scale: R, given or automatic (K = `neighbors` within R). Multiscale: the finest
+/// level, every point, has radius R_f: the given radius, or half the automatic one (about K / 2^D
+/// neighbours: random points come close in pairs, and the finest level's system, the one that
+/// holds them all, is the one that gets harder to solve as its radius grows: 100 CG steps on
+/// Franke's 1e5 points where at K CHOLMOD took 3.2 s). The thinned levels have cells of side
+/// h_l = 4 h, 8 h, ... and radii 4 R_f, 8 R_f, ... (coarser), h = R_f (ball / K)^(1/D), a cell
+/// holding one point, so that a point has about K others within its level's radius. There is no
+/// thinned level at 2 h: cells of about one point each keep 60% of the points, close pairs with
+/// them, and cost as much as the finest (1e5 points: 1.3 s against 0.9, the RMS error 1.07e-5
+/// against 1.39e-5 at K = 40, 8.7e-6 at K = 50).
+LevelPlan plan_levels(std::span<const Vec3> all, int dim, const InterpolatorOptions& options) {
+  const std::size_t n = all.size();
+  LevelPlan plan;
+  const bool multiscale = options.levels != 1 && n > 1;
+  const double neighbors = options.neighbors > 0 ? options.neighbors
+                           : multiscale          ? kMultiscaleNeighbors
+                                                 : kDefaultNeighbors;
+  plan.finest = options.radius > 0 ? options.radius
+                : multiscale       ? 0.5 * auto_radius(all, dim, neighbors)
+                                   : auto_radius(all, dim, neighbors);
+  {
+    // The grid's rule, before the thinning's cells (at most 1e9 radii across, so that a cell of side
+    // finest (ball / K)^(1/D), K <= 1e9, is numbered within 64 bits).
+    Vec3 lo = all[0], hi = all[0];
+    for (const Vec3& p : all) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    NeighborIndex::check_extent(lo, hi, plan.finest, "points");
+  }
+  const double cell = plan.finest * std::pow(unit_ball(dim) / neighbors, 1.0 / dim);
+  if (multiscale) {
+    // As many thinned levels as asked for, or (automatic) until the coarsest has at most
+    // kCoarsestPoints points; never one of fewer than 2 points. A thinned level has one point an
+    // occupied cell: counted first, then the points picked in one pass.
+    const int most = options.levels == 0 ? kAutoLevels : options.levels;
+    Vec3 lo = all[0];
+    for (const Vec3& p : all) lo = lo.cwiseMin(p);
+    int thinned = 0;
+    for (int l = 1; l < most; ++l) {
+      const double h = cell * std::ldexp(1.0, l + 1);
+      std::unordered_set<Cell, CellHash> occupied;
+      for (const Vec3& p : all) {
+        Cell key{};
+        for (int a = 0; a < dim; ++a) key[std::size_t(a)] = std::int64_t(std::floor((p[a] - lo[a]) / h));
+        occupied.insert(key);
+      }
+      if (occupied.size() < 2) break;
+      thinned = l;
+      if (options.levels == 0 && double(occupied.size()) <= kCoarsestPoints) break;
+    }
+    for (int l = 0; l < thinned; ++l) plan.cells.push_back(cell * std::ldexp(1.0, thinned - l + 1));
+    if (!plan.cells.empty()) plan.first = thin(all, dim, plan.cells);
+  }
+  if (plan.first.empty()) plan.first.assign(n, 0);
+  return plan;
+}
+
+/// One level's points: pts[k] is the input point member[k].
+struct LevelPoints {
+  std::vector<std::size_t> member;
+  std::vector<Vec3> pts;
+  bool sorted = false;  // into the Schwarz patches' order
+};
+
+/// The points of level l (of radius `radius`), its radius and extent checked.
+LevelPoints select_level(std::span<const Vec3> all, const LevelPlan& plan, std::size_t l, double radius, int dim,
+                         const InterpolatorOptions& options) {
+  const std::size_t n = all.size(), levels = plan.levels();
+  LevelPoints lp;
+  std::vector<std::size_t>& member = lp.member;
+  for (std::size_t i = 0; i < n; ++i)
+    if (plan.first[i] <= l) member.push_back(i);
+  const std::size_t m = member.size();
+  std::vector<Vec3>& pts = lp.pts;
+  pts.resize(m);
+  for (std::size_t k = 0; k < m; ++k) pts[k] = all[member[k]];
+  if (!(radius >= 1e-150 && radius <= 1e150)) {
+    std::ostringstream os;
+    os << "the radius" << (levels > 1 ? " of level " + std::to_string(l + 1) : std::string()) << " would be " << radius
+       << ", outside [1e-150, 1e150]" << (levels > 1 ? ": use fewer levels or scale the points" : ": scale the points");
+    throw InvalidInput(os.str());
+  }
+  Vec3 lo = pts[0], hi = pts[0];
+  for (const Vec3& p : pts) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  NeighborIndex::check_extent(lo, hi, radius, "points");
+  // Where CG with the Schwarz patches will solve the level (scattered points in 2-D or 3-D, many
+  // of them), its points are sorted into the patches' order first: A is then built in CG's order,
+  // and CG reads it in place rather than copying it (fit.cpp, ordering_and_solver). The level
+  // keeps its points in that order; `member` maps them back to the input.
+  lp.sorted =
+      dim >= 2 && m >= detail::kSchwarzOnlyPoints && (options.solver == Solver::Auto || options.solver == Solver::Cg);
+  if (lp.sorted) {
+    const std::vector<std::uint32_t> perm = detail::schwarz_order(pts, radius);
+    std::vector<std::size_t> by(m);
+    for (std::size_t k = 0; k < m; ++k) {
+      by[k] = member[perm[k]];
+      pts[k] = all[by[k]];
+    }
+    member = std::move(by);
+  }
+  return lp;
+}
+
+/// The smoothing of a level's points (one value for all, or one a point), empty where none is > 0.
+std::vector<double> level_smoothing(const InterpolatorOptions& options, std::span<const std::size_t> member) {
+  std::vector<double> shift;
+  if (options.smoothing.size() == 1)
+    shift = options.smoothing;
+  else if (!options.smoothing.empty())
+    for (std::size_t i : member) shift.push_back(options.smoothing[i]);
+  const bool any_shift = std::any_of(shift.begin(), shift.end(), [](double s) { return s > 0; });
+  if (!any_shift) shift.clear();
+  return shift;
+}
+
+/// The level's structure (SpaceMap's phases for its points: A + Lambda, its solver and factor).
+std::shared_ptr<SpaceMap::Structure> fit_level(const LevelPoints& lp, std::span<const Vec3> all, int dim, double radius,
+                                               const InterpolatorOptions& options, std::span<const double> shift) {
+  FitOptions fo;
+  fo.radius = radius;
+  fo.kernel = options.kernel;
+  fo.solver = options.solver;
+  fo.memory_limit_bytes = options.memory_limit_bytes;
+  std::shared_ptr<SpaceMap::Structure> st;
+  try {
+    try {
+      st = detail::fit_structure(lp.pts, fo, shift, dim, lp.sorted);
+    } catch (const NotPositiveDefinite&) {
+      // Auto's envelope solver refuses a pivot below 64 eps of its diagonal entry: 5e4 random
+      // points on a line, whose close pairs make A that nearly singular, were refused where the
+      // general direct solver (or CG) solves them to 1e-10 at the points. Auto then takes the
+      // general direct solver; the residual check (check_level_residual) judges its solution. Where
+      // it fails too, the first refusal is the one reported.
+      if (options.solver != Solver::Auto) throw;
+      const std::exception_ptr first = std::current_exception();
+      FitOptions direct = fo;
+      direct.solver = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
+      try {
+        st = detail::fit_structure(lp.pts, direct, shift, dim, lp.sorted);
+      } catch (const Error&) {
+        std::rethrow_exception(first);
+      }
+    }
+  } catch (const DuplicateSource& e) {
+    const std::size_t a = std::min(lp.member[e.first()], lp.member[e.second()]),
+                      b = std::max(lp.member[e.first()], lp.member[e.second()]);  // sorted levels: any order
+    std::ostringstream os;
+    os << "points " << a << " and " << b << " are at the same position (";
+    for (int d = 0; d < dim; ++d) os << (d ? ", " : "") << all[a][d];
+    os << "): interpolation needs distinct points (give them smoothing > 0, or merge them)";
+    throw DuplicateSource(a, b, os.str());
+  }
+  return st;
+}
+
+/// b (m x any, the solves' order) becomes (A + Lambda)^-1 b, kSolveColumns columns a solve.
+void solve_level_columns(const SpaceMap::Structure& st, RowMatrix& b) {
+  for (Eigen::Index c0 = 0; c0 < b.cols(); c0 += Eigen::Index(kSolveColumns)) {
+    const Eigen::Index w = std::min<Eigen::Index>(Eigen::Index(kSolveColumns), b.cols() - c0);
+    RowMatrix part = b.middleCols(c0, w);
+    st.solve_in_place(part);
+    b.middleCols(c0, w) = part;
+  }
+}
+
+/// The polynomial block P (m x terms) in the solves' order: Y = (A + Lambda)^-1 P, S = P^T Y.
+struct PolynomialBlock {
+  int terms = 0;
+  RowMatrix p, y;
+  Eigen::LLT<Eigen::MatrixXd> schur;  // of S
+};
+
+/// The level's polynomial block; DegeneratePolynomial where its points do not determine it.
+PolynomialBlock polynomial_block(const SpaceMap::Structure& st, std::span<const Vec3> pts, int degree, int dim) {
+  const std::size_t m = pts.size();
+  const std::vector<std::uint32_t>& order = st.order;  // row k of the solves is pts[order[k]]
+  PolynomialBlock block;
+  const int terms = block.terms = terms_of(degree, dim);
+  RowMatrix& p = block.p;
+  p.resize(Eigen::Index(m), terms);
+  if (terms > 0) {
+    for (std::size_t k = 0; k < m; ++k) {
+      p(Eigen::Index(k), 0) = 1.0;
+      const Vec3 u = (pts[order[k]] - st.center) / st.scale;
+      for (int a = 1; a < terms; ++a) p(Eigen::Index(k), a) = u[a - 1];
+    }
+    if (terms > 1) {
+      const char* shape = dim == 1 ? "all at one position" : dim == 2 ? "collinear" : "coplanar";
+      bool degenerate = m < std::size_t(dim) + 1;
+      if (!degenerate) {
+        const Eigen::VectorXd sv = Eigen::JacobiSVD<Eigen::MatrixXd>(p.rightCols(dim)).singularValues();
+        degenerate = !(sv(dim - 1) > 1e-9 * std::max(sv(0), 1e-300));
+      }
+      if (degenerate)
+        throw DegeneratePolynomial("degree 1 needs points that span their " + std::to_string(dim) + "-D space, " +
+                                   (m < std::size_t(dim) + 1
+                                        ? "at least " + std::to_string(dim + 1) + " of them, but there " +
+                                              (m == 1 ? std::string("is 1") : "are " + std::to_string(m))
+                                        : "but the " + std::to_string(m) + " points are " + shape) +
+                                   "; use degree 0 or -1");
+    }
+    block.y = p;
+    solve_level_columns(st, block.y);
+    block.schur.compute(p.transpose() * block.y);
+    if (block.schur.info() != Eigen::Success)
+      throw DegeneratePolynomial("degree " + std::to_string(degree) +
+                                 ": the points do not determine the polynomial; use degree -1");
+  }
+  return block;
+}
+
+/// A level's coefficients: alpha (m x V, the level's input order) and beta (terms x V).
+struct LevelCoefficients {
+  RowMatrix alpha;
+  Eigen::MatrixXd beta;
+};
+
+/// lv.residual_relative, the residual of the system, (A + Lambda) alpha + P beta - f, in the input
+/// order of the level, relative to gmax (the largest row of f; g is f in the solves' order);
+/// IllConditioned beyond kResidualLimit.
+void check_level_residual(InterpolatorLevel& lv, const SpaceMap::Structure& st, const PolynomialBlock& block,
+                          const LevelPoints& lp, const LevelCoefficients& c, const RowMatrix& g, double gmax,
+                          std::size_t l, std::size_t levels) {
+  const std::size_t m = lp.pts.size();
+  const std::vector<std::uint32_t>& order = st.order;
+  const int terms = block.terms;
+  RowMatrix fitted = st.a * c.alpha;
+  if (terms > 0) {
+    RowMatrix p_input(Eigen::Index(m), terms);
+    for (std::size_t k = 0; k < m; ++k) p_input.row(order[k]) = block.p.row(Eigen::Index(k));
+    fitted += p_input * c.beta;
+  }
+  double res = 0;
+  for (std::size_t k = 0; k < m; ++k) {
+    const double e = (fitted.row(order[k]) - g.row(Eigen::Index(k))).norm();
+    res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
+  }
+  if (!c.alpha.allFinite() || (terms > 0 && !c.beta.allFinite())) res = std::numeric_limits<double>::infinity();
+  lv.residual_relative = gmax > 0 ? res / gmax : res;
+  if (!(lv.residual_relative <= kResidualLimit)) {
+    std::ostringstream os;
+    os << "the values cannot be fitted to a relative residual of " << kResidualLimit << " (got " << lv.residual_relative
+       << ")";
+    if (levels > 1) os << " at level " << l + 1 << " of " << levels;
+    os << ": the matrix is too ill-conditioned at radius " << lv.radius;
+    if (!st.a.values().empty()) {
+      const auto [a, b] = st.a.closest_pair();
+      os << "; the closest points, " << lp.member[a] << " and " << lp.member[b] << ", are "
+         << (lp.pts[a] - lp.pts[b]).norm() / lv.radius << " R apart";
+    }
+    os << ". Use a smaller radius (fewer neighbours), smoothing > 0, or merge close points";
+    throw IllConditioned(os.str());
+  }
+}
+
+/// Level l fitted to `residual` (n x V: what the coarser levels leave), with lv.rms_before and
+/// lv.residual_relative (check_level_residual).
+LevelCoefficients solve_level(InterpolatorLevel& lv, const SpaceMap::Structure& st, const PolynomialBlock& block,
+                              const LevelPoints& lp, std::span<const double> residual, std::size_t nv, std::size_t l,
+                              std::size_t levels) {
+  const std::size_t m = lp.pts.size();
+  const std::vector<std::uint32_t>& order = st.order;  // row k of the solves is member[order[k]]
+  RowMatrix z = RowMatrix(Eigen::Index(m), Eigen::Index(nv));
+  for (std::size_t k = 0; k < m; ++k)
+    for (std::size_t v = 0; v < nv; ++v) z(Eigen::Index(k), Eigen::Index(v)) = residual[lp.member[order[k]] * nv + v];
+  double sum2 = 0, gmax = 0;
+  for (std::size_t k = 0; k < m; ++k) {
+    sum2 += z.row(Eigen::Index(k)).squaredNorm();
+    gmax = std::max(gmax, z.row(Eigen::Index(k)).norm());
+  }
+  lv.rms_before = std::sqrt(sum2 / double(m * nv));
+  const RowMatrix g = z;
+  solve_level_columns(st, z);
+  LevelCoefficients c;
+  if (block.terms > 0) {
+    c.beta = block.schur.solve(block.p.transpose() * z);  // terms x V
+    z -= block.y * c.beta;
+  }
+  c.alpha = RowMatrix(Eigen::Index(m), Eigen::Index(nv));
+  for (std::size_t k = 0; k < m; ++k) c.alpha.row(order[k]) = z.row(Eigen::Index(k));
+  check_level_residual(lv, st, block, lp, c, g, gmax, l, levels);
+  return c;
+}
+
+/// The level's record (its points, coefficients and what its fit did), and its structure kept for
+/// evaluation only.
+void store_level(InterpolatorLevel& lv, SpaceMap::Structure& st, std::span<const Vec3> pts, const LevelCoefficients& c,
+                 int terms, int degree, int dim, std::size_t nv) {
+  const std::size_t m = pts.size();
+  lv.mean_neighbors = st.stats.mean_neighbors;
+  lv.solver = st.fell_back ? st.fallback_solver : st.stats.solver;
+  if (st.sparse) lv.iterations = (st.fell_back && st.fallback) ? st.fallback->iterations() : st.sparse->iterations();
+  lv.points.resize(m * std::size_t(dim));
+  for (std::size_t k = 0; k < m; ++k)
+    for (int a = 0; a < dim; ++a) lv.points[k * std::size_t(dim) + std::size_t(a)] = pts[k][a];
+  lv.alpha.assign(c.alpha.data(), c.alpha.data() + c.alpha.size());
+  if (terms > 0) {
+    lv.beta.resize(std::size_t(terms) * nv);
+    for (int t = 0; t < terms; ++t)
+      for (std::size_t v = 0; v < nv; ++v) lv.beta[std::size_t(t) * nv + v] = c.beta(t, Eigen::Index(v));
+  }
+  // The solver's matrix and factor are not needed to evaluate: freed (the solvers first: CG may
+  // read A in place), the neighbour grid kept.
+  st.sparse.reset();
+  st.fallback.reset();
+  st.a = KernelMatrix();
+  st.factor = EnvelopeMatrix();
+  st.solved_elsewhere = true;
+  // The evaluation adds the polynomial where the structure has one (beta's rows past D are zero).
+  st.options.polynomial = degree < 0 ? Polynomial::None : degree == 0 ? Polynomial::Constant : Polynomial::Linear;
+  st.terms = degree < 0 ? 0 : degree == 0 ? 1 : 4;
+}
+
 }  // namespace
 
 std::size_t Interpolator::size() const noexcept {
@@ -272,62 +597,8 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
   std::vector<Vec3> all(n, Vec3::Zero());
   for (std::size_t i = 0; i < n; ++i)
     for (int a = 0; a < dim; ++a) all[i][a] = points[i * std::size_t(dim) + std::size_t(a)];
-
-  // The levels. Single scale: R, given or automatic (K = `neighbors` within R). Multiscale: the finest
-  // level, every point, has radius R_f: the given radius, or half the automatic one (about K / 2^D
-  // neighbours: random points come close in pairs, and the finest level's system, the one that
-  // holds them all, is the one that gets harder to solve as its radius grows: 100 CG steps on
-  // Franke's 1e5 points where at K CHOLMOD took 3.2 s). The thinned levels have cells of side
-  // h_l = 4 h, 8 h, ... and radii 4 R_f, 8 R_f, ... (coarser), h = R_f (ball / K)^(1/D), a cell
-  // holding one point, so that a point has about K others within its level's radius. There is no
-  // thinned level at 2 h: cells of about one point each keep 60% of the points, close pairs with
-  // them, and cost as much as the finest (1e5 points: 1.3 s against 0.9, the RMS error 1.07e-5
-  // against 1.39e-5 at K = 40, 8.7e-6 at K = 50).
-  const bool multiscale = options.levels != 1 && n > 1;
-  const double neighbors = options.neighbors > 0 ? options.neighbors
-                           : multiscale          ? kMultiscaleNeighbors
-                                                 : kDefaultNeighbors;
-  const double finest = options.radius > 0 ? options.radius
-                        : multiscale       ? 0.5 * auto_radius(all, dim, neighbors)
-                                           : auto_radius(all, dim, neighbors);
-  {
-    // The grid's rule, before the thinning's cells (at most 1e9 radii across, so that a cell of side
-    // finest (ball / K)^(1/D), K <= 1e9, is numbered within 64 bits).
-    Vec3 lo = all[0], hi = all[0];
-    for (const Vec3& p : all) {
-      lo = lo.cwiseMin(p);
-      hi = hi.cwiseMax(p);
-    }
-    NeighborIndex::check_extent(lo, hi, finest, "points");
-  }
-  const double cell = finest * std::pow(unit_ball(dim) / neighbors, 1.0 / dim);
-  std::vector<double> cells;  // coarsest first, without the finest level (all points)
-  std::vector<std::uint8_t> first;
-  if (multiscale) {
-    // As many thinned levels as asked for, or (automatic) until the coarsest has at most
-    // kCoarsestPoints points; never one of fewer than 2 points. A thinned level has one point an
-    // occupied cell: counted first, then the points picked in one pass.
-    const int most = options.levels == 0 ? kAutoLevels : options.levels;
-    Vec3 lo = all[0];
-    for (const Vec3& p : all) lo = lo.cwiseMin(p);
-    int thinned = 0;
-    for (int l = 1; l < most; ++l) {
-      const double h = cell * std::ldexp(1.0, l + 1);
-      std::unordered_set<Cell, CellHash> occupied;
-      for (const Vec3& p : all) {
-        Cell key{};
-        for (int a = 0; a < dim; ++a) key[std::size_t(a)] = std::int64_t(std::floor((p[a] - lo[a]) / h));
-        occupied.insert(key);
-      }
-      if (occupied.size() < 2) break;
-      thinned = l;
-      if (options.levels == 0 && double(occupied.size()) <= kCoarsestPoints) break;
-    }
-    for (int l = 0; l < thinned; ++l) cells.push_back(cell * std::ldexp(1.0, thinned - l + 1));
-    if (!cells.empty()) first = thin(all, dim, cells);
-  }
-  const std::size_t levels = cells.size() + 1;
-  if (first.empty()) first.assign(n, 0);
+  const LevelPlan plan = plan_levels(all, dim, options);
+  const std::size_t levels = plan.levels();
 
   auto out = std::make_shared<std::vector<InterpolatorLevel>>(levels);
   auto maps = std::make_shared<std::vector<std::vector<SpaceMap>>>(levels);
@@ -341,195 +612,15 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
     const auto t0 = Clock::now();
     InterpolatorLevel& lv = (*out)[l];
     const int degree = l == 0 ? options.degree : -1;  // the polynomial belongs to the coarsest level
-    std::vector<std::size_t> member;
-    for (std::size_t i = 0; i < n; ++i)
-      if (first[i] <= l) member.push_back(i);
-    const std::size_t m = member.size();
-    std::vector<Vec3> pts(m);
-    for (std::size_t k = 0; k < m; ++k) pts[k] = all[member[k]];
-    lv.radius = std::ldexp(finest, l + 1 < levels ? int(levels - l) : 0);
-    if (!(lv.radius >= 1e-150 && lv.radius <= 1e150)) {
-      std::ostringstream os;
-      os << "the radius" << (levels > 1 ? " of level " + std::to_string(l + 1) : std::string()) << " would be "
-         << lv.radius << ", outside [1e-150, 1e150]"
-         << (levels > 1 ? ": use fewer levels or scale the points" : ": scale the points");
-      throw InvalidInput(os.str());
-    }
-    Vec3 lo = pts[0], hi = pts[0];
-    for (const Vec3& p : pts) {
-      lo = lo.cwiseMin(p);
-      hi = hi.cwiseMax(p);
-    }
-    NeighborIndex::check_extent(lo, hi, lv.radius, "points");
-    // Where CG with the Schwarz patches will solve the level (scattered points in 2-D or 3-D, many
-    // of them), its points are sorted into the patches' order first: A is then built in CG's order,
-    // and CG reads it in place rather than copying it (fit.cpp, ordering_and_solver). The level
-    // keeps its points in that order; `member` maps them back to the input.
-    const bool sorted =
-        dim >= 2 && m >= detail::kSchwarzOnlyPoints && (options.solver == Solver::Auto || options.solver == Solver::Cg);
-    if (sorted) {
-      const std::vector<std::uint32_t> perm = detail::schwarz_order(pts, lv.radius);
-      std::vector<std::size_t> by(m);
-      for (std::size_t k = 0; k < m; ++k) {
-        by[k] = member[perm[k]];
-        pts[k] = all[by[k]];
-      }
-      member = std::move(by);
-    }
-    std::vector<double> shift;
-    if (options.smoothing.size() == 1)
-      shift = options.smoothing;
-    else if (!options.smoothing.empty())
-      for (std::size_t i : member) shift.push_back(options.smoothing[i]);
-    const bool any_shift = std::any_of(shift.begin(), shift.end(), [](double s) { return s > 0; });
-    if (!any_shift) shift.clear();
-    FitOptions fo;
-    fo.radius = lv.radius;
-    fo.kernel = options.kernel;
-    fo.solver = options.solver;
-    fo.memory_limit_bytes = options.memory_limit_bytes;
-    std::shared_ptr<SpaceMap::Structure> st;
-    try {
-      try {
-        st = detail::fit_structure(pts, fo, shift, dim, sorted);
-      } catch (const NotPositiveDefinite&) {
-        // Auto's envelope solver refuses a pivot below 64 eps of its diagonal entry: 5e4 random
-        // points on a line, whose close pairs make A that nearly singular, were refused where the
-        // general direct solver (or CG) solves them to 1e-10 at the points. Auto then takes the
-        // general direct solver; the residual check below judges its solution. Where it fails too,
-        // the first refusal is the one reported.
-        if (options.solver != Solver::Auto) throw;
-        const std::exception_ptr first = std::current_exception();
-        FitOptions direct = fo;
-        direct.solver = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
-        try {
-          st = detail::fit_structure(pts, direct, shift, dim, sorted);
-        } catch (const Error&) {
-          std::rethrow_exception(first);
-        }
-      }
-    } catch (const DuplicateSource& e) {
-      const std::size_t a = std::min(member[e.first()], member[e.second()]),
-                        b = std::max(member[e.first()], member[e.second()]);  // sorted levels: any order
-      std::ostringstream os;
-      os << "points " << a << " and " << b << " are at the same position (";
-      for (int d = 0; d < dim; ++d) os << (d ? ", " : "") << all[a][d];
-      os << "): interpolation needs distinct points (give them smoothing > 0, or merge them)";
-      throw DuplicateSource(a, b, os.str());
-    }
+    lv.radius = std::ldexp(plan.finest, l + 1 < levels ? int(levels - l) : 0);
+    const LevelPoints lp = select_level(all, plan, l, lv.radius, dim, options);
+    const std::vector<double> shift = level_smoothing(options, lp.member);
+    std::shared_ptr<SpaceMap::Structure> st = fit_level(lp, all, dim, lv.radius, options, shift);
     lv.center = st->center;
     lv.scale = st->scale;
-    const std::vector<std::uint32_t>& order = st->order;  // row k of the solves is member[order[k]]
-
-    // The polynomial block P (m x terms) in the solves' order: Y = (A + Lambda)^-1 P, S = P^T Y.
-    const int terms = terms_of(degree, dim);
-    RowMatrix p(Eigen::Index(m), terms), y;
-    Eigen::LLT<Eigen::MatrixXd> schur;
-    const auto solve = [&](RowMatrix& b) {
-      for (Eigen::Index c0 = 0; c0 < b.cols(); c0 += Eigen::Index(kSolveColumns)) {
-        const Eigen::Index w = std::min<Eigen::Index>(Eigen::Index(kSolveColumns), b.cols() - c0);
-        RowMatrix part = b.middleCols(c0, w);
-        st->solve_in_place(part);
-        b.middleCols(c0, w) = part;
-      }
-    };
-    if (terms > 0) {
-      for (std::size_t k = 0; k < m; ++k) {
-        p(Eigen::Index(k), 0) = 1.0;
-        const Vec3 u = (pts[order[k]] - st->center) / st->scale;
-        for (int a = 1; a < terms; ++a) p(Eigen::Index(k), a) = u[a - 1];
-      }
-      if (terms > 1) {
-        const char* shape = dim == 1 ? "all at one position" : dim == 2 ? "collinear" : "coplanar";
-        bool degenerate = m < std::size_t(dim) + 1;
-        if (!degenerate) {
-          const Eigen::VectorXd sv = Eigen::JacobiSVD<Eigen::MatrixXd>(p.rightCols(dim)).singularValues();
-          degenerate = !(sv(dim - 1) > 1e-9 * std::max(sv(0), 1e-300));
-        }
-        if (degenerate)
-          throw DegeneratePolynomial("degree 1 needs points that span their " + std::to_string(dim) + "-D space, " +
-                                     (m < std::size_t(dim) + 1
-                                          ? "at least " + std::to_string(dim + 1) + " of them, but there " +
-                                                (m == 1 ? std::string("is 1") : "are " + std::to_string(m))
-                                          : "but the " + std::to_string(m) + " points are " + shape) +
-                                     "; use degree 0 or -1");
-      }
-      y = p;
-      solve(y);
-      schur.compute(p.transpose() * y);
-      if (schur.info() != Eigen::Success)
-        throw DegeneratePolynomial("degree " + std::to_string(degree) +
-                                   ": the points do not determine the polynomial; use degree -1");
-    }
-    RowMatrix z = RowMatrix(Eigen::Index(m), Eigen::Index(nv));
-    for (std::size_t k = 0; k < m; ++k)
-      for (std::size_t v = 0; v < nv; ++v) z(Eigen::Index(k), Eigen::Index(v)) = residual[member[order[k]] * nv + v];
-    double sum2 = 0, gmax = 0;
-    for (std::size_t k = 0; k < m; ++k) {
-      sum2 += z.row(Eigen::Index(k)).squaredNorm();
-      gmax = std::max(gmax, z.row(Eigen::Index(k)).norm());
-    }
-    lv.rms_before = std::sqrt(sum2 / double(m * nv));
-    const RowMatrix g = z;
-    solve(z);
-    Eigen::MatrixXd beta;
-    if (terms > 0) {
-      beta = schur.solve(p.transpose() * z);  // terms x V
-      z -= y * beta;
-    }
-    // The residual of the system, (A + Lambda) alpha + P beta - f, in the input order of the level.
-    RowMatrix alpha = RowMatrix(Eigen::Index(m), Eigen::Index(nv));
-    for (std::size_t k = 0; k < m; ++k) alpha.row(order[k]) = z.row(Eigen::Index(k));
-    RowMatrix fitted = st->a * alpha;
-    if (terms > 0) {
-      RowMatrix p_input(Eigen::Index(m), terms);
-      for (std::size_t k = 0; k < m; ++k) p_input.row(order[k]) = p.row(Eigen::Index(k));
-      fitted += p_input * beta;
-    }
-    double res = 0;
-    for (std::size_t k = 0; k < m; ++k) {
-      const double e = (fitted.row(order[k]) - g.row(Eigen::Index(k))).norm();
-      res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
-    }
-    if (!alpha.allFinite() || (terms > 0 && !beta.allFinite())) res = std::numeric_limits<double>::infinity();
-    lv.residual_relative = gmax > 0 ? res / gmax : res;
-    if (!(lv.residual_relative <= kResidualLimit)) {
-      std::ostringstream os;
-      os << "the values cannot be fitted to a relative residual of " << kResidualLimit << " (got "
-         << lv.residual_relative << ")";
-      if (levels > 1) os << " at level " << l + 1 << " of " << levels;
-      os << ": the matrix is too ill-conditioned at radius " << lv.radius;
-      if (!st->a.values().empty()) {
-        const auto [a, b] = st->a.closest_pair();
-        os << "; the closest points, " << member[a] << " and " << member[b] << ", are "
-           << (pts[a] - pts[b]).norm() / lv.radius << " R apart";
-      }
-      os << ". Use a smaller radius (fewer neighbours), smoothing > 0, or merge close points";
-      throw IllConditioned(os.str());
-    }
-    lv.mean_neighbors = st->stats.mean_neighbors;
-    lv.solver = st->fell_back ? st->fallback_solver : st->stats.solver;
-    if (st->sparse)
-      lv.iterations = (st->fell_back && st->fallback) ? st->fallback->iterations() : st->sparse->iterations();
-    lv.points.resize(m * std::size_t(dim));
-    for (std::size_t k = 0; k < m; ++k)
-      for (int a = 0; a < dim; ++a) lv.points[k * std::size_t(dim) + std::size_t(a)] = pts[k][a];
-    lv.alpha.assign(alpha.data(), alpha.data() + alpha.size());
-    if (terms > 0) {
-      lv.beta.resize(std::size_t(terms) * nv);
-      for (int t = 0; t < terms; ++t)
-        for (std::size_t v = 0; v < nv; ++v) lv.beta[std::size_t(t) * nv + v] = beta(t, Eigen::Index(v));
-    }
-    // The solver's matrix and factor are not needed to evaluate: freed (the solvers first: CG may
-    // read A in place), the neighbour grid kept.
-    st->sparse.reset();
-    st->fallback.reset();
-    st->a = KernelMatrix();
-    st->factor = EnvelopeMatrix();
-    st->solved_elsewhere = true;
-    // The evaluation adds the polynomial where the structure has one (beta's rows past D are zero).
-    st->options.polynomial = degree < 0 ? Polynomial::None : degree == 0 ? Polynomial::Constant : Polynomial::Linear;
-    st->terms = degree < 0 ? 0 : degree == 0 ? 1 : 4;
+    const PolynomialBlock block = polynomial_block(*st, lp.pts, degree, dim);
+    const LevelCoefficients coefficients = solve_level(lv, *st, block, lp, residual, nv, l, levels);
+    store_level(lv, *st, lp.pts, coefficients, block.terms, degree, dim, nv);
     std::shared_ptr<const SpaceMap::Structure> shared = std::move(st);
     for (std::size_t c = 0; c < chunks; ++c) (*maps)[l].push_back(map_of(shared, lv, dim, nv, c, degree));
     // What is left for the finer levels, at every point they hold.

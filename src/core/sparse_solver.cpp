@@ -463,6 +463,93 @@ class BatchedCg final : public SparseFactor {
     });
   }
 
+  /// Each column of r (n x m, row-major) divided by a power of two near its largest magnitude, which
+  /// is returned (1 for a zero or non-finite column).
+  static std::array<double, 8> scale_columns(FillVector<double>& r, std::size_t n, std::size_t m) {
+    // Exact: the same steps and bits. Squares of values near 1e-160 underflowed to 0 and read as a
+    // zero right-hand side, whose solution is 0 (an interpolant of such values was 0 everywhere).
+    std::array<double, 8> unit;
+    unit.fill(1.0);
+    for (std::size_t c = 0; c < m; ++c) {
+      double largest = 0;
+      for (std::size_t k = 0; k < n; ++k) largest = std::max(largest, std::abs(r[k * m + c]));
+      if (largest > 0 && std::isfinite(largest)) unit[c] = std::ldexp(1.0, std::ilogb(largest));
+    }
+    for (std::size_t k = 0; k < n; ++k)
+      for (std::size_t c = 0; c < m; ++c) r[k * m + c] /= unit[c];
+    return unit;
+  }
+
+  /// Stagnation at step `it`: the smallest residual so far (the worst column's) has not fallen 10x in
+  /// the last kCgStagnationWindow steps (CgStagnated). CG that still converges falls much faster than
+  /// that. rr_best and lowest (lowest[k]: the worst column's smallest squared relative residual up to
+  /// step k) are brought up to this step.
+  void check_stagnation(std::size_t it, std::size_t m, const Sums& rr, const Sums& rr0, const std::array<bool, 8>& done,
+                        Sums& rr_best, std::vector<double>& lowest) const {
+    double worst_low = 0;
+    for (std::size_t c = 0; c < m; ++c) {
+      rr_best[c] = std::min(rr_best[c], rr[c]);
+      if (!done[c] && rr0[c] > 0) worst_low = std::max(worst_low, rr_best[c] / rr0[c]);
+    }
+    lowest.push_back(worst_low);
+    if (it >= kCgStagnationWindow && !(worst_low < 1e-2 * lowest[it - kCgStagnationWindow])) {
+      iterations_ = it;
+      residual_ = std::sqrt(worst_low);
+      std::ostringstream os;
+      os << "conjugate gradients stagnated: the relative residual (" << std::sqrt(worst_low)
+         << ") has not fallen 10x in the last " << kCgStagnationWindow << " of " << it
+         << " steps (the matrix is too ill-conditioned for them: a smaller radius, or a direct solver, "
+            "--solver envelope or cholmod, can solve it)";
+      throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
+    }
+  }
+
+  /// Auto's probe at step `it` (a multiple of probe_.steps): CgStagnated where the steps this solve
+  /// needs in all, were the residual to keep falling at its recent rate, are not worth it.
+  /// best[k]: the smallest residuals up to step k; rr_best: the smallest so far.
+  void check_probe(std::size_t it, std::size_t m, const std::vector<Sums>& best, const Sums& rr_best, const Sums& rr0,
+                   const std::array<bool, 8>& done) const {
+    const std::size_t mark = it / 3;
+    double predicted = double(it);
+    for (std::size_t c = 0; c < m; ++c) {
+      if (done[c]) continue;
+      const double fell = std::sqrt(rr_best[c] / best[mark][c]), need = tolerance_ * std::sqrt(rr0[c] / rr_best[c]);
+      predicted = std::max(predicted, fell < 1 ? double(it) + double(it - mark) * std::log(need) / std::log(fell)
+                                               : std::numeric_limits<double>::infinity());
+    }
+    // Preconditioned steps cost about twice a plain one (A's pass, then L's two): counted in plain ones.
+    if (preconditioned()) predicted = double(it) + kIcStepCost * (predicted - double(it));
+    if (!probe_.worth_it(predicted, double(it))) {
+      iterations_ = it;
+      std::ostringstream os;
+      os << "conjugate gradients would need about " << predicted << " steps (after " << it << ")";
+      throw CgStagnated(os.str(), predicted, it, true);
+    }
+  }
+
+  /// After `it` steps: the iterations and worst relative residual recorded, CgStagnated where the
+  /// solve fell short, else x (solver order, scaled by unit) written into b (input order).
+  void finish_columns(RowMatrix& b, const FillVector<double>& x, const Sums& rr, const Sums& rr0,
+                      const std::array<double, 8>& unit, std::size_t it, bool all_done) const {
+    const std::size_t n = order_.size(), m = std::size_t(b.cols());
+    double worst = 0;
+    for (std::size_t c = 0; c < m; ++c)
+      if (rr0[c] > 0) worst = std::max(worst, std::sqrt(rr[c] / rr0[c]));
+    iterations_ = it;
+    residual_ = worst;
+    // At the step limit short of the tolerance, a residual that the fit's own check accepts by far
+    // is kept (20000 controls in a cube reached 3.9e-11 in 3000 steps, and were refused).
+    if (!std::isfinite(worst) || (!all_done && !(worst <= kCgGoodEnough))) {
+      std::ostringstream os;
+      os << "conjugate gradients stopped at a relative residual of " << worst << " after " << it
+         << " steps (their limit; a smaller radius, or a direct solver, --solver envelope or cholmod, can solve "
+            "it)";
+      throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
+    }
+    for (std::size_t k = 0; k < n; ++k)
+      for (std::size_t c = 0; c < m; ++c) b(Eigen::Index(order_[k]), Eigen::Index(c)) = x[k * m + c] * unit[c];
+  }
+
   /// b (n x m, m <= 8, input order) becomes A^-1 b, starting from `initial` (or 0).
   void solve_columns(RowMatrix& b, const RowMatrix* initial) const {
     const std::size_t n = order_.size(), m = std::size_t(b.cols());
@@ -492,18 +579,7 @@ class BatchedCg final : public SparseFactor {
           for (std::size_t c = 0; c < m; ++c) s[c] += v[k * m + c] * v[k * m + c];
       });
     };
-    // Each column scaled by a power of two near its largest magnitude (exact: the same steps and
-    // bits): squares of values near 1e-160 underflowed to 0 and read as a zero right-hand side,
-    // whose solution is 0 (an interpolant of such values was 0 everywhere).
-    std::array<double, 8> unit;
-    unit.fill(1.0);
-    for (std::size_t c = 0; c < m; ++c) {
-      double largest = 0;
-      for (std::size_t k = 0; k < n; ++k) largest = std::max(largest, std::abs(r[k * m + c]));
-      if (largest > 0 && std::isfinite(largest)) unit[c] = std::ldexp(1.0, std::ilogb(largest));
-    }
-    for (std::size_t k = 0; k < n; ++k)
-      for (std::size_t c = 0; c < m; ++c) r[k * m + c] /= unit[c];
+    const std::array<double, 8> unit = scale_columns(r, n, m);
     const Sums rr0 = squares(r);  // ||b||^2 per column: the residual is relative to it
     if (initial) {
       // Warm start: x = the guess, r = b - A x. A guess near the solution leaves a small r, and
@@ -565,30 +641,11 @@ class BatchedCg final : public SparseFactor {
     const bool probe = probe_.steps > 0 && probing_.load();
     std::vector<Sums> best;  // best[k]: the smallest residuals up to step k
     if (probe) best.reserve(max_iterations_ + 1);
-    Sums rr_best = rr_start;  // the smallest residuals so far, per column
-    // Stagnation: the smallest residual so far (the worst column's) has not fallen 10x in the last
-    // kCgStagnationWindow steps. CG that still converges falls much faster than that.
+    Sums rr_best = rr_start;     // the smallest residuals so far, per column
     std::vector<double> lowest;  // lowest[k]: the worst column's smallest squared relative residual up to step k
     lowest.reserve(std::min<std::size_t>(max_iterations_, 1u << 20) + 1);
     for (; !all_done() && it < max_iterations_; ++it) {
-      {
-        double worst_low = 0;
-        for (std::size_t c = 0; c < m; ++c) {
-          rr_best[c] = std::min(rr_best[c], rr[c]);
-          if (!done[c] && rr0[c] > 0) worst_low = std::max(worst_low, rr_best[c] / rr0[c]);
-        }
-        lowest.push_back(worst_low);
-        if (it >= kCgStagnationWindow && !(worst_low < 1e-2 * lowest[it - kCgStagnationWindow])) {
-          iterations_ = it;
-          residual_ = std::sqrt(worst_low);
-          std::ostringstream os;
-          os << "conjugate gradients stagnated: the relative residual (" << std::sqrt(worst_low)
-             << ") has not fallen 10x in the last " << kCgStagnationWindow << " of " << it
-             << " steps (the matrix is too ill-conditioned for them: a smaller radius, or a direct solver, "
-                "--solver envelope or cholmod, can solve it)";
-          throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
-        }
-      }
+      check_stagnation(it, m, rr, rr0, done, rr_best, lowest);
       if (!preconditioned() && it == kIcProbeSteps && !all_done()) {
         const std::size_t mark = it / 3;
         const double fell = std::sqrt(lowest[it] / lowest[mark]), need = tolerance_ / std::sqrt(lowest[it]);
@@ -597,25 +654,7 @@ class BatchedCg final : public SparseFactor {
         if (predicted > double(kIcSwitchSteps)) turn_to_preconditioner();
       }
       if (probe) best.push_back(rr_best);
-      if (probe && it > 0 && it % probe_.steps == 0) {
-        // The steps this solve needs in all, were the residual to keep falling at its recent rate.
-        const std::size_t mark = it / 3;
-        double predicted = double(it);
-        for (std::size_t c = 0; c < m; ++c) {
-          if (done[c]) continue;
-          const double fell = std::sqrt(rr_best[c] / best[mark][c]), need = tolerance_ * std::sqrt(rr0[c] / rr_best[c]);
-          predicted = std::max(predicted, fell < 1 ? double(it) + double(it - mark) * std::log(need) / std::log(fell)
-                                                   : std::numeric_limits<double>::infinity());
-        }
-        // Preconditioned steps cost about twice a plain one (A's pass, then L's two): counted in plain ones.
-        if (preconditioned()) predicted = double(it) + kIcStepCost * (predicted - double(it));
-        if (!probe_.worth_it(predicted, double(it))) {
-          iterations_ = it;
-          std::ostringstream os;
-          os << "conjugate gradients would need about " << predicted << " steps (after " << it << ")";
-          throw CgStagnated(os.str(), predicted, it, true);
-        }
-      }
+      if (probe && it > 0 && it % probe_.steps == 0) check_probe(it, m, best, rr_best, rr0, done);
       const Sums pq = times_a(p, q, m, reduce);
       for (std::size_t c = 0; c < m; ++c) alpha[c] = done[c] || !(pq[c] > 0) ? 0.0 : rz[c] / pq[c];
       // x += alpha p, r -= alpha q, and r . r per column.
@@ -642,22 +681,7 @@ class BatchedCg final : public SparseFactor {
           for (std::size_t c = 0; c < m; ++c) p[k * m + c] = w[k * m + c] + beta[c] * p[k * m + c];
       });
     }
-    double worst = 0;
-    for (std::size_t c = 0; c < m; ++c)
-      if (rr0[c] > 0) worst = std::max(worst, std::sqrt(rr[c] / rr0[c]));
-    iterations_ = it;
-    residual_ = worst;
-    // At the step limit short of the tolerance, a residual that the fit's own check accepts by far
-    // is kept (20000 controls in a cube reached 3.9e-11 in 3000 steps, and were refused).
-    if (!std::isfinite(worst) || (!all_done() && !(worst <= kCgGoodEnough))) {
-      std::ostringstream os;
-      os << "conjugate gradients stopped at a relative residual of " << worst << " after " << it
-         << " steps (their limit; a smaller radius, or a direct solver, --solver envelope or cholmod, can solve "
-            "it)";
-      throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
-    }
-    for (std::size_t k = 0; k < n; ++k)
-      for (std::size_t c = 0; c < m; ++c) b(Eigen::Index(order_[k]), Eigen::Index(c)) = x[k * m + c] * unit[c];
+    finish_columns(b, x, rr, rr0, unit, it, all_done());
   }
 
   std::vector<std::uint32_t> order_;

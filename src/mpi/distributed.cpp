@@ -373,6 +373,348 @@ Columns sum_over_ranks(MPI_Comm comm, const Columns& m, std::size_t& bytes) {
   return out;
 }
 
+/// This rank in the fit's communicator, and its count of the bytes csrbf's own exchanges send.
+struct FitRank {
+  MPI_Comm comm;
+  int rank = 0, size = 1;
+  std::size_t& bytes;
+};
+
+/// A control's id for messages: ids[i], or i where none are given.
+std::uint64_t id_of(std::span<const std::uint64_t> ids, std::size_t i) {
+  return ids.empty() ? std::uint64_t(i) : ids[i];
+}
+
+/// Checks every rank makes of its own share, agreed before any exchange.
+void check_controls(MPI_Comm comm, std::span<const Vec3> sources_in, std::span<const Vec3> destinations_in,
+                    std::span<const std::uint64_t> ids_in, const FitOptions& options) {
+  const double radius = options.radius;
+  collectively(comm, [&] {
+    if (sources_in.size() != destinations_in.size())
+      throw InvalidInput("control points: " + std::to_string(sources_in.size()) + " sources but " +
+                         std::to_string(destinations_in.size()) + " destinations");
+    if (!ids_in.empty() && ids_in.size() != sources_in.size())
+      throw InvalidInput("control points: " + std::to_string(ids_in.size()) + " ids for " +
+                         std::to_string(sources_in.size()) + " controls");
+    if (!(radius >= 1e-150 && radius <= 1e150))
+      throw InvalidInput("radius must be a positive finite number in [1e-150, 1e150], got " + num(radius));
+    if (!(options.memory_limit_bytes > 0))
+      throw InvalidInput("memory_limit_bytes must be a number > 0, got " + num(options.memory_limit_bytes));
+    for (std::size_t i = 0; i < sources_in.size(); ++i) {
+      if (!sources_in[i].allFinite() || !destinations_in[i].allFinite())
+        throw InvalidInput("control " + std::to_string(ids_in.empty() ? i : ids_in[i]) +
+                           ": a coordinate is not finite");
+      // The serial fit's limit (squared distances stay normal doubles).
+      if (sources_in[i].cwiseAbs().maxCoeff() > 1e150 || destinations_in[i].cwiseAbs().maxCoeff() > 1e150)
+        throw InvalidInput("control " + std::to_string(ids_in.empty() ? i : ids_in[i]) + ": a coordinate beyond 1e150");
+    }
+  });
+}
+
+/// Which of this rank's controls it keeps (1) after the dedupe: a source another rank also has, bit
+/// for bit, is owned by the lowest such rank.
+std::vector<char> kept_controls(const FitRank& fr, std::span<const Vec3> sources_in,
+                                std::span<const Vec3> destinations_in, std::span<const std::uint64_t> ids_in,
+                                bool dedupe) {
+  std::vector<char> keep(sources_in.size(), 1);
+  if (!dedupe || fr.size <= 1) return keep;
+  double gmax = 0;
+  for (std::size_t i = 0; i < sources_in.size(); ++i)
+    gmax = std::max(gmax, (destinations_in[i] - sources_in[i]).norm());
+  gmax = max_of(fr.comm, gmax, fr.bytes);
+  const std::vector<Box> boxes = all_boxes(fr.comm, box_of(sources_in), fr.bytes);
+  std::vector<std::vector<Packet>> out(static_cast<std::size_t>(fr.size));
+  for (int r = fr.rank + 1; r < fr.size; ++r)  // only higher ranks drop theirs: send to them
+    for (std::size_t i = 0; i < sources_in.size(); ++i)
+      if (boxes[std::size_t(r)].distance(sources_in[i]) == 0.0)
+        out[std::size_t(r)].push_back(packet(0, id_of(ids_in, i), sources_in[i], destinations_in[i] - sources_in[i]));
+  std::vector<int> from;
+  const std::vector<Packet> got = exchange(fr.comm, out, &from, fr.bytes);
+  collectively(fr.comm, [&] {
+    std::unordered_map<Vec3, std::size_t, PositionHash> lower;
+    lower.reserve(got.size());
+    for (std::size_t k = 0; k < got.size(); ++k) lower.emplace(got[k].source(), k);
+    for (std::size_t i = 0; i < sources_in.size(); ++i) {
+      const auto it = lower.find(sources_in[i]);
+      if (it == lower.end()) continue;
+      const Packet& p = got[it->second];
+      if ((p.value() - (destinations_in[i] - sources_in[i])).norm() > 1e-12 * std::max(gmax, 1e-300))
+        throw InvalidInput("control " + std::to_string(id_of(ids_in, i)) + " on rank " + std::to_string(fr.rank) +
+                           " and control " + std::to_string(p.user) + " on rank " + std::to_string(from[it->second]) +
+                           " are the same point, moved differently");
+      keep[i] = 0;
+    }
+  });
+  return keep;
+}
+
+/// The controls over all ranks (Failure where none, or more than PETSc's indices hold), and in
+/// `offset` the global row of this rank's first.
+std::size_t count_controls(const FitRank& fr, std::size_t n, std::size_t& offset) {
+  const std::size_t total = sum(fr.comm, n, fr.bytes);
+  if (total == 0) throw Failure("control points: none given on any rank (need at least 1)", 0, 1);
+  if (total >= std::size_t(std::numeric_limits<PetscInt>::max()))
+    throw Failure("control points: " + std::to_string(total) + " controls: more than PETSc's 32-bit indices hold", 0,
+                  1);
+  unsigned long long mine = n, before = 0;
+  MPI_Exscan(&mine, &before, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, fr.comm);
+  offset = fr.rank == 0 ? 0 : std::size_t(before);
+  return total;
+}
+
+/// The polynomial's frame: the mean of all sources and their spread (as the serial fit).
+void polynomial_frame(const FitRank& fr, std::span<const Vec3> sources, std::size_t total, Vec3& center,
+                      double& scale) {
+  Vec3 s = Vec3::Zero();
+  for (const Vec3& x : sources) s += x;
+  Vec3 all = Vec3::Zero();
+  MPI_Allreduce(s.data(), all.data(), 3, MPI_DOUBLE, MPI_SUM, fr.comm);
+  center = all / double(total);
+  double spread = 0;
+  for (const Vec3& x : sources) spread = std::max(spread, (x - center).cwiseAbs().maxCoeff());
+  spread = max_of(fr.comm, spread, fr.bytes);
+  scale = spread > 0 ? spread : 1.0;
+}
+
+/// Failure where a linear polynomial is not determined: fewer than 4 sources over all ranks, or
+/// sources that do not span 3-D space.
+void check_linear_span(const FitRank& fr, std::span<const Vec3> sources, std::size_t total, const Vec3& center,
+                       double scale) {
+  if (total < 4)
+    throw Failure("polynomial 'linear' needs at least 4 control points that are not coplanar, got " +
+                      std::to_string(total) + "; use polynomial 'constant' or 'none'",
+                  0, 1);
+  Eigen::Matrix3d utu = Eigen::Matrix3d::Zero();
+  for (const Vec3& x : sources) {
+    const Vec3 u = (x - center) / scale;
+    utu += u * u.transpose();
+  }
+  const Columns all = sum_over_ranks(fr.comm, Columns(utu), fr.bytes);
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(Eigen::Matrix3d(all), Eigen::EigenvaluesOnly);
+  const Vec3 ev = es.eigenvalues().cwiseMax(0.0);
+  const double sv0 = std::sqrt(ev(2)), sv1 = std::sqrt(ev(1)), sv2 = std::sqrt(ev(0));
+  const double tol = 1e-9 * std::max(sv0, 1e-300);
+  if (sv2 <= tol)
+    throw Failure("polynomial 'linear' needs control sources that span 3-D space, but the " + std::to_string(total) +
+                      " sources are " + (sv1 <= tol ? "collinear" : "coplanar") +
+                      "; use polynomial 'constant' or 'none'",
+                  0, 1);
+}
+
+/// The halo of the matrix rows: every rank's controls within R of this rank's controls.
+std::vector<Packet> row_halo(const FitRank& fr, std::span<const Vec3> sources, std::span<const std::uint64_t> ids,
+                             std::size_t offset, double radius) {
+  const std::vector<Box> boxes = all_boxes(fr.comm, box_of(sources), fr.bytes);
+  std::vector<std::vector<Packet>> out(static_cast<std::size_t>(fr.size));
+  for (int r = 0; r < fr.size; ++r) {
+    if (r == fr.rank) continue;
+    for (std::size_t i = 0; i < sources.size(); ++i)
+      if (boxes[std::size_t(r)].distance(sources[i]) < radius)
+        out[std::size_t(r)].push_back(packet(offset + i, ids[i], sources[i], Vec3::Zero()));
+  }
+  return exchange(fr.comm, out, nullptr, fr.bytes);
+}
+
+/// This rank's rows of A in compressed form, global column numbers.
+struct LocalRows {
+  std::vector<PetscInt> row_start, cols;
+  std::vector<double> vals;
+};
+
+/// The rows of this rank's controls: neighbours among the owned and halo controls. Everything that
+/// can fail on this rank alone (a duplicate source, the memory limit), agreed before PETSc's
+/// collective calls.
+LocalRows matrix_rows(const FitRank& fr, std::span<const Vec3> sources, std::span<const std::uint64_t> ids,
+                      std::span<const Packet> halo, std::size_t offset, const FitOptions& options, RankStats& rs) {
+  const std::size_t n = sources.size();
+  const double radius = options.radius;
+  LocalRows rows;
+  std::vector<PetscInt>& row_start = rows.row_start;
+  std::vector<PetscInt>& cols = rows.cols;
+  std::vector<double>& vals = rows.vals;
+  row_start.assign(n + 1, 0);
+  collectively(fr.comm, [&] {
+    std::vector<Vec3> local(sources.begin(), sources.end());
+    for (const Packet& p : halo) local.push_back(p.source());
+    const NeighborIndex index(local, radius);
+    const auto global_of = [&](std::size_t j) { return j < n ? offset + j : halo[j - n].global; };
+    const auto user_of = [&](std::size_t j) { return j < n ? ids[j] : halo[j - n].user; };
+    std::size_t nnz = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      index.for_each_within(sources[i], [&](std::size_t j, double d2) {
+        if (d2 == 0.0 && j != i)
+          throw DuplicateSource(std::min(user_of(i), user_of(j)), std::max(user_of(i), user_of(j)),
+                                "controls " + std::to_string(user_of(i)) + " and " + std::to_string(user_of(j)) +
+                                    " have the same source " + num(sources[i].x()) + " " + num(sources[i].y()) + " " +
+                                    num(sources[i].z()));
+        ++nnz;
+      });
+    }
+    // PETSc's matrix (a value and a column index an entry, twice while assembling) and MUMPS's
+    // factor, at least as large again: refused before anything is allocated.
+    const double need = 48.0 * double(nnz);
+    if (need > options.memory_limit_bytes)
+      throw ResourceLimit("the matrix rows of rank " + std::to_string(fr.rank) + " hold " + std::to_string(nnz) +
+                          " entries (" + num(need / kGiB) + " GiB with the factor), more than the limit of " +
+                          num(options.memory_limit_bytes / kGiB) + " GiB: use a smaller radius or more ranks");
+    cols.reserve(nnz);
+    vals.reserve(nnz);
+    for (std::size_t i = 0; i < n; ++i) {
+      index.for_each_within(sources[i], [&](std::size_t j, double d2) {
+        const std::size_t gj = global_of(j);
+        cols.push_back(PetscInt(gj));
+        vals.push_back(wendland(options.kernel, std::sqrt(d2) / radius));
+      });
+      row_start[i + 1] = PetscInt(cols.size());
+    }
+    rs.matrix_nonzeros = cols.size();
+  });
+  return rows;
+}
+
+/// A (n of `total` rows on this rank) handed to PETSc, each row's columns ascending first.
+void create_matrix(MPI_Comm comm, LocalRows& rows, std::size_t total, PetscMat& a) {
+  const std::size_t n = rows.row_start.size() - 1;
+  std::vector<PetscInt>& cols = rows.cols;
+  std::vector<double>& vals = rows.vals;
+  // Each row's columns ascending, then the whole local CSR handed to PETSc in one call (row by row
+  // MatSetValues took 7 s at 1e6 rows).
+  {
+    std::vector<std::pair<PetscInt, double>> row;
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto b = std::size_t(rows.row_start[i]), e = std::size_t(rows.row_start[i + 1]);
+      row.clear();
+      for (std::size_t k = b; k < e; ++k) row.emplace_back(cols[k], vals[k]);
+      std::sort(row.begin(), row.end());
+      for (std::size_t k = b; k < e; ++k) {
+        cols[k] = row[k - b].first;
+        vals[k] = row[k - b].second;
+      }
+    }
+  }
+  check_petsc(MatCreate(comm, &a.m), "MatCreate");
+  check_petsc(MatSetSizes(a.m, PetscInt(n), PetscInt(n), PetscInt(total), PetscInt(total)), "MatSetSizes");
+  check_petsc(MatSetType(a.m, MATMPIAIJ), "MatSetType(mpiaij)");
+  check_petsc(MatMPIAIJSetPreallocationCSR(a.m, rows.row_start.data(), cols.data(), vals.data()),
+              "MatMPIAIJSetPreallocationCSR");
+  check_petsc(MatAssemblyBegin(a.m, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin");
+  check_petsc(MatAssemblyEnd(a.m, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd");
+  check_petsc(MatSetOption(a.m, MAT_SYMMETRIC, PETSC_TRUE), "MatSetOption(symmetric)");
+  check_petsc(MatSetOption(a.m, MAT_SPD, PETSC_TRUE), "MatSetOption(spd)");
+  std::vector<PetscInt>().swap(cols);
+  std::vector<double>().swap(vals);
+}
+
+/// Right-hand sides: the displacements g, then P = [1, u] (u = (x - center) / scale).
+Columns right_hand_sides(std::span<const Vec3> sources, std::span<const Vec3> g, const Vec3& center, double scale,
+                         int terms) {
+  const std::size_t n = sources.size();
+  Columns rhs(Eigen::Index(n), 3 + terms);
+  for (std::size_t i = 0; i < n; ++i) {
+    rhs.row(Eigen::Index(i)).head<3>() = g[i].transpose();
+    if (terms > 0) rhs(Eigen::Index(i), 3) = 1.0;
+    if (terms == 4) rhs.row(Eigen::Index(i)).tail<3>() = ((sources[i] - center) / scale).transpose();
+  }
+  return rhs;
+}
+
+/// A sol = rhs, by `solver` (Auto: MUMPS up to kDirectBelow controls, else CG, which gives way to
+/// MUMPS where it does not converge); Failure where none solves it. Returns the solver that solved;
+/// stats.core_cg and stats.fell_back as it went. ksp: the solver's, kept by the caller.
+DistributedSolver solve_system(const FitRank& fr, Mat a, DistributedSolver solver, std::size_t total,
+                               std::span<const Vec3> sources, const FitOptions& options, const Columns& rhs,
+                               PetscKsp& ksp, Columns& sol, std::size_t& iterations, DistributedStats& stats) {
+  const MPI_Comm comm = fr.comm;
+  DistributedSolver use = solver;
+  if (use == DistributedSolver::Auto) use = total <= kDirectBelow ? DistributedSolver::Mumps : DistributedSolver::Cg;
+  const auto run = [&](DistributedSolver s) {
+    for (int workspace = 50; workspace <= 3200; workspace *= 4) {
+      int ok = 1, out_of_memory = 0;
+      // Auto's CG gives way where MUMPS is predicted cheaper: a factorisation cost kMumpsCgSteps CG
+      // steps at 1e5 controls, and the ratio grows with N (3-D nested dissection: factor flops ~N^2,
+      // a CG step ~N).
+      const double budget = solver == DistributedSolver::Auto && s == DistributedSolver::Cg
+                                ? kMumpsCgSteps * std::max(1.0, double(total) / 1e5)
+                                : 0.0;
+      // One rank and csrbf's own CG: the serial fit's solver, not a second implementation.
+      if (fr.size == 1 && s == DistributedSolver::Cg && !petsc_options_set()) {
+        stats.core_cg = true;
+        return core_cg(sources, options, rhs, budget, sol, iterations);
+      }
+      collectively(comm, [&] {
+        make_ksp(comm, a, s, ksp, workspace, budget);
+        bool oom = false;
+        ok = solve_columns(a, ksp.k, rhs, sol, iterations, &oom) ? 1 : 0;
+        out_of_memory = oom ? 1 : 0;
+      });
+      int flags[2] = {ok, -out_of_memory}, all[2] = {0, 0};
+      MPI_Allreduce(flags, all, 2, MPI_INT, MPI_MIN, comm);
+      if (all[0] == 1) return true;
+      if (s != DistributedSolver::Mumps || all[1] == 0) return false;
+    }
+    return false;
+  };
+  bool solved = run(use);
+  if (!solved && use == DistributedSolver::Cg && solver == DistributedSolver::Auto) {
+    stats.fell_back = true;
+    use = DistributedSolver::Mumps;
+    solved = run(use);
+  }
+  if (!solved)
+    throw Failure(use == DistributedSolver::Cg
+                      ? "conjugate gradients did not converge in " + std::to_string(kCgMaxIterations) +
+                            " steps (--solver mumps factorises instead)"
+                      : "MUMPS's Cholesky factorisation failed: the interpolation matrix is not numerically positive "
+                        "definite (sources too close together for R = " +
+                            num(options.radius) + ")",
+                  0, 1);
+  return use;
+}
+
+/// The polynomial block: (P^T Y) beta = P^T z, alpha = z - Y beta, with Y = A^-1 P, z = A^-1 g (sol's
+/// columns, P the last `terms` of rhs). Returns alpha; beta's first `terms` rows are set.
+Columns polynomial_block(const FitRank& fr, const Columns& sol, const Columns& rhs, int terms,
+                         const FitOptions& options, Eigen::Matrix<double, 4, 3>& beta) {
+  Columns alpha = sol.leftCols(3);
+  if (terms > 0) {
+    const Columns y = sol.rightCols(terms);
+    const Columns p = rhs.rightCols(terms);
+    const Columns s = sum_over_ranks(fr.comm, Columns(p.transpose() * y), fr.bytes);
+    const Columns t = sum_over_ranks(fr.comm, Columns(p.transpose() * alpha), fr.bytes);
+    Eigen::LLT<Eigen::MatrixXd> llt(s);
+    if (llt.info() != Eigen::Success)
+      throw Failure("the polynomial block P^T A^-1 P is not positive definite (controls degenerate for polynomial '" +
+                        std::string(polynomial_name(options.polynomial)) + "')",
+                    0, 1);
+    const Columns b = llt.solve(t);
+    alpha -= y * b;
+    beta.topRows(terms) = b;
+  }
+  return alpha;
+}
+
+/// The residual, global: max ||A alpha + P beta - g|| over max ||g||.
+double relative_residual(const FitRank& fr, Mat a, std::span<const Vec3> sources, std::span<const Vec3> g,
+                         const Eigen::Matrix<double, Eigen::Dynamic, 3>& alpha, const Eigen::Matrix<double, 4, 3>& beta,
+                         const Vec3& center, double scale, int terms) {
+  double res = 0, gmax = 0;
+  const Columns aa = multiply(a, Columns(alpha));
+  for (std::size_t i = 0; i < sources.size(); ++i) {
+    Vec3 v = aa.row(Eigen::Index(i)).transpose();
+    if (terms > 0) {
+      const Vec3 u = (sources[i] - center) / scale;
+      v += (beta.row(0) + u.transpose() * beta.bottomRows<3>()).transpose();
+    }
+    const double e = (v - g[i]).norm();
+    res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
+    gmax = std::max(gmax, g[i].norm());
+  }
+  if (!alpha.allFinite() || !beta.allFinite()) res = std::numeric_limits<double>::infinity();
+  res = max_of(fr.comm, res, fr.bytes);
+  gmax = max_of(fr.comm, gmax, fr.bytes);
+  return gmax > 0 ? res / gmax : res;
+}
+
 }  // namespace
 
 std::optional<DistributedSolver> parse_distributed_solver(const std::string& name) noexcept {
@@ -397,64 +739,12 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
   MPI_Comm_size(comm, &size);
   RankStats& rs = m.rank_stats_;
   rs.rank = rank;
-  std::size_t& bytes = rs.bytes_sent;
+  const FitRank fr{comm, rank, size, rs.bytes_sent};
   const double radius = options.radius;
   const auto t_halo = Clock::now();
 
-  // Checks every rank makes of its own share, agreed before any exchange.
-  collectively(comm, [&] {
-    if (sources_in.size() != destinations_in.size())
-      throw InvalidInput("control points: " + std::to_string(sources_in.size()) + " sources but " +
-                         std::to_string(destinations_in.size()) + " destinations");
-    if (!ids_in.empty() && ids_in.size() != sources_in.size())
-      throw InvalidInput("control points: " + std::to_string(ids_in.size()) + " ids for " +
-                         std::to_string(sources_in.size()) + " controls");
-    if (!(radius >= 1e-150 && radius <= 1e150))
-      throw InvalidInput("radius must be a positive finite number in [1e-150, 1e150], got " + num(radius));
-    if (!(options.memory_limit_bytes > 0))
-      throw InvalidInput("memory_limit_bytes must be a number > 0, got " + num(options.memory_limit_bytes));
-    for (std::size_t i = 0; i < sources_in.size(); ++i) {
-      if (!sources_in[i].allFinite() || !destinations_in[i].allFinite())
-        throw InvalidInput("control " + std::to_string(ids_in.empty() ? i : ids_in[i]) +
-                           ": a coordinate is not finite");
-      // The serial fit's limit (squared distances stay normal doubles).
-      if (sources_in[i].cwiseAbs().maxCoeff() > 1e150 || destinations_in[i].cwiseAbs().maxCoeff() > 1e150)
-        throw InvalidInput("control " + std::to_string(ids_in.empty() ? i : ids_in[i]) + ": a coordinate beyond 1e150");
-    }
-  });
-  const auto id_of = [&](std::size_t i) { return ids_in.empty() ? std::uint64_t(i) : ids_in[i]; };
-
-  // Dedupe: a source another rank also has, bit for bit, is owned by the lowest such rank.
-  std::vector<char> keep(sources_in.size(), 1);
-  if (dedupe && size > 1) {
-    double gmax = 0;
-    for (std::size_t i = 0; i < sources_in.size(); ++i)
-      gmax = std::max(gmax, (destinations_in[i] - sources_in[i]).norm());
-    gmax = max_of(comm, gmax, bytes);
-    const std::vector<Box> boxes = all_boxes(comm, box_of(sources_in), bytes);
-    std::vector<std::vector<Packet>> out(static_cast<std::size_t>(size));
-    for (int r = rank + 1; r < size; ++r)  // only higher ranks drop theirs: send to them
-      for (std::size_t i = 0; i < sources_in.size(); ++i)
-        if (boxes[std::size_t(r)].distance(sources_in[i]) == 0.0)
-          out[std::size_t(r)].push_back(packet(0, id_of(i), sources_in[i], destinations_in[i] - sources_in[i]));
-    std::vector<int> from;
-    const std::vector<Packet> got = exchange(comm, out, &from, bytes);
-    collectively(comm, [&] {
-      std::unordered_map<Vec3, std::size_t, PositionHash> lower;
-      lower.reserve(got.size());
-      for (std::size_t k = 0; k < got.size(); ++k) lower.emplace(got[k].source(), k);
-      for (std::size_t i = 0; i < sources_in.size(); ++i) {
-        const auto it = lower.find(sources_in[i]);
-        if (it == lower.end()) continue;
-        const Packet& p = got[it->second];
-        if ((p.value() - (destinations_in[i] - sources_in[i])).norm() > 1e-12 * std::max(gmax, 1e-300))
-          throw InvalidInput("control " + std::to_string(id_of(i)) + " on rank " + std::to_string(rank) +
-                             " and control " + std::to_string(p.user) + " on rank " + std::to_string(from[it->second]) +
-                             " are the same point, moved differently");
-        keep[i] = 0;
-      }
-    });
-  }
+  check_controls(comm, sources_in, destinations_in, ids_in, options);
+  const std::vector<char> keep = kept_controls(fr, sources_in, destinations_in, ids_in, dedupe);
   std::vector<std::uint64_t> ids;
   for (std::size_t i = 0; i < sources_in.size(); ++i) {
     if (!keep[i]) {
@@ -462,242 +752,43 @@ DistributedMap DistributedMap::fit(MPI_Comm comm, std::span<const Vec3> sources_
       continue;
     }
     m.sources_.push_back(sources_in[i]);
-    ids.push_back(id_of(i));
+    ids.push_back(id_of(ids_in, i));
   }
   std::vector<Vec3> g;  // displacements
   for (std::size_t i = 0; i < sources_in.size(); ++i)
     if (keep[i]) g.push_back(destinations_in[i] - sources_in[i]);
   const std::size_t n = m.sources_.size();
-  const std::size_t total = sum(comm, n, bytes);
-  if (total == 0) throw Failure("control points: none given on any rank (need at least 1)", 0, 1);
-  if (total >= std::size_t(std::numeric_limits<PetscInt>::max()))
-    throw Failure("control points: " + std::to_string(total) + " controls: more than PETSc's 32-bit indices hold", 0,
-                  1);
-  {
-    unsigned long long mine = n, before = 0;
-    MPI_Exscan(&mine, &before, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
-    m.offset_ = rank == 0 ? 0 : std::size_t(before);
-  }
+  const std::size_t total = count_controls(fr, n, m.offset_);
   rs.controls_owned = n;
   m.stats_.controls = total;
   m.stats_.ranks = std::size_t(size);
 
-  // The polynomial's frame: the mean of all sources and their spread (as the serial fit).
   const int terms = options.polynomial == Polynomial::None ? 0 : options.polynomial == Polynomial::Constant ? 1 : 4;
-  {
-    Vec3 s = Vec3::Zero();
-    for (const Vec3& x : m.sources_) s += x;
-    Vec3 all = Vec3::Zero();
-    MPI_Allreduce(s.data(), all.data(), 3, MPI_DOUBLE, MPI_SUM, comm);
-    m.center_ = all / double(total);
-    double spread = 0;
-    for (const Vec3& x : m.sources_) spread = std::max(spread, (x - m.center_).cwiseAbs().maxCoeff());
-    spread = max_of(comm, spread, bytes);
-    m.scale_ = spread > 0 ? spread : 1.0;
-  }
-  if (options.polynomial == Polynomial::Linear) {
-    if (total < 4)
-      throw Failure("polynomial 'linear' needs at least 4 control points that are not coplanar, got " +
-                        std::to_string(total) + "; use polynomial 'constant' or 'none'",
-                    0, 1);
-    Eigen::Matrix3d utu = Eigen::Matrix3d::Zero();
-    for (const Vec3& x : m.sources_) {
-      const Vec3 u = (x - m.center_) / m.scale_;
-      utu += u * u.transpose();
-    }
-    const Columns all = sum_over_ranks(comm, Columns(utu), bytes);
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(Eigen::Matrix3d(all), Eigen::EigenvaluesOnly);
-    const Vec3 ev = es.eigenvalues().cwiseMax(0.0);
-    const double sv0 = std::sqrt(ev(2)), sv1 = std::sqrt(ev(1)), sv2 = std::sqrt(ev(0));
-    const double tol = 1e-9 * std::max(sv0, 1e-300);
-    if (sv2 <= tol)
-      throw Failure("polynomial 'linear' needs control sources that span 3-D space, but the " + std::to_string(total) +
-                        " sources are " + (sv1 <= tol ? "collinear" : "coplanar") +
-                        "; use polynomial 'constant' or 'none'",
-                    0, 1);
-  }
+  polynomial_frame(fr, m.sources_, total, m.center_, m.scale_);
+  if (options.polynomial == Polynomial::Linear) check_linear_span(fr, m.sources_, total, m.center_, m.scale_);
 
-  // The halo of the matrix rows: every rank's controls within R of this rank's controls.
-  std::vector<Packet> halo;
-  {
-    const std::vector<Box> boxes = all_boxes(comm, box_of(m.sources_), bytes);
-    std::vector<std::vector<Packet>> out(static_cast<std::size_t>(size));
-    for (int r = 0; r < size; ++r) {
-      if (r == rank) continue;
-      for (std::size_t i = 0; i < n; ++i)
-        if (boxes[std::size_t(r)].distance(m.sources_[i]) < radius)
-          out[std::size_t(r)].push_back(packet(m.offset_ + i, ids[i], m.sources_[i], Vec3::Zero()));
-    }
-    halo = exchange(comm, out, nullptr, bytes);
-  }
+  const std::vector<Packet> halo = row_halo(fr, m.sources_, ids, m.offset_, radius);
   rs.controls_halo = halo.size();
   rs.seconds_halo = seconds_since(t_halo);
 
-  // The rows of this rank's controls: neighbours among the owned and halo controls.
   const auto t_asm = Clock::now();
   PetscMat a;
-  std::vector<PetscInt> row_start(n + 1, 0), cols;
-  std::vector<double> vals;
-  // Everything that can fail on this rank alone, agreed before PETSc's collective calls.
-  collectively(comm, [&] {
-    std::vector<Vec3> local(m.sources_);
-    for (const Packet& p : halo) local.push_back(p.source());
-    const NeighborIndex index(local, radius);
-    const auto global_of = [&](std::size_t j) { return j < n ? m.offset_ + j : halo[j - n].global; };
-    const auto user_of = [&](std::size_t j) { return j < n ? ids[j] : halo[j - n].user; };
-    std::size_t nnz = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      index.for_each_within(m.sources_[i], [&](std::size_t j, double d2) {
-        if (d2 == 0.0 && j != i)
-          throw DuplicateSource(std::min(user_of(i), user_of(j)), std::max(user_of(i), user_of(j)),
-                                "controls " + std::to_string(user_of(i)) + " and " + std::to_string(user_of(j)) +
-                                    " have the same source " + num(m.sources_[i].x()) + " " + num(m.sources_[i].y()) +
-                                    " " + num(m.sources_[i].z()));
-        ++nnz;
-      });
-    }
-    // PETSc's matrix (a value and a column index an entry, twice while assembling) and MUMPS's
-    // factor, at least as large again: refused before anything is allocated.
-    const double need = 48.0 * double(nnz);
-    if (need > options.memory_limit_bytes)
-      throw ResourceLimit("the matrix rows of rank " + std::to_string(rank) + " hold " + std::to_string(nnz) +
-                          " entries (" + num(need / kGiB) + " GiB with the factor), more than the limit of " +
-                          num(options.memory_limit_bytes / kGiB) + " GiB: use a smaller radius or more ranks");
-    cols.reserve(nnz);
-    vals.reserve(nnz);
-    for (std::size_t i = 0; i < n; ++i) {
-      index.for_each_within(m.sources_[i], [&](std::size_t j, double d2) {
-        const std::size_t gj = global_of(j);
-        cols.push_back(PetscInt(gj));
-        vals.push_back(wendland(options.kernel, std::sqrt(d2) / radius));
-      });
-      row_start[i + 1] = PetscInt(cols.size());
-    }
-    rs.matrix_nonzeros = cols.size();
-  });
-  // Each row's columns ascending, then the whole local CSR handed to PETSc in one call (row by row
-  // MatSetValues took 7 s at 1e6 rows).
-  {
-    std::vector<std::pair<PetscInt, double>> row;
-    for (std::size_t i = 0; i < n; ++i) {
-      const auto b = std::size_t(row_start[i]), e = std::size_t(row_start[i + 1]);
-      row.clear();
-      for (std::size_t k = b; k < e; ++k) row.emplace_back(cols[k], vals[k]);
-      std::sort(row.begin(), row.end());
-      for (std::size_t k = b; k < e; ++k) {
-        cols[k] = row[k - b].first;
-        vals[k] = row[k - b].second;
-      }
-    }
-  }
-  check_petsc(MatCreate(comm, &a.m), "MatCreate");
-  check_petsc(MatSetSizes(a.m, PetscInt(n), PetscInt(n), PetscInt(total), PetscInt(total)), "MatSetSizes");
-  check_petsc(MatSetType(a.m, MATMPIAIJ), "MatSetType(mpiaij)");
-  check_petsc(MatMPIAIJSetPreallocationCSR(a.m, row_start.data(), cols.data(), vals.data()),
-              "MatMPIAIJSetPreallocationCSR");
-  check_petsc(MatAssemblyBegin(a.m, MAT_FINAL_ASSEMBLY), "MatAssemblyBegin");
-  check_petsc(MatAssemblyEnd(a.m, MAT_FINAL_ASSEMBLY), "MatAssemblyEnd");
-  check_petsc(MatSetOption(a.m, MAT_SYMMETRIC, PETSC_TRUE), "MatSetOption(symmetric)");
-  check_petsc(MatSetOption(a.m, MAT_SPD, PETSC_TRUE), "MatSetOption(spd)");
-  std::vector<PetscInt>().swap(cols);
-  std::vector<double>().swap(vals);
+  LocalRows rows = matrix_rows(fr, m.sources_, ids, halo, m.offset_, options, rs);
+  create_matrix(comm, rows, total, a);
   rs.seconds_assembly = seconds_since(t_asm);
 
-  // Right-hand sides: the displacements, then P = [1, u] (u = (x - center) / scale).
   const auto t_solve = Clock::now();
-  Columns rhs(Eigen::Index(n), 3 + terms);
-  for (std::size_t i = 0; i < n; ++i) {
-    rhs.row(Eigen::Index(i)).head<3>() = g[i].transpose();
-    if (terms > 0) rhs(Eigen::Index(i), 3) = 1.0;
-    if (terms == 4) rhs.row(Eigen::Index(i)).tail<3>() = ((m.sources_[i] - m.center_) / m.scale_).transpose();
-  }
-  DistributedSolver use = solver;
-  if (use == DistributedSolver::Auto) use = total <= kDirectBelow ? DistributedSolver::Mumps : DistributedSolver::Cg;
+  const Columns rhs = right_hand_sides(m.sources_, g, m.center_, m.scale_, terms);
   Columns sol;
   PetscKsp ksp;
   std::size_t iterations = 0;
-  const auto run = [&](DistributedSolver s) {
-    for (int workspace = 50; workspace <= 3200; workspace *= 4) {
-      int ok = 1, out_of_memory = 0;
-      // Auto's CG gives way where MUMPS is predicted cheaper: a factorisation cost kMumpsCgSteps CG
-      // steps at 1e5 controls, and the ratio grows with N (3-D nested dissection: factor flops ~N^2,
-      // a CG step ~N).
-      const double budget = solver == DistributedSolver::Auto && s == DistributedSolver::Cg
-                                ? kMumpsCgSteps * std::max(1.0, double(total) / 1e5)
-                                : 0.0;
-      // One rank and csrbf's own CG: the serial fit's solver, not a second implementation.
-      if (size == 1 && s == DistributedSolver::Cg && !petsc_options_set()) {
-        m.stats_.core_cg = true;
-        return core_cg(m.sources_, options, rhs, budget, sol, iterations);
-      }
-      collectively(comm, [&] {
-        make_ksp(comm, a.m, s, ksp, workspace, budget);
-        bool oom = false;
-        ok = solve_columns(a.m, ksp.k, rhs, sol, iterations, &oom) ? 1 : 0;
-        out_of_memory = oom ? 1 : 0;
-      });
-      int flags[2] = {ok, -out_of_memory}, all[2] = {0, 0};
-      MPI_Allreduce(flags, all, 2, MPI_INT, MPI_MIN, comm);
-      if (all[0] == 1) return true;
-      if (s != DistributedSolver::Mumps || all[1] == 0) return false;
-    }
-    return false;
-  };
-  bool solved = run(use);
-  if (!solved && use == DistributedSolver::Cg && solver == DistributedSolver::Auto) {
-    m.stats_.fell_back = true;
-    use = DistributedSolver::Mumps;
-    solved = run(use);
-  }
-  if (!solved)
-    throw Failure(use == DistributedSolver::Cg
-                      ? "conjugate gradients did not converge in " + std::to_string(kCgMaxIterations) +
-                            " steps (--solver mumps factorises instead)"
-                      : "MUMPS's Cholesky factorisation failed: the interpolation matrix is not numerically positive "
-                        "definite (sources too close together for R = " +
-                            num(radius) + ")",
-                  0, 1);
-  m.stats_.solver = use;
+  m.stats_.solver = solve_system(fr, a.m, solver, total, m.sources_, options, rhs, ksp, sol, iterations, m.stats_);
   m.stats_.iterations = iterations;
-  // The polynomial block: (P^T Y) beta = P^T z, alpha = z - Y beta, with Y = A^-1 P, z = A^-1 g.
-  Columns alpha = sol.leftCols(3);
-  if (terms > 0) {
-    const Columns y = sol.rightCols(terms);
-    const Columns p = rhs.rightCols(terms);
-    const Columns s = sum_over_ranks(comm, Columns(p.transpose() * y), bytes);
-    const Columns t = sum_over_ranks(comm, Columns(p.transpose() * alpha), bytes);
-    Eigen::LLT<Eigen::MatrixXd> llt(s);
-    if (llt.info() != Eigen::Success)
-      throw Failure("the polynomial block P^T A^-1 P is not positive definite (controls degenerate for polynomial '" +
-                        std::string(polynomial_name(options.polynomial)) + "')",
-                    0, 1);
-    const Columns b = llt.solve(t);
-    alpha -= y * b;
-    m.beta_.topRows(terms) = b;
-  }
-  m.alpha_ = alpha;
+  m.alpha_ = polynomial_block(fr, sol, rhs, terms, options, m.beta_);
   rs.seconds_solve = seconds_since(t_solve);
 
-  // The residual, global: max ||A alpha + P beta - g|| over max ||g||.
   const auto t_res = Clock::now();
-  double res = 0, gmax = 0;
-  {
-    const Columns aa = multiply(a.m, Columns(m.alpha_));
-    for (std::size_t i = 0; i < n; ++i) {
-      Vec3 v = aa.row(Eigen::Index(i)).transpose();
-      if (terms > 0) {
-        const Vec3 u = (m.sources_[i] - m.center_) / m.scale_;
-        v += (m.beta_.row(0) + u.transpose() * m.beta_.bottomRows<3>()).transpose();
-      }
-      const double e = (v - g[i]).norm();
-      res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
-      gmax = std::max(gmax, g[i].norm());
-    }
-    if (!m.alpha_.allFinite() || !m.beta_.allFinite()) res = std::numeric_limits<double>::infinity();
-    res = max_of(comm, res, bytes);
-    gmax = max_of(comm, gmax, bytes);
-  }
-  m.stats_.residual_relative = gmax > 0 ? res / gmax : res;
+  m.stats_.residual_relative = relative_residual(fr, a.m, m.sources_, g, m.alpha_, m.beta_, m.center_, m.scale_, terms);
   rs.seconds_residual = seconds_since(t_res);
   if (!(m.stats_.residual_relative <= kResidualLimit))
     throw Failure("the controls cannot be interpolated to a relative residual of " + num(kResidualLimit) + " (got " +
