@@ -2,8 +2,7 @@
 // Gmsh's, assimp's or the renderer's libraries (csrbf-cli loads about 110, and spent 80 ms of
 // every morph loading them: docs/PERFORMANCE.md). csrbf's launcher runs it for `csrbf morph` on
 // one process; for any other mesh (a file) it runs csrbf-cli in its place, with the same argv.
-// The standard formats' table is this program's own, empty (detail::StandardFormats), so that
-// csrbf::morph's readers of those formats are not linked.
+// It links csrbf::morph without csrbf::morph_formats: the readers of those formats are not in it.
 #include "commands/morph.hpp"
 #include "program.hpp"
 #include "csrbf/morph/openfoam.hpp"
@@ -19,13 +18,6 @@
 #include <filesystem>
 #include <string>
 #include <vector>
-
-namespace csrbf::morph::detail {
-const StandardFormats& standard_formats() {
-  static const StandardFormats none{};
-  return none;
-}
-}  // namespace csrbf::morph::detail
 
 namespace {
 

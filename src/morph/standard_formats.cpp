@@ -1,14 +1,21 @@
-// The standard formats' table (detail::StandardFormats): the VTK, Gmsh and CGNS readers and the
-// standard cells' measure. Alone in its file, so that a program defining its own table links none
-// of them (the archive's member that holds this one is then never pulled in).
+// csrbf::morph_formats: the VTK, Gmsh and CGNS readers and the standard cells' measure, registered
+// in csrbf::morph's table (detail::StandardFormats) as the program starts. The target's link
+// options name csrbf_morph_formats_registered (--undefined), so that the linker takes this object
+// from the archive whether or not the program calls anything of it: linking the target registers.
+#include "csrbf/morph/quality.hpp"
 #include "csrbf/morph/volume_file.hpp"
 #include "volume_formats.hpp"
 
 namespace csrbf::morph::detail {
 
-const StandardFormats& standard_formats() {
-  static const StandardFormats formats{&open_vtk, &open_gmsh, &open_cgns, &cell_quality};
-  return formats;
-}
+namespace {
+const StandardFormats kStandardFormats{&open_vtk, &open_gmsh, &open_cgns, &cell_quality};
+}  // namespace
 
 }  // namespace csrbf::morph::detail
+
+extern "C" {
+extern const int csrbf_morph_formats_registered;
+const int csrbf_morph_formats_registered =
+    (csrbf::morph::detail::register_standard_formats(csrbf::morph::detail::kStandardFormats), 1);
+}

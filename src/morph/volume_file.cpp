@@ -6,6 +6,7 @@
 #include "volume_formats.hpp"
 
 #include <algorithm>
+#include <atomic>
 #include <cctype>
 
 namespace fs = std::filesystem;
@@ -57,6 +58,19 @@ std::unique_ptr<VolumeFile> open_openfoam(const fs::path& path, const OpenOption
   return std::make_unique<FoamFile>(path, o);
 }
 
+namespace {
+// Constant-initialised: set by csrbf::morph_formats's registration as the program starts, read after.
+std::atomic<const StandardFormats*> registered_formats{nullptr};
+}  // namespace
+
+const StandardFormats& standard_formats() {
+  static const StandardFormats none{};
+  const StandardFormats* formats = registered_formats.load();
+  return formats ? *formats : none;
+}
+
+void register_standard_formats(const StandardFormats& formats) { registered_formats.store(&formats); }
+
 }  // namespace detail
 
 std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions& options) {
@@ -78,7 +92,7 @@ std::unique_ptr<VolumeFile> open_volume(const fs::path& path, const OpenOptions&
   const auto opened = [&](auto* open, const char* library) {
     if (!open)
       throw io::FileError(path.string() + ": " + ext + " files are read through " + library +
-                          ", which this program is linked without");
+                          ", which this program is linked without (csrbf::morph_formats)");
     return open(path, options);
   };
   if (ext == ".vtu" || ext == ".vtk") return opened(formats.open_vtk, "VTK");

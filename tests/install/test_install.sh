@@ -66,7 +66,7 @@ echo "installed: programs, headers, libraries, CMake config and version, Python 
 if grep -qi 'cholmod' "$tmp/prefix/lib/cmake/csrbf/csrbf-core-targets.cmake"; then
   echo "csrbf-core-targets.cmake names CHOLMOD"; exit 1
 fi
-for c in core engine anim io morph mpi gltf render vtk; do
+for c in core engine anim io morph morph_formats mpi gltf render vtk; do
   extra=()
   if [ "$c" = core ] || [ "$c" = engine ] || [ "$c" = gltf ]; then
     extra=(-DCMAKE_DISABLE_FIND_PACKAGE_VTK=ON -DCMAKE_DISABLE_FIND_PACKAGE_MPI=ON -DCMAKE_DISABLE_FIND_PACKAGE_assimp=ON)

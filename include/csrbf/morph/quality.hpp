@@ -57,6 +57,7 @@ struct CellQuality {
 };
 
 /// reference: the points before the morph, which give 2-D cells their normals (may be points).
+/// VTK's Verdict measures them: in csrbf::morph_formats.
 CellQuality cell_quality(const CellTopology& t, std::span<const Vec3> points, std::span<const Vec3> reference);
 
 /// Puts each standard cell's corners in VTK's orientation where a file's convention differs (CGNS

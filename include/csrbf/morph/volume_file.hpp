@@ -54,19 +54,22 @@ std::unique_ptr<VolumeFile> open_volume(const std::filesystem::path& path, const
 
 namespace detail {
 /// The readers that need VTK's, CGNS's or Gmsh's libraries, and the standard cells' measure
-/// (VTK's Verdict), reached through this table, which csrbf::morph's standard_formats.cpp fills:
-/// every program and library that links csrbf::morph has them. A program that defines its own
-/// standard_formats() is linked without that file and without those libraries: csrbf's morph
-/// program for OpenFOAM cases, which starts in a fraction of the time (docs/PERFORMANCE.md), leaves
-/// them null (it hands mesh files to csrbf-cli before reading them), and open_volume then throws
-/// io::FileError.
+/// (VTK's Verdict), reached through this table. The csrbf::morph_formats target fills it: linking
+/// it registers them (its one object registers the table as the program starts), so that
+/// csrbf::morph itself links none of those libraries. A program without it (csrbf's morph program
+/// for OpenFOAM cases, which starts in a fraction of the time: docs/PERFORMANCE.md) has an empty
+/// table, and open_volume then throws io::FileError naming the library and the target.
 struct StandardFormats {
   std::unique_ptr<VolumeFile> (*open_vtk)(const std::filesystem::path&, const OpenOptions&) = nullptr;
   std::unique_ptr<VolumeFile> (*open_gmsh)(const std::filesystem::path&, const OpenOptions&) = nullptr;
   std::unique_ptr<VolumeFile> (*open_cgns)(const std::filesystem::path&, const OpenOptions&) = nullptr;
   CellQuality (*cell_quality)(const CellTopology&, std::span<const Vec3>, std::span<const Vec3>) = nullptr;
 };
+/// The registered table, or an empty one.
 const StandardFormats& standard_formats();
+/// Registers formats (which must outlive every call of standard_formats()); csrbf::morph_formats
+/// calls it.
+void register_standard_formats(const StandardFormats& formats);
 }  // namespace detail
 
 /// The formats by extension, for messages.

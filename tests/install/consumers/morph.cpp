@@ -1,9 +1,13 @@
-// csrbf::morph: a motion file and a small OpenFOAM-free mesh, morphed in memory.
+// csrbf::morph: a motion file and a small OpenFOAM-free mesh, morphed in memory. Without
+// csrbf::morph_formats, a .vtk is refused with a message naming that target.
+#include <csrbf/io/error.hpp>
 #include <csrbf/morph/morph.hpp>
+#include <csrbf/morph/volume_file.hpp>
 
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <string>
 
 int main() {
   csrbf::morph::VolumeMesh mesh;
@@ -22,7 +26,13 @@ int main() {
   o.fit.radius = *motion.radius;
   const auto r = csrbf::morph::morph(mesh, motion, o);
   const double middle = r.points[13].z() - mesh.points[13].z();  // the centre point moved up, less than the bottom
-  const bool ok = r.points[0].z() == 0.1 && r.points[26] == mesh.points[26] && middle > 0 && middle < 0.1;
+  bool refused = false;
+  try {
+    csrbf::morph::open_volume("mesh.vtk");
+  } catch (const csrbf::io::FileError& e) {
+    refused = std::string(e.what()).find("csrbf::morph_formats") != std::string::npos;
+  }
+  const bool ok = r.points[0].z() == 0.1 && r.points[26] == mesh.points[26] && middle > 0 && middle < 0.1 && refused;
   std::cout << (ok ? "ok" : "wrong") << '\n';
   return ok ? 0 : 1;
 }
