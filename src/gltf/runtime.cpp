@@ -566,6 +566,30 @@ std::vector<double> GltfRuntime::weights(std::size_t mesh, double t) const {
   return w;
 }
 
+void GltfRuntime::deform(std::size_t mesh, std::span<const float> weights, std::span<float> positions,
+                         std::span<float> normals, bool use_extension) const {
+  const Mesh& m = d_->meshes.at(mesh);
+  const std::size_t want = 3 * m.rest.size();
+  for (const auto& [what, size] : {std::pair{"positions", positions.size()}, std::pair{"normals", normals.size()}})
+    if (size != want)
+      throw InvalidInput("GltfRuntime::deform: " + std::to_string(size) + " floats of " + what + " for mesh '" +
+                         m.name + "', which needs " + std::to_string(want) + " (xyz for each of its " +
+                         std::to_string(m.rest.size()) + " vertices)");
+  const std::vector<double> w(weights.begin(), weights.end());
+  std::vector<Vec3> p, n;
+  deform(mesh, w, p, n, use_extension);
+  for (std::size_t v = 0; v < p.size(); ++v)
+    for (int c = 0; c < 3; ++c)
+      if (!std::isfinite(float(p[v][c])))
+        throw InvalidInput("GltfRuntime::deform: mesh '" + m.name + "' vertex " + std::to_string(v) +
+                           " moves beyond float (" + std::to_string(p[v][c]) + ")");
+  for (std::size_t v = 0; v < p.size(); ++v)
+    for (int c = 0; c < 3; ++c) {
+      positions[3 * v + std::size_t(c)] = float(p[v][c]);
+      normals[3 * v + std::size_t(c)] = float(n[v][c]);
+    }
+}
+
 void GltfRuntime::deform(std::size_t mesh, std::span<const double> weights, std::vector<Vec3>& positions,
                          std::vector<Vec3>& normals, bool use_extension) const {
   const Mesh& m = d_->meshes.at(mesh);

@@ -85,6 +85,23 @@ TEST(GltfRuntime, PlaysTheWeightsChannel) {
   r.deform(0, std::vector<double>{0.5}, p, n, false);
   ASSERT_EQ(p.size(), 3u);
   EXPECT_EQ(p[1], Vec3(1, 0, 0.5));
+  // An engine's float buffers get the same vertices and normals, rounded to float.
+  std::vector<float> fp(9, -1.0f), fn(9, -1.0f);
+  r.deform(0, std::vector<float>{0.5f}, fp, fn, false);
+  for (std::size_t v = 0; v < 3; ++v)
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_EQ(fp[3 * v + std::size_t(c)], float(p[v][c]));
+      EXPECT_EQ(fn[3 * v + std::size_t(c)], float(n[v][c]));
+    }
+  // A buffer of the wrong size is named, and nothing is written.
+  std::vector<float> short_buffer(8, -1.0f);
+  try {
+    r.deform(0, std::vector<float>{0.5f}, short_buffer, fn, false);
+    ADD_FAILURE() << "a short positions buffer was taken";
+  } catch (const InvalidInput& e) {
+    EXPECT_NE(std::string(e.what()).find("8 floats of positions"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(short_buffer, std::vector<float>(8, -1.0f));
 }
 
 TEST(GltfRuntime, RefusesTimesBeforeZero) {

@@ -44,6 +44,11 @@ class GltfRuntime {
   /// client without the extension draws).
   void deform(std::size_t mesh, std::span<const double> weights, std::vector<Vec3>& positions,
               std::vector<Vec3>& normals, bool use_extension = true) const;
+  /// The same into an engine's float buffers: weights one a morph target; positions and normals xyz
+  /// a vertex (3 * rest(mesh).size() floats each), filled in place. Throws InvalidInput naming the
+  /// buffer whose size is wrong, and where a value is beyond float (nothing is written then).
+  void deform(std::size_t mesh, std::span<const float> weights, std::span<float> positions, std::span<float> normals,
+              bool use_extension = true) const;
 
  private:
   struct Data;
