@@ -414,7 +414,8 @@ MeshQuality QualityMeter::measure(std::span<const Vec3> points) {
   if (mesh_->cells.size()) {
     const auto measure_cells = detail::standard_formats().cell_quality;
     if (!measure_cells)
-      throw io::FileError("standard cells are measured through VTK, which this program is linked without (csrbf::morph_formats)");
+      throw io::FileError(
+          "standard cells are measured through VTK, which this program is linked without (csrbf::morph_formats)");
     q.cells = measure_cells(mesh_->cells, points, mesh_->points);
   }
   return q;
