@@ -2,7 +2,8 @@
 // work: csrbf-cli, or under mpirun with more than one rank csrbf-cli-mpi, the same program built
 // with MPI and PETSc; `csrbf morph` on one process runs csrbf-morph (morph_main.cpp). Those two
 // libraries cost every command about 0.1 s to load (measured: 70-106 ms to dlopen them, of a 0.14 s
-// start-up), so only a distributed run loads them. The programs live in LIBEXEC/csrbf beside BIN
+// start-up), so only a distributed run loads them. `csrbf bench` runs csrbf-bench (bench_main.cpp;
+// under mpirun csrbf-cli-mpi refuses it). The programs live in LIBEXEC/csrbf beside BIN
 // (build/libexec/csrbf in the build tree), found from this program's own path; the same argv goes over, argv[0]
 // included, so every message and --help names `csrbf`.
 #include "csrbf/version.hpp"
@@ -96,6 +97,8 @@ int main(int argc, char** argv) {
     program = libexec + "csrbf-cli-mpi";
   else if (argc > 1 && std::strcmp(argv[1], "morph") == 0)
     program = libexec + "csrbf-morph";  // OpenFOAM cases; it runs csrbf-cli for the other formats
+  else if (argc > 1 && std::strcmp(argv[1], "bench") == 0)
+    program = libexec + "csrbf-bench";
   single_threads_under_limits();
   large_pages(argc > 1 && std::strcmp(argv[1], "morph") == 0 && !csrbf::cli::under_process_limits());
   ::execv(program.c_str(), argv);

@@ -1,5 +1,6 @@
 // csrbf: the command-line program. Exit 0 on success, 2 on a usage error, 1 on bad data or failure.
 // Each command is a file of commands/ with its options (add_*_command) and its run (run_*).
+// `csrbf bench` is csrbf-bench's (bench_main.cpp): listed here, and handed over to it.
 #include "commands.hpp"
 #include "commands/animate.hpp"
 #include "commands/bench.hpp"
@@ -17,10 +18,38 @@
 #include "csrbf/mpi/runtime.hpp"
 #endif
 
+#include <unistd.h>
+
+#include <cerrno>
+#include <climits>
+#include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <optional>
+#include <string>
+#include <vector>
 
 namespace cli = csrbf::cli;
+
+namespace {
+
+/// Runs csrbf-bench, beside this program, with argv (the launcher runs it for `csrbf bench`
+/// itself); 1 if it cannot.
+int run_bench_program(char** argv) {
+  char self[PATH_MAX];
+  const ssize_t n = ::readlink("/proc/self/exe", self, sizeof self - 1);
+  std::string program = "csrbf-bench";
+  if (n > 0) {
+    self[n] = 0;
+    program = (std::filesystem::path(self).parent_path() / "csrbf-bench").string();
+  }
+  ::execv(program.c_str(), argv);
+  std::cerr << "csrbf: error: cannot run " << program << ": " << std::strerror(errno)
+            << " (csrbf is not installed whole: install it again)\n";
+  return 1;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   cli::start_program(argv);
@@ -29,8 +58,9 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("csrbf ") + csrbf::kVersion);
   cli::DeformArgs deform_args;
   auto* deform = cli::add_deform_command(app, deform_args);
-  cli::BenchOptions bench_args;
-  auto* bench = cli::add_bench_command(app, bench_args);
+  // Its options are csrbf-bench's: any arguments are taken here, and passed over whole.
+  auto* bench = app.add_subcommand("bench", cli::kBenchDescription)->allow_extras()->prefix_command();
+  bench->set_help_flag();
   cli::ExportOptions export_args;
   auto* exporter = cli::add_export_command(app, export_args);
   cli::AnimateOptions animate_args;
@@ -56,6 +86,7 @@ int main(int argc, char** argv) {
   const bool quiet = false;
   const auto leave = [](int code) { return code; };
 #endif
+  std::vector<char*> given(argv, argv + argc + 1);  // for csrbf-bench, before the spellings are rewritten
   cli::openfoam_spellings(argc, argv);
   try {
     app.parse(argc, argv);
@@ -74,16 +105,13 @@ int main(int argc, char** argv) {
     return leave(*deform ? cli::run_deform_distributed(*rt, deform_args) : cli::run_morph_distributed(morph_args, *rt));
   }
 #endif
+  if (*bench) return run_bench_program(given.data());
 
   return cli::run_command([&]() -> int {
     if (*deform) return cli::run_deform(deform_args);
     if (*morph) return cli::run_morph(morph_args);
     if (*animate) return cli::run_animate(animate_args);
     if (*exporter) return cli::run_export(export_args);
-    if (*bench) {
-      cli::run_bench(bench_args);
-      return 0;
-    }
     return cli::run_info(info_args);
   });
 }

@@ -4,7 +4,8 @@
 # launcher alone, as the serial program would answer it; `csrbf morph` of an OpenFOAM case runs
 # csrbf-morph, which loads none of VTK, CGNS, HDF5, Gmsh, assimp or the renderer's libraries, and a
 # morph of any other format is handed to csrbf-cli with the same arguments. Neither loads CHOLMOD
-# or its BLAS before a fit asks for them.
+# or its BLAS before a fit asks for them. `csrbf bench` runs csrbf-bench, beside csrbf-cli, which
+# lists it in --help.
 #   test_startup_libraries.sh LAUNCHER SERIAL_PROGRAM MORPH_PROGRAM SOURCE_DIR
 set -euo pipefail
 launcher=$1 serial=$2 morph=$3 source=$4
@@ -50,4 +51,13 @@ b=$("$launcher" morph "$source/examples/airfoil/case" --radius -1 2>&1 || true)
 [ -n "$a" ] && [ "$a" = "$b" ] || { echo "$a"; echo "$b"; exit 1; }
 [ "$("$morph" morph --help | sed "s|$morph|P|")" = "$("$serial" morph --help | sed "s|$serial|P|")" ] ||
   { echo "morph --help differs"; exit 1; }
+# `csrbf bench`: csrbf-bench's, with bench's --help naming csrbf; `csrbf --help` still lists it.
+bench="$(dirname "$serial")/csrbf-bench"
+[ -x "$bench" ] || { echo "no $bench"; exit 1; }
+out=$("$launcher" bench --help)
+grep -qF "Usage: $launcher bench [OPTIONS]" <<< "$out" || { echo "$out"; exit 1; }
+out=$("$launcher" --help)
+grep -qE '^  bench +Run a benchmark scenario' <<< "$out" || { echo "$out"; exit 1; }
+out=$("$launcher" bench --scenario fish --json --seconds 0.01)
+grep -q '"scenario":"fish"' <<< "$out" || { echo "$out"; exit 1; }
 echo "launcher: $n libraries; morph program: $(ldd "$morph" | wc -l); serial program: $(ldd "$serial" | wc -l), no MPI or PETSc; --version: $got"

@@ -11,13 +11,15 @@ export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 cmake --install "$build" --prefix "$tmp/prefix" > "$tmp/install.log"
-for f in bin/csrbf bin/csrbf-picker bin/csrbf-composer libexec/csrbf/csrbf-cli; do
+for f in bin/csrbf bin/csrbf-picker bin/csrbf-composer libexec/csrbf/csrbf-cli libexec/csrbf/csrbf-bench; do
   test -x "$tmp/prefix/$f" || { echo "missing $f"; exit 1; }
 done
 # The installed launcher finds the program it runs from its own place.
 "$tmp/prefix/bin/csrbf" --version | grep -q '^csrbf ' || { echo "installed csrbf --version failed"; exit 1; }
 "$tmp/prefix/bin/csrbf" info --controls "$src/examples/fish.controls" --radius 0.3 > /dev/null ||
   { echo "installed csrbf info failed"; exit 1; }
+grep -q '"scenario":"fish"' <<< "$("$tmp/prefix/bin/csrbf" bench --scenario fish --json --seconds 0.01)" ||
+  { echo "installed csrbf bench failed"; exit 1; }
 for f in lib/cmake/csrbf/csrbfConfig.cmake lib/cmake/csrbf/csrbfConfigVersion.cmake \
          lib/cmake/csrbf/csrbf-core-targets.cmake lib/cmake/csrbf/csrbf-anim-targets.cmake \
          lib/cmake/csrbf/csrbf-io-targets.cmake lib/cmake/csrbf/csrbf-render-targets.cmake \

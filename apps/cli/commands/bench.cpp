@@ -694,7 +694,7 @@ void run_bench(const BenchOptions& o) {
 }
 
 CLI::App* add_bench_command(CLI::App& app, BenchOptions& o) {
-  auto* bench = app.add_subcommand("bench", "Run a benchmark scenario and print medians (docs/PERFORMANCE.md)");
+  auto* bench = app.add_subcommand("bench", kBenchDescription);
   std::vector<std::string> scenario_names = bench_scenarios();
   scenario_names.push_back("all");
   bench->add_option("--scenario,-s", o.scenario, "fish, face, ball, scale, solvers, peers or all")

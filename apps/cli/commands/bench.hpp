@@ -1,4 +1,5 @@
-// `csrbf bench`: the benchmark scenarios of docs/PERFORMANCE.md, timed in this process.
+// `csrbf bench`: the benchmark scenarios of docs/PERFORMANCE.md, timed in this process. A program of
+// its own, csrbf-bench (bench_main.cpp), which the launcher runs for `csrbf bench`.
 #pragma once
 
 #include <CLI/CLI.hpp>
@@ -7,6 +8,9 @@
 #include <vector>
 
 namespace csrbf::cli {
+
+/// `csrbf bench`'s line in `csrbf --help` (csrbf-cli lists it) and its --help's first line.
+inline constexpr const char* kBenchDescription = "Run a benchmark scenario and print medians (docs/PERFORMANCE.md)";
 
 struct BenchOptions {
   std::string scenario;          ///< fish, face, ball, scale, solvers, peers, all
