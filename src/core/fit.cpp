@@ -20,11 +20,8 @@ namespace csrbf {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 /// Up to this many sources the fit tests every pair for the neighbour graph (cheaper than the grid).
 constexpr std::size_t kBruteForceGraph = 256;
-
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 
 int polynomial_terms(Polynomial p) { return p == Polynomial::None ? 0 : p == Polynomial::Constant ? 1 : 4; }
 

@@ -26,9 +26,6 @@ namespace csrbf {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
-
 /// Right-hand sides a solve takes at once (CG's preconditioner works on up to 8).
 constexpr std::size_t kSolveColumns = 8;
 /// Points evaluated a batch (padded to 3-D in a scratch buffer).

@@ -22,10 +22,6 @@
 namespace csrbf::morph::detail {
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
 /// Points added in one greedy round are at least R apart: each one's correction then reaches no
 /// other one's neighbourhood, and a round can add many.
 class SpacedSet {

@@ -1,6 +1,7 @@
 // morph()'s phases around the fit (see morph_phases.hpp): the options checked, each patch's kind
 // and its points prescribed, the report begun, the slip correction, the evaluation and placement.
 #include "morph_phases.hpp"
+#include "csrbf/units.hpp"
 
 #include "csrbf/errors.hpp"
 #include "csrbf/io/error.hpp"
@@ -16,10 +17,6 @@ namespace csrbf::morph::detail {
 namespace {
 
 using io::FileError;
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
 }  // namespace
 
 double mesh_size(const VolumeMesh& mesh) {

@@ -29,9 +29,6 @@ namespace csrbf::mpi {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
-
 std::string num(double v) { return format_significant(v, 10); }
 
 struct Box {

@@ -8,6 +8,7 @@
 #include <cctype>
 #include <cstdio>
 #include <numbers>
+#include <utility>
 
 namespace csrbf::render::export_detail {
 namespace {
@@ -120,10 +121,15 @@ class ObjectWriter {
     ep_.report.frame_bytes += ep_.frames * nv * 12;
   }
 
-  /// The object's box: its lower and upper corners' distance.
-  double rest_size() const {
+  /// The rest shape's box: its lower and upper corners.
+  std::pair<Vec3, Vec3> rest_box() const {
     Vec3 lo = obj.rest.front(), hi = lo;
     for (const Vec3& p : obj.rest) lo = lo.cwiseMin(p), hi = hi.cwiseMax(p);
+    return {lo, hi};
+  }
+  /// The rest shape's size: its box's diagonal.
+  double rest_size() const {
+    const auto [lo, hi] = rest_box();
     return (hi - lo).norm();
   }
 
@@ -141,8 +147,7 @@ class ObjectWriter {
         nor[3 * v + std::size_t(c)] = float(rest_normals[v][c]);
       }
     if (ep_.options.quantize) {
-      Vec3 lo = obj.rest.front(), hi = lo;
-      for (const Vec3& x : obj.rest) lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
+      const auto [lo, hi] = rest_box();
       qc = 0.5 * (lo + hi);
       qk = 0.5 * (hi - lo).maxCoeff();
       if (!(qk > 0)) qk = 1.0;

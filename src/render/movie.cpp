@@ -1,4 +1,5 @@
 #include "csrbf/render/movie.hpp"
+#include "csrbf/units.hpp"
 
 #include "csrbf/render/movie_writer.hpp"
 #include "csrbf/render/scene_renderer.hpp"
@@ -9,8 +10,6 @@ namespace csrbf::render {
 
 MovieStats render_movie(const anim::Scene& scene, const std::filesystem::path& out, const MovieOptions& o,
                         const std::function<bool(std::size_t, std::size_t)>& progress) {
-  using Clock = std::chrono::steady_clock;
-  const auto since = [](Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); };
   const double to = o.to < o.from ? scene.duration : o.to;
   MovieStats stats;
   const std::size_t total = scene.frame_count(o.from, to);
@@ -23,14 +22,14 @@ MovieStats render_movie(const anim::Scene& scene, const std::filesystem::path& o
   for (std::size_t k = 0; k < total; ++k) {
     auto t0 = Clock::now();
     player.evaluate(o.from + double(k) / scene.fps);
-    stats.compute_seconds += since(t0);
+    stats.compute_seconds += seconds_since(t0);
     t0 = Clock::now();
     renderer.update(player);
     renderer.render_rgb(rgb);
-    stats.render_seconds += since(t0);
+    stats.render_seconds += seconds_since(t0);
     t0 = Clock::now();
     const bool written = writer.write(rgb.data());
-    stats.encode_seconds += since(t0);
+    stats.encode_seconds += seconds_since(t0);
     stats.frames = k + 1;
     if (!written || (o.cancelled && o.cancelled()) || (progress && !progress(k + 1, total))) {
       stats.cancelled = true;
@@ -39,7 +38,7 @@ MovieStats render_movie(const anim::Scene& scene, const std::filesystem::path& o
   }
   const auto t0 = Clock::now();
   stats.cancelled = !writer.finish();
-  stats.encode_seconds += since(t0);
+  stats.encode_seconds += seconds_since(t0);
   return stats;
 }
 
