@@ -122,6 +122,59 @@ csrbf_deformer* csrbf_share(const csrbf_deformer* deformer);
 /* Releases an owner's hold; the deformer is freed with its last owner. NULL is ignored. */
 void csrbf_destroy(csrbf_deformer* deformer);
 
+/* The GPU layout: the textures that web/csrbf_deformation.glsl reads, filled for deformers the way
+ * csrbf_deformation.js fills them from a CSRBF_deformation file, so that an engine plays deformers
+ * with the same shader, texel for texel (tests/capi checks it against the JS module on an exported
+ * fish). Every texture is CSRBF_GPU_WIDTH texels a row, element k at (k % width, k / width), and
+ * at least one row:
+ *   sources       RGBA32F  4 floats a texel: source k of all the deformations (x y z, 0)
+ *   coefficients  RGBA32F  source k's coefficients times its deformation's weight (x y z, 0)
+ *   deformations  RGBA32F  8 texels a deformation: (R, kernel, stage, -1); (grid origin, 1 / cell
+ *                          side); (cells along x y z, first cell); (weight x the polynomial's
+ *                          constant, 1 if the weight is not 0); the polynomial's rows for x, y, z
+ *                          times the weight; (0 0 0 0)
+ *   cells         RG32I    2 ints a texel: (first element in list, count) of the sources within R
+ *                          of the cell; a deformation's cells are at least R wide, widened by 1.25
+ *                          until it has at most 2^18
+ *   list          R32I     source indices
+ *   groups        R32I     (one row of zeros: deformers have no vertex groups)
+ * Set the shader's csrbfDeformationCount to count. Deformations of one stage are summed, each
+ * evaluated at the points the stages before produced; the layout sorts them by stage (stably).
+ * A weight of 0 leaves its coefficients and polynomial 0 (the shader skips the deformation). */
+#define CSRBF_GPU_WIDTH 1024
+typedef struct csrbf_gpu_deformation {
+  const csrbf_deformer* deformer; /* fitted, not NULL */
+  double weight;                  /* the phase this frame: the coefficients and polynomial times it */
+  int stage;                      /* >= 0 */
+} csrbf_gpu_deformation;
+
+/* The textures' data, allocated by the caller: each of rows x CSRBF_GPU_WIDTH texels, the rows as
+ * csrbf_gpu_size sets them (floats: 4 a texel, cells: 2 ints a texel, list and groups: 1). */
+typedef struct csrbf_gpu_layout {
+  float* sources;
+  float* coefficients;
+  float* deformations;
+  int* cells;
+  int* list;
+  int* groups;
+  size_t sources_rows, coefficients_rows, deformations_rows, cells_rows, list_rows, groups_rows;
+} csrbf_gpu_layout;
+
+/* Sets layout's *_rows for these count deformations (its pointers are left as they are). Refuses a
+ * layout of more than 2^24 sources or cells (the shader's float indices). */
+csrbf_status csrbf_gpu_size(const csrbf_gpu_deformation* deformations, size_t count, csrbf_gpu_layout* layout,
+                            csrbf_result* result);
+
+/* Fills every texture of layout (its rows as csrbf_gpu_size set them for the same deformations;
+ * every texel written, padding zero). */
+csrbf_status csrbf_gpu_fill(const csrbf_gpu_deformation* deformations, size_t count, csrbf_gpu_layout* layout,
+                            csrbf_result* result);
+
+/* A new frame's weights: refills coefficients and the deformations' texels 3..6 only (upload those
+ * two textures), for the same deformers and stages that csrbf_gpu_fill laid out. */
+csrbf_status csrbf_gpu_update(const csrbf_gpu_deformation* deformations, size_t count, csrbf_gpu_layout* layout,
+                              csrbf_result* result);
+
 /* The allocator for the deformer handles and the scratch of csrbf_deform (as meshopt_setAllocator):
  * allocate returns memory aligned for any scalar or NULL; NULL for both restores malloc and free.
  * Set it before the first deformer is made and keep it until the last is destroyed. The fit's own

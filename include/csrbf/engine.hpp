@@ -133,6 +133,31 @@ class Deformer {
     return {b.base, b.count, b.stride, b.position_offset, b.normal_offset, int(b.scalar)};
   }
   csrbf_deformer* handle_ = nullptr;
+  friend Result gpu_size(const csrbf_gpu_deformation*, std::size_t, csrbf_gpu_layout&) noexcept;
+  friend Result gpu_fill(const csrbf_gpu_deformation*, std::size_t, csrbf_gpu_layout&) noexcept;
+  friend Result gpu_update(const csrbf_gpu_deformation*, std::size_t, csrbf_gpu_layout&) noexcept;
 };
+
+/// The GPU layout (csrbf.h): the textures web/csrbf_deformation.glsl reads, for deformations given
+/// as {deformer.handle(), weight, stage}, filled as csrbf_deformation.js fills them. gpu_size sets the
+/// layout's rows; the caller allocates them (CSRBF_GPU_WIDTH texels a row); gpu_fill writes every
+/// texture, gpu_update a new frame's coefficients and polynomials.
+using GpuDeformation = csrbf_gpu_deformation;
+using GpuLayout = csrbf_gpu_layout;
+inline Result gpu_size(const GpuDeformation* deformations, std::size_t count, GpuLayout& layout) noexcept {
+  csrbf_result r;
+  csrbf_gpu_size(deformations, count, &layout, &r);
+  return Deformer::result_of(r);
+}
+inline Result gpu_fill(const GpuDeformation* deformations, std::size_t count, GpuLayout& layout) noexcept {
+  csrbf_result r;
+  csrbf_gpu_fill(deformations, count, &layout, &r);
+  return Deformer::result_of(r);
+}
+inline Result gpu_update(const GpuDeformation* deformations, std::size_t count, GpuLayout& layout) noexcept {
+  csrbf_result r;
+  csrbf_gpu_update(deformations, count, &layout, &r);
+  return Deformer::result_of(r);
+}
 
 }  // namespace csrbf::engine

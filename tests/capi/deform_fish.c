@@ -2,8 +2,11 @@
  * vertices and a controls file, fits them through the C API, checks the API's promises on the way
  * (status codes and messages, the NULL deformer's identity, shared handles, refit, the allocator
  * hook), and prints the deformed vertices as "v x y z" with 17 significant digits, for
- * test_c_api.sh to hold against `csrbf deform`.
- *   deform_fish MESH.obj CONTROLS RADIUS */
+ * test_c_api.sh to hold against `csrbf deform`. With PREFIX, WEIGHT, KERNEL (0, 2, 4, 6) and
+ * POLYNOMIAL (0 none, 1 constant, 2 linear) it also writes the GPU layout of that fit at that weight
+ * (csrbf_gpu_fill) as PREFIX.<texture>.bin, for test_c_api.sh to hold against csrbf_deformation.js's
+ * textures of the same fit exported by `csrbf export --compact`.
+ *   deform_fish MESH.obj CONTROLS RADIUS [PREFIX WEIGHT KERNEL POLYNOMIAL] */
 #include <csrbf/csrbf.h>
 
 #include <math.h>
@@ -65,6 +68,92 @@ static int fail(const char* what) {
   return 1;
 }
 
+static int write_file(const char* prefix, const char* name, const void* data, size_t bytes) {
+  char path[1024];
+  FILE* f;
+  size_t written;
+  snprintf(path, sizeof path, "%s.%s.bin", prefix, name);
+  f = fopen(path, "wb");
+  if (!f) return 0;
+  written = fwrite(data, 1, bytes, f);
+  return fclose(f) == 0 && written == bytes;
+}
+
+/* The GPU layout of the fit with these settings at weight, checked on the way (rows refused by
+ * name, csrbf_gpu_update equal to a fill at the new weight), written as prefix.<texture>.bin. */
+static int gpu_layout(const double* sources, const double* destinations, size_t nc, const csrbf_settings* settings,
+                      double weight, const char* prefix) {
+  csrbf_deformer* deformer = NULL;
+  csrbf_gpu_deformation g;
+  csrbf_gpu_layout l, again;
+  csrbf_result result;
+  size_t texels;
+  int ok;
+  if (csrbf_fit(sources, destinations, nc, settings, &deformer, &result) != CSRBF_OK) return fail(result.message);
+  g.deformer = deformer;
+  g.weight = 0.25;
+  g.stage = 0;
+  memset(&l, 0, sizeof l);
+  if (csrbf_gpu_size(&g, 1, &l, &result) != CSRBF_OK) return fail(result.message);
+  if (l.deformations_rows != 1 || l.groups_rows != 1 || l.sources_rows != l.coefficients_rows)
+    return fail("csrbf_gpu_size: unexpected rows for one deformation");
+  texels = CSRBF_GPU_WIDTH;
+  l.sources = (float*)malloc(4 * texels * l.sources_rows * sizeof(float));
+  l.coefficients = (float*)malloc(4 * texels * l.coefficients_rows * sizeof(float));
+  l.deformations = (float*)malloc(4 * texels * l.deformations_rows * sizeof(float));
+  l.cells = (int*)malloc(2 * texels * l.cells_rows * sizeof(int));
+  l.list = (int*)malloc(texels * l.list_rows * sizeof(int));
+  l.groups = (int*)malloc(texels * l.groups_rows * sizeof(int));
+  if (!l.sources || !l.coefficients || !l.deformations || !l.cells || !l.list || !l.groups)
+    return fail("out of memory");
+  /* A layout of other rows than csrbf_gpu_size's: refused by name, nothing written. */
+  again = l;
+  again.list_rows += 1;
+  if (csrbf_gpu_fill(&g, 1, &again, &result) != CSRBF_INVALID_INPUT || !strstr(result.message, "layout.list_rows"))
+    return fail("csrbf_gpu_fill took a layout of the wrong rows");
+  g.stage = -1;
+  if (csrbf_gpu_fill(&g, 1, &l, &result) != CSRBF_INVALID_INPUT || !strstr(result.message, "deformations[0].stage"))
+    return fail("csrbf_gpu_fill took a negative stage");
+  g.stage = 0;
+  /* Filled at 0.25, then updated to the weight: the same as a fill at the weight. */
+  if (csrbf_gpu_fill(&g, 1, &l, &result) != CSRBF_OK) return fail(result.message);
+  g.weight = weight;
+  if (csrbf_gpu_update(&g, 1, &l, &result) != CSRBF_OK) return fail(result.message);
+  again.list_rows = l.list_rows;
+  again.coefficients = (float*)malloc(4 * texels * l.coefficients_rows * sizeof(float));
+  again.deformations = (float*)malloc(4 * texels * l.deformations_rows * sizeof(float));
+  again.sources = (float*)malloc(4 * texels * l.sources_rows * sizeof(float));
+  again.cells = (int*)malloc(2 * texels * l.cells_rows * sizeof(int));
+  again.list = (int*)malloc(texels * l.list_rows * sizeof(int));
+  again.groups = (int*)malloc(texels * l.groups_rows * sizeof(int));
+  if (!again.coefficients || !again.deformations || !again.sources || !again.cells || !again.list || !again.groups)
+    return fail("out of memory");
+  if (csrbf_gpu_fill(&g, 1, &again, &result) != CSRBF_OK) return fail(result.message);
+  if (memcmp(again.coefficients, l.coefficients, 4 * texels * l.coefficients_rows * sizeof(float)) ||
+      memcmp(again.deformations, l.deformations, 4 * texels * l.deformations_rows * sizeof(float)))
+    return fail("csrbf_gpu_update differs from csrbf_gpu_fill at the same weight");
+  ok = write_file(prefix, "sources", l.sources, 4 * texels * l.sources_rows * sizeof(float)) &&
+       write_file(prefix, "coefficients", l.coefficients, 4 * texels * l.coefficients_rows * sizeof(float)) &&
+       write_file(prefix, "deformations", l.deformations, 4 * texels * l.deformations_rows * sizeof(float)) &&
+       write_file(prefix, "cells", l.cells, 2 * texels * l.cells_rows * sizeof(int)) &&
+       write_file(prefix, "list", l.list, texels * l.list_rows * sizeof(int)) &&
+       write_file(prefix, "groups", l.groups, texels * l.groups_rows * sizeof(int));
+  free(l.sources);
+  free(l.coefficients);
+  free(l.deformations);
+  free(l.cells);
+  free(l.list);
+  free(l.groups);
+  free(again.sources);
+  free(again.coefficients);
+  free(again.deformations);
+  free(again.cells);
+  free(again.list);
+  free(again.groups);
+  csrbf_destroy(deformer);
+  return ok ? 0 : fail("cannot write the GPU layout's files");
+}
+
 int main(int argc, char** argv) {
   double *vertices = NULL, *controls = NULL, *sources, *destinations, *moved, *buffer;
   size_t nv, nc, i;
@@ -72,7 +161,8 @@ int main(int argc, char** argv) {
   csrbf_deformer *deformer = NULL, *shared, *again = NULL;
   csrbf_result result;
   csrbf_vertex_buffer in, out;
-  if (argc != 4) return fail("usage: deform_fish MESH.obj CONTROLS RADIUS");
+  if (argc != 4 && argc != 8)
+    return fail("usage: deform_fish MESH.obj CONTROLS RADIUS [PREFIX WEIGHT KERNEL POLYNOMIAL]");
   nv = read_rows(argv[1], "v ", 3, &vertices);
   nc = read_rows(argv[2], "", 6, &controls);
   if (!nv || !nc) return fail("cannot read the mesh or the controls");
@@ -157,6 +247,13 @@ int main(int argc, char** argv) {
       return fail("a layout past the end of the address space was not refused");
   }
   (void)out;
+
+  if (argc == 8) {
+    csrbf_settings layout_settings = settings;
+    layout_settings.kernel = atoi(argv[6]);
+    layout_settings.polynomial = atoi(argv[7]);
+    if (gpu_layout(sources, destinations, nc, &layout_settings, atof(argv[5]), argv[4]) != 0) return 1;
+  }
 
   /* The answer: the fit at phase 1, in place. */
   memcpy(buffer, vertices, nv * 3 * sizeof(double));

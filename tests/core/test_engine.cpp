@@ -375,3 +375,107 @@ TEST(Engine, OverlappingPositionAndNormalAreRefused) {
   EXPECT_NE(std::string(d.deform(wrap, wrap).message).find("pass the end of the address space"), std::string::npos)
       << d.deform(wrap, wrap).message;
 }
+
+// The GPU layout of two deformers of different stages, held against brute force: the layout sorts
+// them by stage, places each one's sources, coefficients and grid after the one before, and every
+// cell lists exactly the sources within R of its box (the shader's neighbour search), by index into
+// the shared sources. The texel-for-texel match with csrbf_deformation.js is tests/capi's.
+TEST(Engine, GpuLayoutSortsByStageAndEveryCellListsExactlyTheSourcesWithinR) {
+  const Controls a = controls(60, 11), b = controls(25, 12);
+  engine::Settings s;
+  s.radius = 0.3;
+  engine::Deformer da, db;
+  ASSERT_TRUE(engine::Deformer::fit(a.s_flat.data(), a.d_flat.data(), 60, s, da));
+  s.radius = 0.45;
+  s.polynomial = engine::Polynomial::Linear;
+  ASSERT_TRUE(engine::Deformer::fit(b.s_flat.data(), b.d_flat.data(), 25, s, db));
+  const engine::GpuDeformation d[2] = {{da.handle(), 0.5, 1}, {db.handle(), -2.0, 0}};
+  engine::GpuLayout l{};
+  ASSERT_TRUE(engine::gpu_size(d, 2, l));
+  const std::size_t w = CSRBF_GPU_WIDTH;
+  std::vector<float> sources(4 * w * l.sources_rows), coefficients(4 * w * l.coefficients_rows),
+      deformations(4 * w * l.deformations_rows);
+  std::vector<int> cells(2 * w * l.cells_rows), list(w * l.list_rows), groups(w * l.groups_rows, 7);
+  l.sources = sources.data();
+  l.coefficients = coefficients.data();
+  l.deformations = deformations.data();
+  l.cells = cells.data();
+  l.list = list.data();
+  l.groups = groups.data();
+  ASSERT_TRUE(engine::gpu_fill(d, 2, l));
+  EXPECT_EQ(std::count(groups.begin(), groups.end(), 0), std::ptrdiff_t(groups.size()));
+
+  const SpaceMap ma = SpaceMap::fit(a.s, a.d, FitOptions{.radius = 0.3});
+  const SpaceMap mb = SpaceMap::fit(b.s, b.d, FitOptions{.radius = 0.45, .polynomial = Polynomial::Linear});
+  // Slot 0 is b (stage 0), slot 1 is a (stage 1).
+  const struct {
+    const SpaceMap* map;
+    double weight, stage;
+    std::size_t first_source;
+  } slots[2] = {{&mb, -2.0, 0, 0}, {&ma, 0.5, 1, 25}};
+  std::size_t cells_before = 0;
+  for (std::size_t slot = 0; slot < 2; ++slot) {
+    const auto& e = slots[slot];
+    const float* t = &deformations[32 * slot];
+    const double radius = e.map->radius();
+    EXPECT_EQ(t[0], float(radius));
+    EXPECT_EQ(t[1], 2.0f);  // C2
+    EXPECT_EQ(t[2], float(e.stage));
+    EXPECT_EQ(t[3], -1.0f);
+    EXPECT_EQ(t[11], float(cells_before));
+    EXPECT_EQ(t[15], 1.0f);  // a weight that is not 0
+    for (std::size_t i = 0; i < e.map->size(); ++i)
+      for (int k = 0; k < 3; ++k) {
+        EXPECT_EQ(sources[4 * (e.first_source + i) + std::size_t(k)], float(e.map->sources()[i][k]));
+        EXPECT_EQ(coefficients[4 * (e.first_source + i) + std::size_t(k)],
+                  float(e.weight * double(float(e.map->coefficients()(Eigen::Index(i), k)))));
+      }
+    if (e.map->polynomial() != Polynomial::None) {
+      const Eigen::Matrix<double, 4, 3> pc = e.map->polynomial_coefficients();
+      for (int r = 0; r < 4; ++r)
+        for (int k = 0; k < 3; ++k) EXPECT_EQ(t[12 + 4 * r + k], float(e.weight * double(float(pc(r, k)))));
+    }
+    // Every cell's list against brute force over the float sources and the cell's box.
+    const Vec3 origin(t[4], t[5], t[6]);
+    const double h = 1.0 / double(t[7]);
+    const std::size_t nx = std::size_t(t[8]), ny = std::size_t(t[9]), nz = std::size_t(t[10]);
+    ASSERT_LE(nx * ny * nz, std::size_t(1) << 18);
+    std::size_t listed = 0;
+    for (std::size_t z = 0; z < nz; ++z)
+      for (std::size_t y = 0; y < ny; ++y)
+        for (std::size_t x = 0; x < nx; ++x) {
+          const std::size_t c = cells_before + x + nx * (y + ny * z);
+          std::vector<int> got(list.begin() + cells[2 * c], list.begin() + cells[2 * c] + cells[2 * c + 1]), want;
+          for (std::size_t i = 0; i < e.map->size(); ++i) {
+            double d2 = 0;
+            for (int k = 0; k < 3; ++k) {
+              const double p = float(e.map->sources()[i][k]);
+              const double l = origin[k] + double(k == 0 ? x : k == 1 ? y : z) * h, u = l + h;
+              const double g = p < l ? l - p : p > u ? p - u : 0;
+              d2 += g * g;
+            }
+            // Box distances within 1e-4 R of R are left to rounding either way.
+            if (std::abs(std::sqrt(d2) - radius) < 1e-4 * radius) {
+              got.erase(std::remove(got.begin(), got.end(), int(e.first_source + i)), got.end());
+              continue;
+            }
+            if (d2 < radius * radius) want.push_back(int(e.first_source + i));
+          }
+          EXPECT_EQ(got, want) << "slot " << slot << " cell " << x << " " << y << " " << z;
+          listed += std::size_t(cells[2 * c + 1]);
+        }
+    EXPECT_GT(listed, e.map->size());  // sources near a cell's side are listed by its neighbours too
+    cells_before += nx * ny * nz;
+  }
+
+  // A new frame: gpu_update gives what a fill at the new weights gives; a stage below 0 is refused.
+  const engine::GpuDeformation next[2] = {{da.handle(), 0.0, 1}, {db.handle(), 1.0, 0}};
+  ASSERT_TRUE(engine::gpu_update(next, 2, l));
+  EXPECT_EQ(deformations[32 + 15], 0.0f);  // a (slot 1) at weight 0: skipped by the shader
+  EXPECT_EQ(coefficients[4 * 25], 0.0f);
+  EXPECT_EQ(coefficients[0], float(mb.coefficients()(0, 0)));
+  const engine::GpuDeformation bad[1] = {{da.handle(), 1.0, -1}};
+  const engine::Result r = engine::gpu_size(bad, 1, l);
+  EXPECT_EQ(r.status, engine::Status::InvalidInput);
+  EXPECT_NE(std::string(r.message).find("deformations[0].stage is -1"), std::string::npos) << r.message;
+}
