@@ -1,5 +1,5 @@
-// What the glTF exporter's phases share (gltf_export.cpp): the buffer and JSON builder, each object's
-// plan, the memory the export predicts, and the phases' declarations. Private to csrbf_render.
+// What the glTF exporter's phases share (export.cpp): the buffer and JSON builder, each object's
+// plan, the memory the export predicts, and the phases' declarations. Private to csrbf_gltf.
 #pragma once
 
 #include "csrbf/anim/scene.hpp"
@@ -7,7 +7,7 @@
 #include "csrbf/gltf/detail/meshopt_compress.hpp"
 #include "csrbf/gltf/glb.hpp"
 #include "csrbf/io/error.hpp"
-#include "csrbf/render/gltf_export.hpp"
+#include "csrbf/gltf/export.hpp"
 #include "csrbf/space_map.hpp"
 
 #include <nlohmann/json.hpp>
@@ -20,7 +20,7 @@
 #include <string>
 #include <vector>
 
-namespace csrbf::render::export_detail {
+namespace csrbf::gltf::export_detail {
 
 using gltf::MeshoptView;
 using nlohmann::json;
@@ -338,6 +338,7 @@ struct Document {
   json animation = {{"name", "scene"}, {"channels", json::array()}, {"samplers", json::array()}};
   std::map<std::string, std::size_t> images;  // file -> texture index
   bool any_compact = false;
+  const TextureSupport* textures = nullptr;  // the options' (texture coordinates, image check)
 
   void add_channel(std::size_t node, const char* path, std::size_t input, std::size_t output,
                    const char* interpolation);
@@ -346,7 +347,7 @@ struct Document {
   std::size_t material(const anim::Material& m, const std::string& name);
 };
 
-// The phases, in order (gltf_export_plan.cpp): sample times, which parts are baked, the exact
+// The phases, in order (export_plan.cpp): sample times, which parts are baked, the exact
 // targets, the memory bounds, the player's pass over the frames.
 void plan_sample_times(ExportPlan& plan);
 void plan_parts(ExportPlan& plan);
@@ -355,9 +356,9 @@ void plan_exact_targets(ExportPlan& plan);
 void check_export_memory(ExportPlan& plan);
 PlayedFrames play_frames(const ExportPlan& plan, anim::Player& player);
 
-/// Writes object o (gltf_export_object.cpp): its attributes, morph targets, CSRBF_deformation,
+/// Writes object o (export_object.cpp): its attributes, morph targets, CSRBF_deformation,
 /// primitives, nodes and channels; its report goes to plan.report.
 void write_object(const ExportPlan& plan, Document& doc, anim::Player& player, const PlayedFrames& played,
                   std::size_t o);
 
-}  // namespace csrbf::render::export_detail
+}  // namespace csrbf::gltf::export_detail

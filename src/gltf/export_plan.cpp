@@ -1,7 +1,7 @@
-// The glTF exporter's plan (see gltf_export_detail.hpp): the sample times, which parts are exact
+// The glTF exporter's plan (see export_detail.hpp): the sample times, which parts are exact
 // and which baked, the exact targets, the memory bounds checked before anything large is built,
 // and the player's pass over the frames; and the small helpers the phases share.
-#include "gltf_export_detail.hpp"
+#include "export_detail.hpp"
 
 #include "csrbf/io/memory.hpp"
 #include "csrbf/io/scene.hpp"
@@ -12,7 +12,7 @@
 #include <sstream>
 #include <string_view>
 
-namespace csrbf::render::export_detail {
+namespace csrbf::gltf::export_detail {
 
 namespace fs = std::filesystem;
 
@@ -427,4 +427,4 @@ PlayedFrames play_frames(const ExportPlan& plan, anim::Player& player) {
   return played;
 }
 
-}  // namespace csrbf::render::export_detail
+}  // namespace csrbf::gltf::export_detail

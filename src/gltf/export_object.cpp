@@ -1,16 +1,15 @@
-// The glTF exporter's writing of one object (see gltf_export_detail.hpp): its rest attributes, its
+// The glTF exporter's writing of one object (see export_detail.hpp): its rest attributes, its
 // morph targets (exact, then baked frames), CSRBF_deformation, primitives, nodes and channels.
-#include "gltf_export_detail.hpp"
+#include "export_detail.hpp"
 
 #include "csrbf/kernels.hpp"
-#include "texture_coordinates.hpp"
 
 #include <cctype>
 #include <cstdio>
 #include <numbers>
 #include <utility>
 
-namespace csrbf::render::export_detail {
+namespace csrbf::gltf::export_detail {
 namespace {
 
 /// One object's export: what its phases share, written in the order the glb holds it.
@@ -602,7 +601,11 @@ class ObjectWriter {
       if (!m.texture.empty()) {
         std::vector<float> uv;
         try {
-          uv = texture_coordinates(obj, face_list, m.mapping);
+          if (!ep_.options.textures.coordinates)
+            throw InvalidInput(
+                "has a texture, and the exporter was given no texture coordinates "
+                "(GltfOptions::textures; csrbf::render::export_gltf gives VTK's)");
+          uv = ep_.options.textures.coordinates(obj, face_list, m.mapping);
         } catch (const InvalidInput& e) {
           throw InvalidInput("export: " + b.where + " " +
                              (p < 0 ? std::string() : "part '" + obj.parts[std::size_t(p)].name + "' ") + e.what());
@@ -816,4 +819,4 @@ void write_object(const ExportPlan& plan, Document& doc, anim::Player& player, c
   ObjectWriter(plan, doc, player, played, o).write();
 }
 
-}  // namespace csrbf::render::export_detail
+}  // namespace csrbf::gltf::export_detail
