@@ -344,7 +344,7 @@ whether it is within memory_limit (GiB). Example: csrbf.estimate(points, 0.05)["
       },
       py::arg("sources"), py::arg("neighbours"),
       R"doc(The radius R at which each of the sources ((n, 3)) has `neighbours` other sources within R on
-average (from a seeded sample of 256). Example: csrbf.SpaceMap(s, d, csrbf.suggest_radius(s, 25)).)doc");
+average (from a seeded sample of up to 4096). Example: csrbf.SpaceMap(s, d, csrbf.suggest_radius(s, 25)).)doc");
 }
 
 /// Option names as csrbf::parse_name reads them, for csrbf/_interpolate.py.

@@ -53,7 +53,9 @@ inline constexpr double kSecondsPerEntry = 1.5e-7;
 FitEstimate estimate(std::span<const Vec3> sources, double radius, const FitOptions& options = {});
 
 /// The radius R at which a control has `neighbours` other controls within R on average (> 0),
-/// by bisection on the count of a seeded sample of the controls (at most 256; every one below).
+/// measured on a seeded sample of the controls (at most 4096; every one below): the distances to
+/// their neighbours found once with the neighbour grid, R the one that many fall within (the
+/// interpolator's radius="auto" measure; src/core/radius.cpp).
 /// Throws InvalidInput where `neighbours` is not within (0, N - 1) or there are fewer than 2 sources.
 double suggest_radius(std::span<const Vec3> sources, double neighbours);
 

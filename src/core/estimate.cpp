@@ -8,6 +8,7 @@
 #include "csrbf/units.hpp"
 #include "fit_state.hpp"
 #include "incomplete_cholesky.hpp"
+#include "radius.hpp"
 #include "sparse_solver.hpp"
 
 #include <algorithm>
@@ -156,22 +157,11 @@ double suggest_radius(std::span<const Vec3> sources, double neighbours) {
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  // Bisection on R (geometric: the count grows as a power of R), in a bracket from the box's
-  // diagonal D: k neighbours of n points fill about (k / n) of a line's length, of a plane's area or
-  // of a volume, so R lies near D (k / n)^(1/d) for the points' dimension d in 1..3. The bracket is
-  // widened where that guess fails; 1e-3 of R is far below the sample's own error.
-  const double diag = (hi - lo).norm();
-  if (!(diag > 0)) throw InvalidInput("suggest_radius: the sources are all at one point");
-  const double share = neighbours / double(n);
-  const auto count = [&](double r) { return estimate_fit_memory(sources, r).mean_neighbors; };
-  double a = 0.25 * diag * share, b = std::min(4.0 * diag * std::cbrt(share), diag * 1.0000001);
-  while (a > diag * 1e-12 && !(count(a) < neighbours)) a *= 0.01;
-  while (b < diag && !(count(b) >= neighbours)) b = std::min(b * 4, diag * 1.0000001);
-  for (int it = 0; it < 60 && b - a > 1e-3 * b; ++it) {
-    const double mid = std::sqrt(a * b);
-    (count(mid) < neighbours ? a : b) = mid;
-  }
-  return b;
+  if (!((hi - lo).norm() > 0)) throw InvalidInput("suggest_radius: the sources are all at one point");
+  // The interpolator's measure (radius.cpp): the distances of a seeded sample of up to 4096 sources
+  // to their neighbours, found once with the neighbour grid, the radius the one that many fall
+  // within; a bisection on R counting 256 sources at each of ~25 steps was 10x slower at 1e5.
+  return detail::neighbour_radius(sources, 3, neighbours);
 }
 
 }  // namespace csrbf

@@ -6,6 +6,7 @@
 #include "csrbf/units.hpp"
 
 #include "fit_state.hpp"
+#include "radius.hpp"
 #include "schwarz.hpp"
 
 #include <Eigen/SVD>
@@ -36,7 +37,6 @@ int terms_of(int degree, int dim) { return degree < 0 ? 0 : degree == 0 ? 1 : 1 
 std::string num(double v) { return format_significant(v, 6); }
 
 /// The volume of the unit ball in D dimensions.
-double unit_ball(int dim) { return dim == 1 ? 2.0 : dim == 2 ? std::numbers::pi : 4.0 / 3.0 * std::numbers::pi; }
 
 void validate(std::span<const double> points, int dim, std::span<const double> values, std::size_t v,
               const InterpolatorOptions& o) {
@@ -103,73 +103,6 @@ void validate(std::span<const double> points, int dim, std::span<const double> v
                        std::to_string(o.levels));
   if (!(o.memory_limit_bytes > 0))
     throw InvalidInput("memory_limit_bytes must be a number > 0, got " + num(o.memory_limit_bytes));
-}
-
-/// The radius at which a point of `pts` has `neighbors` others within R on average, measured on a
-/// seeded sample of kRadiusSample points: their distances to every point within a guess found with
-/// NeighborIndex (linear time; suggest_radius's bisection counts a sample against every point at each
-/// of its ~25 steps, 0.4 s at 1e5 points), the radius being the distance that many of them fall
-/// within. The guess comes from the box's volume in the dimensions it spans and doubles until the
-/// sample has enough neighbours. Where there are too few points to have that many neighbours, the
-/// box's diagonal (every point sees every other). Only the distances that can still be among the
-/// `neighbors` x sample smallest are kept (at most twice that many), and that count is held to kRadiusPairs by
-/// sampling fewer points for large `neighbors`: a guess far too large for clustered points (1e5
-/// points in a box of side 1e-3, 10 far away) found 4e8 distances, 3.2 GB and 30-50 s, where the
-/// memory limit allowed 0.5 GB.
-constexpr std::size_t kRadiusSample = 4096;
-constexpr double kRadiusPairs = double(std::size_t(1) << 22);
-double auto_radius(std::span<const Vec3> pts, int dim, double neighbors) {
-  const std::size_t n = pts.size();
-  Vec3 lo = pts[0], hi = pts[0];
-  for (const Vec3& p : pts) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  const double diag = (hi - lo).norm();
-  if (!(diag > 0)) return 1.0;  // one point, or all at one position (refused later as duplicates)
-  if (neighbors >= double(n) - 1) return diag * 1.0000001;
-  double volume = 1;
-  int spanned = 0;
-  for (int a = 0; a < dim; ++a)
-    if (hi[a] - lo[a] > 1e-9 * diag) {
-      volume *= hi[a] - lo[a];
-      ++spanned;
-    }
-  double r = std::pow(2.0 * neighbors / double(n) * volume / unit_ball(spanned), 1.0 / spanned);
-  r = std::clamp(r, 1e-8 * diag, diag);
-  const std::size_t samples =
-      std::min({n, kRadiusSample, std::max<std::size_t>(1, std::size_t(kRadiusPairs / std::max(neighbors, 1.0)))});
-  std::mt19937_64 rng(20261205);
-  std::vector<std::size_t> picked(samples);
-  for (std::size_t k = 0; k < samples; ++k) picked[k] = samples == n ? k : std::size_t(rng() % n);
-  const auto need = std::max<std::size_t>(1, std::size_t(std::ceil(neighbors * double(samples))));
-  // The squared distances found, cut back to the need smallest whenever they reach twice that
-  // (nth_element: linear, where a heap's pushes took 0.02 s of the common case).
-  std::vector<double> d2;
-  d2.reserve(2 * need);
-  const auto smallest = [&] { std::nth_element(d2.begin(), d2.begin() + std::ptrdiff_t(need - 1), d2.end()); };
-  for (;;) {
-    d2.clear();
-    double bound = std::numeric_limits<double>::infinity();  // the need-th smallest after a cut
-    const auto take = [&](std::size_t i, std::size_t j, double dd) {
-      if (j == i || dd >= bound) return;
-      d2.push_back(dd);
-      if (d2.size() == 2 * need) {
-        smallest();
-        d2.resize(need);
-        bound = d2[need - 1];
-      }
-    };
-    const NeighborIndex index(pts, r);  // its points sorted by cell by a counting sort (neighbor_index.cpp)
-    for (std::size_t i : picked) index.for_each_within(pts[i], [&](std::size_t j, double dd) { take(i, j, dd); });
-    if (d2.size() >= need) {
-      smallest();
-      // Just past the need-th distance, so that it counts (neighbours are strictly within R).
-      return std::max(std::sqrt(d2[need - 1]) * (1 + 1e-9), 1e-8 * diag);
-    }
-    if (r >= diag) return diag * 1.0000001;
-    r = std::min(2 * r, diag);
-  }
 }
 
 using Cell = std::array<std::int64_t, 3>;
@@ -258,8 +191,8 @@ LevelPlan plan_levels(std::span<const Vec3> all, int dim, const InterpolatorOpti
                            : multiscale          ? kMultiscaleNeighbors
                                                  : kDefaultNeighbors;
   plan.finest = options.radius > 0 ? options.radius
-                : multiscale       ? 0.5 * auto_radius(all, dim, neighbors)
-                                   : auto_radius(all, dim, neighbors);
+                : multiscale       ? 0.5 * detail::neighbour_radius(all, dim, neighbors)
+                                   : detail::neighbour_radius(all, dim, neighbors);
   {
     // The grid's rule, before the thinning's cells (at most 1e9 radii across, so that a cell of side
     // finest (ball / K)^(1/D), K <= 1e9, is numbered within 64 bits).
@@ -270,7 +203,7 @@ LevelPlan plan_levels(std::span<const Vec3> all, int dim, const InterpolatorOpti
     }
     NeighborIndex::check_extent(lo, hi, plan.finest, "points");
   }
-  const double cell = plan.finest * std::pow(unit_ball(dim) / neighbors, 1.0 / dim);
+  const double cell = plan.finest * std::pow(detail::unit_ball(dim) / neighbors, 1.0 / dim);
   if (multiscale) {
     // As many thinned levels as asked for, or (automatic) until the coarsest has at most
     // kCoarsestPoints points; never one of fewer than 2 points. A thinned level has one point an
