@@ -45,7 +45,7 @@ std::vector<double> float_sources(const SpaceMap& map) {
   return s;
 }
 
-Grid grid_of(const std::vector<double>& s, double radius, bool with_lists) {
+Grid grid_of(const std::vector<double>& s, double radius) {
   const std::size_t n = s.size() / 3;
   double lo[3], hi[3], extent[3];
   for (int k = 0; k < 3; ++k) {
@@ -73,7 +73,6 @@ Grid grid_of(const std::vector<double>& s, double radius, bool with_lists) {
     return product;
   };
   while (size_dims() > kMaxCells) g.h *= 1.25;
-  if (!with_lists) return g;
   const std::size_t cells = g.cells();
   g.count.assign(cells, 0);
   const double reach = radius * radius * (1 + 1e-6);
@@ -126,34 +125,43 @@ std::vector<std::size_t> order_of(const csrbf_gpu_deformation* d, std::size_t co
   return order;
 }
 
-struct Counts {
-  std::size_t sources = 0, cells = 0, listed = 0;
+/// The deformations' grids in the layout's order and where each one's sources, cells and list
+/// start (csrbf_deformation.js's firstSource, firstCell, firstListed), built once a call.
+struct Plan {
+  struct Slot {
+    std::size_t deformation = 0, first_source = 0, first_cell = 0, first_listed = 0;
+    Grid grid;
+  };
+  std::vector<Slot> slots;
+  std::size_t sources = 0, cells = 0, listed = 0;  // in all
 };
 
-template <class F>
-Counts walk(const csrbf_gpu_deformation* d, const std::vector<std::size_t>& order, bool with_lists, F&& each) {
-  Counts n;
+Plan plan_of(const csrbf_gpu_deformation* d, const std::vector<std::size_t>& order) {
+  Plan p;
   for (const std::size_t j : order) {
     const SpaceMap& map = *d[j].deformer->map;
-    const Grid g = grid_of(float_sources(map), map.radius(), with_lists);
-    each(j, map, g, n);
-    n.sources += map.size();
-    n.cells += g.cells();
-    n.listed += with_lists ? g.list.size() : 0;
-    if (n.cells > kMaxIndex || n.sources > kMaxIndex)
-      throw InvalidInput(std::to_string(n.sources) + " sources and " + std::to_string(n.cells) +
+    p.slots.push_back({j, p.sources, p.cells, p.listed, grid_of(float_sources(map), map.radius())});
+    const Grid& g = p.slots.back().grid;
+    p.sources += map.size();
+    p.cells += g.cells();
+    p.listed += g.list.size();
+    if (p.cells > kMaxIndex || p.sources > kMaxIndex)
+      throw InvalidInput(std::to_string(p.sources) + " sources and " + std::to_string(p.cells) +
                          " cells so far: the layout's float indices hold at most 2^24 of each");
   }
-  return n;
+  return p;
 }
 
-void set_rows(const csrbf_gpu_deformation* d, const std::vector<std::size_t>& order, csrbf_gpu_layout& l) {
-  const Counts n = walk(d, order, true, [](std::size_t, const SpaceMap&, const Grid&, const Counts&) {});
-  l.sources_rows = l.coefficients_rows = rows(n.sources);
-  l.deformations_rows = rows(8 * order.size());
-  l.cells_rows = rows(n.cells);
-  l.list_rows = rows(n.listed);
+/// The rows of every texture for `count` deformations of `sources` sources; cells and list rows
+/// from plan where given (csrbf_gpu_update needs only the weighted textures').
+csrbf_gpu_layout rows_of(std::size_t count, std::size_t sources, const Plan* plan) {
+  csrbf_gpu_layout l{};
+  l.sources_rows = l.coefficients_rows = rows(sources);
+  l.deformations_rows = rows(8 * count);
+  l.cells_rows = rows(plan ? plan->cells : 0);
+  l.list_rows = rows(plan ? plan->listed : 0);
   l.groups_rows = rows(0);
+  return l;
 }
 
 void check_rows(const csrbf_gpu_layout& l, const csrbf_gpu_layout& want, bool all) {
@@ -208,7 +216,14 @@ csrbf_status csrbf_gpu_size(const csrbf_gpu_deformation* deformations, size_t co
   return guarded(result, [&] {
     if (!layout) throw InvalidInput("layout is null");
     const auto order = order_of(deformations, count);
-    set_rows(deformations, order, *layout);
+    const Plan plan = plan_of(deformations, order);
+    const csrbf_gpu_layout r = rows_of(count, plan.sources, &plan);
+    layout->sources_rows = r.sources_rows;
+    layout->coefficients_rows = r.coefficients_rows;
+    layout->deformations_rows = r.deformations_rows;
+    layout->cells_rows = r.cells_rows;
+    layout->list_rows = r.list_rows;
+    layout->groups_rows = r.groups_rows;
   });
 }
 
@@ -218,27 +233,27 @@ csrbf_status csrbf_gpu_fill(const csrbf_gpu_deformation* deformations, size_t co
     if (!layout) throw InvalidInput("layout is null");
     csrbf_gpu_layout& l = *layout;
     const auto order = order_of(deformations, count);
-    csrbf_gpu_layout want{};
-    set_rows(deformations, order, want);
-    check_rows(l, want, true);
+    const Plan plan = plan_of(deformations, order);
+    check_rows(l, rows_of(count, plan.sources, &plan), true);
     std::fill_n(l.sources, 4 * kWidth * l.sources_rows, 0.0f);
     std::fill_n(l.deformations, 4 * kWidth * l.deformations_rows, 0.0f);
     std::fill_n(l.cells, 2 * kWidth * l.cells_rows, 0);
     std::fill_n(l.list, kWidth * l.list_rows, 0);
     std::fill_n(l.groups, kWidth * l.groups_rows, 0);
-    std::size_t slot = 0;
-    walk(deformations, order, true, [&](std::size_t j, const SpaceMap& map, const Grid& g, const Counts& at) {
+    for (std::size_t slot = 0; slot < plan.slots.size(); ++slot) {
+      const Plan::Slot& at = plan.slots[slot];
+      const SpaceMap& map = *deformations[at.deformation].deformer->map;
+      const Grid& g = at.grid;
       for (std::size_t i = 0; i < map.size(); ++i)
-        for (int k = 0; k < 3; ++k) l.sources[4 * (at.sources + i) + std::size_t(k)] = float(map.sources()[i][k]);
+        for (int k = 0; k < 3; ++k) l.sources[4 * (at.first_source + i) + std::size_t(k)] = float(map.sources()[i][k]);
       for (std::size_t c = 0; c < g.cells(); ++c) {
-        l.cells[2 * (at.cells + c)] = int(at.listed) + g.first[c];
-        l.cells[2 * (at.cells + c) + 1] = g.count[c];
+        l.cells[2 * (at.first_cell + c)] = int(at.first_listed) + g.first[c];
+        l.cells[2 * (at.first_cell + c) + 1] = g.count[c];
       }
-      for (std::size_t k = 0; k < g.list.size(); ++k) l.list[at.listed + k] = int(at.sources) + g.list[k];
-      float* t = l.deformations + 32 * slot++;
+      for (std::size_t k = 0; k < g.list.size(); ++k) l.list[at.first_listed + k] = int(at.first_source) + g.list[k];
       const float head[12] = {float(map.radius()),
                               float(kernel_smoothness(map.kernel())),
-                              float(deformations[j].stage),
+                              float(deformations[at.deformation].stage),
                               -1.0f,
                               float(g.origin[0]),
                               float(g.origin[1]),
@@ -247,9 +262,9 @@ csrbf_status csrbf_gpu_fill(const csrbf_gpu_deformation* deformations, size_t co
                               float(g.dims[0]),
                               float(g.dims[1]),
                               float(g.dims[2]),
-                              float(at.cells)};
-      std::copy_n(head, 12, t);
-    });
+                              float(at.first_cell)};
+      std::copy_n(head, 12, l.deformations + 32 * slot);
+    }
     fill_weighted(deformations, order, l);
   });
 }
@@ -259,12 +274,9 @@ csrbf_status csrbf_gpu_update(const csrbf_gpu_deformation* deformations, size_t 
   return guarded(result, [&] {
     if (!layout) throw InvalidInput("layout is null");
     const auto order = order_of(deformations, count);
-    csrbf_gpu_layout want{};
     std::size_t sources = 0;
     for (const std::size_t j : order) sources += deformations[j].deformer->map->size();
-    want.coefficients_rows = rows(sources);
-    want.deformations_rows = rows(8 * order.size());
-    check_rows(*layout, want, false);
+    check_rows(*layout, rows_of(count, sources, nullptr), false);
     fill_weighted(deformations, order, *layout);
   });
 }

@@ -79,6 +79,37 @@ static int write_file(const char* prefix, const char* name, const void* data, si
   return fclose(f) == 0 && written == bytes;
 }
 
+/* A texture's bytes: `per_texel` scalars a texel, CSRBF_GPU_WIDTH texels a row. */
+static size_t texture_bytes(size_t rows, size_t per_texel, size_t scalar) {
+  return rows * CSRBF_GPU_WIDTH * per_texel * scalar;
+}
+#define SOURCES_BYTES(l) texture_bytes((l).sources_rows, 4, sizeof(float))
+#define COEFFICIENTS_BYTES(l) texture_bytes((l).coefficients_rows, 4, sizeof(float))
+#define DEFORMATIONS_BYTES(l) texture_bytes((l).deformations_rows, 4, sizeof(float))
+#define CELLS_BYTES(l) texture_bytes((l).cells_rows, 2, sizeof(int))
+#define LIST_BYTES(l) texture_bytes((l).list_rows, 1, sizeof(int))
+#define GROUPS_BYTES(l) texture_bytes((l).groups_rows, 1, sizeof(int))
+
+/* The six textures of l's rows, allocated; 0 where one could not be. */
+static int allocate_layout(csrbf_gpu_layout* l) {
+  l->sources = (float*)malloc(SOURCES_BYTES(*l));
+  l->coefficients = (float*)malloc(COEFFICIENTS_BYTES(*l));
+  l->deformations = (float*)malloc(DEFORMATIONS_BYTES(*l));
+  l->cells = (int*)malloc(CELLS_BYTES(*l));
+  l->list = (int*)malloc(LIST_BYTES(*l));
+  l->groups = (int*)malloc(GROUPS_BYTES(*l));
+  return l->sources && l->coefficients && l->deformations && l->cells && l->list && l->groups;
+}
+
+static void free_layout(csrbf_gpu_layout* l) {
+  free(l->sources);
+  free(l->coefficients);
+  free(l->deformations);
+  free(l->cells);
+  free(l->list);
+  free(l->groups);
+}
+
 /* The GPU layout of the fit with these settings at weight, checked on the way (rows refused by
  * name, csrbf_gpu_update equal to a fill at the new weight), written as prefix.<texture>.bin. */
 static int gpu_layout(const double* sources, const double* destinations, size_t nc, const csrbf_settings* settings,
@@ -87,7 +118,6 @@ static int gpu_layout(const double* sources, const double* destinations, size_t 
   csrbf_gpu_deformation g;
   csrbf_gpu_layout l, again;
   csrbf_result result;
-  size_t texels;
   int ok;
   if (csrbf_fit(sources, destinations, nc, settings, &deformer, &result) != CSRBF_OK) return fail(result.message);
   g.deformer = deformer;
@@ -97,20 +127,13 @@ static int gpu_layout(const double* sources, const double* destinations, size_t 
   if (csrbf_gpu_size(&g, 1, &l, &result) != CSRBF_OK) return fail(result.message);
   if (l.deformations_rows != 1 || l.groups_rows != 1 || l.sources_rows != l.coefficients_rows)
     return fail("csrbf_gpu_size: unexpected rows for one deformation");
-  texels = CSRBF_GPU_WIDTH;
-  l.sources = (float*)malloc(4 * texels * l.sources_rows * sizeof(float));
-  l.coefficients = (float*)malloc(4 * texels * l.coefficients_rows * sizeof(float));
-  l.deformations = (float*)malloc(4 * texels * l.deformations_rows * sizeof(float));
-  l.cells = (int*)malloc(2 * texels * l.cells_rows * sizeof(int));
-  l.list = (int*)malloc(texels * l.list_rows * sizeof(int));
-  l.groups = (int*)malloc(texels * l.groups_rows * sizeof(int));
-  if (!l.sources || !l.coefficients || !l.deformations || !l.cells || !l.list || !l.groups)
-    return fail("out of memory");
-  /* A layout of other rows than csrbf_gpu_size's: refused by name, nothing written. */
   again = l;
+  if (!allocate_layout(&l) || !allocate_layout(&again)) return fail("out of memory");
+  /* A layout of other rows than csrbf_gpu_size's: refused by name, nothing written. */
   again.list_rows += 1;
   if (csrbf_gpu_fill(&g, 1, &again, &result) != CSRBF_INVALID_INPUT || !strstr(result.message, "layout.list_rows"))
     return fail("csrbf_gpu_fill took a layout of the wrong rows");
+  again.list_rows = l.list_rows;
   g.stage = -1;
   if (csrbf_gpu_fill(&g, 1, &l, &result) != CSRBF_INVALID_INPUT || !strstr(result.message, "deformations[0].stage"))
     return fail("csrbf_gpu_fill took a negative stage");
@@ -119,37 +142,17 @@ static int gpu_layout(const double* sources, const double* destinations, size_t 
   if (csrbf_gpu_fill(&g, 1, &l, &result) != CSRBF_OK) return fail(result.message);
   g.weight = weight;
   if (csrbf_gpu_update(&g, 1, &l, &result) != CSRBF_OK) return fail(result.message);
-  again.list_rows = l.list_rows;
-  again.coefficients = (float*)malloc(4 * texels * l.coefficients_rows * sizeof(float));
-  again.deformations = (float*)malloc(4 * texels * l.deformations_rows * sizeof(float));
-  again.sources = (float*)malloc(4 * texels * l.sources_rows * sizeof(float));
-  again.cells = (int*)malloc(2 * texels * l.cells_rows * sizeof(int));
-  again.list = (int*)malloc(texels * l.list_rows * sizeof(int));
-  again.groups = (int*)malloc(texels * l.groups_rows * sizeof(int));
-  if (!again.coefficients || !again.deformations || !again.sources || !again.cells || !again.list || !again.groups)
-    return fail("out of memory");
   if (csrbf_gpu_fill(&g, 1, &again, &result) != CSRBF_OK) return fail(result.message);
-  if (memcmp(again.coefficients, l.coefficients, 4 * texels * l.coefficients_rows * sizeof(float)) ||
-      memcmp(again.deformations, l.deformations, 4 * texels * l.deformations_rows * sizeof(float)))
+  if (memcmp(again.coefficients, l.coefficients, COEFFICIENTS_BYTES(l)) ||
+      memcmp(again.deformations, l.deformations, DEFORMATIONS_BYTES(l)))
     return fail("csrbf_gpu_update differs from csrbf_gpu_fill at the same weight");
-  ok = write_file(prefix, "sources", l.sources, 4 * texels * l.sources_rows * sizeof(float)) &&
-       write_file(prefix, "coefficients", l.coefficients, 4 * texels * l.coefficients_rows * sizeof(float)) &&
-       write_file(prefix, "deformations", l.deformations, 4 * texels * l.deformations_rows * sizeof(float)) &&
-       write_file(prefix, "cells", l.cells, 2 * texels * l.cells_rows * sizeof(int)) &&
-       write_file(prefix, "list", l.list, texels * l.list_rows * sizeof(int)) &&
-       write_file(prefix, "groups", l.groups, texels * l.groups_rows * sizeof(int));
-  free(l.sources);
-  free(l.coefficients);
-  free(l.deformations);
-  free(l.cells);
-  free(l.list);
-  free(l.groups);
-  free(again.sources);
-  free(again.coefficients);
-  free(again.deformations);
-  free(again.cells);
-  free(again.list);
-  free(again.groups);
+  ok = write_file(prefix, "sources", l.sources, SOURCES_BYTES(l)) &&
+       write_file(prefix, "coefficients", l.coefficients, COEFFICIENTS_BYTES(l)) &&
+       write_file(prefix, "deformations", l.deformations, DEFORMATIONS_BYTES(l)) &&
+       write_file(prefix, "cells", l.cells, CELLS_BYTES(l)) && write_file(prefix, "list", l.list, LIST_BYTES(l)) &&
+       write_file(prefix, "groups", l.groups, GROUPS_BYTES(l));
+  free_layout(&l);
+  free_layout(&again);
   csrbf_destroy(deformer);
   return ok ? 0 : fail("cannot write the GPU layout's files");
 }
