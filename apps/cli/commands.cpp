@@ -30,29 +30,6 @@ void check_not_an_input(const std::string& option, const std::filesystem::path& 
   }
 }
 
-#ifdef CSRBF_WITH_MPI
-nlohmann::json rank_stats_json(const std::vector<mpi::RankStats>& ranks) {
-  nlohmann::json a = nlohmann::json::array();
-  for (const auto& r : ranks)
-    a.push_back({{"rank", r.rank},
-                 {"controls_owned", r.controls_owned},
-                 {"controls_halo", r.controls_halo},
-                 {"controls_shared_dropped", r.controls_dropped},
-                 {"eval_halo", r.eval_halo},
-                 {"points", r.points},
-                 {"matrix_nonzeros", r.matrix_nonzeros},
-                 {"peak_bytes", r.peak_bytes},
-                 {"bytes_sent", r.bytes_sent},
-                 {"seconds",
-                  {{"halo", r.seconds_halo},
-                   {"assembly", r.seconds_assembly},
-                   {"solve", r.seconds_solve},
-                   {"residual", r.seconds_residual},
-                   {"evaluate", r.seconds_evaluate}}}});
-  return a;
-}
-#endif
-
 std::vector<std::string> solver_choices() {
   std::vector<std::string> v = names<Solver>();
   v.push_back("mumps");

@@ -1,9 +1,5 @@
 #pragma once
 
-#ifdef CSRBF_WITH_MPI
-#include "csrbf/mpi/distributed.hpp"
-#endif
-
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -18,11 +14,6 @@
 #include <string>
 
 namespace csrbf::cli {
-
-#ifdef CSRBF_WITH_MPI
-/// Each MPI rank's figures, for --json under mpirun (deform and morph).
-nlohmann::json rank_stats_json(const std::vector<mpi::RankStats>& ranks);
-#endif
 
 /// Refuses (UsageError, exit 2) an output that is one of the command's inputs: the same file by
 /// device and inode once links are followed, so that a symbolic or hard link to an input is that

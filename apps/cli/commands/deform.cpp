@@ -9,9 +9,6 @@
 #include "csrbf/units.hpp"
 
 #include <nlohmann/json.hpp>
-#ifdef CSRBF_WITH_MPI
-#include "csrbf/mpi/backends.hpp"
-#endif
 
 #include <chrono>
 #include <cmath>
@@ -34,10 +31,7 @@ CLI::App* add_deform_command(CLI::App& app, DeformArgs& a) {
   return deform;
 }
 
-namespace {
-
-/// -o: a new file of a format csrbf writes, not one of the inputs (before anything large is read).
-void check_output(const DeformArgs& a) {
+void check_deform_output(const DeformArgs& a) {
   io::check_output_path(io::resolve_output(a.mesh_out));
   check_not_an_input("-o", a.mesh_out, deform_inputs(a.fit, a.mesh_in));
   io::must_be_new(io::resolve_output(a.mesh_out));
@@ -45,6 +39,8 @@ void check_output(const DeformArgs& a) {
     throw UsageError("-o: unknown output format '" + std::filesystem::path(a.mesh_out).extension().string() +
                      "' (use .obj, .ply, .off, .xyz, .stl, .gltf or .glb)");
 }
+
+namespace {
 
 /// assimp's writers build the scene again and copy it (measured, 500k vertices and 1M faces, and 1M
 /// and 200k: glTF 290 bytes a vertex and 270 a face, STL 25 and 210), with a tenth more: kept from
@@ -73,7 +69,7 @@ double writer_reserve(const DeformArgs& a, const io::MeshDocument& mesh) {
 }  // namespace
 
 int run_deform(DeformArgs& a) {
-  check_output(a);
+  check_deform_output(a);
   const auto t0 = std::chrono::steady_clock::now();
   auto mesh = io::MeshDocument::load(a.mesh_in, a.fit.memory_limit_gib * kGiB);
   a.fit.reserve_bytes = writer_reserve(a, mesh);
@@ -100,77 +96,5 @@ int run_deform(DeformArgs& a) {
             << " -> " << printable(a.mesh_out) << " (" << ms << " ms)\n";
   return 0;
 }
-
-#ifdef CSRBF_WITH_MPI
-int run_deform_distributed(csrbf::mpi::Runtime& rt, const DeformArgs& da) {
-  const FitArgs& fa = da.fit;
-  namespace mpi = csrbf::mpi;
-  if (rt.rank() != 0) return mpi::serve(rt.comm());
-  const auto solver = mpi::parse_distributed_solver(fa.solver);
-  mpi::ScatterBackend backend(rt.comm(), solver.value_or(mpi::DistributedSolver::Auto));
-  int code = 0;
-  try {
-    check_output(da);
-    const auto t0 = std::chrono::steady_clock::now();
-    auto mesh = csrbf::io::MeshDocument::load(da.mesh_in, fa.memory_limit_gib * csrbf::kGiB);
-    FitInput in = read_fit_input(fa, &mesh, da.mesh_in, true);
-    const double phase = !da.phase_given && in.phase ? *in.phase : da.phase;
-    auto& p = mesh.positions();
-    std::vector<csrbf::Vec3> part;  // the active area's vertices, or all
-    if (in.area)
-      for (const auto v : in.area->vertices) part.push_back(p.at(v));
-    std::span<const csrbf::Vec3> evaluated =
-        in.area ? std::span<const csrbf::Vec3>(part) : std::span<const csrbf::Vec3>(p);
-    backend.balance(evaluated);
-    std::vector<std::uint64_t> ids(in.controls.sources.size());
-    for (std::size_t i = 0; i < ids.size(); ++i) ids[i] = in.controls.lines.empty() ? i : in.controls.lines[i];
-    auto mapping = backend.fit(in.controls.sources, in.controls.destinations, in.options, ids);
-    std::vector<csrbf::Vec3> moved(evaluated.size());
-    mapping->apply(evaluated, moved, phase);
-    std::size_t count = 0;
-    for (std::size_t i = 0; i < moved.size(); ++i) {
-      const std::size_t v = in.area ? in.area->vertices[i] : i;
-      count += p[v] != moved[i];
-      p[v] = moved[i];
-    }
-    const auto t1 = std::chrono::steady_clock::now();
-    mesh.save(da.mesh_out);
-    const auto ranks = backend.rank_stats();
-    const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-    if (da.json) {
-      nlohmann::json j{{"vertices", p.size()},
-                       {"moved", count},
-                       {"controls", backend.stats().controls},
-                       {"ranks", ranks.size()},
-                       {"solver", mpi::distributed_solver_name(backend.stats().solver)},
-                       {"iterations", backend.stats().iterations},
-                       {"residual_relative", backend.stats().residual_relative},
-                       {"ms", ms},
-                       {"per_rank", csrbf::cli::rank_stats_json(ranks)}};
-      std::cout << j.dump(2) << '\n';
-    } else {
-      std::cout << "csrbf deform: " << p.size() << " vertices (" << count << " moved) of "
-                << csrbf::printable(da.mesh_in) << " by " << backend.stats().controls << " controls on " << ranks.size()
-                << " ranks (" << mpi::distributed_solver_name(backend.stats().solver) << "), R = " << in.options.radius
-                << ", phase " << phase << " -> " << csrbf::printable(da.mesh_out) << " (" << ms << " ms)\n";
-    }
-  } catch (const UsageError& e) {
-    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
-    code = 2;
-  } catch (const mpi::Failure& e) {
-    std::cerr << "csrbf: error: " << csrbf::printable(e.what())
-              << (e.rank() ? " (rank " + std::to_string(e.rank()) + ")" : "") << '\n';
-    code = e.exit_code();
-  } catch (const std::bad_alloc&) {
-    std::cerr << "csrbf: error: out of memory on rank 0 (it holds the whole mesh: docs/DISTRIBUTED.md)\n";
-    code = 1;
-  } catch (const std::exception& e) {
-    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
-    code = 1;
-  }
-  backend.finish(code);
-  return code;
-}
-#endif
 
 }  // namespace csrbf::cli

@@ -8,10 +8,6 @@
 
 #include <string>
 
-#ifdef CSRBF_WITH_MPI
-#include "csrbf/mpi/runtime.hpp"
-#endif
-
 namespace csrbf::cli {
 
 struct DeformArgs {
@@ -24,11 +20,9 @@ struct DeformArgs {
 
 CLI::App* add_deform_command(CLI::App& app, DeformArgs& a);
 int run_deform(DeformArgs& a);
-#ifdef CSRBF_WITH_MPI
-/// `mpirun -np K csrbf deform` (K > 1): rank 0 reads the mesh and the controls, the fit and the
-/// evaluation are spread over the ranks (csrbf::mpi::ScatterBackend), rank 0 writes. The other
-/// ranks serve until rank 0 is done, and exit with its status.
-int run_deform_distributed(mpi::Runtime& rt, const DeformArgs& a);
-#endif
+
+/// -o: a new file of a format csrbf writes, not one of the inputs (UsageError; checked before
+/// anything large is read). Shared with the distributed run (distributed.cpp).
+void check_deform_output(const DeformArgs& a);
 
 }  // namespace csrbf::cli

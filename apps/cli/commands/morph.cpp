@@ -5,18 +5,12 @@
 #include "progress.hpp"
 #include "csrbf/morph/job.hpp"
 #include "csrbf/names.hpp"
+#include "csrbf/units.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <iostream>
-#ifdef CSRBF_WITH_MPI
-#include "csrbf/mpi/backends.hpp"
-#include "csrbf/mpi/runtime.hpp"
-#include "csrbf/units.hpp"
-
-#include <filesystem>
-#endif
 
 namespace csrbf::cli {
 
@@ -103,9 +97,7 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a) {
   return cmd;
 }
 
-namespace {
-
-morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
+morph::MorphJob job_of(const MorphArgs& a, bool distributed) {
   morph::MorphJob job;
   job.mesh = a.mesh;
   job.motion = a.motion;
@@ -138,18 +130,7 @@ morph::MorphJob job_of(const MorphArgs& a, bool distributed = false) {
   return job;
 }
 
-/// f(), its JobError (contradicting options) a usage error.
-template <class F>
-auto usage_errors(F&& f) {
-  try {
-    return f();
-  } catch (const morph::JobError& e) {
-    throw UsageError(std::string("morph: ") + e.what());
-  }
-}
-
-/// The exit status of an outcome: 1 where the morph inverts cells and nothing was written.
-int report_inversion(const MorphArgs& a, const morph::MorphOutcome& o, bool speak = true) {
+int report_inversion(const MorphArgs& a, const morph::MorphOutcome& o, bool speak) {
   if (o.inverts && !o.written) {
     if (speak)
       std::cerr << "csrbf: error: the morph inverts " << o.after.inverted_cells() - o.before.inverted_cells()
@@ -165,10 +146,8 @@ int report_inversion(const MorphArgs& a, const morph::MorphOutcome& o, bool spea
   return 0;
 }
 
-}  // namespace
-
 int run_morph(const MorphArgs& a) {
-  const morph::MorphJob job = job_of(a);
+  const morph::MorphJob job = job_of(a, false);
   {
     std::error_code ec;
     if (std::filesystem::is_directory(std::filesystem::path(a.mesh) / "processor0", ec))
@@ -195,132 +174,7 @@ int run_morph(const MorphArgs& a) {
   const morph::MorphOutcome o = usage_errors([&] { return morph::run_job(job_shown); });
   progress.end();
   std::cout << (a.json ? morph::outcome_json(o) + "\n" : csrbf::printable(morph::outcome_text(o), true));
-  return report_inversion(a, o);
+  return report_inversion(a, o, true);
 }
-
-#ifdef CSRBF_WITH_MPI
-namespace {
-
-void print_outcome(const MorphArgs& a, const morph::MorphOutcome& o, const std::vector<mpi::RankStats>& ranks,
-                   const mpi::DistributedStats& st, const char* mode) {
-  if (a.json) {
-    nlohmann::json j = nlohmann::json::parse(morph::outcome_json(o));
-    j["controls"] = st.controls;
-    j["solver"] = mpi::distributed_solver_name(st.solver);
-    j["distributed"] = {{"mode", mode},
-                        {"ranks", ranks.size()},
-                        {"iterations", st.iterations},
-                        {"fell_back", st.fell_back},
-                        {"residual_relative", st.residual_relative}};
-    j["per_rank"] = rank_stats_json(ranks);
-    std::cout << j.dump(2) << '\n';
-    return;
-  }
-  std::cout << csrbf::printable(morph::outcome_text(o), true) << "  distributed (" << mode << ") over " << ranks.size()
-            << " ranks: " << st.controls << " controls, solver " << mpi::distributed_solver_name(st.solver) << "\n";
-  for (const auto& r : ranks)
-    std::cout << "    rank " << r.rank << ": " << r.controls_owned << " controls (+" << r.controls_halo << " halo), "
-              << r.points << " points evaluated, peak " << double(r.peak_bytes) / double(1 << 20) << " MiB, sent "
-              << double(r.bytes_sent) / double(1 << 20) << " MiB\n";
-}
-
-}  // namespace
-
-int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt) {
-  const auto solver = mpi::parse_distributed_solver(a.solver).value_or(mpi::DistributedSolver::Auto);
-  const auto print_error = [&](const std::string& what, int rank) {
-    if (rt.rank() == 0)
-      std::cerr << "csrbf: error: " << what << (rank > 0 ? " (rank " + std::to_string(rank) + ")" : "") << '\n';
-  };
-  mpi::Decomposition d;
-  try {
-    d = mpi::collectively(rt.comm(), [&] { return mpi::find_decomposition(a.mesh); });
-  } catch (const mpi::Failure& f) {
-    print_error(f.what(), f.rank());
-    return f.exit_code();
-  }
-  if (d.kind != mpi::Decomposition::Kind::None) {
-    // A decomposed mesh: every rank its processor folder, or its piece of a .pvtu.
-    const int parts = int(d.parts.size());
-    const std::string what = d.kind == mpi::Decomposition::Kind::OpenFoam ? " processor folders" : " pieces";
-    try {
-      mpi::collectively(rt.comm(), [&] {
-        if (parts != rt.size())
-          throw morph::JobError("morph: " + a.mesh + " is decomposed into " + std::to_string(parts) + what +
-                                ": run it with mpirun -np " + std::to_string(parts) + ", not " +
-                                std::to_string(rt.size()));
-      });
-    } catch (const mpi::Failure& f) {
-      print_error(f.what(), -1);
-      return 2;
-    }
-    mpi::DecomposedBackend backend(rt.comm(), solver, std::move(d));
-    morph::MorphJob job;
-    try {
-      job = job_of(a, true);  // the same on every rank: its usage errors too
-    } catch (const UsageError& e) {
-      if (rt.rank() == 0) std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
-      return 2;
-    }
-    job.backend = &backend;
-    TerminalProgress progress(rt.rank() == 0 && !a.quiet && TerminalProgress::terminal());
-    job.progress = &progress;
-    try {
-      const morph::MorphOutcome local = morph::run_job(job);
-      progress.end();
-      const auto ranks = backend.rank_stats();
-      morph::MorphOutcome o = local;
-      o.points = std::size_t(backend.sum(double(local.points)));
-      o.result.report.prescribed = std::size_t(backend.sum(double(local.result.report.prescribed)));
-      o.result.report.moving = std::size_t(backend.sum(double(local.result.report.moving)));
-      o.result.report.fixed = std::size_t(backend.sum(double(local.result.report.fixed)));
-      o.result.report.slip = std::size_t(backend.sum(double(local.result.report.slip)));
-      o.result.report.controls = backend.stats().controls;  // shared points once
-      o.ms_read = backend.max(local.ms_read);
-      o.ms_quality = backend.max(local.ms_quality);
-      o.ms_write = backend.max(local.ms_write);
-      o.ms_total = backend.max(local.ms_total);
-      o.result.report.seconds_fit = backend.max(local.result.report.seconds_fit);
-      o.result.report.seconds_evaluate = backend.max(local.result.report.seconds_evaluate);
-      if (rt.rank() == 0) print_outcome(a, o, ranks, backend.stats(), "decomposed");
-      const int code = report_inversion(a, o, rt.rank() == 0);
-      return code;
-    } catch (const mpi::Failure& f) {
-      print_error(f.what(), f.rank());
-      return f.exit_code();
-    } catch (const std::exception& e) {
-      // Not agreed with the other ranks, which may wait for this one: report, and end the job.
-      std::cerr << "csrbf: error (rank " << rt.rank() << "): " << csrbf::printable(e.what()) << '\n';
-      MPI_Abort(rt.comm(), 1);
-    }
-  }
-  // A single file: rank 0 reads and writes it; the fit and evaluation are spread.
-  if (rt.rank() != 0) return mpi::serve(rt.comm());
-  mpi::ScatterBackend backend(rt.comm(), solver);
-  int code = 0;
-  try {
-    morph::MorphJob job = job_of(a, true);
-    job.backend = &backend;
-    TerminalProgress progress(!a.quiet && TerminalProgress::terminal());
-    job.progress = &progress;
-    const morph::MorphOutcome o = usage_errors([&] { return morph::run_job(job); });
-    progress.end();
-    const auto ranks = backend.rank_stats();
-    print_outcome(a, o, ranks, backend.stats(), "scattered from rank 0");
-    code = report_inversion(a, o);
-  } catch (const UsageError& e) {
-    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
-    code = 2;
-  } catch (const mpi::Failure& f) {
-    print_error(f.what(), f.rank());
-    code = f.exit_code();
-  } catch (const std::exception& e) {
-    std::cerr << "csrbf: error: " << csrbf::printable(e.what()) << '\n';
-    code = 1;
-  }
-  backend.finish(code);
-  return code;
-}
-#endif
 
 }  // namespace csrbf::cli

@@ -1,5 +1,8 @@
 #pragma once
 
+#include "csrbf/errors.hpp"
+#include "csrbf/morph/job.hpp"
+
 #include <CLI/CLI.hpp>
 
 #include <optional>
@@ -29,16 +32,23 @@ CLI::App* add_morph_command(CLI::App& app, MorphArgs& a);
 /// or 2 for a UsageError).
 int run_morph(const MorphArgs& a);
 
-#ifdef CSRBF_WITH_MPI
-}  // namespace csrbf::cli
-namespace csrbf::mpi {
-class Runtime;
+// Shared with the distributed run (distributed.cpp):
+
+/// The job of the options; distributed refuses what runs in one process only (UsageError).
+morph::MorphJob job_of(const MorphArgs& a, bool distributed);
+
+/// The exit status of an outcome: 1 where the morph inverts cells and nothing was written (said on
+/// stderr if speak).
+int report_inversion(const MorphArgs& a, const morph::MorphOutcome& o, bool speak);
+
+/// f(), its JobError (contradicting options) a usage error.
+template <class F>
+auto usage_errors(F&& f) {
+  try {
+    return f();
+  } catch (const morph::JobError& e) {
+    throw UsageError(std::string("morph: ") + e.what());
+  }
 }
-namespace csrbf::cli {
-/// `mpirun -np K csrbf morph` (K > 1): a decomposed OpenFOAM case (processor folders, one a rank:
-/// each rank morphs its own), or a single mesh that rank 0 reads and writes while the fit and the
-/// evaluation are spread over the ranks. Every rank returns the same status.
-int run_morph_distributed(const MorphArgs& a, mpi::Runtime& rt);
-#endif
 
 }  // namespace csrbf::cli
