@@ -5,6 +5,8 @@
 
 #include <gtest/gtest.h>
 
+#include "gltf/glb_of.hpp"
+
 #include <cstdint>
 #include <cstring>
 #include <string>
@@ -15,16 +17,12 @@ using namespace csrbf::gltf;
 
 namespace {
 
+using test::glb_of;
+
 std::uint32_t u32_at(const std::vector<unsigned char>& b, std::size_t at) {
   std::uint32_t v;
   std::memcpy(&v, b.data() + at, 4);
   return v;
-}
-
-std::vector<unsigned char> glb_of(const std::string& json, const std::vector<unsigned char>& bin) {
-  std::vector<unsigned char> glb = glb_head(json, bin.size(), "test");
-  glb.insert(glb.end(), bin.begin(), bin.end());
-  return glb;
 }
 
 std::string message_of(const std::vector<unsigned char>& glb) {

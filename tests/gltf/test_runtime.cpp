@@ -1,12 +1,12 @@
-// The glb runtime (csrbf/gltf/runtime.hpp) and EXT_meshopt_compression's reader (csrbf/gltf/meshopt.hpp)
-// on small files written here: what they refuse before meshoptimizer's decoders or the player would
-// fail on it.
+// The glb runtime (csrbf/gltf/runtime.hpp) on small files written here: what it refuses before the
+// player would fail on it.
 #include "csrbf/errors.hpp"
 #include "csrbf/gltf/glb.hpp"
-#include "csrbf/gltf/meshopt.hpp"
 #include "csrbf/gltf/runtime.hpp"
 
 #include <gtest/gtest.h>
+
+#include "gltf/glb_of.hpp"
 
 #include <cstring>
 #include <string>
@@ -17,11 +17,7 @@ using namespace csrbf::gltf;
 
 namespace {
 
-std::vector<unsigned char> glb_of(const std::string& json, const std::vector<unsigned char>& bin) {
-  std::vector<unsigned char> glb = glb_head(json, bin.size(), "test");
-  glb.insert(glb.end(), bin.begin(), bin.end());
-  return glb;
-}
+using test::glb_of;
 
 /// A triangle with one morph target (36 + 36 bytes) and, where times is given, an animation of its
 /// weight at those times (the values follow the times in the buffer).
@@ -58,19 +54,6 @@ std::string message_of(const std::vector<unsigned char>& glb) {
     return e.what();
   }
   return "";
-}
-
-/// A glb of one EXT_meshopt_compression view of the given mode, count and byteStride over 64 bytes.
-std::vector<unsigned char> meshopt_view(const std::string& mode, std::size_t count, std::size_t stride) {
-  const std::string json =
-      R"({"asset":{"version":"2.0"},"extensionsUsed":["EXT_meshopt_compression"],)"
-      R"("extensionsRequired":["EXT_meshopt_compression"],"buffers":[{"byteLength":64},{"byteLength":)" +
-      std::to_string(count * stride) +
-      R"(,"extensions":{"EXT_meshopt_compression":{"fallback":true}}}],"bufferViews":[{"buffer":1,"byteLength":)" +
-      std::to_string(count * stride) +
-      R"(,"extensions":{"EXT_meshopt_compression":{"buffer":0,"byteOffset":0,"byteLength":64,"byteStride":)" +
-      std::to_string(stride) + R"(,"count":)" + std::to_string(count) + R"(,"mode":")" + mode + R"("}}}]})";
-  return glb_of(json, std::vector<unsigned char>(64, 0));
 }
 
 }  // namespace
@@ -110,26 +93,5 @@ TEST(GltfRuntime, RefusesTimesBeforeZero) {
     const std::string m = message_of(animated_triangle({first, 1.0f}));
     EXPECT_NE(m.find("animations[0].samplers[0]: its first time is -"), std::string::npos) << m;
     EXPECT_NE(m.find("times are >= 0"), std::string::npos) << m;
-  }
-}
-
-TEST(GltfMeshopt, RefusesWhatItsDecodersAssert) {
-  // meshoptimizer's decoders assert (abort the process) on both; the extension forbids both.
-  for (const std::size_t stride : {1u, 3u, 6u}) {
-    try {
-      gltf_without_meshopt(meshopt_view("ATTRIBUTES", 4, stride));
-      ADD_FAILURE() << "stride " << stride << " accepted";
-    } catch (const InvalidInput& e) {
-      EXPECT_NE(
-          std::string(e.what()).find("byteStride " + std::to_string(stride) + " of ATTRIBUTES is not a multiple of 4"),
-          std::string::npos)
-          << e.what();
-    }
-  }
-  try {
-    gltf_without_meshopt(meshopt_view("TRIANGLES", 4, 2));
-    ADD_FAILURE() << "4 triangle indices accepted";
-  } catch (const InvalidInput& e) {
-    EXPECT_NE(std::string(e.what()).find("count 4 of TRIANGLES is not a multiple of 3"), std::string::npos) << e.what();
   }
 }

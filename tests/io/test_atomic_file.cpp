@@ -1,6 +1,5 @@
 #include "csrbf/io/atomic_file.hpp"
 #include "csrbf/io/error.hpp"
-#include "csrbf/io/input_file.hpp"
 
 #include "io/test_helpers.hpp"
 
@@ -237,25 +236,4 @@ TEST(AtomicFile, PartialNamesStayShortAndFramesAreRecognised) {
   EXPECT_FALSE(io::is_frame_name("frame_0000.png"));
   EXPECT_FALSE(io::is_frame_name("frame_0000a.png"));
   EXPECT_FALSE(io::is_frame_name("fish.scene.json"));
-}
-
-TEST(AtomicFile, ReadInputBoundsSizeAndWaitsForAFifo) {
-  test::TempDir dir;
-  test::write_text(dir / "big.txt", std::string(1000, 'x'));
-  try {
-    io::read_input(dir / "big.txt", "a test file", 100);
-    FAIL();
-  } catch (const io::FileError& e) {
-    EXPECT_NE(std::string(e.what()).find("big.txt: 1000 bytes is more than the 100 bytes allowed"), std::string::npos)
-        << e.what();
-  }
-  EXPECT_EQ(io::read_input(dir / "big.txt", "a test file").size(), 1000u);
-  ASSERT_EQ(::mkfifo((dir / "fifo").c_str(), 0644), 0);
-  ::setenv("CSRBF_PIPE_TIMEOUT", "1", 1);
-  EXPECT_THROW(io::read_input(dir / "fifo", "a test file"), io::FileError);
-  // With a writer: read whole.
-  std::thread writer([&] { test::write_text(dir / "fifo", "through the pipe"); });
-  EXPECT_EQ(io::read_input(dir / "fifo", "a test file"), "through the pipe");
-  writer.join();
-  ::unsetenv("CSRBF_PIPE_TIMEOUT");
 }
