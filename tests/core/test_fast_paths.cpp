@@ -27,12 +27,12 @@ using namespace csrbf;
 
 namespace {
 
-constexpr Kernel kKernels[] = {Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6};
-constexpr Polynomial kPolys[] = {Polynomial::None, Polynomial::Constant, Polynomial::Linear};
-
+using test::kKernels;
+using test::kPolys;
 using test::random_points;
 
-std::vector<Vec3> displaced(const std::vector<Vec3>& s, std::mt19937& rng, double amount = 0.05) {
+/// Destinations: sources moved by isotropic noise of the given standard deviation.
+std::vector<Vec3> jittered(const std::vector<Vec3>& s, std::mt19937& rng, double amount = 0.05) {
   std::normal_distribution<double> g(0.0, amount);
   std::vector<Vec3> d(s.size());
   for (std::size_t i = 0; i < s.size(); ++i) d[i] = s[i] + Vec3(g(rng), g(rng), g(rng));
@@ -88,7 +88,7 @@ TEST(FastPaths, VectorisedEvaluationEqualsTheSimplePath) {
     std::mt19937 rng(101);
     for (std::size_t n : {1u, 7u, 150u, 1200u}) {
       const auto s = random_points(n, rng);
-      const auto d = displaced(s, rng);
+      const auto d = jittered(s, rng);
       const auto probes = probe_points(s, rng);
       const auto xyz = flat(probes);
       for (Kernel k : kKernels)
@@ -120,7 +120,7 @@ TEST(FastPaths, GroupedApplyWithPhaseAndPolynomial) {
   for_each_loop([] {
     std::mt19937 rng(103);
     const auto s = random_points(400, rng);
-    const auto d = displaced(s, rng);
+    const auto d = jittered(s, rng);
     auto probes = probe_points(s, rng);
     const std::size_t nan_at = 3000 + 8 * 187 + 2;  // inside a cluster (the grouped path)
     probes[nan_at] = Vec3(std::numeric_limits<double>::quiet_NaN(), 0.5, 0.5);
@@ -170,7 +170,7 @@ TEST(FastPaths, RandomOrderIsGatheredByCellAndWrittenBackInTheCallersOrder) {
   // shuffled (every point a new cell), some outside the grid.
   std::mt19937 rng(2026);
   const auto s = random_points(1500, rng);
-  const auto d = displaced(s, rng);
+  const auto d = jittered(s, rng);
   std::vector<Vec3> lattice;
   for (int k = 0; k < 40; ++k)
     for (int j = 0; j < 40; ++j)
@@ -255,7 +255,7 @@ TEST(FastPaths, FloatPathAccuracy) {
   for_each_loop([] {
     std::mt19937 rng(102);
     const auto s = random_points(500, rng, 10.0, 11.0);  // off the origin: digits matter
-    const auto d = displaced(s, rng, 0.02);
+    const auto d = jittered(s, rng, 0.02);
     auto probes = random_points(5000, rng, 9.8, 11.2);
     std::sort(probes.begin() + 2500, probes.end(), [](const Vec3& a, const Vec3& b) {
       return std::floor(a.z() / 0.05) < std::floor(b.z() / 0.05) ||
@@ -289,7 +289,7 @@ TEST(FastPaths, FallsBackWhenCellListsWouldBeTooLarge) {
   std::mt19937 rng(103);
   auto s = random_points(40, rng, 0.0, 1.0);
   for (auto& p : random_points(40, rng, 0.0, 1.0)) s.push_back(p + Vec3(3e4, 0, 0));
-  const auto d = displaced(s, rng);
+  const auto d = jittered(s, rng);
   const auto g = detail::EvalGrid::build(s, 0.3, std::size_t(512) << 20);
   EXPECT_FALSE(g.usable);
   const SpaceMap map = SpaceMap::fit(s, d, {0.3, Kernel::C2, Polynomial::None});
@@ -404,7 +404,7 @@ TEST(FastPaths, SmallAndLargeFitsBuildTheSameGraph) {
   std::mt19937 rng(107);
   for (std::size_t n : {200u, 300u}) {
     const auto s = random_points(n, rng);
-    const auto d = displaced(s, rng, 0.02);
+    const auto d = jittered(s, rng, 0.02);
     const SpaceMap m = SpaceMap::fit(s, d, {0.25, Kernel::C2, Polynomial::None});
     EXPECT_EQ(m.stats().neighbor_pairs * 2, AdjacencyGraph::brute_force(s, 0.25).neighbors.size());
     const auto xyz = flat(s);
@@ -430,7 +430,7 @@ std::array<std::vector<Vec3>, 2> volume_and_surface(std::size_t n, std::mt19937&
 TEST(FastPaths, SparseSolversAgreeWithTheEnvelopeSolver) {
   std::mt19937 rng(105);
   for (const auto& s : volume_and_surface(800, rng)) {
-    const auto d = displaced(s, rng);
+    const auto d = jittered(s, rng);
     for (Polynomial p : kPolys) {
       FitOptions o{0.2, Kernel::C2, p};
       o.solver = Solver::Envelope;
@@ -450,7 +450,7 @@ TEST(FastPaths, SparseSolversAgreeWithTheEnvelopeSolver) {
         EXPECT_LT((m.polynomial_coefficients() - env.polynomial_coefficients()).cwiseAbs().maxCoeff(), 1e-9);
         EXPECT_LT(m.stats().residual_max, 1e-10);
         // New destinations through the kept sparse factor.
-        const auto d2 = displaced(s, rng);
+        const auto d2 = jittered(s, rng);
         const SpaceMap m2 = m.with_destinations(d2);
         for (std::size_t i = 0; i < s.size(); i += 37) EXPECT_LT((m2.map(s[i]) - d2[i]).norm(), 1e-9);
       }
@@ -463,7 +463,7 @@ TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyS
   for (const auto& s : volume_and_surface(900, rng))
     for (Kernel k : {Kernel::C0, Kernel::C2, Kernel::C6})
       for (Polynomial p : kPolys) {
-        const auto d = displaced(s, rng);
+        const auto d = jittered(s, rng);
         FitOptions o{0.2, k, p};
         o.solver = Solver::Envelope;
         const SpaceMap env = SpaceMap::fit(s, d, o);
@@ -478,7 +478,7 @@ TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyS
         // CG stops at a relative residual of 1e-12: the coefficients agree to the condition times that.
         EXPECT_LT((cg.coefficients() - env.coefficients()).cwiseAbs().maxCoeff(), 1e-6 * amax) << kernel_name(k);
         EXPECT_LT(cg.stats().residual_relative, 1e-8);
-        const auto d2 = displaced(s, rng);
+        const auto d2 = jittered(s, rng);
         const SpaceMap m2 = cg.with_destinations(d2);
         for (std::size_t i = 0; i < s.size(); i += 37) EXPECT_LT((m2.map(s[i]) - d2[i]).norm(), 1e-8);
       }
@@ -503,7 +503,7 @@ TEST(FastPaths, ConjugateGradientsAgreeWithTheEnvelopeSolverAndFallBackWhenTheyS
   // Chosen by Auto, CG gives up early on a system it converges on slowly: 1000 sources in the unit
   // cube with R = 1 (nearly dense, envelope work past its limit) get at most 50 steps, then CHOLMOD.
   auto dense = random_points(1000, rng);
-  const SpaceMap auto_dense = SpaceMap::fit(dense, displaced(dense, rng), {1.0, Kernel::C2, Polynomial::None});
+  const SpaceMap auto_dense = SpaceMap::fit(dense, jittered(dense, rng), {1.0, Kernel::C2, Polynomial::None});
   EXPECT_GT(auto_dense.stats().envelope_work, kEnvelopeWorkLimit);
   EXPECT_TRUE(auto_dense.stats().fell_back);
   EXPECT_LE(auto_dense.stats().iterations, 50u);
@@ -567,7 +567,7 @@ TEST(FastPaths, WithDestinationsWarmStartsConjugateGradients) {
   std::mt19937 rng(108);
   const auto s = random_points(3000, rng);
   for (Polynomial p : kPolys) {
-    const auto d = displaced(s, rng);
+    const auto d = jittered(s, rng);
     FitOptions o{0.12, Kernel::C2, p};
     o.solver = Solver::Cg;
     const SpaceMap first = SpaceMap::fit(s, d, o);
@@ -601,7 +601,7 @@ TEST(FastPaths, ConditionEstimateAgreesAcrossSolvers) {
   std::mt19937 rng(109);
   auto s = random_points(600, rng);
   s.push_back(s[5] + Vec3(1e-7, 0, 0));  // two sources 1e-7 apart: a condition number near 1e12
-  const auto d = displaced(s, rng, 0.0);
+  const auto d = jittered(s, rng, 0.0);
   for (double r : {0.15, 0.3}) {
     FitOptions o{r, Kernel::C2, Polynomial::None};
     o.solver = Solver::Envelope;
@@ -631,7 +631,7 @@ TEST(FastPaths, ConditionEstimateAgreesAcrossSolvers) {
 TEST(FastPaths, AutoSolverChoosesBySize) {
   std::mt19937 rng(106);
   const auto small = random_points(100, rng);
-  const SpaceMap a = SpaceMap::fit(small, displaced(small, rng), {0.3, Kernel::C2, Polynomial::None});
+  const SpaceMap a = SpaceMap::fit(small, jittered(small, rng), {0.3, Kernel::C2, Polynomial::None});
   EXPECT_EQ(a.stats().solver, Solver::Envelope);
   EXPECT_LE(a.stats().envelope_work, kEnvelopeWorkLimit);
   // The envelope solver under Auto compared the four orderings; its work is that of the chosen one.
@@ -645,12 +645,12 @@ TEST(FastPaths, AutoSolverChoosesBySize) {
   // reverse Cuthill-McKee alone (for the locality of its products).
   FitOptions o{0.3, Kernel::C2, Polynomial::None};
   o.solver = Solver::Eigen;
-  const SpaceMap b = SpaceMap::fit(small, displaced(small, rng), o);
+  const SpaceMap b = SpaceMap::fit(small, jittered(small, rng), o);
   EXPECT_EQ(b.stats().envelope_work, 0.0);
   EXPECT_FALSE(b.stats().orderings_compared);
   EXPECT_EQ(b.stats().reverse_cuthill_mckee.envelope, 0u);
   o.solver = Solver::Cg;
-  const SpaceMap g = SpaceMap::fit(small, displaced(small, rng), o);
+  const SpaceMap g = SpaceMap::fit(small, jittered(small, rng), o);
   EXPECT_EQ(g.stats().ordering, Ordering::ReverseCuthillMcKee);
   EXPECT_EQ(g.stats().reverse_cuthill_mckee.envelope, c.reverse_cuthill_mckee.envelope);
   EXPECT_EQ(g.stats().identity.envelope, 0u);

@@ -1,6 +1,8 @@
 // Seeded random point sets and displacements shared by the core tests.
 #pragma once
 
+#include "csrbf/fit_options.hpp"
+#include "csrbf/kernels.hpp"
 #include "csrbf/neighbor_index.hpp"
 
 #include <cmath>
@@ -8,6 +10,10 @@
 #include <vector>
 
 namespace csrbf::test {
+
+/// Every kernel the paper's tests run over, and every polynomial part.
+inline constexpr Kernel kKernels[] = {Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6};
+inline constexpr Polynomial kPolys[] = {Polynomial::None, Polynomial::Constant, Polynomial::Linear};
 
 /// n points uniform in the cube [lo, hi]^3.
 inline std::vector<Vec3> random_points(std::size_t n, std::mt19937& rng, double lo = 0, double hi = 1) {

@@ -14,10 +14,9 @@ using namespace csrbf;
 
 namespace {
 
-const Kernel kKernels[] = {Kernel::C0, Kernel::C2, Kernel::C4, Kernel::C6};
-const Polynomial kPolys[] = {Polynomial::None, Polynomial::Constant, Polynomial::Linear};
-
 using test::displaced;
+using test::kKernels;
+using test::kPolys;
 using test::random_points;
 
 // The paper's system (eq. 1-3) solved densely and independently: [A P; P^T 0] [alpha; beta] = [g; 0],

@@ -47,7 +47,7 @@ std::vector<unsigned char> animated_triangle(const std::vector<float>& times) {
   return glb_of(json, bin);
 }
 
-std::string message_of(const std::vector<unsigned char>& glb) {
+std::string runtime_refusal(const std::vector<unsigned char>& glb) {
   try {
     GltfRuntime r(glb);
   } catch (const InvalidInput& e) {
@@ -90,7 +90,7 @@ TEST(GltfRuntime, PlaysTheWeightsChannel) {
 TEST(GltfRuntime, RefusesTimesBeforeZero) {
   // csrbf-play-glb read -0.001 as zero frames and -10 as 2^64 frames.
   for (const float first : {-0.001f, -10.0f}) {
-    const std::string m = message_of(animated_triangle({first, 1.0f}));
+    const std::string m = runtime_refusal(animated_triangle({first, 1.0f}));
     EXPECT_NE(m.find("animations[0].samplers[0]: its first time is -"), std::string::npos) << m;
     EXPECT_NE(m.find("times are >= 0"), std::string::npos) << m;
   }
