@@ -3,9 +3,8 @@
 // scalar, a vector, a tensor flattened), fitted once and evaluated anywhere:
 //   s(x) = sum_i alpha_i phi(||x - x_i|| / R) + p(x),   s(x_i) + lambda_i alpha_i = f_i,
 // phi a Wendland function (kernels.hpp), p a polynomial of degree -1 (none: strictly local), 0 or 1
-// with P^T alpha = 0, lambda_i >= 0 the smoothing (0: interpolation). The system is SpaceMap's,
-// solved by the same phases and solvers (fit.cpp): one neighbour graph and factorisation for all V
-// values.
+// with P^T alpha = 0, lambda_i >= 0 the smoothing (0: interpolation). Each level is a kernel system
+// (kernel_system.hpp), as a SpaceMap's fit is: one neighbour graph and factorisation for all V values.
 //
 // Multiscale (Floater & Iske 1996; Wendland, "Multiscale analysis in Sobolev spaces on bounded
 // domains", 2010): a single radius either leaves a large error (few neighbours) or a dense system
@@ -122,8 +121,6 @@ class Interpolator {
   std::shared_ptr<const std::vector<std::vector<SpaceMap>>> maps_;  // [level][chunk of 3 values]
   template <class T>
   void evaluate_impl(const T* x, std::size_t q, T* out) const;
-  static SpaceMap map_of(std::shared_ptr<const SpaceMap::Structure> st, const InterpolatorLevel& level, int dim,
-                         std::size_t values, std::size_t chunk, int degree);
 };
 
 }  // namespace csrbf

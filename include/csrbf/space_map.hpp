@@ -3,12 +3,14 @@
 // each coordinate of the displacement d an interpolant of g_i = destination_i - source_i at the
 // sources s_i (eq. 1-3), phi a Wendland function (kernels.hpp) and p a polynomial (fit_options.hpp).
 //
-// SpaceMap::fit runs the paper's phases (section 4), one file each under src/core/:
-//   validate (fit.cpp) -> neighbour graph (neighbor_index, evaluator: the grid's cell lists)
-//   -> ordering (ordering.cpp) -> the matrix A (kernel_matrix.cpp) -> factorisation (envelope_cholesky,
-//   sparse_solver: CHOLMOD, Eigen, or CG with no factor) -> polynomial block -> solve -> residual check.
-// The polynomial block is George & Liu's block elimination:
+// SpaceMap::fit (fit.cpp) is three values in 3-D over the kernel system (kernel_system.hpp), which
+// runs the paper's phases (section 4): neighbour graph (neighbor_index, evaluator: the grid's cell
+// lists) -> ordering (ordering.cpp) -> the matrix A (kernel_matrix.cpp) -> factorisation
+// (envelope_cholesky, sparse_solver: CHOLMOD, Eigen, or CG with no factor) -> polynomial block ->
+// solve -> residual check. The polynomial block is George & Liu's block elimination:
 //   A Y = P, A z = g, (P^T Y) beta = P^T z, alpha = z - Y beta.
+// The fit adds its own checks: the sources and the polynomial before any work, the linear part's
+// amplification, and the residual through the evaluation where the coefficients are large.
 // Evaluation (space_map.cpp, evaluator*.cpp) runs through the neighbour grid.
 #pragma once
 
@@ -126,15 +128,14 @@ class SpaceMap {
   /// The CSRBF matrix A of the sources (input order), as the fit built it.
   const KernelMatrix& matrix() const noexcept;
 
-  /// The fitted state (src/core/fit_state.hpp): private to csrbf's core, named here so that
-  /// csrbf::Interpolator's fit can share the phases of this one.
+  /// The fitted state (src/core/fit_state.hpp): private to csrbf's core. csrbf::Interpolator's levels
+  /// are maps over states it builds from its own solutions.
   struct Structure;
   struct State;
+  /// For csrbf's core: a map over a fitted state.
+  explicit SpaceMap(std::shared_ptr<const State> s) : s_(std::move(s)) {}
 
  private:
-  friend struct FitPhases;
-  friend class Interpolator;
-  explicit SpaceMap(std::shared_ptr<const State> s) : s_(std::move(s)) {}
   SpaceMap solve_destinations(std::span<const Vec3> destinations) const;  // sizes and values already checked
   template <class T>
   void apply_impl(const T* in, T* out, std::size_t n, double phase, bool add_point) const;

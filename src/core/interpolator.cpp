@@ -1,20 +1,18 @@
-// csrbf::Interpolator (interpolator.hpp): the levels, each fitted by SpaceMap's phases for the
-// sources (fit_structure) and its own polynomial block for D dimensions and V values; evaluated
-// through SpaceMap's loops, three values a map, points padded to 3-D with zeros (the distances are
-// the same).
+// csrbf::Interpolator (interpolator.hpp): the levels, each V values in D dimensions over the kernel
+// system (kernel_system.hpp: its phases, polynomial block and residual check); evaluated through
+// SpaceMap's loops, three values a map over the level's points, padded to 3-D with zeros (the
+// distances are the same).
 #include "csrbf/interpolator.hpp"
 #include "csrbf/units.hpp"
 
 #include "fit_state.hpp"
+#include "point_cloud.hpp"
 #include "radius.hpp"
 #include "schwarz.hpp"
-
-#include <Eigen/SVD>
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <exception>
 #include <limits>
 #include <numbers>
 #include <random>
@@ -27,8 +25,6 @@ namespace csrbf {
 
 namespace {
 
-/// Right-hand sides a solve takes at once (CG's preconditioner works on up to 8).
-constexpr std::size_t kSolveColumns = 8;
 /// Points evaluated a batch (padded to 3-D in a scratch buffer).
 constexpr std::size_t kBatch = std::size_t(1) << 17;
 
@@ -292,34 +288,32 @@ std::vector<double> level_smoothing(const InterpolatorOptions& options, std::spa
   return shift;
 }
 
-/// The level's structure (SpaceMap's phases for its points: A + Lambda, its solver and factor).
-std::shared_ptr<SpaceMap::Structure> fit_level(const LevelPoints& lp, std::span<const Vec3> all, int dim, double radius,
-                                               const InterpolatorOptions& options, std::span<const double> shift) {
-  FitOptions fo;
-  fo.radius = radius;
-  fo.kernel = options.kernel;
-  fo.solver = options.solver;
-  fo.memory_limit_bytes = options.memory_limit_bytes;
-  std::shared_ptr<SpaceMap::Structure> st;
+/// The level's kernel system over its points (whose neighbour grid the level's maps keep): A +
+/// Lambda, its solver and factor, and the polynomial block of its degree. The system's own checks
+/// are reported in the interpolator's words (points, degree).
+std::shared_ptr<KernelSystem> fit_level(const LevelPoints& lp, std::span<const Vec3> all, int dim, double radius,
+                                        int degree, const InterpolatorOptions& options, std::span<const double> shift) {
+  auto cloud = std::make_shared<detail::PointCloud>(lp.pts, radius, options.memory_limit_bytes);
+  cloud->dims = dim;
+  // Cells of side R (not R/2): the interpolator's levels each build a grid and its lists, which at
+  // cells of R/2 cost more than the finer cells save (Franke's function, 1e5 points, 7 levels: fit
+  // and evaluation of 2e5 points 1.4 s against 1.7 s, of 1e6 points 1.4 against 1.9 s).
+  cloud->max_subdivision = 1;
+  cloud->eval_list_bytes = std::size_t(std::min(options.memory_limit_bytes, 1e18));
+  KernelSystemOptions so;
+  so.radius = radius;
+  so.kernel = options.kernel;
+  so.dimension = dim;
+  so.degree = degree;
+  so.solver = options.solver;
+  so.memory_limit_bytes = options.memory_limit_bytes;
+  so.schwarz = true;
+  so.schwarz_sorted = lp.sorted;
+  so.direct_after_breakdown = true;
+  auto system = std::make_shared<KernelSystem>(std::move(cloud), so, shift);
   try {
-    try {
-      st = detail::fit_structure(lp.pts, fo, shift, dim, lp.sorted);
-    } catch (const NotPositiveDefinite&) {
-      // Auto's envelope solver refuses a pivot below 64 eps of its diagonal entry: 5e4 random
-      // points on a line, whose close pairs make A that nearly singular, were refused where the
-      // general direct solver (or CG) solves them to 1e-10 at the points. Auto then takes the
-      // general direct solver; the residual check (check_level_residual) judges its solution. Where
-      // it fails too, the first refusal is the one reported.
-      if (options.solver != Solver::Auto) throw;
-      const std::exception_ptr first = std::current_exception();
-      FitOptions direct = fo;
-      direct.solver = cholmod_available() ? Solver::Cholmod : Solver::Eigen;
-      try {
-        st = detail::fit_structure(lp.pts, direct, shift, dim, lp.sorted);
-      } catch (const Error&) {
-        std::rethrow_exception(first);
-      }
-    }
+    system->analyse();
+    system->factorise();
   } catch (const DuplicateSource& e) {
     const std::size_t a = std::min(lp.member[e.first()], lp.member[e.second()]),
                       b = std::max(lp.member[e.first()], lp.member[e.second()]);  // sorted levels: any order
@@ -329,63 +323,20 @@ std::shared_ptr<SpaceMap::Structure> fit_level(const LevelPoints& lp, std::span<
     os << "): interpolation needs distinct points (give them smoothing > 0, or merge them)";
     throw DuplicateSource(a, b, os.str());
   }
-  return st;
-}
-
-/// b (m x any, the solves' order) becomes (A + Lambda)^-1 b, kSolveColumns columns a solve.
-void solve_level_columns(const SpaceMap::Structure& st, RowMatrix& b) {
-  for (Eigen::Index c0 = 0; c0 < b.cols(); c0 += Eigen::Index(kSolveColumns)) {
-    const Eigen::Index w = std::min<Eigen::Index>(Eigen::Index(kSolveColumns), b.cols() - c0);
-    RowMatrix part = b.middleCols(c0, w);
-    st.solve_in_place(part);
-    b.middleCols(c0, w) = part;
+  const std::size_t m = lp.pts.size();
+  if (system->info() == SystemInfo::DegeneratePolynomial) {
+    const char* shape = dim == 1 ? "all at one position" : dim == 2 ? "collinear" : "coplanar";
+    throw DegeneratePolynomial("degree 1 needs points that span their " + std::to_string(dim) + "-D space, " +
+                               (m < std::size_t(dim) + 1
+                                    ? "at least " + std::to_string(dim + 1) + " of them, but there " +
+                                          (m == 1 ? std::string("is 1") : "are " + std::to_string(m))
+                                    : "but the " + std::to_string(m) + " points are " + shape) +
+                               "; use degree 0 or -1");
   }
-}
-
-/// The polynomial block P (m x terms) in the solves' order: Y = (A + Lambda)^-1 P, S = P^T Y.
-struct PolynomialBlock {
-  int terms = 0;
-  RowMatrix p, y;
-  Eigen::LLT<Eigen::MatrixXd> schur;  // of S
-};
-
-/// The level's polynomial block; DegeneratePolynomial where its points do not determine it.
-PolynomialBlock polynomial_block(const SpaceMap::Structure& st, std::span<const Vec3> pts, int degree, int dim) {
-  const std::size_t m = pts.size();
-  const std::vector<std::uint32_t>& order = st.order;  // row k of the solves is pts[order[k]]
-  PolynomialBlock block;
-  const int terms = block.terms = terms_of(degree, dim);
-  RowMatrix& p = block.p;
-  p.resize(Eigen::Index(m), terms);
-  if (terms > 0) {
-    for (std::size_t k = 0; k < m; ++k) {
-      p(Eigen::Index(k), 0) = 1.0;
-      const Vec3 u = (pts[order[k]] - st.center) / st.scale;
-      for (int a = 1; a < terms; ++a) p(Eigen::Index(k), a) = u[a - 1];
-    }
-    if (terms > 1) {
-      const char* shape = dim == 1 ? "all at one position" : dim == 2 ? "collinear" : "coplanar";
-      bool degenerate = m < std::size_t(dim) + 1;
-      if (!degenerate) {
-        const Eigen::VectorXd sv = Eigen::JacobiSVD<Eigen::MatrixXd>(p.rightCols(dim)).singularValues();
-        degenerate = !(sv(dim - 1) > 1e-9 * std::max(sv(0), 1e-300));
-      }
-      if (degenerate)
-        throw DegeneratePolynomial("degree 1 needs points that span their " + std::to_string(dim) + "-D space, " +
-                                   (m < std::size_t(dim) + 1
-                                        ? "at least " + std::to_string(dim + 1) + " of them, but there " +
-                                              (m == 1 ? std::string("is 1") : "are " + std::to_string(m))
-                                        : "but the " + std::to_string(m) + " points are " + shape) +
-                                   "; use degree 0 or -1");
-    }
-    block.y = p;
-    solve_level_columns(st, block.y);
-    block.schur.compute(p.transpose() * block.y);
-    if (block.schur.info() != Eigen::Success)
-      throw DegeneratePolynomial("degree " + std::to_string(degree) +
-                                 ": the points do not determine the polynomial; use degree -1");
-  }
-  return block;
+  if (system->info() == SystemInfo::NumericalIssue)
+    throw DegeneratePolynomial("degree " + std::to_string(degree) +
+                               ": the points do not determine the polynomial; use degree -1");
+  return system;
 }
 
 /// A level's coefficients: alpha (m x V, the level's input order) and beta (terms x V).
@@ -394,36 +345,19 @@ struct LevelCoefficients {
   Eigen::MatrixXd beta;
 };
 
-/// lv.residual_relative, the residual of the system, (A + Lambda) alpha + P beta - f, in the input
-/// order of the level, relative to gmax (the largest row of f; g is f in the solves' order);
-/// IllConditioned beyond kResidualLimit.
-void check_level_residual(InterpolatorLevel& lv, const SpaceMap::Structure& st, const PolynomialBlock& block,
-                          const LevelPoints& lp, const LevelCoefficients& c, const RowMatrix& g, double gmax,
-                          std::size_t l, std::size_t levels) {
-  const std::size_t m = lp.pts.size();
-  const std::vector<std::uint32_t>& order = st.order;
-  const int terms = block.terms;
-  RowMatrix fitted = st.a * c.alpha;
-  if (terms > 0) {
-    RowMatrix p_input(Eigen::Index(m), terms);
-    for (std::size_t k = 0; k < m; ++k) p_input.row(order[k]) = block.p.row(Eigen::Index(k));
-    fitted += p_input * c.beta;
-  }
-  double res = 0;
-  for (std::size_t k = 0; k < m; ++k) {
-    const double e = (fitted.row(order[k]) - g.row(Eigen::Index(k))).norm();
-    res = std::isnan(e) ? std::numeric_limits<double>::infinity() : std::max(res, e);
-  }
-  if (!c.alpha.allFinite() || (terms > 0 && !c.beta.allFinite())) res = std::numeric_limits<double>::infinity();
-  lv.residual_relative = gmax > 0 ? res / gmax : res;
+/// lv.residual_relative, the system's residual check of (A + Lambda) alpha + P beta - f (g: f, in
+/// the input order of the level); IllConditioned beyond kResidualLimit.
+void check_level_residual(InterpolatorLevel& lv, const KernelSystem& system, const LevelPoints& lp,
+                          const LevelCoefficients& c, const RowMatrix& g, std::size_t l, std::size_t levels) {
+  lv.residual_relative = system.residual(c.alpha, c.beta, g).relative;
   if (!(lv.residual_relative <= kResidualLimit)) {
     std::ostringstream os;
     os << "the values cannot be fitted to a relative residual of " << kResidualLimit << " (got " << lv.residual_relative
        << ")";
     if (levels > 1) os << " at level " << l + 1 << " of " << levels;
     os << ": the matrix is too ill-conditioned at radius " << lv.radius;
-    if (!st.a.values().empty()) {
-      const auto [a, b] = st.a.closest_pair();
+    if (!system.matrix().values().empty()) {
+      const auto [a, b] = system.matrix().closest_pair();
       os << "; the closest points, " << lp.member[a] << " and " << lp.member[b] << ", are "
          << (lp.pts[a] - lp.pts[b]).norm() / lv.radius << " R apart";
     }
@@ -434,41 +368,32 @@ void check_level_residual(InterpolatorLevel& lv, const SpaceMap::Structure& st, 
 
 /// Level l fitted to `residual` (n x V: what the coarser levels leave), with lv.rms_before and
 /// lv.residual_relative (check_level_residual).
-LevelCoefficients solve_level(InterpolatorLevel& lv, const SpaceMap::Structure& st, const PolynomialBlock& block,
-                              const LevelPoints& lp, std::span<const double> residual, std::size_t nv, std::size_t l,
-                              std::size_t levels) {
+LevelCoefficients solve_level(InterpolatorLevel& lv, KernelSystem& system, const LevelPoints& lp,
+                              std::span<const double> residual, std::size_t nv, std::size_t l, std::size_t levels) {
   const std::size_t m = lp.pts.size();
-  const std::vector<std::uint32_t>& order = st.order;  // row k of the solves is member[order[k]]
-  RowMatrix z = RowMatrix(Eigen::Index(m), Eigen::Index(nv));
-  for (std::size_t k = 0; k < m; ++k)
-    for (std::size_t v = 0; v < nv; ++v) z(Eigen::Index(k), Eigen::Index(v)) = residual[lp.member[order[k]] * nv + v];
-  double sum2 = 0, gmax = 0;
-  for (std::size_t k = 0; k < m; ++k) {
-    sum2 += z.row(Eigen::Index(k)).squaredNorm();
-    gmax = std::max(gmax, z.row(Eigen::Index(k)).norm());
-  }
+  const std::span<const std::uint32_t> order = system.order();  // row k of the solves is member[order[k]]
+  LevelCoefficients c;
+  RowMatrix& z = c.alpha;
+  z.resize(Eigen::Index(m), Eigen::Index(nv));
+  for (std::size_t i = 0; i < m; ++i)
+    for (std::size_t v = 0; v < nv; ++v) z(Eigen::Index(i), Eigen::Index(v)) = residual[lp.member[i] * nv + v];
+  double sum2 = 0;
+  for (std::size_t k = 0; k < m; ++k) sum2 += z.row(Eigen::Index(order[k])).squaredNorm();
   lv.rms_before = std::sqrt(sum2 / double(m * nv));
   const RowMatrix g = z;
-  solve_level_columns(st, z);
-  LevelCoefficients c;
-  if (block.terms > 0) {
-    c.beta = block.schur.solve(block.p.transpose() * z);  // terms x V
-    z -= block.y * c.beta;
-  }
-  c.alpha = RowMatrix(Eigen::Index(m), Eigen::Index(nv));
-  for (std::size_t k = 0; k < m; ++k) c.alpha.row(order[k]) = z.row(Eigen::Index(k));
-  check_level_residual(lv, st, block, lp, c, g, gmax, l, levels);
+  KernelSystem::require(system.solve(z, c.beta));
+  check_level_residual(lv, system, lp, c, g, l, levels);
   return c;
 }
 
-/// The level's record (its points, coefficients and what its fit did), and its structure kept for
-/// evaluation only.
-void store_level(InterpolatorLevel& lv, SpaceMap::Structure& st, std::span<const Vec3> pts, const LevelCoefficients& c,
-                 int terms, int degree, int dim, std::size_t nv) {
+/// The level's record: its points, coefficients and what its fit did.
+void store_level(InterpolatorLevel& lv, const KernelSystem& system, std::span<const Vec3> pts,
+                 const LevelCoefficients& c, int dim, std::size_t nv) {
   const std::size_t m = pts.size();
-  lv.mean_neighbors = st.stats.mean_neighbors;
-  lv.solver = st.fell_back ? st.fallback_solver : st.stats.solver;
-  if (st.sparse) lv.iterations = (st.fell_back && st.fallback) ? st.fallback->iterations() : st.sparse->iterations();
+  const int terms = system.terms();
+  lv.mean_neighbors = system.stats().mean_neighbors;
+  lv.solver = system.solver();
+  lv.iterations = system.iterations();
   lv.points.resize(m * std::size_t(dim));
   for (std::size_t k = 0; k < m; ++k)
     for (int a = 0; a < dim; ++a) lv.points[k * std::size_t(dim) + std::size_t(a)] = pts[k][a];
@@ -478,26 +403,29 @@ void store_level(InterpolatorLevel& lv, SpaceMap::Structure& st, std::span<const
     for (int t = 0; t < terms; ++t)
       for (std::size_t v = 0; v < nv; ++v) lv.beta[std::size_t(t) * nv + v] = c.beta(t, Eigen::Index(v));
   }
-  // The solver's matrix and factor are not needed to evaluate: freed (the solvers first: CG may
-  // read A in place), the neighbour grid kept.
-  st.sparse.reset();
-  st.fallback.reset();
-  st.a = KernelMatrix();
-  st.factor = EnvelopeMatrix();
-  st.solved_elsewhere = true;
+}
+
+/// A level's evaluation structure: its points and their grid, radius, kernel and polynomial; no
+/// matrix (the system's, with its factor, is not needed to evaluate).
+std::shared_ptr<SpaceMap::Structure> level_structure(std::shared_ptr<detail::PointCloud> cloud, Kernel kernel,
+                                                     int degree, const Vec3& center, double scale) {
+  auto st = std::make_shared<SpaceMap::Structure>();
+  st->cloud = std::move(cloud);
+  st->options.radius = st->cloud->radius;
+  st->options.kernel = kernel;
+  st->options.memory_limit_bytes = st->cloud->memory_limit_bytes;
   // The evaluation adds the polynomial where the structure has one (beta's rows past D are zero).
-  st.options.polynomial = degree < 0 ? Polynomial::None : degree == 0 ? Polynomial::Constant : Polynomial::Linear;
-  st.terms = degree < 0 ? 0 : degree == 0 ? 1 : 4;
+  st->options.polynomial = degree < 0 ? Polynomial::None : degree == 0 ? Polynomial::Constant : Polynomial::Linear;
+  st->terms = degree < 0 ? 0 : degree == 0 ? 1 : 4;
+  st->center = center;
+  st->scale = scale;
+  st->stats.controls = st->cloud->points.size();
+  return st;
 }
 
-}  // namespace
-
-std::size_t Interpolator::size() const noexcept {
-  return levels_ && !levels_->empty() ? levels_->back().points.size() / std::size_t(dim_) : 0;
-}
-
-SpaceMap Interpolator::map_of(std::shared_ptr<const SpaceMap::Structure> st, const InterpolatorLevel& level, int dim,
-                              std::size_t values, std::size_t chunk, int degree) {
+/// The map of values 3 chunk .. 3 chunk + 2 of a level, over its structure.
+SpaceMap level_map(std::shared_ptr<const SpaceMap::Structure> st, const InterpolatorLevel& level, int dim,
+                   std::size_t values, std::size_t chunk, int degree) {
   const std::size_t n = level.points.size() / std::size_t(dim);
   Eigen::Matrix<double, Eigen::Dynamic, 3> alpha = Eigen::Matrix<double, Eigen::Dynamic, 3>::Zero(Eigen::Index(n), 3);
   Eigen::Matrix<double, 4, 3> beta = Eigen::Matrix<double, 4, 3>::Zero();
@@ -517,6 +445,12 @@ SpaceMap Interpolator::map_of(std::shared_ptr<const SpaceMap::Structure> st, con
     for (int c = 0; c < 3; ++c) s->poly.b[r][c] = beta(r, c);
   s->stats = s->st->stats;
   return SpaceMap(std::move(s));
+}
+
+}  // namespace
+
+std::size_t Interpolator::size() const noexcept {
+  return levels_ && !levels_->empty() ? levels_->back().points.size() / std::size_t(dim_) : 0;
 }
 
 Interpolator Interpolator::fit(std::span<const double> points, int dim, std::span<const double> values,
@@ -545,14 +479,18 @@ Interpolator Interpolator::fit(std::span<const double> points, int dim, std::spa
     lv.radius = std::ldexp(plan.finest, l + 1 < levels ? int(levels - l) : 0);
     const LevelPoints lp = select_level(all, plan, l, lv.radius, dim, options);
     const std::vector<double> shift = level_smoothing(options, lp.member);
-    std::shared_ptr<SpaceMap::Structure> st = fit_level(lp, all, dim, lv.radius, options, shift);
-    lv.center = st->center;
-    lv.scale = st->scale;
-    const PolynomialBlock block = polynomial_block(*st, lp.pts, degree, dim);
-    const LevelCoefficients coefficients = solve_level(lv, *st, block, lp, residual, nv, l, levels);
-    store_level(lv, *st, lp.pts, coefficients, block.terms, degree, dim, nv);
-    std::shared_ptr<const SpaceMap::Structure> shared = std::move(st);
-    for (std::size_t c = 0; c < chunks; ++c) (*maps)[l].push_back(map_of(shared, lv, dim, nv, c, degree));
+    std::shared_ptr<KernelSystem> system = fit_level(lp, all, dim, lv.radius, degree, options, shift);
+    lv.center = system->center();
+    lv.scale = system->scale();
+    {
+      const LevelCoefficients coefficients = solve_level(lv, *system, lp, residual, nv, l, levels);
+      store_level(lv, *system, lp.pts, coefficients, dim, nv);
+    }
+    // The system's matrix and factor are not needed to evaluate: freed, the points' grid kept.
+    const std::shared_ptr<const SpaceMap::Structure> shared =
+        level_structure(system->cloud(), options.kernel, degree, lv.center, lv.scale);
+    system.reset();
+    for (std::size_t c = 0; c < chunks; ++c) (*maps)[l].push_back(level_map(shared, lv, dim, nv, c, degree));
     // What is left for the finer levels, at every point they hold.
     if (l + 1 < levels) {
       for (std::size_t c = 0; c < chunks; ++c) {
@@ -594,12 +532,11 @@ Interpolator Interpolator::from_levels(int dim, std::size_t value_count, Kernel 
                          std::to_string(lv.beta.size()) + " polynomial terms, which do not agree with D = " +
                          std::to_string(dim) + " and " + std::to_string(value_count) + " values");
     // A level's structure, shared by its maps: its points and radius, no matrix (evaluation only).
-    auto st = std::make_shared<SpaceMap::Structure>();
-    st->sources.assign(n, Vec3::Zero());
+    std::vector<Vec3> pts(n, Vec3::Zero());
     for (std::size_t i = 0; i < n; ++i)
-      for (int a = 0; a < dim; ++a) st->sources[i][a] = lv.points[i * std::size_t(dim) + std::size_t(a)];
+      for (int a = 0; a < dim; ++a) pts[i][a] = lv.points[i * std::size_t(dim) + std::size_t(a)];
     const std::string where = "from_levels: level " + std::to_string(l);
-    detail::check_points(st->sources, (where + ", point").c_str());
+    detail::check_points(pts, (where + ", point").c_str());
     const auto finite = [](const std::vector<double>& v) {
       return std::all_of(v.begin(), v.end(), [](double x) { return std::isfinite(x); });
     };
@@ -610,27 +547,21 @@ Interpolator Interpolator::from_levels(int dim, std::size_t value_count, Kernel 
       throw InvalidInput(where +
                          ": the radius must be in [1e-150, 1e150], the scale in (0, 1e300], the centre within "
                          "1e150 (0 past the points' dimension) and the coefficients finite");
-    Vec3 lo = st->sources[0], hi = st->sources[0];
-    for (const Vec3& p : st->sources) {
+    Vec3 lo = pts[0], hi = pts[0];
+    for (const Vec3& p : pts) {
       lo = lo.cwiseMin(p);
       hi = hi.cwiseMax(p);
     }
     NeighborIndex::check_extent(lo, hi, lv.radius, "points");
     const int deg = l == 0 ? degree : -1;
-    st->options.radius = lv.radius;
-    st->options.kernel = kernel;
-    st->options.polynomial = deg < 0 ? Polynomial::None : deg == 0 ? Polynomial::Constant : Polynomial::Linear;
-    st->terms = deg < 0 ? 0 : deg == 0 ? 1 : 4;
-    st->center = lv.center;
-    st->scale = lv.scale;
-    st->stats.controls = n;
-    st->solved_elsewhere = true;
-    st->dims = dim;
-    st->max_subdivision = 1;  // as the fit's levels (fit.cpp, fit_structure)
-    st->eval_list_bytes = std::size_t(st->options.memory_limit_bytes);
-    const std::shared_ptr<const SpaceMap::Structure> shared = std::move(st);
+    auto cloud = std::make_shared<detail::PointCloud>(pts, lv.radius, FitOptions{}.memory_limit_bytes);
+    cloud->dims = dim;
+    cloud->max_subdivision = 1;  // as the fit's levels (fit_level)
+    cloud->eval_list_bytes = std::size_t(cloud->memory_limit_bytes);
+    const std::shared_ptr<const SpaceMap::Structure> shared =
+        level_structure(std::move(cloud), kernel, deg, lv.center, lv.scale);
     for (std::size_t c = 0; c < (value_count + 2) / 3; ++c)
-      (*maps)[l].push_back(map_of(shared, lv, dim, value_count, c, deg));
+      (*maps)[l].push_back(level_map(shared, lv, dim, value_count, c, deg));
   }
   Interpolator r;
   r.dim_ = dim;

@@ -69,17 +69,17 @@ bool SpaceMap::float_trusted() const {
     // passed maps whose float error elsewhere reached 2.2 times the tolerance (issue 30). A map is
     // trusted only within a quarter of the tolerance, the margin for points not sampled.
     const Structure& st = *s_->st;
-    const std::size_t n = st.sources.size(), ms = std::min<std::size_t>(n, 4096), m = 2 * ms;
+    const std::size_t n = st.sources().size(), ms = std::min<std::size_t>(n, 4096), m = 2 * ms;
     std::mt19937_64 rng(20261201);
     std::uniform_real_distribution<double> unit(-1.0, 1.0);
     std::vector<float> inf(3 * m), outf(3 * m);
     std::vector<double> ind(3 * m), outd(3 * m);
     double gmax = 0;
     if (s_->destinations.size() == n)
-      for (std::size_t i = 0; i < n; ++i) gmax = std::max(gmax, (s_->destinations[i] - st.sources[i]).norm());
+      for (std::size_t i = 0; i < n; ++i) gmax = std::max(gmax, (s_->destinations[i] - st.sources()[i]).norm());
     for (std::size_t k = 0; k < m; ++k) {
       const std::size_t i = ms == n ? k % n : std::size_t(rng() % n);
-      Vec3 p = st.sources[i];
+      Vec3 p = st.sources()[i];
       if (k >= ms) {
         Vec3 u;
         do u = Vec3(unit(rng), unit(rng), unit(rng));
@@ -116,14 +116,14 @@ bool SpaceMap::float_normals_trusted() const {
     const Structure& st = *s_->st;
     const detail::EvalGrid& grid = st.grid();
     if (!grid.usable) return;  // point by point, in double anyway
-    const std::size_t n = st.sources.size(), ms = std::min<std::size_t>(n, 4096), m = 2 * ms;
+    const std::size_t n = st.sources().size(), ms = std::min<std::size_t>(n, 4096), m = 2 * ms;
     std::mt19937_64 rng(20261204);
     std::uniform_real_distribution<double> unit(-1.0, 1.0);
     std::vector<float> pf(3 * m), nf(3 * m);
     std::vector<double> pd(3 * m), nd(3 * m);
     for (std::size_t k = 0; k < m; ++k) {
       const std::size_t i = ms == n ? k % n : std::size_t(rng() % n);
-      Vec3 p = st.sources[i], u;
+      Vec3 p = st.sources()[i], u;
       do u = Vec3(unit(rng), unit(rng), unit(rng));
       while (u.squaredNorm() > 1.0 || u.squaredNorm() < 1e-6);
       if (k >= ms) p += 0.9 * st.options.radius * u;
@@ -386,14 +386,16 @@ void SpaceMap::apply_with_normals(const float* in, float* out, std::size_t n, do
 void SpaceMap::displacements(const double* in, double* out, std::size_t n) const { apply_impl(in, out, n, 1.0, false); }
 void SpaceMap::displacements(const float* in, float* out, std::size_t n) const { apply_impl(in, out, n, 1.0, false); }
 
-std::size_t SpaceMap::size() const noexcept { return s_->st->sources.size(); }
+std::size_t SpaceMap::size() const noexcept { return s_->st->sources().size(); }
 double SpaceMap::radius() const noexcept { return s_->st->options.radius; }
 Kernel SpaceMap::kernel() const noexcept { return s_->st->options.kernel; }
 Polynomial SpaceMap::polynomial() const noexcept { return s_->st->options.polynomial; }
-std::span<const Vec3> SpaceMap::sources() const noexcept { return s_->st->sources; }
+std::span<const Vec3> SpaceMap::sources() const noexcept { return s_->st->sources(); }
 std::span<const Vec3> SpaceMap::destinations() const noexcept { return s_->destinations; }
 const Eigen::Matrix<double, Eigen::Dynamic, 3>& SpaceMap::coefficients() const noexcept { return s_->alpha; }
-std::span<const std::uint32_t> SpaceMap::order() const noexcept { return s_->st->order; }
+std::span<const std::uint32_t> SpaceMap::order() const noexcept {
+  return s_->st->system ? s_->st->system->order() : std::span<const std::uint32_t>();
+}
 const FitStats& SpaceMap::stats() const noexcept { return s_->stats; }
 const NeighborIndex& SpaceMap::index() const { return s_->st->index(); }
 

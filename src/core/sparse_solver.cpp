@@ -39,6 +39,11 @@
 
 namespace csrbf::detail {
 
+void KernelSolver::solve_in_place(RowMatrix& b, const RowMatrix* initial) {
+  const SolveStatus s = solve(b, initial);
+  if (!s.ok()) throw CgStagnated(s);
+}
+
 double kernel_matrix_bytes(const KernelMatrix& a) {
   return 12.0 * double(a.values().size()) + 8.0 * double(a.size() + 1);
 }
@@ -152,7 +157,7 @@ class Supernodal;  // CHOLMOD's supernodal LLT (below, where CHOLMOD is built in
 /// A general sparse Cholesky in two steps: the constructor analyses (ordering, symbolic factorisation,
 /// the memory check), factorise() computes; flops() in between is the analysis's count.
 template <class Decomposition>
-class EigenFactor final : public SparseFactor {
+class EigenFactor final : public KernelSolver {
  public:
   /// order: row k of a is the source order[k] (empty: the input order).
   /// memory_limit_bytes: the factor's size, as the symbolic analysis predicts it, is checked before
@@ -209,17 +214,18 @@ class EigenFactor final : public SparseFactor {
                                 " factorisation failed)");
     a_ = Sparse();
   }
-  void solve_in_place(RowMatrix& b, const RowMatrix* = nullptr) const override {
+  SolveStatus solve(RowMatrix& b, const RowMatrix* = nullptr) override {
     std::lock_guard lock(mutex_);  // CHOLMOD's workspace is shared by solves
     if (order_.empty()) {
       const Eigen::MatrixXd x = llt_.solve(Eigen::MatrixXd(b));
       b = x;
-      return;
+      return {};
     }
     solve_permuted<Eigen::MatrixXd>(b, order_, [&](Eigen::MatrixXd& bp) {
       const Eigen::MatrixXd x = llt_.solve(bp);
       bp = x;
     });
+    return {};
   }
   std::size_t nonzeros() const override { return count(); }
   double held_bytes() const override { return 12.0 * double(count()) + 12.0 * double(a_.nonZeros()); }
@@ -242,7 +248,7 @@ class EigenAnalysis final : public SparseAnalysis {
  public:
   explicit EigenAnalysis(std::unique_ptr<EigenFactor<Decomposition>> f) : f_(std::move(f)) {}
   double flops() const override { return f_->flops(); }
-  std::unique_ptr<SparseFactor> factorise() override {
+  std::unique_ptr<KernelSolver> factorise() override {
     f_->factorise();
     return std::move(f_);
   }
@@ -332,7 +338,7 @@ std::size_t EigenFactor<Supernodal>::count() const {
 
 /// A in compressed rows, both triangles, row k the source order[k]: the product runs over rows in
 /// parallel, m right-hand sides at once.
-class BatchedCg final : public SparseFactor {
+class BatchedCg final : public KernelSolver {
  public:
   BatchedCg(const KernelMatrix& a, std::vector<std::uint32_t> order, double tolerance, std::size_t max_iterations,
             CgProbe probe, CgPreconditioner preconditioner)
@@ -388,17 +394,18 @@ class BatchedCg final : public SparseFactor {
     val_ = own_val_;
   }
 
-  void solve_in_place(RowMatrix& b, const RowMatrix* initial = nullptr) const override {
+  SolveStatus solve(RowMatrix& b, const RowMatrix* initial = nullptr) override {
     std::lock_guard lock(mutex_);  // iterations_ and residual_ describe one solve
     if (released_)
-      throw CgStagnated("conjugate gradients gave way to another solver", std::numeric_limits<double>::infinity(), 0);
+      return {SystemInfo::NoConvergence, std::numeric_limits<double>::infinity(), 0,
+              "conjugate gradients gave way to another solver"};
     // 3 right-hand sides (the displacements), 4 (the polynomial block) or 1 (the condition estimate).
     if (b.cols() > 8) throw InvalidInput("conjugate gradients: at most 8 right-hand sides at once");
     if (initial && (initial->rows() != b.rows() || initial->cols() != b.cols()))
       throw InvalidInput("conjugate gradients: the initial guess has another shape than the right-hand sides");
     // Isolated: a thread waiting in the parallel loops below must not take another task that would
     // lock mutex_ again (with_destinations called from the caller's own TBB tasks).
-    tbb::this_task_arena::isolate([&] { solve_columns(b, initial); });
+    return tbb::this_task_arena::isolate([&] { return solve_columns(b, initial); });
   }
   bool iterative() const override { return true; }
   std::size_t nonzeros() const override { return order_.size() + val_.size(); }
@@ -481,11 +488,11 @@ class BatchedCg final : public SparseFactor {
   }
 
   /// Stagnation at step `it`: the smallest residual so far (the worst column's) has not fallen 10x in
-  /// the last kCgStagnationWindow steps (CgStagnated). CG that still converges falls much faster than
-  /// that. rr_best and lowest (lowest[k]: the worst column's smallest squared relative residual up to
-  /// step k) are brought up to this step.
-  void check_stagnation(std::size_t it, std::size_t m, const Sums& rr, const Sums& rr0, const std::array<bool, 8>& done,
-                        Sums& rr_best, std::vector<double>& lowest) const {
+  /// the last kCgStagnationWindow steps (SystemInfo::NoConvergence; else Success). CG that still converges falls much
+  /// faster than that. rr_best and lowest (lowest[k]: the worst column's smallest squared relative residual up to step
+  /// k) are brought up to this step.
+  SolveStatus check_stagnation(std::size_t it, std::size_t m, const Sums& rr, const Sums& rr0,
+                               const std::array<bool, 8>& done, Sums& rr_best, std::vector<double>& lowest) const {
     double worst_low = 0;
     for (std::size_t c = 0; c < m; ++c) {
       rr_best[c] = std::min(rr_best[c], rr[c]);
@@ -500,15 +507,16 @@ class BatchedCg final : public SparseFactor {
          << ") has not fallen 10x in the last " << kCgStagnationWindow << " of " << it
          << " steps (the matrix is too ill-conditioned for them: a smaller radius, or a direct solver, "
             "--solver envelope or cholmod, can solve it)";
-      throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
+      return {SystemInfo::NoConvergence, std::numeric_limits<double>::infinity(), it, os.str()};
     }
+    return {};
   }
 
-  /// Auto's probe at step `it` (a multiple of probe_.steps): CgStagnated where the steps this solve
-  /// needs in all, were the residual to keep falling at its recent rate, are not worth it.
+  /// Auto's probe at step `it` (a multiple of probe_.steps): SystemInfo::GaveWay where the steps this
+  /// solve needs in all, were the residual to keep falling at its recent rate, are not worth it.
   /// best[k]: the smallest residuals up to step k; rr_best: the smallest so far.
-  void check_probe(std::size_t it, std::size_t m, const std::vector<Sums>& best, const Sums& rr_best, const Sums& rr0,
-                   const std::array<bool, 8>& done) const {
+  SolveStatus check_probe(std::size_t it, std::size_t m, const std::vector<Sums>& best, const Sums& rr_best,
+                          const Sums& rr0, const std::array<bool, 8>& done) const {
     const std::size_t mark = it / 3;
     double predicted = double(it);
     for (std::size_t c = 0; c < m; ++c) {
@@ -523,14 +531,15 @@ class BatchedCg final : public SparseFactor {
       iterations_ = it;
       std::ostringstream os;
       os << "conjugate gradients would need about " << predicted << " steps (after " << it << ")";
-      throw CgStagnated(os.str(), predicted, it, true);
+      return {SystemInfo::GaveWay, predicted, it, os.str()};
     }
+    return {};
   }
 
-  /// After `it` steps: the iterations and worst relative residual recorded, CgStagnated where the
+  /// After `it` steps: the iterations and worst relative residual recorded, NoConvergence where the
   /// solve fell short, else x (solver order, scaled by unit) written into b (input order).
-  void finish_columns(RowMatrix& b, const FillVector<double>& x, const Sums& rr, const Sums& rr0,
-                      const std::array<double, 8>& unit, std::size_t it, bool all_done) const {
+  SolveStatus finish_columns(RowMatrix& b, const FillVector<double>& x, const Sums& rr, const Sums& rr0,
+                             const std::array<double, 8>& unit, std::size_t it, bool all_done) const {
     const std::size_t n = order_.size(), m = std::size_t(b.cols());
     double worst = 0;
     for (std::size_t c = 0; c < m; ++c)
@@ -544,14 +553,16 @@ class BatchedCg final : public SparseFactor {
       os << "conjugate gradients stopped at a relative residual of " << worst << " after " << it
          << " steps (their limit; a smaller radius, or a direct solver, --solver envelope or cholmod, can solve "
             "it)";
-      throw CgStagnated(os.str(), std::numeric_limits<double>::infinity(), it);
+      return {SystemInfo::NoConvergence, std::numeric_limits<double>::infinity(), it, os.str()};
     }
     for (std::size_t k = 0; k < n; ++k)
       for (std::size_t c = 0; c < m; ++c) b(Eigen::Index(order_[k]), Eigen::Index(c)) = x[k * m + c] * unit[c];
+    return {};
   }
 
-  /// b (n x m, m <= 8, input order) becomes A^-1 b, starting from `initial` (or 0).
-  void solve_columns(RowMatrix& b, const RowMatrix* initial) const {
+  /// b (n x m, m <= 8, input order) becomes A^-1 b, starting from `initial` (or 0); unchanged where
+  /// the status is not Success.
+  SolveStatus solve_columns(RowMatrix& b, const RowMatrix* initial) const {
     const std::size_t n = order_.size(), m = std::size_t(b.cols());
     // Work in the solver's row order: x, r, p, q are n x m, row-major (one row's m values together).
     // Every entry is written before it is read: r and x below, p = r, q in the first product.
@@ -645,7 +656,7 @@ class BatchedCg final : public SparseFactor {
     std::vector<double> lowest;  // lowest[k]: the worst column's smallest squared relative residual up to step k
     lowest.reserve(std::min<std::size_t>(max_iterations_, 1u << 20) + 1);
     for (; !all_done() && it < max_iterations_; ++it) {
-      check_stagnation(it, m, rr, rr0, done, rr_best, lowest);
+      if (SolveStatus s = check_stagnation(it, m, rr, rr0, done, rr_best, lowest); !s.ok()) return s;
       if (!preconditioned() && it == kIcProbeSteps && !all_done()) {
         const std::size_t mark = it / 3;
         const double fell = std::sqrt(lowest[it] / lowest[mark]), need = tolerance_ / std::sqrt(lowest[it]);
@@ -654,7 +665,8 @@ class BatchedCg final : public SparseFactor {
         if (predicted > double(kIcSwitchSteps)) turn_to_preconditioner();
       }
       if (probe) best.push_back(rr_best);
-      if (probe && it > 0 && it % probe_.steps == 0) check_probe(it, m, best, rr_best, rr0, done);
+      if (probe && it > 0 && it % probe_.steps == 0)
+        if (SolveStatus s = check_probe(it, m, best, rr_best, rr0, done); !s.ok()) return s;
       const Sums pq = times_a(p, q, m, reduce);
       for (std::size_t c = 0; c < m; ++c) alpha[c] = done[c] || !(pq[c] > 0) ? 0.0 : rz[c] / pq[c];
       // x += alpha p, r -= alpha q, and r . r per column.
@@ -681,7 +693,7 @@ class BatchedCg final : public SparseFactor {
           for (std::size_t c = 0; c < m; ++c) p[k * m + c] = w[k * m + c] + beta[c] * p[k * m + c];
       });
     }
-    finish_columns(b, x, rr, rr0, unit, it, all_done());
+    return finish_columns(b, x, rr, rr0, unit, it, all_done());
   }
 
   std::vector<std::uint32_t> order_;
@@ -726,7 +738,7 @@ class BatchedCg final : public SparseFactor {
 
 }  // namespace
 
-std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
+std::unique_ptr<KernelSolver> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
                                                   double tolerance, std::size_t max_iterations, CgProbe probe,
                                                   CgPreconditioner preconditioner) {
   return std::make_unique<BatchedCg>(a, std::move(order), tolerance, max_iterations, std::move(probe),
@@ -782,7 +794,7 @@ std::pair<double, double> lanczos_extremes(const KernelMatrix& a, unsigned seed)
 }
 
 namespace {
-class EnvelopeFactor final : public SparseFactor {
+class EnvelopeFactor final : public KernelSolver {
  public:
   EnvelopeFactor(const KernelMatrix& a, std::vector<std::uint32_t> order, double memory_limit_bytes,
                  std::string_view ordering, double held_bytes)
@@ -792,8 +804,9 @@ class EnvelopeFactor final : public SparseFactor {
     factor_ = envelope_matrix(a, order_, std::move(first));
     envelope_cholesky(factor_, order_);
   }
-  void solve_in_place(RowMatrix& b, const RowMatrix* = nullptr) const override {
+  SolveStatus solve(RowMatrix& b, const RowMatrix* = nullptr) override {
     solve_permuted<RowMatrix>(b, order_, [&](RowMatrix& bp) { factor_.solve_in_place(bp); });
+    return {};
   }
   std::size_t nonzeros() const override { return factor_.envelope_entries() + order_.size(); }
   double held_bytes() const override { return double(factor_.storage_bytes()) + 4.0 * double(order_.size()); }
@@ -830,7 +843,7 @@ void envelope_cholesky(EnvelopeMatrix& env, std::span<const std::uint32_t> order
   }
 }
 
-std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
+std::unique_ptr<KernelSolver> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
                                               double memory_limit_bytes, std::string_view ordering, double held_bytes) {
   return std::make_unique<EnvelopeFactor>(a, std::move(order), memory_limit_bytes, ordering,
                                           kernel_matrix_bytes(a) + held_bytes);
@@ -877,7 +890,7 @@ std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<
                      "' is not available in this build of csrbf");
 }
 
-std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
+std::unique_ptr<KernelSolver> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
                                             double memory_limit_bytes, double held_bytes) {
   return analyse_sparse(a, sources, which, memory_limit_bytes, held_bytes)->factorise();
 }

@@ -1,9 +1,11 @@
-// The general sparse Cholesky factorisations of the CSRBF matrix (private to csrbf::core): Eigen's
-// SimplicialLLT with AMD ordering, and SuiteSparse CHOLMOD's supernodal factorisation (nested
-// dissection, BLAS-3 on dense supernodes) when csrbf is built with it. They work in the input order of
-// the sources (they permute internally).
+// The solvers behind csrbf/detail/kernel_solver.hpp (private to csrbf::core): the general sparse
+// Cholesky factorisations of the CSRBF matrix, Eigen's SimplicialLLT with AMD ordering and SuiteSparse
+// CHOLMOD's supernodal factorisation (nested dissection, BLAS-3 on dense supernodes) when csrbf is
+// built with it, the envelope Cholesky as a solver, conjugate gradients, and what they hold. They work
+// in the input order of the sources (they permute internally).
 #pragma once
 
+#include "csrbf/detail/kernel_solver.hpp"
 #include "csrbf/fit_options.hpp"
 #include "csrbf/kernel_matrix.hpp"
 #include "csrbf/types.hpp"
@@ -16,32 +18,6 @@
 #include <string>
 
 namespace csrbf::detail {
-
-class SparseFactor {
- public:
-  virtual ~SparseFactor() = default;
-  /// Solves A X = B in place; B is N x m in the input order of the sources. Thread-safe. An
-  /// iterative solver starts from `initial` (N x m, the same order) where one is given; a direct
-  /// one ignores it.
-  virtual void solve_in_place(RowMatrix& b, const RowMatrix* initial = nullptr) const = 0;
-  /// Whether an initial guess helps (iterative solvers).
-  virtual bool iterative() const { return false; }
-  /// Entries of the factor L.
-  virtual std::size_t nonzeros() const = 0;
-  /// Iterative solvers: steps and final relative residual of the last solve (0 for direct ones).
-  virtual std::size_t iterations() const { return 0; }
-  virtual double residual() const { return 0.0; }
-  /// Bytes the solver holds beside A (its copy of A's rows, its factor), counted against the memory
-  /// limit when another solver is built while this one lives (Auto's take-over after CG).
-  virtual double held_bytes() const = 0;
-  /// CG: Auto's probe stops, so that later solves run until they converge or stagnate (Auto keeps CG
-  /// where the direct solvers are refused by the memory limit). Nothing for the direct solvers.
-  virtual void stop_probing() const {}
-  /// CG, once another solver has taken over for good: frees its copy of A's rows (after a solve in
-  /// progress ends); a later solve throws CgStagnated, so that its caller turns to the one that
-  /// took over. Nothing for the direct solvers.
-  virtual void release() {}
-};
 
 /// Bytes of A as KernelMatrix holds it: a 4-byte column and an 8-byte value an off-diagonal entry,
 /// and an 8-byte offset a row.
@@ -78,17 +54,14 @@ inline constexpr std::size_t kIcProbeSteps = 12;
 inline constexpr std::size_t kIcSwitchSteps = 80;
 inline constexpr double kIcStepCost = 2.0;
 
-/// CG did not reach its tolerance within its step limit (the caller falls back to a direct solver).
-/// CG gives up when its residual has not fallen 10x over this many steps (docs/RELIABILITY.md).
-inline constexpr std::size_t kCgStagnationWindow = 1000;
-/// At its step limit, CG keeps a solution whose relative residual is at most this (the fit then
-/// checks the residual at the controls against 1e-6 itself).
-inline constexpr double kCgGoodEnough = 1e-8;
-
+/// A failed solve (SolveStatus) as an exception, for callers with no other solver to turn to
+/// (KernelSolver::solve_in_place), and for a fit whose every solver has been tried.
 class CgStagnated : public std::runtime_error {
  public:
   CgStagnated(const std::string& what, double predicted_steps, std::size_t steps_taken, bool gave_way = false)
       : std::runtime_error(what), predicted_(predicted_steps), taken_(steps_taken), gave_way_(gave_way) {}
+  explicit CgStagnated(const SolveStatus& s)
+      : CgStagnated(s.message, s.predicted_steps, s.steps, s.info == SystemInfo::GaveWay) {}
   /// Auto's probe found another solver cheaper (CG was still converging, or had just begun); else CG
   /// stagnated or reached its step limit, and would do so again on the same matrix.
   bool gave_way() const noexcept { return gave_way_; }
@@ -103,34 +76,6 @@ class CgStagnated : public std::runtime_error {
   std::size_t taken_;
   bool gave_way_;
 };
-
-/// Auto's check on CG: every `steps` steps of a solve, CG predicts the steps it needs in all from the
-/// residual's decrease over its last two thirds of steps (geometric, for the
-/// slowest right-hand side) and gives up, throwing CgStagnated, unless worth_it(predicted, done)
-/// holds (done: the steps taken, a sunk cost).
-struct CgProbe {
-  std::size_t steps = 0;  ///< 0: no probe
-  std::function<bool(double predicted_steps, double done)> worth_it;
-};
-
-/// CG's preconditioner where a solve needs one: the incomplete Cholesky (no points), or additive
-/// Schwarz over patches of `points` (the sources, input order; schwarz.hpp), which the incomplete
-/// Cholesky replaces where the patches would take more than schwarz_share. The points are borrowed:
-/// they must outlive the solver (SpaceMap::Structure holds both).
-struct CgPreconditioner {
-  std::span<const Vec3> points;
-};
-
-/// Conjugate gradients on A, the right-hand sides of a solve together: one parallel pass over A a
-/// step serves all of them (a block of independent recurrences, not a block-Krylov method). A's
-/// diagonal is phi(0) everywhere, so Jacobi preconditioning would change nothing. Rows are stored in
-/// `order` (a bandwidth-reducing ordering of the sources) for locality: a copy of A's rows, or A's
-/// own where `order` is the identity (A must then outlive the solver). Stops at a relative residual
-/// of `tolerance` per column; throws CgStagnated after `max_iterations`, or as soon as the worst
-/// column's smallest relative residual has not fallen 10x in the last kCgStagnationWindow steps.
-std::unique_ptr<SparseFactor> conjugate_gradients(const KernelMatrix& a, std::vector<std::uint32_t> order,
-                                                  double tolerance, std::size_t max_iterations, CgProbe probe = {},
-                                                  CgPreconditioner preconditioner = {});
 
 /// Estimates of A's smallest and largest eigenvalues: the extreme Ritz values of the Lanczos
 /// tridiagonal matrix after up to 300 steps from a seeded random vector (fewer where they settle to
@@ -147,11 +92,11 @@ void check_envelope_size(std::span<const std::size_t> first_columns, double memo
 /// (order[row]) rather than the row.
 void envelope_cholesky(EnvelopeMatrix& env, std::span<const std::uint32_t> order);
 
-/// The paper's envelope Cholesky of A in `order` (rows: the sources order[k]) as a SparseFactor that
+/// The paper's envelope Cholesky of A in `order` (rows: the sources order[k]) as a KernelSolver that
 /// takes and gives the input order: the direct solver Auto turns to after CG on a small system.
 /// ResourceLimit when the envelope exceeds memory_limit_bytes; NotPositiveDefinite names the source.
 /// held_bytes: what the fit holds beside A (a solver that gave way).
-std::unique_ptr<SparseFactor> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
+std::unique_ptr<KernelSolver> envelope_factor(const KernelMatrix& a, std::vector<std::uint32_t> order,
                                               double memory_limit_bytes, std::string_view ordering,
                                               double held_bytes = 0);
 
@@ -164,7 +109,7 @@ class SparseAnalysis {
   /// Floating-point operations of the numeric factorisation, as the analysis predicts them.
   virtual double flops() const = 0;
   /// The numeric factorisation (once): NotPositiveDefinite on failure.
-  virtual std::unique_ptr<SparseFactor> factorise() = 0;
+  virtual std::unique_ptr<KernelSolver> factorise() = 0;
 };
 /// factor_sparse's first step: ResourceLimit already here when the factor would pass the limit.
 /// held_bytes: what the fit holds beside A (a solver that gave way), counted with the factor.
@@ -175,7 +120,7 @@ std::unique_ptr<SparseAnalysis> analyse_sparse(const KernelMatrix& a, std::span<
 /// Solver::Cholmod (in nested_dissection_order of the sources). Throws NotPositiveDefinite on
 /// failure, InvalidInput when CHOLMOD is asked for but not built in, ResourceLimit when the
 /// symbolic analysis predicts a factor beyond memory_limit_bytes (before the numeric factorisation).
-std::unique_ptr<SparseFactor> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
+std::unique_ptr<KernelSolver> factor_sparse(const KernelMatrix& a, std::span<const Vec3> sources, Solver which,
                                             double memory_limit_bytes, double held_bytes = 0);
 
 }  // namespace csrbf::detail

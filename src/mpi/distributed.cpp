@@ -1,5 +1,6 @@
 #include "csrbf/mpi/distributed.hpp"
 
+#include "csrbf/detail/kernel_solver.hpp"
 #include "csrbf/errors.hpp"
 #include "csrbf/kernels.hpp"
 #include "csrbf/mpi/runtime.hpp"
@@ -7,7 +8,6 @@
 #include "csrbf/neighbor_index.hpp"
 #include "csrbf/ordering.hpp"
 #include "csrbf/units.hpp"
-#include "sparse_solver.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -243,16 +243,12 @@ bool core_cg(std::span<const Vec3> sources, const FitOptions& options, const Col
     probe.steps = 10;
     probe.worth_it = [budget](double predicted, double) { return predicted <= budget; };
   }
-  try {
-    const auto cg = detail::conjugate_gradients(a, std::move(order), kCgTolerance, kCgMaxIterations, std::move(probe));
-    RowMatrix b = rhs;
-    cg->solve_in_place(b);
-    sol = b;
-    iterations = std::max(iterations, cg->iterations());
-    return true;
-  } catch (const detail::CgStagnated&) {
-    return false;
-  }
+  const auto cg = detail::conjugate_gradients(a, std::move(order), kCgTolerance, kCgMaxIterations, std::move(probe));
+  RowMatrix b = rhs;
+  if (!cg->solve(b).ok()) return false;  // stagnated, or gave way to the budget: a status, as KSP's
+  sol = b;
+  iterations = std::max(iterations, cg->iterations());
+  return true;
 }
 
 /// The KSP of one solver over A: MUMPS's Cholesky (PCCHOLESKY, MATSOLVERMUMPS, factorised at the
