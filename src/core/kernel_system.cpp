@@ -122,6 +122,23 @@ KernelSystem::KernelSystem(std::shared_ptr<detail::PointCloud> points, const Ker
 
 KernelSystem::~KernelSystem() = default;
 
+namespace {
+
+/// UsageError unless the system is factorised, b has its n rows and guess (if any) b's shape (misuse
+/// of the API read and wrote past b's end); `call` names the call.
+void check_solve(const char* call, bool factorised, std::size_t n, const RowMatrix& b, const RowMatrix* guess) {
+  const auto shape = [](const RowMatrix& x) { return std::to_string(x.rows()) + " x " + std::to_string(x.cols()); };
+  if (!factorised) throw UsageError(std::string("KernelSystem: call factorise() before ") + call);
+  if (std::size_t(b.rows()) != n)
+    throw UsageError(std::string("KernelSystem::") + call + ": the right-hand sides are " + shape(b) +
+                     ", not of the system's " + std::to_string(n) + " rows");
+  if (guess && (guess->rows() != b.rows() || guess->cols() != b.cols()))
+    throw UsageError(std::string("KernelSystem::") + call + ": the guess is " + shape(*guess) +
+                     ", the right-hand sides " + shape(b));
+}
+
+}  // namespace
+
 std::size_t KernelSystem::size() const noexcept { return cloud_->points.size(); }
 std::span<const Vec3> KernelSystem::points() const noexcept { return cloud_->points; }
 
@@ -134,6 +151,7 @@ bool KernelSystem::polynomial_degenerate() const noexcept {
 }
 
 void KernelSystem::analyse() {
+  if (a_.size() == size()) throw UsageError("KernelSystem: analyse() was called already (once a system)");
   graph_and_matrix();
   chosen_ = ordering_and_solver();
 }
@@ -284,7 +302,8 @@ Solver KernelSystem::ordering_and_solver() {
 }
 
 void KernelSystem::factorise() {
-  assert(a_.size() == size() && !solver_ && "KernelSystem: call analyse() first, and factorise() once");
+  if (a_.size() != size()) throw UsageError("KernelSystem: call analyse() before factorise()");
+  if (solver_) throw UsageError("KernelSystem: factorise() was called already (once a system)");
   info_ = SystemInfo::Success;
   if (chosen_ == Solver::Envelope) {
     try {
@@ -401,7 +420,6 @@ void KernelSystem::polynomial_block() {
 }
 
 SolveStatus KernelSystem::solve_columns(RowMatrix& b, const RowMatrix* guess) {
-  assert(solver_ && "KernelSystem: call factorise() first");
   if (std::size_t(b.cols()) <= kSolveColumns) return solver_->solve(b, guess);
   for (Eigen::Index c0 = 0; c0 < b.cols(); c0 += Eigen::Index(kSolveColumns)) {
     const Eigen::Index w = std::min<Eigen::Index>(Eigen::Index(kSolveColumns), b.cols() - c0);
@@ -416,6 +434,7 @@ SolveStatus KernelSystem::solve_columns(RowMatrix& b, const RowMatrix* guess) {
 }
 
 SolveStatus KernelSystem::solve(RowMatrix& b, Eigen::MatrixXd& beta, const RowMatrix* guess) {
+  check_solve("solve()", solver_ != nullptr, size(), b, guess);
   const std::size_t n = size(), m = std::size_t(b.cols());
   // The envelope solves in its own order: b's rows (row-major, m a row) are copied into it and back.
   RowMatrix z;
@@ -437,7 +456,10 @@ SolveStatus KernelSystem::solve(RowMatrix& b, Eigen::MatrixXd& beta, const RowMa
   return s;
 }
 
-SolveStatus KernelSystem::solve_matrix(RowMatrix& b) { return solve_columns(b, nullptr); }
+SolveStatus KernelSystem::solve_matrix(RowMatrix& b) {
+  check_solve("solve_matrix()", solver_ != nullptr, size(), b, nullptr);
+  return solve_columns(b, nullptr);
+}
 
 void KernelSystem::require(const SolveStatus& status) {
   if (!status.ok()) throw detail::CgStagnated(status);

@@ -230,6 +230,44 @@ TEST(KernelSystem, RefusesBadInputs) {
   EXPECT_NO_THROW(KernelSystem(pts, o, std::vector<double>{0.1, 0.2, 0.3}));
 }
 
+// A phase out of order, or right-hand sides of another size, is a UsageError naming it (it read and
+// wrote past b's end in a Release build).
+TEST(KernelSystem, MisuseIsAUsageErrorNotACrash) {
+  std::mt19937 rng(5);
+  const std::vector<Vec3> pts = lattice(3, 1.0 / 6, rng);  // 216 points
+  const Eigen::Index n = Eigen::Index(pts.size());
+  KernelSystemOptions o;
+  o.radius = 0.4;
+  o.degree = 1;
+  KernelSystem sys(pts, o);
+  RowMatrix b = RowMatrix::Ones(n, 1);
+  Eigen::MatrixXd beta;
+  const auto message = [&](auto&& f) -> std::string {
+    try {
+      f();
+    } catch (const UsageError& e) {
+      return e.what();
+    }
+    return "no error";
+  };
+  EXPECT_EQ(message([&] { sys.factorise(); }), "KernelSystem: call analyse() before factorise()");
+  sys.analyse();
+  EXPECT_EQ(message([&] { sys.analyse(); }), "KernelSystem: analyse() was called already (once a system)");
+  EXPECT_EQ(message([&] { sys.solve(b, beta); }), "KernelSystem: call factorise() before solve()");
+  EXPECT_EQ(message([&] { sys.solve_matrix(b); }), "KernelSystem: call factorise() before solve_matrix()");
+  sys.factorise();
+  EXPECT_EQ(message([&] { sys.factorise(); }), "KernelSystem: factorise() was called already (once a system)");
+  RowMatrix shorter = RowMatrix::Ones(n - 7, 1);
+  EXPECT_EQ(message([&] { sys.solve(shorter, beta); }),
+            "KernelSystem::solve(): the right-hand sides are 209 x 1, not of the system's 216 rows");
+  const RowMatrix guess = RowMatrix::Zero(n, 2);
+  EXPECT_EQ(message([&] { sys.solve(b, beta, &guess); }),
+            "KernelSystem::solve(): the guess is 216 x 2, the right-hand sides 216 x 1");
+  ASSERT_TRUE(sys.solve(b, beta).ok());
+  EXPECT_EQ(beta.rows(), 4);
+  EXPECT_LT(sys.residual(b, beta, RowMatrix::Ones(n, 1)).relative, 1e-9);
+}
+
 // Two points at one position: DuplicateSource from analyse(), unless both are shifted.
 TEST(KernelSystem, CoincidentPointsNeedAShift) {
   const std::vector<Vec3> pts{Vec3(0, 0, 0), Vec3(0.1, 0, 0), Vec3(0.1, 0, 0), Vec3(0, 0.1, 0)};
