@@ -17,38 +17,12 @@
 
 #include <CLI/CLI.hpp>
 
-#include <unistd.h>
-
-#include <cerrno>
-#include <climits>
-#include <cstring>
-#include <filesystem>
 #include <iostream>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace csrbf::cli {
-
-namespace {
-
-/// Runs csrbf-bench, beside this program, with argv (the launcher runs it for `csrbf bench`
-/// itself); 1 if it cannot.
-int run_bench_program(char** argv) {
-  char self[PATH_MAX];
-  const ssize_t n = ::readlink("/proc/self/exe", self, sizeof self - 1);
-  std::string program = "csrbf-bench";
-  if (n > 0) {
-    self[n] = 0;
-    program = (std::filesystem::path(self).parent_path() / "csrbf-bench").string();
-  }
-  ::execv(program.c_str(), argv);
-  std::cerr << "csrbf: error: cannot run " << program << ": " << std::strerror(errno)
-            << " (csrbf is not installed whole: install it again)\n";
-  return 1;
-}
-
-}  // namespace
 
 int cli_main(int argc, char** argv, Ranks* ranks) {
   start_program(argv);
@@ -96,7 +70,7 @@ int cli_main(int argc, char** argv, Ranks* ranks) {
     }
     return leave(*deform ? ranks->deform(deform_args) : ranks->morph(morph_args));
   }
-  if (*bench) return run_bench_program(given.data());
+  if (*bench) return run_sibling("csrbf-bench", given.data());  // the launcher runs it itself
 
   return run_command([&]() -> int {
     if (*deform) return run_deform(deform_args);

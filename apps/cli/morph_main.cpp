@@ -9,34 +9,9 @@
 #include "csrbf/morph/volume_file.hpp"
 #include "csrbf/io/atomic_file.hpp"
 
-#include <unistd.h>
-
-#include <cerrno>
-#include <climits>
-#include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <string>
 #include <vector>
-
-namespace {
-
-/// Runs csrbf-cli, beside this program, with argv: it reads every format.
-[[noreturn]] void run_whole_program(char** argv) {
-  char self[PATH_MAX];
-  const ssize_t n = ::readlink("/proc/self/exe", self, sizeof self - 1);
-  std::string program = "csrbf-cli";
-  if (n > 0) {
-    self[n] = 0;
-    program = (std::filesystem::path(self).parent_path() / "csrbf-cli").string();
-  }
-  ::execv(program.c_str(), argv);
-  std::fprintf(stderr, "csrbf: error: cannot run %s: %s (csrbf is not installed whole: install it again)\n",
-               program.c_str(), std::strerror(errno));
-  std::exit(1);
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   csrbf::cli::start_program(argv);
@@ -60,7 +35,7 @@ int main(int argc, char** argv) {
     std::vector<char*> again;
     for (std::string& a : kept) again.push_back(a.data());
     again.push_back(nullptr);
-    run_whole_program(again.data());
+    std::exit(csrbf::cli::run_sibling("csrbf-cli", again.data()));  // it reads every format
   }
   csrbf::io::limit_time(time_limit, true);
   return csrbf::cli::run_command([&] { return csrbf::cli::run_morph(args); });

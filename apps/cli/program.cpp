@@ -9,9 +9,12 @@
 
 #include <unistd.h>
 
+#include <cerrno>
+#include <climits>
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <filesystem>
 #include <iostream>
 #include <new>
 #include <sstream>
@@ -94,6 +97,20 @@ int run_command(const std::function<int()>& command) {
     std::cerr << "csrbf: error: " << printable(e.what()) << '\n';
     return 1;
   }
+}
+
+int run_sibling(const char* name, char** argv) {
+  char self[PATH_MAX];
+  const ssize_t n = ::readlink("/proc/self/exe", self, sizeof self - 1);
+  std::string program = name;
+  if (n > 0) {
+    self[n] = 0;
+    program = (std::filesystem::path(self).parent_path() / name).string();
+  }
+  ::execv(program.c_str(), argv);
+  std::cerr << "csrbf: error: cannot run " << program << ": " << std::strerror(errno)
+            << " (csrbf is not installed whole: install it again)\n";
+  return 1;
 }
 
 }  // namespace csrbf::cli

@@ -23,6 +23,10 @@ void openfoam_spellings(int argc, char** argv);
 /// Prints a parse error (or --help) as csrbf prints every error, unless quiet; the exit status.
 int parse_failed(CLI::App& app, const CLI::ParseError& e, bool quiet);
 
+/// Replaces this process with the csrbf program `name` in this program's own folder (libexec/csrbf),
+/// with argv. Returns only where it cannot: 1, having said why on stderr.
+int run_sibling(const char* name, char** argv);
+
 /// Runs a command: its status, or 2 for a UsageError and 1 for any other error, printed.
 int run_command(const std::function<int()>& command);
 
